@@ -1,0 +1,46 @@
+"""The ``mbctl`` command line. Each command module registers its commands on ``app``."""
+
+from __future__ import annotations
+
+import sys
+
+import typer
+
+from mbctl.exceptions import ToolkitError
+
+app = typer.Typer(
+    name="mbctl",
+    help="Model-based robot control: Pinocchio models, MuJoCo plants, cross-checked.",
+    no_args_is_help=True,
+    add_completion=False,
+    pretty_exceptions_enable=False,
+)
+
+
+def _register_commands() -> None:
+    # One module per command family; each exposes register(app). Imported here, not at module
+    # top, so `mbctl --help` stays fast and a broken family names itself in the traceback.
+    from mbctl import cli_robots
+
+    cli_robots.register(app)
+    # further command families register below
+
+
+def fail(message: str, code: int = 2) -> typer.Exit:
+    """Print ``message`` to stderr and return an Exit to raise with ``code``."""
+    typer.echo(f"error: {message}", err=True)
+    return typer.Exit(code)
+
+
+def main() -> None:
+    """Console-script entry point: toolkit errors exit 2 with their message, no traceback."""
+    _register_commands()
+    try:
+        app()
+    except ToolkitError as exc:  # commands raise toolkit errors; users see the message only
+        typer.echo(f"error: {exc}", err=True)
+        sys.exit(2)
+
+
+if __name__ == "__main__":
+    main()

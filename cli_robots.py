@@ -1,0 +1,83 @@
+"""CLI: ``mbctl robots`` and ``mbctl inspect`` — what robots exist and what is in them."""
+
+from __future__ import annotations
+
+from typing import Annotated
+
+import mujoco
+import numpy as np
+import typer
+
+from mbctl.robots import KNOWN_ROBOTS, Robot, load_robot
+
+RobotArg = Annotated[str, typer.Argument(help="Known robot name (see `mbctl robots`) or MJCF path.")]
+SceneOpt = Annotated[
+    str | None, typer.Option("--scene", help="Scene MJCF for MuJoCo, when ROBOT is a path.")
+]
+
+
+def robots() -> None:
+    """List the known robots and where each model comes from."""
+    for known in KNOWN_ROBOTS.values():
+        typer.echo(f"{known.name:16s} {known.description}")
+        typer.echo(f"{'':16s} source: {known.origin}")
+    typer.echo("Any other MJCF robot: pass its path (and --scene for a scene that includes it).")
+
+
+def _range(lo: float, hi: float) -> str:
+    return "unlimited" if not (np.isfinite(lo) and np.isfinite(hi)) else f"[{lo:g}, {hi:g}]"
+
+
+def describe(robot: Robot) -> str:
+    """A side-by-side text description of both engines' view of ``robot``."""
+    pm, m = robot.pin_model, robot.mj_model
+    lines = [
+        f"robot: {robot.name}  ({robot.source.origin})",
+        f"  Pinocchio file: {robot.source.robot_file}",
+        f"  MuJoCo file:    {robot.source.scene_file}",
+    ]
+    lines += [f"  load-time edit: {e}" for e in robot.source.edits]
+    lines += [
+        f"{'':18s}{'Pinocchio':>12s}{'MuJoCo':>12s}",
+        f"{'nq':18s}{pm.nq:12d}{m.nq:12d}",
+        f"{'nv':18s}{pm.nv:12d}{m.nv:12d}",
+        f"{'nu (actuators)':18s}{'-':>12s}{m.nu:12d}",
+        f"{'total mass [kg]':18s}{sum(i.mass for i in pm.inertias):12.4f}{np.sum(m.body_mass):12.4f}",
+        f"{'timestep [s]':18s}{'-':>12s}{m.opt.timestep:12g}",
+        f"{'integrator':18s}{'-':>12s}{mujoco.mjtIntegrator(m.opt.integrator).name[6:]:>12s}",
+        "joints (name, type, q slice, v slice, Pinocchio joint type, armature):",
+    ]
+    for j in robot.joints.values():
+        jid = pm.getJointId(j.name) if pm.existJointName(j.name) else -1
+        pin_type = pm.joints[jid].shortname() if jid >= 0 else "missing"
+        arm = float(m.dof_armature[j.idx_v])
+        lines.append(
+            f"  {j.name:28s} {j.kind:6s} q[{j.q_slice.start}:{j.q_slice.stop}] "
+            f"v[{j.v_slice.start}:{j.v_slice.stop}]  {pin_type:22s} armature {arm:g}"
+        )
+    by_kind: dict[str, int] = {}
+    for j in robot.joints.values():
+        by_kind[j.kind] = by_kind.get(j.kind, 0) + 1
+    lines.append("joints by type: " + ", ".join(f"{k} {n}" for k, n in by_kind.items()))
+    lines.append("actuators (name, joint, kind, gear, kp, kv, ctrl range, force range):")
+    for a in robot.actuators.values():
+        lines.append(
+            f"  {a.name:28s} {a.joint:28s} {a.kind:8s} gear {a.gear:g} kp {a.kp:g} kv {a.kv:.4g} "
+            f"ctrl {_range(*a.ctrl_range)} force {_range(*a.force_range)}"
+        )
+    lines.append("sensors (name, type, dim):")
+    lines += [f"  {s.name:36s} {s.type:16s} {s.dim}" for s in robot.sensors.values()]
+    lines.append(f"sites: {', '.join(robot.sites) or '-'}")
+    lines.append(f"keyframes: {', '.join(robot.keyframes) or '-'}")
+    return "\n".join(lines)
+
+
+def inspect(robot: RobotArg, scene: SceneOpt = None) -> None:
+    """Show nq, nv, nu, joints, actuators, sensors and keyframes in both engines."""
+    typer.echo(describe(load_robot(robot, scene)))
+
+
+def register(app: typer.Typer) -> None:
+    """Add this module's commands to ``app``."""
+    app.command("robots")(robots)
+    app.command("inspect")(inspect)

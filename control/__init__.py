@@ -1,0 +1,1 @@
+"""mbctl.control."""

@@ -1,0 +1,334 @@
+"""The model pair: one robot as a Pinocchio model (the analytic model) and a MuJoCo model (the plant).
+
+Both come from the same MJCF: Pinocchio reads the robot file, MuJoCo the scene file (which may
+``<include>`` the robot file, something Pinocchio's parser cannot follow). On construction the
+pair is checked for agreement (joint names and order, nq, nv, total mass, armature, gravity).
+"""
+
+from __future__ import annotations
+
+import tempfile
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass, field
+from pathlib import Path
+from types import MappingProxyType
+
+import mujoco
+import numpy as np
+import numpy.typing as npt
+import pinocchio as pin
+
+from mbctl.robots.conventions import JointLayout, StateConverter
+from mbctl.robots.exceptions import ModelFileError, ModelMismatchError, UnknownNameError
+from mbctl.robots.names import ActuatorInfo, SensorInfo, actuator_infos, names_of, sensor_infos
+
+_MJ_JOINT_KIND = {
+    mujoco.mjtJoint.mjJNT_FREE: "free",
+    mujoco.mjtJoint.mjJNT_BALL: "ball",
+    mujoco.mjtJoint.mjJNT_HINGE: "hinge",
+    mujoco.mjtJoint.mjJNT_SLIDE: "slide",
+}
+
+#: Relative tolerance on total mass and absolute tolerance on armature [kg m^2] in the
+#: load-time agreement check: both engines parse the same decimal strings, so anything beyond
+#: floating-point round-off is a real difference.
+MASS_RTOL = 1e-9
+ARMATURE_ATOL = 1e-12
+
+
+@dataclass(frozen=True)
+class ModelSource:
+    """Where a robot's two models come from, for reports and hashing.
+
+    Attributes:
+        name: Robot name (a known robot) or the robot file's stem.
+        robot_file: MJCF file Pinocchio reads.
+        scene_file: MJCF file MuJoCo reads (may include ``robot_file``).
+        origin: Human-readable provenance (e.g. "embedded", "menagerie unitree_g1 @ <dir>").
+        edits: Load-time edits applied on top of the files (MjSpec or Pinocchio), in order.
+    """
+
+    name: str
+    robot_file: Path
+    scene_file: Path
+    origin: str
+    edits: tuple[str, ...] = field(default=())
+
+    def files(self) -> dict[str, Path]:
+        """The model files by role (deduplicated)."""
+        out = {"robot": self.robot_file}
+        if self.scene_file != self.robot_file:
+            out["scene"] = self.scene_file
+        return out
+
+
+def load_mj_spec(path: Path) -> mujoco.MjSpec:
+    """Parse an MJCF file into an MjSpec; a bad file raises ModelFileError naming it."""
+    if not path.is_file():
+        raise ModelFileError(f"Model file {str(path)!r} does not exist.")
+    try:
+        return mujoco.MjSpec.from_file(str(path))
+    except ValueError as exc:
+        raise ModelFileError(f"MuJoCo cannot parse {str(path)!r}: {exc}") from exc
+
+
+def compile_spec(spec: mujoco.MjSpec, path: Path) -> mujoco.MjModel:
+    """Compile an MjSpec; a failure raises ModelFileError naming the file."""
+    try:
+        return spec.compile()
+    except ValueError as exc:
+        raise ModelFileError(f"MuJoCo cannot compile {str(path)!r}: {exc}") from exc
+
+
+def load_pin_model(path: Path) -> pin.Model:
+    """Build a Pinocchio model from an MJCF (or URDF, by suffix) file; errors name the file."""
+    if not path.is_file():
+        raise ModelFileError(f"Model file {str(path)!r} does not exist.")
+    try:
+        if path.suffix.lower() == ".urdf":
+            return pin.buildModelFromUrdf(str(path))
+        return pin.buildModelFromMJCF(str(path))
+    except (ValueError, RuntimeError, IndexError) as exc:
+        raise ModelFileError(f"Pinocchio cannot parse {str(path)!r}: {exc}") from exc
+
+
+def pin_model_from_spec(spec: mujoco.MjSpec) -> pin.Model:
+    """Build a Pinocchio model from an (edited) MjSpec via its XML.
+
+    Pinocchio has no MjSpec reader, so the spec is written to a temporary MJCF next to nothing:
+    mesh files are irrelevant to Pinocchio's dynamics (inertias are explicit in ``<inertial>``).
+    """
+    xml = spec.to_xml()
+    with tempfile.NamedTemporaryFile("w", suffix=".xml", delete=True) as tmp:
+        tmp.write(xml)
+        tmp.flush()
+        return pin.buildModelFromMJCF(tmp.name)
+
+
+class Robot:
+    """A robot's Pinocchio model and MuJoCo model, with name maps and convention conversions.
+
+    The public state convention is Pinocchio's: free-flyer quaternions (x, y, z, w) and base
+    velocity in the base frame. ``converter`` maps to and from MuJoCo's convention.
+
+    Attributes:
+        source: Where the models come from and which load-time edits were made.
+        pin_model: Pinocchio model (gravity copied from the MuJoCo model's ``opt.gravity``).
+        mj_model: MuJoCo model of the plant (scene).
+        mj_spec: The MjSpec ``mj_model`` was compiled from (for further load-time edits).
+        converter: Conversions between the two conventions.
+        joints: Joint layouts by name, in model order (q and v slices are the same in both).
+        actuators: Actuators by name, in ctrl order.
+        sensors: Sensors by name, in sensordata order.
+        sites: Site names (MuJoCo ids; Pinocchio frames of the same name).
+        bodies: Body names, world excluded.
+        keyframes: Keyframe names.
+    """
+
+    def __init__(
+        self,
+        source: ModelSource,
+        pin_model: pin.Model,
+        mj_spec: mujoco.MjSpec,
+        check: bool = True,
+    ):
+        """Build the pair; ``check=False`` skips the agreement check (for cross-checking a
+        deliberately different Pinocchio model against the plant)."""
+        self.source = source
+        self.mj_spec = mj_spec
+        self.mj_model = compile_spec(mj_spec, source.scene_file)
+        self.pin_model = pin_model
+        self.pin_model.gravity = pin.Motion(np.array(self.mj_model.opt.gravity), np.zeros(3))
+        m = self.mj_model
+        layouts = []
+        for j in range(m.njnt):
+            kind = _MJ_JOINT_KIND[mujoco.mjtJoint(int(m.jnt_type[j]))]
+            nq = {"free": 7, "ball": 4}.get(kind, 1)
+            nv = {"free": 6, "ball": 3}.get(kind, 1)
+            name = mujoco.mj_id2name(m, mujoco.mjtObj.mjOBJ_JOINT, j) or self._pin_joint_name(j)
+            layouts.append(JointLayout(name, kind, int(m.jnt_qposadr[j]), int(m.jnt_dofadr[j]), nq, nv))
+        self.joints: Mapping[str, JointLayout] = MappingProxyType({j.name: j for j in layouts})
+        self.converter = StateConverter(layouts, m.nq, m.nv)
+        self.actuators: Mapping[str, ActuatorInfo] = MappingProxyType(actuator_infos(m))
+        self.sensors: Mapping[str, SensorInfo] = MappingProxyType(sensor_infos(m))
+        self.sites = names_of(m, mujoco.mjtObj.mjOBJ_SITE, m.nsite)
+        self.bodies = names_of(m, mujoco.mjtObj.mjOBJ_BODY, m.nbody)[1:]
+        self.keyframes = names_of(m, mujoco.mjtObj.mjOBJ_KEY, m.nkey)
+        if check:
+            check_agreement(self)
+
+    # ------------------------------------------------------------------ basic facts
+    @property
+    def name(self) -> str:
+        """Robot name."""
+        return self.source.name
+
+    @property
+    def nq(self) -> int:
+        """Configuration dimension."""
+        return self.pin_model.nq
+
+    @property
+    def nv(self) -> int:
+        """Velocity (tangent) dimension."""
+        return self.pin_model.nv
+
+    @property
+    def nu(self) -> int:
+        """Number of actuators."""
+        return self.mj_model.nu
+
+    @property
+    def has_floating_base(self) -> bool:
+        """Whether the first joint is a free joint."""
+        return bool(self.joints) and next(iter(self.joints.values())).kind == "free"
+
+    @property
+    def timestep_s(self) -> float:
+        """MuJoCo physics timestep [s]."""
+        return float(self.mj_model.opt.timestep)
+
+    def _pin_joint_name(self, mj_joint_id: int) -> str:
+        return self.pin_model.names[mj_joint_id + 1] if mj_joint_id + 1 < self.pin_model.njoints else ""
+
+    # ------------------------------------------------------------------ lookups
+    def joint(self, name: str) -> JointLayout:
+        """The joint called ``name``; UnknownNameError lists close matches."""
+        try:
+            return self.joints[name]
+        except KeyError:
+            raise UnknownNameError("joint", name, self.joints) from None
+
+    def actuator(self, name: str) -> ActuatorInfo:
+        """The actuator called ``name``; UnknownNameError lists close matches."""
+        try:
+            return self.actuators[name]
+        except KeyError:
+            raise UnknownNameError("actuator", name, self.actuators) from None
+
+    def actuator_for_joint(self, joint: str) -> ActuatorInfo:
+        """The (first) actuator driving ``joint``."""
+        self.joint(joint)
+        for info in self.actuators.values():
+            if info.joint == joint:
+                return info
+        raise UnknownNameError(
+            "actuated joint", joint, [a.joint for a in self.actuators.values() if a.joint]
+        )
+
+    def sensor(self, name: str) -> SensorInfo:
+        """The sensor called ``name``; UnknownNameError lists close matches."""
+        try:
+            return self.sensors[name]
+        except KeyError:
+            raise UnknownNameError("sensor", name, self.sensors) from None
+
+    def site_id(self, name: str) -> int:
+        """MuJoCo id of site ``name``."""
+        if name not in self.sites:
+            raise UnknownNameError("site", name, self.sites)
+        return self.sites.index(name)
+
+    def body_id(self, name: str) -> int:
+        """MuJoCo id of body ``name`` (world is 0)."""
+        if name not in self.bodies:
+            raise UnknownNameError("body", name, self.bodies)
+        return self.bodies.index(name) + 1
+
+    def frame_id(self, name: str) -> int:
+        """Pinocchio frame id of a site or body called ``name``."""
+        if not self.pin_model.existFrame(name):
+            known = [f.name for f in self.pin_model.frames]
+            raise UnknownNameError("frame", name, known)
+        return self.pin_model.getFrameId(name)
+
+    def keyframe_id(self, name: str) -> int:
+        """MuJoCo keyframe id of ``name``."""
+        if name not in self.keyframes:
+            raise UnknownNameError("keyframe", name, self.keyframes)
+        return self.keyframes.index(name)
+
+    def keyframe_q(self, name: str) -> np.ndarray:
+        """Configuration (nq,) of keyframe ``name``, Pinocchio convention."""
+        return self.converter.q_mj_to_pin(self.mj_model.key_qpos[self.keyframe_id(name)])
+
+    def keyframe_ctrl(self, name: str) -> np.ndarray:
+        """Actuator controls (nu,) stored in keyframe ``name``."""
+        return np.array(self.mj_model.key_ctrl[self.keyframe_id(name)])
+
+    def neutral_q(self) -> np.ndarray:
+        """Neutral configuration (nq,) (identity quaternions, zero angles), Pinocchio convention."""
+        return pin.neutral(self.pin_model)
+
+    # ------------------------------------------------------------------ derived models
+    def with_edits(
+        self,
+        description: str,
+        mj_edit: Callable[[mujoco.MjSpec], None] | None = None,
+        pin_edit: Callable[[pin.Model], pin.Model] | None = None,
+    ) -> Robot:
+        """A new Robot with load-time edits applied to copies of the models.
+
+        Args:
+            description: What the edit does, recorded in ``source.edits`` and in reports.
+            mj_edit: Mutates a copy of the MjSpec (e.g. add sites, convert actuators).
+            pin_edit: Returns an edited Pinocchio model from a copy of ``pin_model``.
+        """
+        spec = self.mj_spec.copy()
+        if mj_edit is not None:
+            mj_edit(spec)
+        pin_model = self.pin_model.copy()
+        if pin_edit is not None:
+            pin_model = pin_edit(pin_model)
+        source = ModelSource(
+            self.source.name,
+            self.source.robot_file,
+            self.source.scene_file,
+            self.source.origin,
+            (*self.source.edits, description),
+        )
+        return Robot(source, pin_model, spec)
+
+    def __repr__(self) -> str:
+        return f"Robot({self.name!r}, nq={self.nq}, nv={self.nv}, nu={self.nu})"
+
+
+def check_agreement(robot: Robot) -> None:
+    """Check both engines describe the same mechanism; ModelMismatchError lists what differs."""
+    pm, m = robot.pin_model, robot.mj_model
+    problems = []
+    if (pm.nq, pm.nv) != (m.nq, m.nv):
+        problems.append(f"sizes differ: Pinocchio nq={pm.nq}, nv={pm.nv}; MuJoCo nq={m.nq}, nv={m.nv}")
+    pin_names = list(pm.names)[1:]
+    mj_names = list(robot.joints)
+    if pin_names != mj_names:
+        diff = [
+            f"#{i}: {a!r} vs {b!r}"
+            for i, (a, b) in enumerate(zip(pin_names, mj_names, strict=False))
+            if a != b
+        ]
+        problems.append(
+            f"joint names/order differ (Pinocchio vs MuJoCo): {len(pin_names)} vs "
+            f"{len(mj_names)} joints; " + ", ".join(diff[:5])
+        )
+    pin_mass = sum(inertia.mass for inertia in pm.inertias)
+    mj_mass = float(np.sum(m.body_mass))
+    if not np.isclose(pin_mass, mj_mass, rtol=MASS_RTOL, atol=0):
+        problems.append(f"total mass differs: Pinocchio {pin_mass:.9g} kg, MuJoCo {mj_mass:.9g} kg")
+    if pm.nv == m.nv:
+        bad = np.flatnonzero(np.abs(np.asarray(pm.armature) - m.dof_armature) > ARMATURE_ATOL)
+        if bad.size:
+            problems.append(
+                f"armature differs at dofs {bad[:8].tolist()}: Pinocchio "
+                f"{np.asarray(pm.armature)[bad[:8]].tolist()}, MuJoCo {m.dof_armature[bad[:8]].tolist()}"
+            )
+    if problems:
+        raise ModelMismatchError(
+            f"Pinocchio model ({robot.source.robot_file}) and MuJoCo model "
+            f"({robot.source.scene_file}) of {robot.name!r} disagree: " + "; ".join(problems)
+        )
+
+
+def q_array(robot: Robot, q: npt.ArrayLike, what: str = "q") -> np.ndarray:
+    """Validated configuration (nq,) for ``robot``."""
+    return robot.converter.check_q(q, what)

@@ -1,0 +1,124 @@
+"""Name maps of a MuJoCo model: actuators, sensors, keyframes — derived once at load time."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import mujoco
+import numpy as np
+
+#: Command kinds an actuator can take. "other" covers anything mbctl does not drive directly
+#: (muscles, actuators with activation dynamics, tendon or site transmissions).
+ACTUATOR_KINDS = ("torque", "position", "velocity", "other")
+
+
+@dataclass(frozen=True)
+class ActuatorInfo:
+    """One MuJoCo actuator.
+
+    Attributes:
+        name: Actuator name.
+        index: Index in ``MjData.ctrl``.
+        joint: Name of the driven joint ("" for non-joint transmissions).
+        kind: "torque" (motor: force = gear * ctrl), "position" (ctrl is a target [rad] or [m]),
+            "velocity" (ctrl is a target [rad/s] or [m/s]) or "other".
+        gear: Transmission gear.
+        kp: Position gain [N m/rad] for position actuators, else 0.
+        kv: Velocity gain [N m s/rad] for position/velocity actuators, else 0.
+        ctrl_range: (low, high) of ctrl, or (-inf, inf) when not limited.
+        force_range: (low, high) of the actuator force [N m] or [N], or (-inf, inf).
+    """
+
+    name: str
+    index: int
+    joint: str
+    kind: str
+    gear: float
+    kp: float
+    kv: float
+    ctrl_range: tuple[float, float]
+    force_range: tuple[float, float]
+
+
+@dataclass(frozen=True)
+class SensorInfo:
+    """One MuJoCo sensor: name, type name (e.g. "gyro"), dimension and address in sensordata."""
+
+    name: str
+    type: str
+    dim: int
+    adr: int
+
+    @property
+    def data_slice(self) -> slice:
+        """Slice of ``MjData.sensordata`` holding this sensor."""
+        return slice(self.adr, self.adr + self.dim)
+
+
+def _name(m: mujoco.MjModel, objtype: mujoco.mjtObj, i: int) -> str:
+    return mujoco.mj_id2name(m, objtype, i) or ""
+
+
+def actuator_infos(m: mujoco.MjModel) -> dict[str, ActuatorInfo]:
+    """Every named actuator of ``m``, classified by what its ctrl means."""
+    out: dict[str, ActuatorInfo] = {}
+    for i in range(m.nu):
+        name = _name(m, mujoco.mjtObj.mjOBJ_ACTUATOR, i) or f"actuator{i}"
+        joint = ""
+        if m.actuator_trntype[i] == mujoco.mjtTrn.mjTRN_JOINT:
+            jid = int(m.actuator_trnid[i, 0])
+            joint = _name(m, mujoco.mjtObj.mjOBJ_JOINT, jid)
+        kind, kp, kv = _classify(m, i, joint)
+        ctrl = tuple(m.actuator_ctrlrange[i]) if m.actuator_ctrllimited[i] else (-np.inf, np.inf)
+        force = (-np.inf, np.inf)
+        if m.actuator_forcelimited[i]:
+            force = tuple(m.actuator_forcerange[i])
+        if joint:
+            jid = int(m.actuator_trnid[i, 0])
+            if m.jnt_actfrclimited[jid]:
+                lo, hi = m.jnt_actfrcrange[jid]
+                force = (max(force[0], lo), min(force[1], hi))
+        out[name] = ActuatorInfo(
+            name=name,
+            index=i,
+            joint=joint,
+            kind=kind,
+            gear=float(m.actuator_gear[i, 0]),
+            kp=kp,
+            kv=kv,
+            ctrl_range=(float(ctrl[0]), float(ctrl[1])),
+            force_range=(float(force[0]), float(force[1])),
+        )
+    return out
+
+
+def _classify(m: mujoco.MjModel, i: int, joint: str) -> tuple[str, float, float]:
+    if not joint or m.actuator_dyntype[i] != mujoco.mjtDyn.mjDYN_NONE:
+        return "other", 0.0, 0.0
+    if m.actuator_gaintype[i] != mujoco.mjtGain.mjGAIN_FIXED:
+        return "other", 0.0, 0.0
+    gain = float(m.actuator_gainprm[i, 0])
+    bias = m.actuator_biasprm[i, :3]
+    if m.actuator_biastype[i] == mujoco.mjtBias.mjBIAS_NONE:
+        return "torque", 0.0, 0.0
+    if m.actuator_biastype[i] == mujoco.mjtBias.mjBIAS_AFFINE and bias[0] == 0:
+        if bias[1] != 0 and np.isclose(bias[1], -gain):
+            return "position", gain, float(-bias[2])
+        if bias[1] == 0 and np.isclose(bias[2], -gain):
+            return "velocity", 0.0, gain
+    return "other", 0.0, 0.0
+
+
+def sensor_infos(m: mujoco.MjModel) -> dict[str, SensorInfo]:
+    """Every sensor of ``m`` with its type name, dimension and sensordata address."""
+    out: dict[str, SensorInfo] = {}
+    for i in range(m.nsensor):
+        name = _name(m, mujoco.mjtObj.mjOBJ_SENSOR, i) or f"sensor{i}"
+        type_name = mujoco.mjtSensor(int(m.sensor_type[i])).name.removeprefix("mjSENS_").lower()
+        out[name] = SensorInfo(name, type_name, int(m.sensor_dim[i]), int(m.sensor_adr[i]))
+    return out
+
+
+def names_of(m: mujoco.MjModel, objtype: mujoco.mjtObj, count: int) -> tuple[str, ...]:
+    """Names of all objects of one type, in id order ("" for unnamed ones)."""
+    return tuple(_name(m, objtype, i) for i in range(count))

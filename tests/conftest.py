@@ -1,0 +1,38 @@
+"""Shared fixtures. The G1 runs in CI: it skips only when absent and CI is unset."""
+
+from __future__ import annotations
+
+import os
+
+import pytest
+
+from mbctl.robots import ModelNotFoundError, Robot, load_robot
+
+
+@pytest.fixture(scope="session")
+def g1() -> Robot:
+    """The Menagerie G1 model pair (loaded once per session; treat as read-only)."""
+    try:
+        return load_robot("g1")
+    except ModelNotFoundError as exc:
+        if os.environ.get("CI"):
+            pytest.fail(f"CI must have the G1 (set MENAGERIE_ROOT): {exc}")
+        pytest.skip(f"G1 model not available outside CI: {exc}")
+
+
+@pytest.fixture(scope="session")
+def two_link() -> Robot:
+    """The 2-link arm with position actuators, gravity off."""
+    return load_robot("two_link")
+
+
+@pytest.fixture(scope="session")
+def two_link_torque() -> Robot:
+    """The 2-link arm with torque motors, gravity off."""
+    return load_robot("two_link_torque")
+
+
+@pytest.fixture(scope="session")
+def two_link_torque_gravity() -> Robot:
+    """The 2-link arm with torque motors and in-plane gravity (-y)."""
+    return load_robot("two_link_torque", gravity=True)
