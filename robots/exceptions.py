@@ -46,3 +46,11 @@ class ModelMismatchError(RobotError):
 
 class StateError(RobotError, ValueError):
     """A configuration or velocity vector with the wrong shape or non-finite entries."""
+
+
+class CommandError(RobotError, ValueError):
+    """A command the robot cannot take: wrong kind, shape or names, or non-finite values."""
+
+
+class CommandOutOfRange(CommandError):
+    """A command outside an actuator's ctrlrange, where out-of-range commands are rejected."""

@@ -1,0 +1,88 @@
+"""Binding typed commands to a robot's actuators: names, shape and kind are checked once.
+
+A binding is cached per (kind, names) so a control loop that sends new values to the same
+actuators pays the name resolution only on its first command.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from mbctl.robots.commands import Command
+from mbctl.robots.exceptions import CommandError, UnknownNameError
+from mbctl.robots.model_pair import Robot
+
+
+@dataclass(frozen=True)
+class Binding:
+    """Where a command's values go in ``MjData.ctrl``.
+
+    Attributes:
+        index: ctrl indices, one per value (a full command: ``arange(nu)``).
+        full: Whether the command covers every actuator in order.
+        ctrl_low: Lower ctrl bounds at ``index`` (-inf where unlimited).
+        ctrl_high: Upper ctrl bounds at ``index`` (+inf where unlimited).
+        limited: Whether any bound is finite.
+    """
+
+    index: np.ndarray
+    full: bool
+    ctrl_low: np.ndarray
+    ctrl_high: np.ndarray
+    limited: bool
+
+
+class CommandBinder:
+    """Resolves commands against one robot's actuators (cached per kind and names)."""
+
+    def __init__(self, robot: Robot):
+        self.robot = robot
+        self._by_joint = {a.joint: a for a in reversed(robot.actuators.values()) if a.joint}
+        self._cache: dict[tuple, Binding] = {}
+
+    def bind(self, command: Command) -> Binding:
+        """The binding of ``command``.
+
+        Raises:
+            CommandError: Wrong number of values, or an actuator of another kind (e.g. a torque
+                sent to a position actuator — never silently reinterpreted).
+            UnknownNameError: A name that is neither an actuator nor an actuated joint.
+        """
+        key = (command.kind, command.names, command.values.size)
+        binding = self._cache.get(key)
+        if binding is None:
+            binding = self._cache[key] = self._resolve(command)
+        return binding
+
+    def _resolve(self, command: Command) -> Binding:
+        actuators = self.robot.actuators
+        if command.names is None:
+            if command.values.size != len(actuators):
+                raise CommandError(
+                    f"{command.kind.value} command for {self.robot.name!r} needs {len(actuators)} "
+                    f"values (one per actuator: {', '.join(actuators)}); got {command.values.size}"
+                )
+            infos = list(actuators.values())
+        else:
+            infos = []
+            for name in command.names:
+                info = actuators.get(name) or self._by_joint.get(name)
+                if info is None:
+                    known = list(actuators) + [j for j in self._by_joint if j not in actuators]
+                    raise UnknownNameError("actuator or actuated joint", name, known)
+                infos.append(info)
+        wrong = [a for a in infos if a.kind != command.kind.value]
+        if wrong:
+            listing = ", ".join(f"{a.name} ({a.kind})" for a in wrong[:6])
+            raise CommandError(
+                f"A {command.kind.value} command cannot drive {listing}: the actuator kind differs. "
+                f"Send a command of the actuator's kind, or convert the model's actuators "
+                f"(e.g. mbctl.robots.edits.position_to_motor for torque control)."
+            )
+        index = np.array([a.index for a in infos], dtype=int)
+        low = np.array([a.ctrl_range[0] for a in infos])
+        high = np.array([a.ctrl_range[1] for a in infos])
+        full = command.names is None or np.array_equal(index, np.arange(len(actuators)))
+        return Binding(index, bool(full), low, high, bool(np.isfinite(low).any() or np.isfinite(high).any()))

@@ -1,0 +1,94 @@
+"""Typed actuator commands: a command says what it is — torque, position or velocity target.
+
+The command types live in robots/ (the robot API) so that control/ can produce them without
+importing sim/. A command either covers every actuator (``values`` of shape (nu,), in actuator order) or names
+the actuators it addresses (by actuator name or by the name of the joint an actuator drives).
+Actuators a partial command does not name keep their previous ctrl (MuJoCo holds ctrl).
+
+Commands are immutable (frozen dataclass, read-only array) and validated at construction for
+finiteness; the simulator checks names, shape and actuator kind when it first sees a command.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from dataclasses import dataclass
+from enum import Enum
+
+import numpy as np
+import numpy.typing as npt
+
+from mbctl.robots.exceptions import CommandError
+
+
+class CommandKind(str, Enum):
+    """What a command's values mean, and which actuator kind accepts it."""
+
+    TORQUE = "torque"  # [N m] or [N] through the gear of a motor actuator
+    POSITION = "position"  # target [rad] or [m] of a position actuator
+    VELOCITY = "velocity"  # target [rad/s] or [m/s] of a velocity actuator
+
+
+@dataclass(frozen=True, eq=False)
+class Command:
+    """One command: its kind, values and (optionally) the names they address.
+
+    Attributes:
+        kind: Torque, position target or velocity target.
+        values: Values, shape (nu,) for a full command or (len(names),); read-only.
+        names: Actuator or joint names the values address; None for a full vector.
+    """
+
+    kind: CommandKind
+    values: np.ndarray
+    names: tuple[str, ...] | None = None
+
+    def __post_init__(self) -> None:
+        values = np.array(self.values, dtype=float, ndmin=1)
+        if values.ndim != 1:
+            raise CommandError(f"{self.kind.value} command must be a vector; got shape {values.shape}")
+        if self.names is not None and len(self.names) != values.size:
+            raise CommandError(
+                f"{self.kind.value} command names {len(self.names)} actuators but has "
+                f"{values.size} values"
+            )
+        bad = np.flatnonzero(~np.isfinite(values))
+        if bad.size:
+            where = [self.names[i] for i in bad] if self.names else bad.tolist()
+            raise CommandError(
+                f"{self.kind.value} command must be finite; got {values[bad].tolist()} at {where}"
+            )
+        values.setflags(write=False)
+        object.__setattr__(self, "values", values)
+
+    @property
+    def key(self) -> tuple[CommandKind, tuple[str, ...] | None]:
+        """What the command addresses (kind and names), for caching its binding."""
+        return self.kind, self.names
+
+
+def _make(kind: CommandKind, values: npt.ArrayLike | Mapping[str, float]) -> Command:
+    if isinstance(values, Mapping):
+        names = tuple(values)
+        return Command(kind, np.fromiter(values.values(), float, len(names)), names)
+    try:
+        return Command(kind, np.asarray(values, dtype=float))
+    except (TypeError, ValueError) as exc:
+        if isinstance(exc, CommandError):
+            raise
+        raise CommandError(f"{kind.value} command values must be numbers; got {values!r}") from exc
+
+
+def torque(values: npt.ArrayLike | Mapping[str, float]) -> Command:
+    """Torque command [N m] (or [N]): a full vector (nu,) or ``{actuator_or_joint: value}``."""
+    return _make(CommandKind.TORQUE, values)
+
+
+def position_target(values: npt.ArrayLike | Mapping[str, float]) -> Command:
+    """Position-target command [rad] (or [m]): a full vector (nu,) or a name mapping."""
+    return _make(CommandKind.POSITION, values)
+
+
+def velocity_target(values: npt.ArrayLike | Mapping[str, float]) -> Command:
+    """Velocity-target command [rad/s] (or [m/s]): a full vector (nu,) or a name mapping."""
+    return _make(CommandKind.VELOCITY, values)

@@ -1,0 +1,27 @@
+"""Errors raised by the MuJoCo backend."""
+
+from __future__ import annotations
+
+from mbctl.exceptions import ToolkitError
+
+
+class SimError(ToolkitError):
+    """Base class of simulator errors."""
+
+
+class SimulationDiverged(SimError):
+    """MuJoCo flagged a diverging state (bad qpos, qvel or qacc) and reset its data.
+
+    Attributes:
+        warnings: The divergence warnings that fired, by MuJoCo name, with their counts.
+        time_s: Simulated time [s] of the last step before the check.
+    """
+
+    def __init__(self, warnings: dict[str, int], time_s: float, hint: str = ""):
+        self.warnings = warnings
+        self.time_s = time_s
+        names = ", ".join(f"{k} (x{v})" for k, v in warnings.items())
+        super().__init__(
+            f"Simulation diverged near t={time_s:.4f} s: MuJoCo raised {names} and reset its state. "
+            "Reduce the timestep, the gains or the commanded torques." + (f" {hint}" if hint else "")
+        )

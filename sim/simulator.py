@@ -1,0 +1,299 @@
+"""The MuJoCo plant behind the robot API: stepping, commands, state, sensors, poses, warnings.
+
+State is exposed in Pinocchio's convention (see ``mbctl.robots.conventions``). Derived
+quantities (site and body poses, sensors, contacts) are brought up to date with ``mj_forward``
+on first read after a step, so they always correspond to the current state without paying for
+a forward pass on every step.
+"""
+
+from __future__ import annotations
+
+from typing import Literal
+
+import mujoco
+import numpy as np
+import numpy.typing as npt
+
+from mbctl.robots.command_binding import CommandBinder
+from mbctl.robots.commands import Command
+from mbctl.robots.exceptions import CommandOutOfRange
+from mbctl.robots.interface import RobotState
+from mbctl.robots.model_pair import Robot
+from mbctl.sim.exceptions import SimError, SimulationDiverged
+
+#: MuJoCo warnings that mean the integration diverged (MuJoCo resets the state when they fire).
+DIVERGENCE_WARNINGS = (
+    mujoco.mjtWarning.mjWARN_BADQPOS,
+    mujoco.mjtWarning.mjWARN_BADQVEL,
+    mujoco.mjtWarning.mjWARN_BADQACC,
+)
+_DIVERGENCE_IDS = tuple(int(w) for w in DIVERGENCE_WARNINGS)
+_WARNING_NAMES = {
+    int(w): name.removeprefix("mjWARN_")
+    for name, w in mujoco.mjtWarning.__members__.items()
+    if name != "mjNWARNING"
+}
+
+
+class Simulator:
+    """Steps a robot's MuJoCo model and implements :class:`~mbctl.robots.interface.RobotInterface`.
+
+    Out-of-range commands: a value outside an actuator's ctrlrange is clamped to the range (as
+    MuJoCo itself does for limited actuators) and counted per actuator in ``saturation_counts``;
+    with ``out_of_range="raise"`` it raises :class:`CommandOutOfRange` instead.
+
+    Args:
+        robot: The model pair; the simulator owns a fresh ``MjData`` of ``robot.mj_model``.
+        control_period_s: Period [s] of ``sync()``; an integer multiple of the timestep
+            (default: one timestep).
+        out_of_range: "clamp" (default) or "raise".
+
+    Raises:
+        SimError: A control period that is not a positive integer multiple of the timestep.
+    """
+
+    def __init__(
+        self,
+        robot: Robot,
+        *,
+        control_period_s: float | None = None,
+        out_of_range: Literal["clamp", "raise"] = "clamp",
+    ):
+        self._robot = robot
+        self.model = robot.mj_model
+        self.data = mujoco.MjData(self.model)
+        dt = self.model.opt.timestep
+        period = dt if control_period_s is None else float(control_period_s)
+        ratio = period / dt
+        if period <= 0 or abs(ratio - round(ratio)) > 1e-9 * max(1.0, ratio) or round(ratio) < 1:
+            raise SimError(
+                f"control_period_s={period} must be a positive integer multiple of the timestep "
+                f"{dt} s (e.g. {dt * max(1, round(ratio))})"
+            )
+        if out_of_range not in ("clamp", "raise"):
+            raise SimError(f"out_of_range must be 'clamp' or 'raise'; got {out_of_range!r}")
+        self.n_substeps = int(round(ratio))
+        self._out_of_range = out_of_range
+        self._binder = CommandBinder(robot)
+        self._conv = robot.converter
+        self._fast_state = not self._conv.has_quaternions
+        self.saturation_counts = np.zeros(self.model.nu, dtype=int)
+        self.n_steps = 0
+        self._last_command: Command | None = None
+        self._stale = True
+        self._warn_seen = [0] * len(_DIVERGENCE_IDS)
+        self.reset()
+
+    # ------------------------------------------------------------------ RobotInterface
+    @property
+    def robot(self) -> Robot:
+        """The model pair."""
+        return self._robot
+
+    @property
+    def control_period_s(self) -> float:
+        """Duration [s] of one ``sync()``."""
+        return self.n_substeps * self.model.opt.timestep
+
+    @property
+    def time_s(self) -> float:
+        """Simulated time [s]."""
+        return float(self.data.time)
+
+    def read_state(self) -> RobotState:
+        """Current state (q, v in Pinocchio's convention, time) as read-only copies."""
+        q, v = self.q, self.v
+        q.setflags(write=False)
+        v.setflags(write=False)
+        return RobotState(q, v, float(self.data.time))
+
+    @property
+    def state(self) -> RobotState:
+        """Current state; same as ``read_state()``."""
+        return self.read_state()
+
+    def send(self, command: Command) -> None:
+        """Write a command into ctrl; it holds until the next command.
+
+        Raises:
+            CommandError: Wrong kind, shape, or names (see ``CommandBinder``).
+            CommandOutOfRange: A value outside ctrlrange when ``out_of_range="raise"``.
+        """
+        if command is self._last_command:
+            return  # commands are immutable: the same object is already in ctrl
+        b = self._binder.bind(command)
+        values = command.values
+        if b.limited:
+            low_hit = values < b.ctrl_low
+            high_hit = values > b.ctrl_high
+            if low_hit.any() or high_hit.any():
+                hit = low_hit | high_hit
+                if self._out_of_range == "raise":
+                    i = int(np.flatnonzero(hit)[0])
+                    name = self.model.actuator(int(b.index[i])).name
+                    raise CommandOutOfRange(
+                        f"{command.kind.value} command {values[i]:g} for actuator {name!r} is "
+                        f"outside its ctrlrange [{b.ctrl_low[i]:g}, {b.ctrl_high[i]:g}]"
+                    )
+                self.saturation_counts[b.index[hit]] += 1
+                values = np.clip(values, b.ctrl_low, b.ctrl_high)
+        if b.full:
+            self.data.ctrl[:] = values
+        else:
+            self.data.ctrl[b.index] = values
+        self._last_command = command
+
+    def sync(self) -> None:
+        """Advance the physics by one control period (``n_substeps`` steps)."""
+        self.step(None, self.n_substeps)
+
+    # ------------------------------------------------------------------ stepping
+    def step(self, command: Command | None = None, n: int = 1) -> None:
+        """Apply ``command`` (None keeps the current ctrl) and advance ``n`` physics steps.
+
+        Raises:
+            SimulationDiverged: MuJoCo flagged bad qpos/qvel/qacc during these steps.
+        """
+        if command is not None:
+            self.send(command)
+        if n == 1:
+            mujoco.mj_step(self.model, self.data)
+        elif n > 1:
+            mujoco.mj_step(self.model, self.data, n)
+        else:
+            raise SimError(f"n must be a positive number of steps; got {n}")
+        self.n_steps += n
+        self._stale = True
+        self._check_divergence()
+
+    def _check_divergence(self) -> None:
+        warning = self.data.warning
+        fired = None
+        for k, wid in enumerate(_DIVERGENCE_IDS):
+            count = warning[wid].number
+            if count != self._warn_seen[k]:
+                fired = fired or {}
+                fired[_WARNING_NAMES[wid]] = count - self._warn_seen[k]
+                self._warn_seen[k] = count
+        if fired:
+            raise SimulationDiverged(fired, float(self.data.time))
+
+    def reset(
+        self,
+        keyframe: str | None = None,
+        *,
+        q: npt.ArrayLike | None = None,
+        v: npt.ArrayLike | None = None,
+    ) -> None:
+        """Reset to the model's default state, a keyframe, or a given (q, v) (Pinocchio convention).
+
+        Clears time, ctrl (or sets the keyframe's ctrl), warnings and saturation counts.
+        """
+        if keyframe is not None:
+            mujoco.mj_resetDataKeyframe(self.model, self.data, self._robot.keyframe_id(keyframe))
+        else:
+            mujoco.mj_resetData(self.model, self.data)
+        if q is not None or v is not None:
+            self.set_state(
+                q if q is not None else self.q,
+                v if v is not None else np.zeros(self.model.nv),
+            )
+        self.saturation_counts[:] = 0
+        self.n_steps = 0
+        self._last_command = None
+        self._warn_seen = [0] * len(_DIVERGENCE_IDS)
+        self._forward()
+
+    def set_state(self, q: npt.ArrayLike, v: npt.ArrayLike) -> None:
+        """Set q (nq,) and v (nv,) in Pinocchio's convention, keeping time and ctrl."""
+        q_pin = self._conv.check_q(q)
+        v_pin = self._conv.check_v(v)
+        self.data.qpos[:] = self._conv.q_pin_to_mj(q_pin)
+        self.data.qvel[:] = self._conv.v_pin_to_mj(q_pin, v_pin)
+        self._forward()
+
+    # ------------------------------------------------------------------ state
+    @property
+    def q(self) -> np.ndarray:
+        """Configuration (nq,), Pinocchio convention (copy)."""
+        if self._fast_state:
+            return self.data.qpos.copy()
+        return self._conv.q_mj_to_pin(self.data.qpos)
+
+    @property
+    def v(self) -> np.ndarray:
+        """Velocity (nv,), Pinocchio convention (copy)."""
+        if self._fast_state:
+            return self.data.qvel.copy()
+        return self._conv.v_mj_to_pin(self.q, self.data.qvel)
+
+    @property
+    def ctrl(self) -> np.ndarray:
+        """Current actuator controls (nu,) (copy)."""
+        return self.data.ctrl.copy()
+
+    def joint_q(self, name: str) -> np.ndarray:
+        """Coordinates of joint ``name`` (Pinocchio convention) (copy)."""
+        return self.q[self._robot.joint(name).q_slice]
+
+    # ------------------------------------------------------------------ derived quantities
+    def _forward(self) -> None:
+        mujoco.mj_forward(self.model, self.data)
+        self._stale = False
+
+    def forward(self) -> None:
+        """Recompute derived quantities for the current state, if a step made them stale."""
+        if self._stale:
+            self._forward()
+
+    def sensor(self, name: str) -> np.ndarray:
+        """Reading (dim,) of sensor ``name`` at the current state (copy)."""
+        info = self._robot.sensor(name)
+        self.forward()
+        return self.data.sensordata[info.data_slice].copy()
+
+    def sensors(self) -> dict[str, np.ndarray]:
+        """Every sensor's reading by name (copies)."""
+        self.forward()
+        return {n: self.data.sensordata[s.data_slice].copy() for n, s in self._robot.sensors.items()}
+
+    def site_pose(self, name: str) -> tuple[np.ndarray, np.ndarray]:
+        """Position p_WS (3,) [m] and rotation R_WS (3, 3) of site ``name`` in the world frame."""
+        i = self._robot.site_id(name)
+        self.forward()
+        return self.data.site_xpos[i].copy(), self.data.site_xmat[i].reshape(3, 3).copy()
+
+    def body_pose(self, name: str) -> tuple[np.ndarray, np.ndarray]:
+        """Position p_WB (3,) [m] and rotation R_WB (3, 3) of body ``name`` in the world frame."""
+        i = self._robot.body_id(name)
+        self.forward()
+        return self.data.xpos[i].copy(), self.data.xmat[i].reshape(3, 3).copy()
+
+    @property
+    def base_z_m(self) -> float:
+        """Height [m] of the floating base (z of the free joint); NaN for a fixed base."""
+        if not self._robot.has_floating_base:
+            return float("nan")
+        return float(self.data.qpos[next(iter(self._robot.joints.values())).idx_q + 2])
+
+    @property
+    def contact_count(self) -> int:
+        """Number of active contacts at the current state."""
+        self.forward()
+        return int(self.data.ncon)
+
+    @property
+    def warnings(self) -> dict[str, int]:
+        """MuJoCo's warning counters since the last reset, by name (only non-zero ones)."""
+        return {
+            _WARNING_NAMES[i]: int(self.data.warning[i].number)
+            for i in _WARNING_NAMES
+            if self.data.warning[i].number
+        }
+
+    def saturations(self) -> dict[str, int]:
+        """How many commands were clamped to ctrlrange, per actuator name (non-zero only)."""
+        names = list(self._robot.actuators)
+        return {names[i]: int(c) for i, c in enumerate(self.saturation_counts) if c}
+
+
