@@ -20,9 +20,10 @@ app = typer.Typer(
 def _register_commands() -> None:
     # One module per command family; each exposes register(app). Imported here, not at module
     # top, so `mbctl --help` stays fast and a broken family names itself in the traceback.
-    from mbctl import cli_robots
+    from mbctl import cli_robots, cli_sim
 
     cli_robots.register(app)
+    cli_sim.register(app)
     # further command families register below
 
 

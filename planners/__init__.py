@@ -1,1 +1,6 @@
-"""mbctl.planners."""
+"""Trajectory planners: ruckig (jerk-limited), polynomials, Cartesian paths."""
+
+from mbctl.planners.exceptions import PlanningError
+from mbctl.planners.trajectory import JointTrajectory
+
+__all__ = ["JointTrajectory", "PlanningError"]
