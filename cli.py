@@ -5,7 +5,6 @@ from __future__ import annotations
 import sys
 
 import typer
-
 from mbctl.exceptions import ToolkitError
 
 app = typer.Typer(

@@ -6,7 +6,6 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
-
 from mbctl.planners.exceptions import PlanningError
 
 
@@ -34,8 +33,8 @@ class JointTrajectory:
             arr = np.asarray(getattr(self, field_name), dtype=float)
             if arr.ndim != 2 or arr.shape != (n_samples, len(self.names)):
                 raise PlanningError(
-                    f"JointTrajectory.{field_name} must have shape ({n_samples}, {len(self.names)}); "
-                    f"got {arr.shape}"
+                    f"JointTrajectory.{field_name} must have shape "
+                    f"({n_samples}, {len(self.names)}); got {arr.shape}"
                 )
             if not np.all(np.isfinite(arr)):
                 raise PlanningError(f"JointTrajectory.{field_name} has non-finite samples")
@@ -58,8 +57,11 @@ class JointTrajectory:
         return float(self.t_s[1] - self.t_s[0]) if len(self.t_s) > 1 else 0.0
 
     def sample(self, t_s: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """(q, v, a) at time ``t_s``: linear interpolation inside, the end state held outside
-        (zero velocity and acceleration after the end)."""
+        """(q, v, a) at time ``t_s`` [s].
+
+        Linear interpolation inside; outside, the end state is held (zero velocity and
+        acceleration after the end).
+        """
         if t_s >= self.t_s[-1]:
             return self.q[-1].copy(), np.zeros(len(self.names)), np.zeros(len(self.names))
         if t_s <= self.t_s[0]:
@@ -73,7 +75,10 @@ class JointTrajectory:
         )
 
     def then(self, other: JointTrajectory) -> JointTrajectory:
-        """This trajectory followed by ``other`` (same names and dt; ``other`` starts where this ends)."""
+        """This trajectory followed by ``other``.
+
+        Same names and dt; ``other`` starts where this one ends.
+        """
         if other.names != self.names:
             raise PlanningError(f"cannot chain trajectories over {self.names} and {other.names}")
         shift = self.t_s[-1] + (other.t_s[0] if other.t_s[0] > 0 else self.dt_s or other.dt_s)

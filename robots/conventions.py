@@ -28,7 +28,6 @@ from dataclasses import dataclass
 
 import numpy as np
 import numpy.typing as npt
-
 from mbctl.robots.exceptions import StateError
 
 
@@ -135,14 +134,14 @@ class StateConverter:
     def v_pin_to_mj(self, q_pin: npt.ArrayLike, v_pin: npt.ArrayLike) -> np.ndarray:
         """``v_mj = T(q) v_pin``: free-joint linear velocity from base frame to world frame."""
         out = np.array(v_pin, dtype=float)
-        for (iq, iv), R_WB in zip(self._free, self._rotations(np.asarray(q_pin)), strict=True):
+        for (_, iv), R_WB in zip(self._free, self._rotations(np.asarray(q_pin)), strict=True):
             out[iv : iv + 3] = R_WB @ out[iv : iv + 3]
         return out
 
     def v_mj_to_pin(self, q_pin: npt.ArrayLike, v_mj: npt.ArrayLike) -> np.ndarray:
         """``v_pin = T(q)^T v_mj``: free-joint linear velocity from world frame to base frame."""
         out = np.array(v_mj, dtype=float)
-        for (iq, iv), R_WB in zip(self._free, self._rotations(np.asarray(q_pin)), strict=True):
+        for (_, iv), R_WB in zip(self._free, self._rotations(np.asarray(q_pin)), strict=True):
             out[iv : iv + 3] = R_WB.T @ out[iv : iv + 3]
         return out
 
@@ -153,7 +152,7 @@ class StateConverter:
     def velocity_map(self, q_pin: npt.ArrayLike) -> np.ndarray:
         """``T(q)`` (nv, nv) with ``v_mj = T v_pin``."""
         T = np.eye(self.nv)
-        for (iq, iv), R_WB in zip(self._free, self._rotations(np.asarray(q_pin)), strict=True):
+        for (_, iv), R_WB in zip(self._free, self._rotations(np.asarray(q_pin)), strict=True):
             T[iv : iv + 3, iv : iv + 3] = R_WB
         return T
 
@@ -161,7 +160,7 @@ class StateConverter:
         """``Tdot(q, v) v`` (nv,): ``R_WB (w_B x v_B)`` on each free joint's linear part."""
         out = np.zeros(self.nv)
         v = np.asarray(v_pin, dtype=float)
-        for (iq, iv), R_WB in zip(self._free, self._rotations(np.asarray(q_pin)), strict=True):
+        for (_, iv), R_WB in zip(self._free, self._rotations(np.asarray(q_pin)), strict=True):
             out[iv : iv + 3] = R_WB @ np.cross(v[iv + 3 : iv + 6], v[iv : iv + 3])
         return out
 

@@ -6,7 +6,6 @@ from collections.abc import Iterable
 
 import mujoco
 import numpy as np
-
 from mbctl.robots.model_pair import Robot
 
 

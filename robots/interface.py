@@ -1,6 +1,7 @@
 """The robot API controllers are written against: read state, send a command, keep time.
 
-It lives in robots/ (not sim/) because control/ never imports sim/. The simulator implements it; a hardware driver would implement the same protocol.
+It lives in robots/ (not sim/) because control/ never imports sim/. The simulator implements
+it; a hardware driver would implement the same protocol.
 """
 
 from __future__ import annotations
@@ -9,9 +10,8 @@ from dataclasses import dataclass
 from typing import Protocol, runtime_checkable
 
 import numpy as np
-
-from mbctl.robots.model_pair import Robot
 from mbctl.robots.commands import Command
+from mbctl.robots.model_pair import Robot
 
 
 @dataclass(frozen=True)

@@ -17,7 +17,6 @@ import mujoco
 import numpy as np
 import numpy.typing as npt
 import pinocchio as pin
-
 from mbctl.robots.conventions import JointLayout, StateConverter
 from mbctl.robots.exceptions import ModelFileError, ModelMismatchError, UnknownNameError
 from mbctl.robots.names import ActuatorInfo, SensorInfo, actuator_infos, names_of, sensor_infos
@@ -132,8 +131,11 @@ class Robot:
         mj_spec: mujoco.MjSpec,
         check: bool = True,
     ):
-        """Build the pair; ``check=False`` skips the agreement check (for cross-checking a
-        deliberately different Pinocchio model against the plant)."""
+        """Build the pair.
+
+        ``check=False`` skips the agreement check (for cross-checking a deliberately different
+        Pinocchio model against the plant).
+        """
         self.source = source
         self.mj_spec = mj_spec
         self.mj_model = compile_spec(mj_spec, source.scene_file)

@@ -5,10 +5,8 @@ from __future__ import annotations
 import os
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
 
 import numpy as np
-
 from mbctl.robots.commands import position_target
 from mbctl.robots.exceptions import CommandError
 from mbctl.robots.model_pair import Robot

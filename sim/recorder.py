@@ -14,7 +14,6 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
-
 from mbctl.sim.atomic import AtomicFile
 from mbctl.sim.simulator import Simulator
 

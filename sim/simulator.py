@@ -13,7 +13,6 @@ from typing import Literal
 import mujoco
 import numpy as np
 import numpy.typing as npt
-
 from mbctl.robots.command_binding import CommandBinder
 from mbctl.robots.commands import Command
 from mbctl.robots.exceptions import CommandOutOfRange
@@ -21,11 +20,14 @@ from mbctl.robots.interface import RobotState
 from mbctl.robots.model_pair import Robot
 from mbctl.sim.exceptions import SimError, SimulationDiverged
 
-#: MuJoCo warnings that mean the integration diverged (MuJoCo resets the state when they fire).
+#: MuJoCo warnings after which the run cannot be trusted: bad qpos/qvel/qacc mean the
+#: integration diverged and MuJoCo reset the state; bad ctrl means MuJoCo zeroed the controls
+#: (a |ctrl| above mjMAXVAL). All of them are silent in MuJoCo; the simulator raises.
 DIVERGENCE_WARNINGS = (
     mujoco.mjtWarning.mjWARN_BADQPOS,
     mujoco.mjtWarning.mjWARN_BADQVEL,
     mujoco.mjtWarning.mjWARN_BADQACC,
+    mujoco.mjtWarning.mjWARN_BADCTRL,
 )
 _DIVERGENCE_IDS = tuple(int(w) for w in DIVERGENCE_WARNINGS)
 _WARNING_NAMES = {

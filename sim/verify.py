@@ -5,7 +5,6 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-
 from mbctl.robots.commands import position_target
 from mbctl.robots.model_pair import Robot
 from mbctl.sim.simulator import Simulator
@@ -24,8 +23,11 @@ class Check:
 
 
 def verify_two_link(robot: Robot) -> list[Check]:
-    """Run the 2-link setup checks (100 steps = 0.2 s; q has 2 entries; ctrl [5, -3] moves the
-    joints; the end-effector site position is readable and matches the sensor)."""
+    """Run the 2-link setup checks.
+
+    100 steps give 0.2 s; q has 2 elements; ctrl [5, -3] moves the joints; the end-effector site
+    position is readable and matches the sensor.
+    """
     sim = Simulator(robot)
     checks = []
     q0 = sim.q
@@ -45,6 +47,7 @@ def verify_two_link(robot: Robot) -> list[Check]:
     ok = bool(np.all(np.isfinite(p)))
     if "ee_pos" in robot.sensors:
         ok = ok and bool(np.allclose(sim.sensor("ee_pos"), p, atol=1e-12))
-    checks.append(Check("end-effector position readable", ok, f"p = [{p[0]:+.4f}, {p[1]:+.4f}, {p[2]:+.4f}] m"))
+    detail = f"p = [{p[0]:+.4f}, {p[1]:+.4f}, {p[2]:+.4f}] m"
+    checks.append(Check("end-effector position readable", ok, detail))
     checks.append(Check("no MuJoCo warnings", not sim.warnings, f"warnings {sim.warnings or 'none'}"))
     return checks

@@ -1,0 +1,86 @@
+"""The command line, run as a user would: exit codes and messages."""
+
+from __future__ import annotations
+
+import json
+import os
+import subprocess
+import sys
+
+import pytest
+
+
+def mbctl(*args: str, env: dict | None = None) -> subprocess.CompletedProcess:
+    return subprocess.run(
+        [sys.executable, "-m", "mbctl.cli", *args],
+        capture_output=True, text=True, timeout=300, env={**os.environ, **(env or {})},
+    )
+
+
+def test_verify_two_link():
+    out = mbctl("verify", "two_link")
+    assert out.returncode == 0, out.stderr
+    assert "5 passed, 0 failed" in out.stdout
+    assert "[PASS] 100 steps give 0.2 s" in out.stdout
+
+
+def test_robots_lists_sources():
+    out = mbctl("robots")
+    assert out.returncode == 0
+    assert "g1" in out.stdout and "Menagerie" in out.stdout
+
+
+def test_unknown_robot_exits_nonzero_with_matches():
+    out = mbctl("inspect", "two_lnk")
+    assert out.returncode == 2
+    assert "Did you mean 'two_link'" in out.stderr
+    assert "Traceback" not in out.stderr
+
+
+def test_inspect_g1_side_by_side(g1):
+    out = mbctl("inspect", "g1")
+    assert out.returncode == 0, out.stderr
+    assert "nq                          36          36" in out.stdout
+    assert "left_knee_joint" in out.stdout and "position" in out.stdout
+    assert "imu-pelvis-angular-velocity" in out.stdout
+
+
+def test_joint_step_cli_g1(g1, tmp_path):
+    out = mbctl("joint-step", "g1", "--joint", "left_elbow_joint", "--delta", "0.1", "--steps", "250",
+                "--keyframe", "stand", "--output", str(tmp_path))
+    assert out.returncode == 0, out.stderr
+    assert "target +1.38000 rad" in out.stdout
+    report = json.loads((tmp_path / "joint_step_report.json").read_text())
+    assert report["run"]["steps"] == 250
+
+
+@pytest.mark.parametrize(
+    "args, message",
+    [
+        (["--joint", "left_elbo_joint"], "Did you mean 'left_elbow_joint'"),
+        (["--joint", "left_elbow_joint", "--keyframe", "stnd"], "Did you mean 'stand'"),
+    ],
+)
+def test_joint_step_cli_bad_names(g1, tmp_path, args, message):
+    out = mbctl("joint-step", "g1", "--delta", "0.1", "--steps", "5", "--output", str(tmp_path), *args)
+    assert out.returncode == 2
+    assert message in out.stderr
+
+
+def test_g1_missing_offline_says_how(tmp_path):
+    out = mbctl("inspect", "g1", env={"MENAGERIE_ROOT": str(tmp_path)})
+    assert out.returncode == 2
+    assert "MENAGERIE_ROOT" in out.stderr and "unitree_g1" in out.stderr
+
+
+def test_tampered_model_names_the_file(g1, tmp_path):
+    import shutil
+    from pathlib import Path
+
+    root = tmp_path / "root"
+    shutil.copytree(Path(g1.source.robot_file).parent, root / "unitree_g1")
+    with open(root / "unitree_g1" / "scene.xml", "a") as f:
+        f.write("\n")
+    out = mbctl("inspect", "g1", env={"MENAGERIE_ROOT": str(root)})
+    assert out.returncode == 2
+    assert "scene.xml fails its SHA-256 check" in out.stderr

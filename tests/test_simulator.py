@@ -1,0 +1,165 @@
+"""The MuJoCo backend: stepping, typed commands, state in Pinocchio's convention, divergence."""
+
+from __future__ import annotations
+
+import mujoco
+import numpy as np
+import pinocchio as pin
+import pytest
+from mbctl.robots import StateError, UnknownNameError, load_robot
+from mbctl.robots.exceptions import CommandError, CommandOutOfRange
+from mbctl.robots.interface import RobotInterface
+from mbctl.sim import (
+    SimError,
+    SimulationDiverged,
+    Simulator,
+    position_target,
+    torque,
+    velocity_target,
+)
+
+
+def test_two_link_setup_figures(two_link):
+    sim = Simulator(two_link)
+    assert isinstance(sim, RobotInterface)
+    q0 = sim.q
+    sim.step(position_target([5.0, -3.0]), 100)
+    assert sim.time_s == pytest.approx(0.2, abs=1e-12)
+    assert sim.n_steps == 100
+    assert np.all(np.abs(sim.q - q0) > 0.5)
+
+
+def test_derived_quantities_follow_the_new_state(two_link_torque):
+    """After a step, site poses and sensors correspond to the new q (mj_forward), matching
+    Pinocchio's forward kinematics at that q."""
+    robot = two_link_torque
+    sim = Simulator(robot)
+    sim.step(torque([2.0, -1.0]), 50)
+    pm = robot.pin_model
+    pd = pm.createData()
+    pin.framesForwardKinematics(pm, pd, sim.q)
+    p_pin = pd.oMf[robot.frame_id("end_effector")].translation
+    p_sim, R_sim = sim.site_pose("end_effector")
+    np.testing.assert_allclose(p_sim, p_pin, atol=1e-12)
+    np.testing.assert_allclose(sim.sensor("ee_pos"), p_pin, atol=1e-12)
+    np.testing.assert_allclose(R_sim, pd.oMf[robot.frame_id("end_effector")].rotation, atol=1e-12)
+
+
+def test_sensor_and_state_are_copies(two_link_torque):
+    sim = Simulator(two_link_torque)
+    state = sim.read_state()
+    reading = sim.sensor("ee_pos")
+    sim.step(torque([3.0, 3.0]), 20)
+    assert state.q.flags.writeable is False
+    np.testing.assert_array_equal(state.q, 0.0)
+    assert not np.allclose(sim.sensor("ee_pos"), reading)
+    reading[:] = 99
+    assert not np.any(sim.sensor("ee_pos") == 99)
+
+
+def test_torque_to_position_actuator_is_an_error(two_link):
+    sim = Simulator(two_link)
+    with pytest.raises(CommandError, match=r"A torque command cannot drive shoulder \(position\)"):
+        sim.step(torque([1.0, 0.0]))
+    with pytest.raises(CommandError, match=r"velocity command cannot drive"):
+        sim.send(velocity_target({"elbow": 1.0}))
+
+
+@pytest.mark.parametrize(
+    "make, error, message",
+    [
+        (lambda: position_target([1.0, 2.0, 3.0]), CommandError, "needs 2 values .* got 3"),
+        (lambda: position_target({"elbw": 1.0}), UnknownNameError, "Did you mean 'elbow'"),
+        (lambda: position_target([np.nan, 0.0]), CommandError, r"finite; got \[nan\] at \[0\]"),
+        (lambda: position_target({"elbow": np.inf}), CommandError, r"at \['elbow'\]"),
+        (lambda: position_target("x"), CommandError, "values must be numbers"),
+    ],
+)
+def test_bad_commands_are_named(two_link, make, error, message):
+    sim = Simulator(two_link)
+    with pytest.raises(error, match=message):
+        sim.send(make())
+
+
+def test_partial_command_by_joint_name_holds_the_rest(two_link):
+    sim = Simulator(two_link)
+    sim.send(position_target([0.5, -0.5]))
+    sim.send(position_target({"elbow": 1.0}))  # joint name == actuator name here
+    np.testing.assert_array_equal(sim.ctrl, [0.5, 1.0])
+
+
+def test_out_of_range_is_clamped_and_counted(two_link_torque):
+    sim = Simulator(two_link_torque)
+    sim.step(torque([100.0, -5.0]), 3)
+    np.testing.assert_array_equal(sim.ctrl, [30.0, -5.0])
+    assert sim.saturations() == {"shoulder": 1}
+    sim.step(torque([31.0, -25.0]))
+    assert sim.saturations() == {"shoulder": 2, "elbow": 1}
+
+
+def test_out_of_range_can_raise(two_link_torque):
+    sim = Simulator(two_link_torque, out_of_range="raise")
+    with pytest.raises(CommandOutOfRange, match=r"40 for actuator 'shoulder' is outside .*\[-30, 30\]"):
+        sim.send(torque([40.0, 0.0]))
+
+
+def test_control_period_must_divide(two_link):
+    with pytest.raises(SimError, match="integer multiple of the timestep 0.002"):
+        Simulator(two_link, control_period_s=0.003)
+    sim = Simulator(two_link, control_period_s=0.01)
+    assert sim.n_substeps == 5
+    sim.sync()
+    assert sim.time_s == pytest.approx(0.01)
+
+
+def test_divergence_raises_with_the_warning_name(tmp_path):
+    xml = """<mujoco><worldbody><body name="b"><joint name="j" type="slide" axis="1 0 0"/>
+    <geom size="0.1" mass="1"/></body></worldbody>
+    <actuator><motor name="m" joint="j"/></actuator></mujoco>"""
+    (tmp_path / "slider.xml").write_text(xml)
+    sim = Simulator(load_robot(tmp_path / "slider.xml"))
+    sim.set_state([0.0], [1e11])  # beyond MuJoCo's mjMAXVAL: it resets the state silently
+    with pytest.raises(SimulationDiverged, match=r"BADQVEL \(x1\)") as info:
+        sim.step(None, 2)
+    assert info.value.warnings == {"BADQVEL": 1}
+    assert sim.q[0] == 0.0  # MuJoCo reset the state, which is why we raise
+    with pytest.raises(SimulationDiverged, match="BADCTRL"):
+        sim.step(torque([1e300]))
+
+
+def test_reset_to_keyframe_g1(g1):
+    sim = Simulator(g1)
+    sim.reset("stand")
+    np.testing.assert_array_equal(sim.q[3:7], [0, 0, 0, 1])
+    assert sim.base_z_m == pytest.approx(0.79)
+    np.testing.assert_array_equal(sim.ctrl, g1.keyframe_ctrl("stand"))
+    with pytest.raises(UnknownNameError, match="Did you mean 'stand'"):
+        sim.reset("stnd")
+
+
+def test_g1_velocity_is_pinocchio_convention(g1):
+    """A base rotated 90 deg about z moving along its own x moves along world y in MuJoCo."""
+    sim = Simulator(g1)
+    q = g1.keyframe_q("stand")
+    q[3:7] = [0, 0, np.sin(np.pi / 4), np.cos(np.pi / 4)]
+    v = np.zeros(g1.nv)
+    v[0] = 1.0
+    sim.set_state(q, v)
+    np.testing.assert_allclose(sim.data.qvel[:3], [0, 1, 0], atol=1e-15)
+    np.testing.assert_allclose(sim.v[:3], [1, 0, 0], atol=1e-15)
+    np.testing.assert_allclose(sim.data.qpos[3:7], [np.cos(np.pi / 4), 0, 0, np.sin(np.pi / 4)])
+    with pytest.raises(StateError, match=r"v must have shape \(35,\)"):
+        sim.set_state(q, np.zeros(36))
+
+
+def test_g1_holds_stand_with_position_actuators(g1):
+    sim = Simulator(g1)
+    sim.reset("stand")
+    sim.step(position_target(g1.keyframe_ctrl("stand")), 500)
+    assert abs(sim.base_z_m - 0.79) < 0.02
+    assert sim.contact_count > 0
+    assert sim.warnings == {}
+    # the body pose agrees with the free joint
+    p, _ = sim.body_pose("pelvis")
+    np.testing.assert_allclose(p, sim.q[:3], atol=1e-12)
+    assert mujoco.mj_name2id(g1.mj_model, mujoco.mjtObj.mjOBJ_BODY, "pelvis") == g1.body_id("pelvis")
