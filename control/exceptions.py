@@ -56,3 +56,15 @@ class IKInfeasible(ControlError):
         self.result = result
         self.solver = solver
         super().__init__(message)
+
+
+class GainsError(ControlError, ValueError):
+    """Controller gains with a wrong shape, a non-finite or a negative value (named in the message)."""
+
+
+class ControllerSetupError(ControlError, ValueError):
+    """A controller that cannot be built for this robot (joints, actuators, model sizes)."""
+
+
+class ReferenceMismatch(ControlError, ValueError):
+    """A reference whose shape or names do not match the controller's joints or task."""

@@ -1,0 +1,131 @@
+"""Joint-space computed torque (inverse dynamics) on a fully actuated robot.
+
+With ``e = q_ref - q`` and ``de = v_ref - v``::
+
+    a_des = a_ref + kp e + kd de                          [rad/s^2]
+    tau   = M(q) a_des + b(q, v) + tau_f(v_ref)           [N m]
+
+``M(q)`` includes the rotor armature and ``b(q, v) = C(q, v) v + g(q)``; both come from one
+recursive Newton-Euler pass of the Pinocchio model (``pin.rnea(q, v, a_des)``). If the model is
+exact the error obeys ``e'' + kd e' + kp e = 0``, so the gains are per unit inertia:
+``kp = omega^2`` [1/s^2], ``kd = 2 zeta omega`` [1/s] (``gains_from_frequency(omega, zeta)``).
+
+``tau_f`` is the model's joint friction feed-forward: Coulomb ``friction * sign(v_ref)`` (zero
+where ``|v_ref|`` is below ``friction_deadband_rad_s``) plus viscous ``damping * v_ref``, from
+the Pinocchio model's ``friction`` and ``damping`` (read from the MJCF's ``frictionloss`` and
+``damping``). Zero on models without joint friction.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+import numpy as np
+import pinocchio as pin
+from mbctl.control.controller import (
+    JointMap,
+    JointReference,
+    TorqueSaturation,
+    torque_command,
+)
+from mbctl.control.exceptions import ControllerSetupError
+from mbctl.control.gains import PDGains
+from mbctl.robots.commands import Command
+from mbctl.robots.interface import RobotState
+from mbctl.robots.model_pair import Robot
+
+#: Reference speed [rad/s] below which no Coulomb friction feed-forward is applied.
+FRICTION_DEADBAND_RAD_S = 1e-3
+
+
+class ComputedTorque:
+    """Joint-space computed torque over every dof of a fixed-base, fully actuated robot.
+
+    Args:
+        robot: The robot; every dof must be a controlled (actuated, 1-dof) joint.
+        gains: Per-unit-inertia gains kp [1/s^2], kd [1/s]; one pair or one per joint.
+        joints: Controlled joints (default: every actuated joint, actuator order).
+        pin_model: The analytic model (default ``robot.pin_model``; a perturbed copy for
+            model-error studies). Same nq and nv as the robot.
+        friction_feedforward: Add the model's Coulomb and viscous joint friction at v_ref.
+        saturate: Clip torques to the actuator limits (and count the clips).
+
+    Raises:
+        GainsError: Gains that do not match the number of joints.
+        ControllerSetupError: A floating base or unactuated dofs, or a model of another size.
+    """
+
+    name = "computed_torque"
+
+    def __init__(
+        self,
+        robot: Robot,
+        gains: PDGains,
+        joints: Sequence[str] | None = None,
+        *,
+        pin_model: pin.Model | None = None,
+        friction_feedforward: bool = True,
+        saturate: bool = True,
+    ):
+        self.robot = robot
+        self.joint_map = JointMap.from_robot(robot, joints)
+        if sorted(self.joint_map.idx_v.tolist()) != list(range(robot.nv)):
+            missing = sorted(set(range(robot.nv)) - set(self.joint_map.idx_v.tolist()))
+            raise ControllerSetupError(
+                f"computed torque needs every dof actuated and controlled; {robot.name!r} has "
+                f"nv={robot.nv} and dofs {missing[:12]} are not controlled joints "
+                "(floating base? weld it with mbctl.robots.edits.weld_base)"
+            )
+        self.model = pin_model if pin_model is not None else robot.pin_model
+        if (self.model.nq, self.model.nv) != (robot.nq, robot.nv):
+            raise ControllerSetupError(
+                f"pin_model has nq={self.model.nq}, nv={self.model.nv}; the robot has "
+                f"nq={robot.nq}, nv={robot.nv}"
+            )
+        self.data = self.model.createData()
+        self.gains = gains.broadcast(self.joint_map.size)
+        self.saturation = TorqueSaturation(self.joint_map, saturate)
+        self._idx_q = np.asarray(self.joint_map.idx_q)
+        self._idx_v = np.asarray(self.joint_map.idx_v)
+        self._identity = bool(np.array_equal(self._idx_v, np.arange(robot.nv))
+                              and np.array_equal(self._idx_q, np.arange(robot.nq)))
+        self._names = self.joint_map.command_names
+        friction = np.asarray(self.model.friction)[self._idx_v]
+        damping = np.asarray(self.model.damping)[self._idx_v]
+        self._friction = friction if friction_feedforward and np.any(friction) else None
+        self._damping = damping if friction_feedforward and np.any(damping) else None
+        self._a_des = np.zeros(self.joint_map.size)
+        self._a_full = np.zeros(robot.nv)
+
+    @property
+    def joints(self) -> tuple[str, ...]:
+        """Controlled joint names, the order of references and torques."""
+        return self.joint_map.joints
+
+    def reset(self) -> None:
+        """Zero the saturation counters."""
+        self.saturation.reset()
+
+    def desired_acceleration(self, state: RobotState, reference: JointReference) -> np.ndarray:
+        """``a_des = a_ref + kp e + kd de`` (n,) [rad/s^2] (internal buffer)."""
+        a = self._a_des
+        np.subtract(reference.q, state.q[self._idx_q], out=a)
+        a *= self.gains.kp
+        a += self.gains.kd * (reference.v - state.v[self._idx_v])
+        a += reference.a
+        return a
+
+    def compute(self, state: RobotState, reference: JointReference) -> Command:
+        """Torque command (n,) [N m] for the controlled joints."""
+        a = self.desired_acceleration(state, reference)
+        if self._identity:
+            tau = pin.rnea(self.model, self.data, state.q, state.v, a).copy()
+        else:
+            self._a_full[self._idx_v] = a
+            tau = pin.rnea(self.model, self.data, state.q, state.v, self._a_full)[self._idx_v]
+        if self._friction is not None:
+            v_ref = reference.v
+            tau += self._friction * np.sign(v_ref) * (np.abs(v_ref) > FRICTION_DEADBAND_RAD_S)
+        if self._damping is not None:
+            tau += self._damping * reference.v
+        return torque_command(self.saturation.apply(tau), self._names)

@@ -1,0 +1,264 @@
+"""The controller protocol, reference types, and the joint-to-actuator map torque controllers share.
+
+A controller is pure: ``compute(state, reference) -> Command`` reads a measured
+:class:`~mbctl.robots.interface.RobotState` and a reference and returns a typed command
+(torque, position target or velocity target); ``reset()`` clears internal state (saturation
+counts, integrators). Controllers never step the plant; :func:`mbctl.control.loop.run` does,
+through any :class:`~mbctl.robots.interface.RobotInterface`.
+
+Joint-space controllers act on a tuple of *controlled joints*: 1-dof joints driven by an
+actuator, by default every actuated joint in actuator order. ``JointMap`` resolves, once, where
+each controlled joint sits in q and v (Pinocchio convention) and which actuator drives it, so a
+floating-base robot gets torques for its actuated joints only.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+from typing import NamedTuple, Protocol, runtime_checkable
+
+import numpy as np
+import numpy.typing as npt
+from mbctl.control.exceptions import ControllerSetupError, ReferenceMismatch
+from mbctl.robots.commands import Command, CommandKind
+from mbctl.robots.interface import RobotState
+from mbctl.robots.model_pair import Robot
+
+
+class JointReference(NamedTuple):
+    """Desired joint motion over a controller's joints (in the controller's joint order).
+
+    Built without copying or validation, so a control loop can make one per cycle from views of
+    pre-sampled arrays; use :func:`joint_reference` to validate user input once.
+
+    Attributes:
+        q: Desired positions (n,) [rad] (or [m] for slide joints).
+        v: Desired velocities (n,) [rad/s].
+        a: Desired accelerations (n,) [rad/s^2] (feed-forward; PD laws ignore it).
+    """
+
+    q: np.ndarray
+    v: np.ndarray
+    a: np.ndarray
+
+
+class TaskReference(NamedTuple):
+    """Desired motion of a point in the world frame W, over a controller's task axes.
+
+    Attributes:
+        p: Desired position p_WS (k,) [m].
+        v: Desired velocity v_WS (k,) [m/s].
+        a: Desired acceleration a_WS (k,) [m/s^2].
+    """
+
+    p: np.ndarray
+    v: np.ndarray
+    a: np.ndarray
+
+
+def _checked(name: str, x: npt.ArrayLike | None, n: int) -> np.ndarray:
+    if x is None:
+        return np.zeros(n)
+    try:
+        arr = np.array(x, dtype=float, ndmin=1)
+    except (TypeError, ValueError) as exc:
+        raise ReferenceMismatch(f"reference {name} must be a numeric vector; got {x!r}") from exc
+    if arr.shape != (n,):
+        raise ReferenceMismatch(f"reference {name} must have shape ({n},); got {arr.shape}")
+    bad = np.flatnonzero(~np.isfinite(arr))
+    if bad.size:
+        raise ReferenceMismatch(f"reference {name} must be finite; entries {bad.tolist()} are not")
+    arr.setflags(write=False)
+    return arr
+
+
+def joint_reference(
+    q: npt.ArrayLike, v: npt.ArrayLike | None = None, a: npt.ArrayLike | None = None
+) -> JointReference:
+    """A validated, read-only JointReference; v and a default to zeros (a set-point).
+
+    Raises:
+        ReferenceMismatch: Shapes differ from q's, or non-finite values.
+    """
+    q_arr = _checked("q", q, int(np.size(q)))
+    n = q_arr.size
+    return JointReference(q_arr, _checked("v", v, n), _checked("a", a, n))
+
+
+def task_reference(
+    p: npt.ArrayLike, v: npt.ArrayLike | None = None, a: npt.ArrayLike | None = None
+) -> TaskReference:
+    """A validated, read-only TaskReference; v and a default to zeros.
+
+    Raises:
+        ReferenceMismatch: Shapes differ from p's, or non-finite values.
+    """
+    p_arr = _checked("p", p, int(np.size(p)))
+    n = p_arr.size
+    return TaskReference(p_arr, _checked("v", v, n), _checked("a", a, n))
+
+
+@runtime_checkable
+class Controller(Protocol):
+    """A pure control law: state and reference in, typed command out."""
+
+    def reset(self) -> None:
+        """Clear internal state (saturation counts, integrators) before a new run."""
+
+    def compute(self, state: RobotState, reference: JointReference | TaskReference) -> Command:
+        """The command for ``state`` (Pinocchio convention) tracking ``reference``."""
+
+
+@dataclass(frozen=True, eq=False)
+class JointMap:
+    """Controlled joints, where they sit in q and v, and the actuators driving them.
+
+    Attributes:
+        joints: Controlled joint names (n,), 1-dof each.
+        actuators: Actuator driving each joint (n,).
+        idx_q: Index of each joint in q (n,), Pinocchio convention (read-only).
+        idx_v: Index of each joint in v (n,) (read-only).
+        actuator_index: ctrl index of each actuator (n,) (read-only).
+        covers_all_actuators: The actuators are every actuator, in ctrl order (so a command can
+            be a full vector, the cheapest to bind).
+        tau_low: Lowest torque [N m] (or force [N]) each actuator can apply (n,).
+        tau_high: Highest torque [N m] (or force [N]) each actuator can apply (n,).
+    """
+
+    joints: tuple[str, ...]
+    actuators: tuple[str, ...]
+    idx_q: np.ndarray
+    idx_v: np.ndarray
+    actuator_index: np.ndarray
+    covers_all_actuators: bool
+    tau_low: np.ndarray
+    tau_high: np.ndarray
+
+    @property
+    def size(self) -> int:
+        """Number of controlled joints."""
+        return len(self.joints)
+
+    @property
+    def command_names(self) -> tuple[str, ...] | None:
+        """Names for a command over these actuators (None: a full vector)."""
+        return None if self.covers_all_actuators else self.actuators
+
+    @classmethod
+    def from_robot(cls, robot: Robot, joints: Sequence[str] | None = None) -> JointMap:
+        """Resolve controlled joints (default: every actuated joint, actuator order).
+
+        Torque limits: for a motor, ``gear * ctrl_range`` intersected with the force range; for
+        other actuator kinds, the force range (a position actuator still cannot push harder).
+
+        Raises:
+            UnknownNameError: An unknown joint name.
+            ControllerSetupError: A joint with no actuator, a multi-dof joint, a repeated joint,
+                or a robot with no actuated joint.
+        """
+        if joints is None:
+            joints = [a.joint for a in robot.actuators.values() if a.joint]
+        joints = tuple(joints)
+        if not joints:
+            raise ControllerSetupError(
+                f"{robot.name!r} has no actuated joint to control; actuators: {list(robot.actuators)}"
+            )
+        if len(set(joints)) != len(joints):
+            dup = sorted({j for j in joints if joints.count(j) > 1})
+            raise ControllerSetupError(f"controlled joints must be distinct; repeated: {dup}")
+        by_joint = {a.joint: a for a in reversed(list(robot.actuators.values())) if a.joint}
+        infos, layouts = [], []
+        for name in joints:
+            layout = robot.joint(name)
+            if layout.nv != 1:
+                raise ControllerSetupError(
+                    f"joint {name!r} is a {layout.kind} joint with {layout.nv} dofs; joint-space "
+                    "controllers drive 1-dof (hinge or slide) joints"
+                )
+            info = by_joint.get(name)
+            if info is None:
+                raise ControllerSetupError(
+                    f"joint {name!r} has no actuator; actuated joints: {list(by_joint)}"
+                )
+            infos.append(info)
+            layouts.append(layout)
+        low, high = [], []
+        for a in infos:
+            lo, hi = a.force_range
+            if a.kind == "torque":
+                c = sorted((a.gear * a.ctrl_range[0], a.gear * a.ctrl_range[1]))
+                lo, hi = max(lo, c[0]), min(hi, c[1])
+            low.append(lo)
+            high.append(hi)
+        index = np.array([a.index for a in infos], dtype=int)
+        arrays = [
+            np.array([j.idx_q for j in layouts], dtype=int),
+            np.array([j.idx_v for j in layouts], dtype=int),
+            index,
+            np.array(low, dtype=float),
+            np.array(high, dtype=float),
+        ]
+        for arr in arrays:
+            arr.setflags(write=False)
+        idx_q, idx_v, index, tau_low, tau_high = arrays
+        covers = bool(index.size == robot.nu and np.array_equal(index, np.arange(robot.nu)))
+        return cls(joints, tuple(a.name for a in infos), idx_q, idx_v, index, covers, tau_low,
+                   tau_high)
+
+
+class TorqueSaturation:
+    """Clips torques to the actuators' limits and counts how often each one saturates.
+
+    Attributes:
+        low: Lower limits (n,) [N m].
+        high: Upper limits (n,) [N m].
+        counts: Cycles in which each joint's torque was clipped (n,).
+        saturated_cycles: Cycles in which any joint was clipped.
+        cycles: Cycles seen since the last reset.
+    """
+
+    def __init__(self, joint_map: JointMap, enabled: bool = True):
+        self.joints = joint_map.joints
+        self.low = np.asarray(joint_map.tau_low)
+        self.high = np.asarray(joint_map.tau_high)
+        self.enabled = enabled and bool(np.isfinite(self.low).any() or np.isfinite(self.high).any())
+        self.counts = np.zeros(len(self.joints), dtype=int)
+        self.saturated_cycles = 0
+        self.cycles = 0
+
+    def reset(self) -> None:
+        """Zero the counters."""
+        self.counts[:] = 0
+        self.saturated_cycles = 0
+        self.cycles = 0
+
+    def apply(self, tau: np.ndarray) -> np.ndarray:
+        """Clip ``tau`` (n,) in place to [low, high]; count the clipped joints. Returns ``tau``."""
+        self.cycles += 1
+        if self.enabled:
+            hit = (tau < self.low) | (tau > self.high)
+            if hit.any():
+                self.counts += hit
+                self.saturated_cycles += 1
+                np.clip(tau, self.low, self.high, out=tau)
+        return tau
+
+    def by_joint(self) -> dict[str, int]:
+        """Clipped cycles per joint name (non-zero only)."""
+        return {j: int(c) for j, c in zip(self.joints, self.counts, strict=True) if c}
+
+    def summary(self) -> dict[str, object]:
+        """Counts for reports: cycles, saturated cycles, per-joint counts and the limits [N m]."""
+        return {
+            "cycles": self.cycles,
+            "saturated_cycles": self.saturated_cycles,
+            "by_joint": self.by_joint(),
+            "limits_N_m": {j: [float(lo), float(hi)]
+                           for j, lo, hi in zip(self.joints, self.low, self.high, strict=True)},
+        }
+
+
+def torque_command(values: np.ndarray, names: tuple[str, ...] | None) -> Command:
+    """A torque command [N m] over ``names`` (None: every actuator), from a float vector."""
+    return Command(CommandKind.TORQUE, values, names)

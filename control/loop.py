@@ -1,0 +1,202 @@
+"""The control loop: read state, compute, send, sync — against any RobotInterface.
+
+``run`` works the same on the simulator and (later) on hardware, because it only uses the
+:class:`~mbctl.robots.interface.RobotInterface` protocol. Every buffer (logs, the pre-sampled
+reference) is allocated before the first cycle; a cycle allocates only what the controller and
+the interface allocate themselves.
+
+Timing: cycle k reads the state at ``t_k = t_0 + k T`` (T the control period), takes the
+reference at ``t_k - t_0``, sends the command, and ``sync()`` holds it for one period.
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+
+import numpy as np
+from mbctl.control.controller import Controller, JointReference, TaskReference
+from mbctl.control.exceptions import ControlError, ReferenceMismatch
+from mbctl.planners.trajectory import JointTrajectory
+from mbctl.robots.commands import Command
+from mbctl.robots.interface import RobotInterface, RobotState
+
+Reference = JointReference | TaskReference
+ReferenceFn = Callable[[float], Reference]
+OnStep = Callable[[int, RobotState, Command], None]
+
+
+@dataclass(frozen=True)
+class RunLog:
+    """What one run measured, one row per control cycle (state before the command).
+
+    Attributes:
+        t_s: Cycle times (N,) [s] since the interface's clock started.
+        q: Measured configurations (N, nq), Pinocchio convention.
+        v: Measured velocities (N, nv).
+        command: Command values sent (N, m) ([N m] for torques, [rad] for position targets).
+        reference: Reference positions (N, k): joint q_ref [rad] or task p_ref [m].
+        reference_v: Reference velocities (N, k).
+        wall_time_s: Wall-clock time of the loop [s].
+    """
+
+    t_s: np.ndarray
+    q: np.ndarray
+    v: np.ndarray
+    command: np.ndarray
+    reference: np.ndarray
+    reference_v: np.ndarray
+    wall_time_s: float
+
+    @property
+    def cycles(self) -> int:
+        """Number of control cycles."""
+        return int(self.t_s.size)
+
+
+def presample(
+    trajectory: JointTrajectory,
+    times_s: np.ndarray,
+    joints: Sequence[str],
+    hold_q: np.ndarray | None = None,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Sample a trajectory at ``times_s`` into (N, n) arrays ordered by ``joints``.
+
+    Joints the trajectory does not cover hold ``hold_q`` (their entry, by joint order) at zero
+    velocity and acceleration.
+
+    Args:
+        trajectory: The joint trajectory (its own column names).
+        times_s: Sample times (N,) [s] from the trajectory's start.
+        joints: The controller's joint order (n,).
+        hold_q: Positions (n,) [rad] for joints missing from the trajectory.
+
+    Returns:
+        q (N, n) [rad], v (N, n) [rad/s], a (N, n) [rad/s^2].
+
+    Raises:
+        ReferenceMismatch: A trajectory joint the controller does not control, or missing joints
+            without ``hold_q``.
+    """
+    joints = list(joints)
+    extra = [n for n in trajectory.names if n not in joints]
+    if extra:
+        raise ReferenceMismatch(
+            f"trajectory joints {extra} are not controlled; the controller drives {joints}"
+        )
+    missing = [j for j in joints if j not in trajectory.names]
+    if missing and hold_q is None:
+        raise ReferenceMismatch(
+            f"trajectory lacks joints {missing}; pass hold_q to hold them (controller joints "
+            f"{joints})"
+        )
+    n_samples, n = len(times_s), len(joints)
+    q = np.empty((n_samples, n))
+    v = np.zeros((n_samples, n))
+    a = np.zeros((n_samples, n))
+    if missing:
+        q[:] = np.asarray(hold_q, dtype=float)
+    cols = np.array([joints.index(name) for name in trajectory.names], dtype=int)
+    # vectorised linear interpolation, the same as JointTrajectory.sample, end state held
+    t = trajectory.t_s
+    tt = np.clip(np.asarray(times_s, dtype=float), t[0], t[-1])
+    if len(t) == 1:
+        q[:, cols] = trajectory.q[0]
+        return q, v, a
+    i = np.clip(np.searchsorted(t, tt, side="right") - 1, 0, len(t) - 2)
+    w = ((tt - t[i]) / (t[i + 1] - t[i]))[:, None]
+    q[:, cols] = (1 - w) * trajectory.q[i] + w * trajectory.q[i + 1]
+    after = np.asarray(times_s) >= t[-1]
+    v[:, cols] = np.where(after[:, None], 0.0, (1 - w) * trajectory.v[i] + w * trajectory.v[i + 1])
+    a[:, cols] = np.where(after[:, None], 0.0, (1 - w) * trajectory.a[i] + w * trajectory.a[i + 1])
+    return q, v, a
+
+
+def run(
+    interface: RobotInterface,
+    controller: Controller,
+    reference: JointTrajectory | ReferenceFn | Reference,
+    duration_s: float,
+    on_step: OnStep | None = None,
+    *,
+    hold_q: np.ndarray | None = None,
+) -> RunLog:
+    """Run ``controller`` on ``interface`` for ``duration_s`` and log every cycle.
+
+    Args:
+        interface: Any RobotInterface (the simulator, or a hardware driver).
+        controller: The control law; ``reset()`` is called first.
+        reference: A JointTrajectory (pre-sampled at the control times, columns matched to
+            ``controller.joints`` by name), a function of time since start ``t [s] -> reference``,
+            or a constant JointReference / TaskReference.
+        duration_s: How long to run [s]; rounded to whole control periods (at least one).
+        on_step: Called after each cycle's send as ``on_step(k, state, command)``.
+        hold_q: For a trajectory that covers only some of the controller's joints: positions
+            (n,) [rad] the others hold.
+
+    Returns:
+        The RunLog.
+
+    Raises:
+        ControlError: A non-positive or non-finite duration.
+        ReferenceMismatch: A trajectory that does not fit the controller's joints.
+        ToolkitError: Whatever the interface raises (bad command kind, divergence).
+    """
+    if not np.isfinite(duration_s) or duration_s <= 0:
+        raise ControlError(f"duration_s must be finite and > 0; got {duration_s}")
+    period = interface.control_period_s
+    n_cycles = max(1, int(round(duration_s / period)))
+    t_rel = np.arange(n_cycles) * period
+    robot = interface.robot
+    fn: ReferenceFn | None = None
+    ref_q = ref_v = ref_a = None
+    constant: Reference | None = None
+    if isinstance(reference, JointTrajectory):
+        joints = getattr(controller, "joints", None) or reference.names
+        ref_q, ref_v, ref_a = presample(reference, t_rel, joints, hold_q)
+    elif isinstance(reference, (JointReference, TaskReference)):
+        constant = reference
+    elif callable(reference):
+        fn = reference
+    else:
+        raise ReferenceMismatch(
+            "reference must be a JointTrajectory, a function of time, or a JointReference / "
+            f"TaskReference; got {type(reference).__name__}"
+        )
+    first = constant if constant is not None else (
+        fn(0.0) if fn is not None else JointReference(ref_q[0], ref_v[0], ref_a[0])
+    )
+    k_ref = np.size(first[0])
+    log_t = np.empty(n_cycles)
+    log_q = np.empty((n_cycles, robot.nq))
+    log_v = np.empty((n_cycles, robot.nv))
+    log_ref = np.empty((n_cycles, k_ref))
+    log_ref_v = np.empty((n_cycles, k_ref))
+    log_cmd = np.empty((n_cycles, 0))  # resized on the first command (its width is the controller's)
+    controller.reset()
+    t0 = interface.time_s
+    wall0 = time.perf_counter()
+    for k in range(n_cycles):
+        state = interface.read_state()
+        if ref_q is not None:
+            ref: Reference = JointReference(ref_q[k], ref_v[k], ref_a[k])
+        elif fn is not None:
+            ref = fn(state.time_s - t0)
+        else:
+            ref = constant  # type: ignore[assignment]
+        command = controller.compute(state, ref)
+        interface.send(command)
+        if on_step is not None:
+            on_step(k, state, command)
+        interface.sync()
+        if k == 0:
+            log_cmd = np.empty((n_cycles, command.values.size))
+        log_t[k] = state.time_s
+        log_q[k] = state.q
+        log_v[k] = state.v
+        log_cmd[k] = command.values
+        log_ref[k] = ref[0]
+        log_ref_v[k] = ref[1]
+    wall = time.perf_counter() - wall0
+    return RunLog(log_t, log_q, log_v, log_cmd, log_ref, log_ref_v, wall)

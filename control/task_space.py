@@ -1,0 +1,125 @@
+"""Task-space computed torque for a point on a fully actuated arm (e.g. the 2-link end effector).
+
+Notation: W world frame, S the controlled site (a Pinocchio frame). ``p_WS`` is the site position
+restricted to the task axes (k of x, y, z), ``J(q)`` (k, nv) its Jacobian in W
+(``LOCAL_WORLD_ALIGNED``) and ``dJ v`` the velocity-product acceleration (the classical
+acceleration of S at zero joint acceleration). With ``e = p_ref - p_WS`` and
+``de = v_ref - J v``::
+
+    a_task = a_ref + kp e + kd de                          [m/s^2]
+    a_des  = J^+ (a_task - dJ v)                           [rad/s^2]
+    tau    = M(q) a_des + b(q, v)                          [N m]
+
+(``J^+ = J^-1`` when J is square, as on the 2-link arm in its plane). With an exact model the
+task error obeys ``e'' + kd e' + kp e = 0`` away from singularities (``det J -> 0`` makes a_des,
+and the torques, blow up; saturation then clips them). Gains are per unit mass:
+``kp = omega^2`` [1/s^2], ``kd = 2 zeta omega`` [1/s].
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+import numpy as np
+import pinocchio as pin
+from mbctl.control.controller import JointMap, TaskReference, TorqueSaturation, torque_command
+from mbctl.control.exceptions import ControllerSetupError, ReferenceMismatch
+from mbctl.control.gains import PDGains
+from mbctl.robots.commands import Command
+from mbctl.robots.interface import RobotState
+from mbctl.robots.model_pair import Robot
+
+_AXES = {"x": 0, "y": 1, "z": 2}
+
+
+class TaskSpaceComputedTorque:
+    """Computed torque on the position of one frame, over chosen world axes.
+
+    Args:
+        robot: A fixed-base robot whose every dof is an actuated joint.
+        gains: Per-unit-mass gains kp [1/s^2], kd [1/s]; one pair or one per task axis.
+        frame: Site or body name (a Pinocchio frame), default "end_effector".
+        axes: World axes controlled, e.g. "xy" for the planar arm.
+        pin_model: The analytic model (default ``robot.pin_model``).
+        saturate: Clip torques to the actuator limits (and count the clips).
+
+    Raises:
+        ControllerSetupError: Unknown axes, a floating base or unactuated dofs, a model of
+            another size.
+        UnknownNameError: Unknown frame.
+        GainsError: Gains that do not match the number of axes.
+    """
+
+    name = "task_space_ct"
+
+    def __init__(
+        self,
+        robot: Robot,
+        gains: PDGains,
+        frame: str = "end_effector",
+        axes: str = "xy",
+        *,
+        joints: Sequence[str] | None = None,
+        pin_model: pin.Model | None = None,
+        saturate: bool = True,
+    ):
+        if not axes or any(a not in _AXES for a in axes) or len(set(axes)) != len(axes):
+            raise ControllerSetupError(f"axes must be distinct letters of 'xyz'; got {axes!r}")
+        self.robot = robot
+        self.joint_map = JointMap.from_robot(robot, joints)
+        if not np.array_equal(np.sort(self.joint_map.idx_v), np.arange(robot.nv)):
+            raise ControllerSetupError(
+                f"task-space computed torque needs every one of the {robot.nv} dofs of "
+                f"{robot.name!r} actuated and controlled"
+            )
+        self.model = pin_model if pin_model is not None else robot.pin_model
+        if (self.model.nq, self.model.nv) != (robot.nq, robot.nv):
+            raise ControllerSetupError(
+                f"pin_model has nq={self.model.nq}, nv={self.model.nv}; the robot has "
+                f"nq={robot.nq}, nv={robot.nv}"
+            )
+        self.data = self.model.createData()
+        self.frame_id = robot.frame_id(frame)
+        self.frame = frame
+        self.axes = axes
+        self._rows = np.array([_AXES[a] for a in axes], dtype=int)
+        self.gains = gains.broadcast(len(axes))
+        self.saturation = TorqueSaturation(self.joint_map, saturate)
+        self._idx_v = np.asarray(self.joint_map.idx_v)
+        self._names = self.joint_map.command_names
+        self._zero_a = np.zeros(robot.nv)
+        self._square = len(axes) == robot.nv
+        self.last_position = np.zeros(len(axes))
+
+    @property
+    def joints(self) -> tuple[str, ...]:
+        """Joint order of the output torques."""
+        return self.joint_map.joints
+
+    def reset(self) -> None:
+        """Zero the saturation counters."""
+        self.saturation.reset()
+
+    def compute(self, state: RobotState, reference: TaskReference) -> Command:
+        """Torque command (n,) [N m] moving the frame along ``reference`` (task axes, W)."""
+        model, data, fid, rows = self.model, self.data, self.frame_id, self._rows
+        if reference.p.shape != rows.shape:
+            raise ReferenceMismatch(
+                f"task reference p must have shape {rows.shape} (axes {self.axes!r}); "
+                f"got {reference.p.shape}"
+            )
+        q, v = state.q, state.v
+        pin.forwardKinematics(model, data, q, v, self._zero_a)
+        pin.updateFramePlacement(model, data, fid)
+        frame = pin.ReferenceFrame.LOCAL_WORLD_ALIGNED
+        dJv = pin.getFrameClassicalAcceleration(model, data, fid, frame).linear[rows]
+        p = data.oMf[fid].translation[rows]
+        J = pin.computeFrameJacobian(model, data, q, fid, frame)[rows]
+        self.last_position[:] = p
+        a_task = reference.a + self.gains.kp * (reference.p - p) + self.gains.kd * (
+            reference.v - J @ v
+        )
+        rhs = a_task - dJv
+        a_des = np.linalg.solve(J, rhs) if self._square else np.linalg.pinv(J) @ rhs
+        tau = pin.rnea(model, data, q, v, a_des)[self._idx_v]
+        return torque_command(self.saturation.apply(tau), self._names)
