@@ -1,6 +1,46 @@
 """Trajectory planners: ruckig (jerk-limited), polynomials, Cartesian paths."""
 
-from mbctl.planners.exceptions import PlanningError
+from mbctl.planners.cartesian import (
+    CartesianPath,
+    CartesianTrajectory,
+    CirclePath,
+    LinePath,
+    PathLimits,
+    PolylinePath,
+    square_path,
+    time_path,
+    to_joint_trajectory,
+)
+from mbctl.planners.exceptions import (
+    InvalidLimits,
+    InvalidPath,
+    InvalidPlanningInput,
+    PathIKFailed,
+    PlanningError,
+    TrajectoryGenerationFailed,
+)
+from mbctl.planners.ruckig_planner import JointLimits, concatenate, plan_ruckig, plan_waypoints
 from mbctl.planners.trajectory import JointTrajectory
 
-__all__ = ["JointTrajectory", "PlanningError"]
+__all__ = [
+    "CartesianPath",
+    "CartesianTrajectory",
+    "CirclePath",
+    "InvalidLimits",
+    "InvalidPath",
+    "InvalidPlanningInput",
+    "JointLimits",
+    "JointTrajectory",
+    "LinePath",
+    "PathIKFailed",
+    "PathLimits",
+    "PlanningError",
+    "PolylinePath",
+    "TrajectoryGenerationFailed",
+    "concatenate",
+    "plan_ruckig",
+    "plan_waypoints",
+    "square_path",
+    "time_path",
+    "to_joint_trajectory",
+]

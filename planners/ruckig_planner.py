@@ -1,0 +1,387 @@
+"""Jerk-limited, time-synchronized state-to-state joint trajectories with ruckig (offline, local).
+
+For each DoF ``i`` ruckig finds a piecewise-constant-jerk profile from the current state
+``(q0_i, v0_i, a0_i)`` to the target state ``(q1_i, v1_i, a1_i)`` with
+
+    |v_i(t)| <= max_velocity_i,  |a_i(t)| <= max_acceleration_i,  |j_i(t)| <= max_jerk_i,
+
+and stretches the faster DoFs so that all DoFs arrive at the same time (time synchronization).
+The duration is rounded up to a whole number of control periods ``dt_s`` (ruckig's discrete
+duration mode), so the samples lie on a uniform grid whose last sample is exactly the end.
+
+Only ruckig's local state-to-state calculation is used; its cloud (waypoint) API never is.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+import numpy.typing as npt
+from mbctl.planners.exceptions import (
+    InvalidLimits,
+    InvalidPlanningInput,
+    TrajectoryGenerationFailed,
+)
+from mbctl.planners.trajectory import JointTrajectory
+from ruckig import (
+    DurationDiscretization,
+    InputParameter,
+    Result,
+    Ruckig,
+    RuckigError,
+    Synchronization,
+    Trajectory,
+)
+
+#: Largest mismatch [rad] or [rad/s] or [rad/s^2] accepted between ruckig's end state and the
+#: requested target before the last sample is snapped to the target exactly.
+END_STATE_ATOL = 1e-8
+
+_LIMIT_UNITS = {
+    "max_velocity": "rad/s",
+    "max_acceleration": "rad/s^2",
+    "max_jerk": "rad/s^3",
+}
+
+
+@dataclass(frozen=True)
+class JointLimits:
+    """Per-joint kinematic limits (symmetric: ``-max <= x <= max``).
+
+    Attributes:
+        max_velocity: Velocity limits (n,) [rad/s] (or [m/s] for prismatic joints), > 0.
+        max_acceleration: Acceleration limits (n,) [rad/s^2], > 0.
+        max_jerk: Jerk limits (n,) [rad/s^3], > 0.
+
+    The arrays are read-only copies.
+
+    Raises:
+        InvalidLimits: An array is not 1-D, the three lengths differ, or an entry is not
+            positive and finite (the message names the quantity, the DoF index and the value).
+    """
+
+    max_velocity: np.ndarray
+    max_acceleration: np.ndarray
+    max_jerk: np.ndarray
+
+    def __post_init__(self) -> None:
+        """Validate and freeze the arrays."""
+        n_dofs = None
+        for name in ("max_velocity", "max_acceleration", "max_jerk"):
+            try:
+                arr = np.array(getattr(self, name), dtype=float)
+            except (TypeError, ValueError) as exc:
+                raise InvalidLimits(f"{name} must be an array of numbers; got {exc}") from exc
+            if arr.ndim != 1 or arr.size == 0:
+                raise InvalidLimits(
+                    f"{name} must be a non-empty 1-D array (one entry per DoF); got shape "
+                    f"{arr.shape}"
+                )
+            if n_dofs is None:
+                n_dofs = arr.size
+            elif arr.size != n_dofs:
+                raise InvalidLimits(
+                    f"{name} has {arr.size} entries but max_velocity has {n_dofs}; give one "
+                    "limit per DoF"
+                )
+            for i, value in enumerate(arr):
+                if not (np.isfinite(value) and value > 0.0):
+                    raise InvalidLimits(
+                        f"{name}[{i}] = {float(value)!r} {_LIMIT_UNITS[name]} (DoF {i}) must be finite "
+                        "and > 0"
+                    )
+            arr.setflags(write=False)
+            object.__setattr__(self, name, arr)
+
+    @classmethod
+    def uniform(
+        cls, dofs: int, max_velocity: float, max_acceleration: float, max_jerk: float
+    ) -> JointLimits:
+        """The same limits for every DoF.
+
+        Args:
+            dofs: Number of DoFs (>= 1).
+            max_velocity: Velocity limit [rad/s].
+            max_acceleration: Acceleration limit [rad/s^2].
+            max_jerk: Jerk limit [rad/s^3].
+
+        Raises:
+            InvalidLimits: ``dofs`` < 1 or a limit is not positive and finite.
+        """
+        if int(dofs) < 1:
+            raise InvalidLimits(f"dofs must be >= 1; got {dofs!r}")
+        n = int(dofs)
+        return cls(
+            np.full(n, float(max_velocity)),
+            np.full(n, float(max_acceleration)),
+            np.full(n, float(max_jerk)),
+        )
+
+    @property
+    def dofs(self) -> int:
+        """Number of DoFs."""
+        return int(self.max_velocity.size)
+
+
+def plan_ruckig(
+    current_position: npt.ArrayLike,
+    target_position: npt.ArrayLike,
+    limits: JointLimits,
+    dt_s: float,
+    names: Sequence[str],
+    current_velocity: npt.ArrayLike | None = None,
+    target_velocity: npt.ArrayLike | None = None,
+    current_acceleration: npt.ArrayLike | None = None,
+    target_acceleration: npt.ArrayLike | None = None,
+    minimum_duration_s: float | None = None,
+) -> JointTrajectory:
+    """A jerk-limited, time-synchronized trajectory from the current to the target state.
+
+    Args:
+        current_position: Start positions (n,) [rad].
+        target_position: Goal positions (n,) [rad].
+        limits: Velocity, acceleration and jerk limits for the n DoFs.
+        dt_s: Control period [s] (> 0); the sample step of the result.
+        names: Joint names of the n DoFs.
+        current_velocity: Start velocities (n,) [rad/s]; zero if None.
+        target_velocity: Goal velocities (n,) [rad/s]; zero if None. Must be within the limits.
+        current_acceleration: Start accelerations (n,) [rad/s^2]; zero if None.
+        target_acceleration: Goal accelerations (n,) [rad/s^2]; zero if None.
+        minimum_duration_s: If given, the trajectory lasts at least this long [s].
+
+    Returns:
+        Samples at ``t = 0, dt_s, ..., T`` with ``T`` the synchronized duration rounded up to a
+        whole number of periods; the last sample is exactly the target state.
+
+    Raises:
+        InvalidPlanningInput: Wrong shapes, non-finite states, bad ``dt_s``, names or
+            ``minimum_duration_s``.
+        InvalidLimits: ``limits`` has a different number of DoFs than the positions.
+        TrajectoryGenerationFailed: Ruckig rejected the input (e.g. a target velocity above
+            ``max_velocity``) or found no trajectory.
+    """
+    names = _check_names(names)
+    n = len(names)
+    dt = _check_dt(dt_s)
+    q0 = _state("current_position", current_position, n)
+    q1 = _state("target_position", target_position, n)
+    v0 = _state("current_velocity", current_velocity, n)
+    v1 = _state("target_velocity", target_velocity, n)
+    a0 = _state("current_acceleration", current_acceleration, n)
+    a1 = _state("target_acceleration", target_acceleration, n)
+    if limits.dofs != n:
+        raise InvalidLimits(
+            f"limits cover {limits.dofs} DoFs but the trajectory has {n} joints {names}"
+        )
+    for label, value, bound, unit in (
+        ("target_velocity", v1, limits.max_velocity, "rad/s"),
+        ("target_acceleration", a1, limits.max_acceleration, "rad/s^2"),
+    ):
+        over = np.flatnonzero(np.abs(value) > bound)
+        if over.size:
+            i = int(over[0])
+            raise TrajectoryGenerationFailed(
+                f"{label}[{i}] = {float(value[i])!r} {unit} (DoF {i}, {names[i]!r}) exceeds the limit "
+                f"{float(bound[i])!r} {unit}; a target state must lie within the limits",
+                "ErrorInvalidInput",
+            )
+
+    otg = Ruckig(n, dt)
+    inp = InputParameter(n)
+    inp.current_position = q0.tolist()
+    inp.current_velocity = v0.tolist()
+    inp.current_acceleration = a0.tolist()
+    inp.target_position = q1.tolist()
+    inp.target_velocity = v1.tolist()
+    inp.target_acceleration = a1.tolist()
+    inp.max_velocity = limits.max_velocity.tolist()
+    inp.max_acceleration = limits.max_acceleration.tolist()
+    inp.max_jerk = limits.max_jerk.tolist()
+    inp.synchronization = Synchronization.Time
+    inp.duration_discretization = DurationDiscretization.Discrete
+    if minimum_duration_s is not None:
+        if not (np.isfinite(minimum_duration_s) and minimum_duration_s >= 0.0):
+            raise InvalidPlanningInput(
+                f"minimum_duration_s must be finite and >= 0 [s]; got {minimum_duration_s!r}"
+            )
+        inp.minimum_duration = float(minimum_duration_s)
+
+    traj = Trajectory(n)
+    try:
+        result = otg.calculate(inp, traj)
+    except RuckigError as exc:
+        details = str(exc).strip()
+        raise TrajectoryGenerationFailed(
+            f"ruckig found no trajectory for {names} from {q0.tolist()} to {q1.tolist()} rad: "
+            f"{details.splitlines()[0] if details else 'no details'}. Check that the limits are "
+            "reasonable for the distance (very large moves or tiny limits overflow).",
+            "RuckigError",
+            details,
+        ) from exc
+    if result not in (Result.Working, Result.Finished):
+        raise TrajectoryGenerationFailed(
+            f"ruckig returned {result.name} for {names} from {q0.tolist()} to {q1.tolist()} rad",
+            result.name,
+        )
+
+    duration = float(traj.duration)
+    n_steps = max(int(round(duration / dt)), 0)
+    t = np.arange(n_steps + 1) * dt
+    q = np.empty((n_steps + 1, n))
+    v = np.empty_like(q)
+    a = np.empty_like(q)
+    for k, tk in enumerate(t):
+        pos, vel, acc = traj.at_time(min(float(tk), duration))
+        q[k], v[k], a[k] = pos, vel, acc
+    for label, got, want in (("position", q[-1], q1), ("velocity", v[-1], v1),
+                             ("acceleration", a[-1], a1)):
+        err = float(np.max(np.abs(got - want)))
+        if err > END_STATE_ATOL * max(1.0, float(np.max(np.abs(want)))):
+            raise TrajectoryGenerationFailed(
+                f"ruckig's end {label} misses the target by {err:.3g}; expected <= "
+                f"{END_STATE_ATOL:g}",
+                "EndStateMismatch",
+            )
+    # Ruckig's end state agrees to round-off; make it exact.
+    q[-1], v[-1], a[-1] = q1, v1, a1
+    return JointTrajectory(t, q, v, a, names)
+
+
+def plan_waypoints(
+    waypoints: npt.ArrayLike,
+    limits: JointLimits,
+    dt_s: float,
+    names: Sequence[str],
+    waypoint_velocities: npt.ArrayLike | None = None,
+) -> JointTrajectory:
+    """A trajectory through joint-space waypoints by chaining state-to-state ruckig segments.
+
+    By default the robot comes to rest at each waypoint (zero velocity and acceleration). With
+    ``waypoint_velocities`` it passes each waypoint at the given velocity instead (zero
+    acceleration there); each segment still respects the limits and hits its waypoint exactly,
+    but the path between waypoints may overshoot if the velocities point the wrong way.
+
+    Args:
+        waypoints: Positions (K, n) [rad], K >= 2; the first row is the start state.
+        limits: Limits for the n DoFs.
+        dt_s: Control period [s].
+        names: Joint names of the n DoFs.
+        waypoint_velocities: Optional velocities (K, n) [rad/s] at each waypoint (the first row
+            is the start velocity). The last row is normally zero.
+
+    Returns:
+        One trajectory on a uniform grid; every waypoint is a sample, exactly.
+
+    Raises:
+        InvalidPlanningInput: ``waypoints`` or ``waypoint_velocities`` has the wrong shape or
+            non-finite entries.
+        InvalidLimits: ``limits`` has a different number of DoFs.
+        TrajectoryGenerationFailed: Ruckig failed on a segment (the message names it).
+    """
+    names = _check_names(names)
+    n = len(names)
+    wps = _matrix("waypoints", waypoints, n)
+    if wps.shape[0] < 2:
+        raise InvalidPlanningInput(
+            f"waypoints needs at least 2 rows (start and goal); got {wps.shape[0]}"
+        )
+    if waypoint_velocities is None:
+        vels = np.zeros_like(wps)
+    else:
+        vels = _matrix("waypoint_velocities", waypoint_velocities, n)
+        if vels.shape != wps.shape:
+            raise InvalidPlanningInput(
+                f"waypoint_velocities must have the shape of waypoints {wps.shape}; got "
+                f"{vels.shape}"
+            )
+    segments = []
+    for k in range(wps.shape[0] - 1):
+        try:
+            segments.append(plan_ruckig(wps[k], wps[k + 1], limits, dt_s, names,
+                                        current_velocity=vels[k], target_velocity=vels[k + 1]))
+        except TrajectoryGenerationFailed as exc:
+            raise TrajectoryGenerationFailed(
+                f"segment {k} (waypoint {k} -> {k + 1}): {exc}", exc.result, exc.details
+            ) from exc
+    return concatenate(segments)
+
+
+def concatenate(segments: Sequence[JointTrajectory]) -> JointTrajectory:
+    """Segments played one after the other, each starting exactly at the previous end state.
+
+    The shared boundary sample is kept once. Unlike ``JointTrajectory.then`` this also drops
+    it when the robot passes a waypoint at non-zero velocity, and it joins all segments in one
+    allocation.
+
+    Args:
+        segments: Trajectories over the same names and with the same ``dt_s``.
+
+    Raises:
+        InvalidPlanningInput: No segments, different names or different sample periods.
+    """
+    if not segments:
+        raise InvalidPlanningInput("concatenate needs at least one segment")
+    first = segments[0]
+    t = [first.t_s]
+    rows = {"q": [first.q], "v": [first.v], "a": [first.a]}
+    for k, seg in enumerate(segments[1:], start=1):
+        if seg.names != first.names:
+            raise InvalidPlanningInput(
+                f"segment {k} is over joints {seg.names}, segment 0 over {first.names}"
+            )
+        if len(seg.t_s) > 1 and len(first.t_s) > 1 and not np.isclose(seg.dt_s, first.dt_s):
+            raise InvalidPlanningInput(
+                f"segment {k} has dt_s = {seg.dt_s!r} s, segment 0 has {first.dt_s!r} s"
+            )
+        t.append(seg.t_s[1:] - seg.t_s[0] + t[-1][-1])
+        for key in rows:
+            rows[key].append(getattr(seg, key)[1:])
+    return JointTrajectory(np.concatenate(t), np.vstack(rows["q"]), np.vstack(rows["v"]),
+                           np.vstack(rows["a"]), first.names)
+
+
+def _check_names(names: Sequence[str]) -> tuple[str, ...]:
+    if isinstance(names, str):
+        raise InvalidPlanningInput(f"names must be a sequence of joint names; got the string "
+                                   f"{names!r}")
+    out = tuple(names)
+    if not out or not all(isinstance(x, str) for x in out):
+        raise InvalidPlanningInput(f"names must be a non-empty sequence of strings; got {names!r}")
+    if len(set(out)) != len(out):
+        raise InvalidPlanningInput(f"names must be unique; got {out}")
+    return out
+
+
+def _check_dt(dt_s: float) -> float:
+    try:
+        dt = float(dt_s)
+    except (TypeError, ValueError) as exc:
+        raise InvalidPlanningInput(f"dt_s must be a number [s]; got {dt_s!r}") from exc
+    if not (np.isfinite(dt) and dt > 0.0):
+        raise InvalidPlanningInput(f"dt_s must be finite and > 0 [s]; got {dt_s!r}")
+    return dt
+
+
+def _state(label: str, value: npt.ArrayLike | None, n: int) -> np.ndarray:
+    if value is None:
+        return np.zeros(n)
+    arr = np.asarray(value, dtype=float)
+    if arr.shape != (n,):
+        raise InvalidPlanningInput(f"{label} must have shape ({n},); got {arr.shape}")
+    bad = np.flatnonzero(~np.isfinite(arr))
+    if bad.size:
+        i = int(bad[0])
+        raise InvalidPlanningInput(f"{label}[{i}] = {float(arr[i])!r} (DoF {i}) must be finite")
+    return arr
+
+
+def _matrix(label: str, value: npt.ArrayLike, n: int) -> np.ndarray:
+    arr = np.asarray(value, dtype=float)
+    if arr.ndim != 2 or arr.shape[1] != n:
+        raise InvalidPlanningInput(f"{label} must have shape (K, {n}); got {arr.shape}")
+    if not np.all(np.isfinite(arr)):
+        row, col = (int(x) for x in np.argwhere(~np.isfinite(arr))[0])
+        raise InvalidPlanningInput(f"{label}[{row}, {col}] = {float(arr[row, col])!r} must be finite")
+    return arr
