@@ -83,7 +83,9 @@ class Simulator:
         self.n_steps = 0
         self._last_command: Command | None = None
         self._stale = True
-        self._warn_seen = [0] * len(_DIVERGENCE_IDS)
+        self._ctrl = self.data.ctrl  # views into MjData, bound once for the hot path
+        self._warn_numbers = self.data.warning.number
+        self._warn_seen = self._warn_numbers.tolist()
         self.reset()
 
     # ------------------------------------------------------------------ RobotInterface
@@ -125,24 +127,21 @@ class Simulator:
             return  # commands are immutable: the same object is already in ctrl
         b = self._binder.bind(command)
         values = command.values
-        if b.limited:
-            low_hit = values < b.ctrl_low
-            high_hit = values > b.ctrl_high
-            if low_hit.any() or high_hit.any():
-                hit = low_hit | high_hit
-                if self._out_of_range == "raise":
-                    i = int(np.flatnonzero(hit)[0])
-                    name = self.model.actuator(int(b.index[i])).name
-                    raise CommandOutOfRange(
-                        f"{command.kind.value} command {values[i]:g} for actuator {name!r} is "
-                        f"outside its ctrlrange [{b.ctrl_low[i]:g}, {b.ctrl_high[i]:g}]"
-                    )
-                self.saturation_counts[b.index[hit]] += 1
-                values = np.clip(values, b.ctrl_low, b.ctrl_high)
+        if b.limited and b.out_of_range(values):
+            hit = (values < b.ctrl_low) | (values > b.ctrl_high)
+            if self._out_of_range == "raise":
+                i = int(np.flatnonzero(hit)[0])
+                name = self.model.actuator(int(b.index[i])).name
+                raise CommandOutOfRange(
+                    f"{command.kind.value} command {values[i]:g} for actuator {name!r} is "
+                    f"outside its ctrlrange [{b.ctrl_low[i]:g}, {b.ctrl_high[i]:g}]"
+                )
+            self.saturation_counts[b.index[hit]] += 1
+            values = np.clip(values, b.ctrl_low, b.ctrl_high)
         if b.full:
-            self.data.ctrl[:] = values
+            self._ctrl[:] = values
         else:
-            self.data.ctrl[b.index] = values
+            self._ctrl[b.index] = values
         self._last_command = command
 
     def sync(self) -> None:
@@ -169,14 +168,14 @@ class Simulator:
         self._check_divergence()
 
     def _check_divergence(self) -> None:
-        warning = self.data.warning
-        fired = None
-        for k, wid in enumerate(_DIVERGENCE_IDS):
-            count = warning[wid].number
-            if count != self._warn_seen[k]:
-                fired = fired or {}
-                fired[_WARNING_NAMES[wid]] = count - self._warn_seen[k]
-                self._warn_seen[k] = count
+        counts = self._warn_numbers.tolist()  # one call; cheaper than per-warning struct access
+        if counts == self._warn_seen:
+            return
+        fired = {}
+        for wid in _DIVERGENCE_IDS:
+            if counts[wid] != self._warn_seen[wid]:
+                fired[_WARNING_NAMES[wid]] = counts[wid] - self._warn_seen[wid]
+        self._warn_seen = counts
         if fired:
             raise SimulationDiverged(fired, float(self.data.time))
 
@@ -203,7 +202,7 @@ class Simulator:
         self.saturation_counts[:] = 0
         self.n_steps = 0
         self._last_command = None
-        self._warn_seen = [0] * len(_DIVERGENCE_IDS)
+        self._warn_seen = self._warn_numbers.tolist()
         self._forward()
 
     def set_state(self, q: npt.ArrayLike, v: npt.ArrayLike) -> None:

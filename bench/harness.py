@@ -1,0 +1,32 @@
+"""Tiny benchmark harness: medians of repeated timings, ratios measured in the same run."""
+
+from __future__ import annotations
+
+import statistics
+import time
+from collections.abc import Callable
+
+
+def median_time(fn: Callable[[], object], repeats: int = 7, inner: int = 1) -> float:
+    """Median wall time [s] of one call of ``fn`` over ``repeats`` x ``inner`` calls."""
+    fn()  # warm-up
+    samples = []
+    for _ in range(repeats):
+        t0 = time.perf_counter()
+        for _ in range(inner):
+            fn()
+        samples.append((time.perf_counter() - t0) / inner)
+    return statistics.median(samples)
+
+
+def interleaved(fns: dict[str, Callable[[], object]], repeats: int = 9) -> dict[str, float]:
+    """Median time [s] of each function, runs interleaved so machine noise hits all alike."""
+    for fn in fns.values():
+        fn()
+    samples: dict[str, list[float]] = {k: [] for k in fns}
+    for _ in range(repeats):
+        for name, fn in fns.items():
+            t0 = time.perf_counter()
+            fn()
+            samples[name].append(time.perf_counter() - t0)
+    return {k: statistics.median(v) for k, v in samples.items()}
