@@ -24,6 +24,8 @@ def _register_commands() -> None:
     cli_robots.register(app)
     cli_sim.register(app)
     # further command families register below
+    from mbctl import cli_demo
+    cli_demo.register(app)
 
 
 def fail(message: str, code: int = 2) -> typer.Exit:

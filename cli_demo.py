@@ -1,0 +1,46 @@
+"""CLI: ``mbctl demo`` — the 2-link torque arm draws a Cartesian square under computed torque."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Annotated
+
+import typer
+from mbctl.sim.demo import CONTROLLERS, DemoConfig, run_demo
+
+
+def demo(
+    output: Annotated[Path, typer.Option(help="Output directory for CSV, JSON report and PNG.")] = Path(
+        "out/demo"
+    ),
+    controller: Annotated[str, typer.Option(help=f"One of: {', '.join(CONTROLLERS)}.")] = "ct",
+    compare: Annotated[
+        bool, typer.Option("--compare", help="Run every controller on the same reference (gravity on).")
+    ] = False,
+    model_error: Annotated[
+        float, typer.Option("--model-error", help="Controller model link masses off by PCT (%).")
+    ] = 0.0,
+    duration: Annotated[
+        float | None, typer.Option(help="Run length (s) (default: the whole square, ~2.8 s).")
+    ] = None,
+    side: Annotated[float, typer.Option(help="Square side length (m).")] = 0.2,
+    speed: Annotated[float, typer.Option(help="Path speed limit (m/s).")] = 0.5,
+    omega: Annotated[float, typer.Option(help="Closed-loop natural frequency (rad/s).")] = 30.0,
+    no_gravity: Annotated[bool, typer.Option("--no-gravity", help="Switch gravity off.")] = False,
+) -> None:
+    """Track a Cartesian square on the 2-link torque arm; print RMS and max Cartesian error."""
+    config = DemoConfig(
+        controller=controller,
+        side_m=side,
+        max_speed_m_s=speed,
+        omega_rad_s=omega,
+        duration_s=duration,
+        model_error_pct=model_error,
+        gravity=not no_gravity,
+    )
+    typer.echo(run_demo(config, output, compare=compare).summary())
+
+
+def register(app: typer.Typer) -> None:
+    """Add this module's commands to ``app``."""
+    app.command("demo")(demo)
