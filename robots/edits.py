@@ -44,3 +44,69 @@ def position_to_motor(robot: Robot, actuators: Iterable[str] | None = None) -> R
             key.ctrl = np.zeros(0)
 
     return robot.with_edits(f"position actuators -> torque motors: {len(infos)} actuators", mj_edit=edit)
+
+
+def weld_base(robot: Robot, keyframe: str | None = None) -> Robot:
+    """Weld a floating base to the world at a keyframe's pose, in both engines.
+
+    MuJoCo: the free joint is deleted from the MjSpec, the base body is placed at the keyframe's
+    base position and orientation, and every keyframe drops the free joint's 7 qpos and 6 qvel
+    entries. Pinocchio: the model is rebuilt from the edited spec
+    (:func:`~mbctl.robots.model_pair.pin_model_from_spec`), so it has no free-flyer and the same
+    fixed base pose. The pair is then checked for agreement like any loaded robot.
+
+    Args:
+        robot: A robot whose first joint is a free joint (unchanged).
+        keyframe: Keyframe giving the base pose (default: the first keyframe; the body's
+            model pose when there is none).
+
+    Returns:
+        A fixed-base Robot; ``source.edits`` records the weld and the pose.
+
+    Raises:
+        ModelMismatchError: The rebuilt Pinocchio model disagrees with the welded MuJoCo model.
+        UnknownNameError: Unknown keyframe.
+        RobotError: The robot has no floating base.
+    """
+    from mbctl.robots.exceptions import RobotError
+    from mbctl.robots.model_pair import pin_model_from_spec
+
+    if not robot.has_floating_base:
+        raise RobotError(
+            f"{robot.name!r} has no floating base to weld (first joint: "
+            f"{next(iter(robot.joints), 'none')!r}); weld_base needs a free joint"
+        )
+    free = next(iter(robot.joints.values()))
+    m = robot.mj_model
+    if keyframe is None and robot.keyframes:
+        keyframe = robot.keyframes[0]
+    if keyframe is not None:
+        qpos = np.array(m.key_qpos[robot.keyframe_id(keyframe)])
+        pos, quat_wxyz = qpos[free.idx_q : free.idx_q + 3], qpos[free.idx_q + 3 : free.idx_q + 7]
+    else:
+        pos = quat_wxyz = None
+    edited: list[mujoco.MjSpec] = []
+
+    def edit(spec: mujoco.MjSpec) -> None:
+        joint = spec.joint(free.name)
+        body = joint.parent
+        spec.delete(joint)
+        if pos is not None:
+            body.pos = np.array(pos)
+            body.quat = np.array(quat_wxyz)
+        keep_q = np.r_[0 : free.idx_q, free.idx_q + free.nq : m.nq]
+        keep_v = np.r_[0 : free.idx_v, free.idx_v + free.nv : m.nv]
+        for key in spec.keys:
+            if len(key.qpos) == m.nq:
+                key.qpos = np.asarray(key.qpos)[keep_q]
+            if len(key.qvel) == m.nv:
+                key.qvel = np.asarray(key.qvel)[keep_v]
+        edited.append(spec)
+
+    def pin_edit(_model):  # noqa: ANN001, ANN202 - pin.Model in, pin.Model out
+        return pin_model_from_spec(edited[-1])
+
+    where = (f"at keyframe {keyframe!r} pose p={np.round(pos, 6).tolist()} m, "
+             f"quat_wxyz={np.round(quat_wxyz, 6).tolist()}") if pos is not None else "at its model pose"
+    return robot.with_edits(f"base welded to the world ({free.name} removed) {where}",
+                            mj_edit=edit, pin_edit=pin_edit)
