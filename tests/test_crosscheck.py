@@ -1,0 +1,354 @@
+"""Pinocchio-vs-MuJoCo dynamics cross-check: known robots pass, modelling errors fail by name."""
+
+from __future__ import annotations
+
+import json
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import mujoco
+import numpy as np
+import pytest
+from mbctl.robots import load_robot
+from mbctl.robots.crosscheck import (
+    TOLERANCES,
+    CrossCheckError,
+    Tolerance,
+    crosscheck,
+    sample_states,
+)
+from mbctl.robots.crosscheck_report import ACCOUNTED, EXCLUDED, NOT_COMPARED
+from mbctl.robots.registry import ASSETS
+
+ALL_QUANTITIES = ("structure", *TOLERANCES)
+
+# A floating-base robot with two ball joints, an unaligned hinge (no armature: see the Pinocchio
+# kinetic-energy test below), a slide, joint position offsets, a site with a rotation, damping,
+# and a static body with mass after the robot (Pinocchio's MJCF parser reads the first tree only).
+BALL_FREE_XML = """
+<mujoco model="ball_free_leg">
+  <compiler angle="radian" inertiafromgeom="false" autolimits="true"/>
+  <option gravity="0.3 -0.2 -9.81"/>
+  <worldbody>
+    <geom name="floor" type="plane" size="5 5 0.1"/>
+    <body name="base" pos="0 0 0.5">
+      <freejoint name="root"/>
+      <inertial pos="0.01 0.02 -0.01" mass="5" fullinertia="0.1 0.12 0.15 0.01 -0.005 0.002"/>
+      <geom type="box" size="0.2 0.1 0.05"/>
+      <site name="imu" pos="0.05 0 0.02" quat="0.9 0.1 0.2 0.3"/>
+      <body name="thigh" pos="0.2 0.1 0" quat="0.96 0 0.28 0">
+        <joint name="hip" type="ball" armature="0.01" damping="0.5"/>
+        <inertial pos="0 0.01 -0.1" quat="0.9 0.3 0 0.1" mass="1" diaginertia="0.01 0.012 0.003"/>
+        <body name="shin" pos="0 0 -0.2">
+          <joint name="knee" type="hinge" axis="0 1 0.2" range="-2 0.5" pos="0 0 0.01"/>
+          <inertial pos="0 0 -0.1" mass="0.5" diaginertia="0.004 0.004 0.001"/>
+          <body name="foot" pos="0 0 -0.2">
+            <joint name="ankle" type="slide" axis="0 0 1" range="-0.05 0.05" armature="0.1"/>
+            <inertial pos="0 0 -0.02" mass="0.1" diaginertia="1e-4 1e-4 1e-4"/>
+            <site name="toe" pos="0.03 0 -0.04"/>
+          </body>
+        </body>
+      </body>
+      <body name="arm" pos="-0.2 0 0.1">
+        <joint name="shoulder" type="ball"/>
+        <inertial pos="0 0 0.1" mass="0.8" diaginertia="0.005 0.005 0.001"/>
+        <body name="forearm" pos="0 0 0.2">
+          <joint name="elbow" axis="1 0 0" armature="0.03"/>
+          <inertial pos="0 0 0.1" mass="0.4" diaginertia="0.002 0.002 0.0005"/>
+        </body>
+      </body>
+    </body>
+    <body name="pedestal" pos="2 0 0.1">
+      <inertial pos="0 0 0" mass="3" diaginertia="0.1 0.1 0.1"/>
+      <geom type="box" size="0.1 0.1 0.1"/>
+    </body>
+  </worldbody>
+</mujoco>
+"""
+
+# Two hinges coupled by a spring tendon and a binding joint equality; one body with gravcomp.
+COUPLED_XML = """
+<mujoco model="coupled">
+  <compiler angle="radian" inertiafromgeom="false"/>
+  <option gravity="0 0 -9.81"/>
+  <worldbody>
+    <body name="a">
+      <joint name="j1" axis="0 1 0"/>
+      <inertial pos="0.15 0 0" mass="1" diaginertia="0.001 0.01 0.01"/>
+      <body name="b" pos="0.3 0 0" gravcomp="1">
+        <joint name="j2" axis="0 1 0"/>
+        <inertial pos="0.15 0 0" mass="0.5" diaginertia="0.001 0.005 0.005"/>
+      </body>
+    </body>
+  </worldbody>
+  <tendon>
+    <fixed name="coupling" stiffness="10">
+      <joint joint="j1" coef="1"/>
+      <joint joint="j2" coef="-1"/>
+    </fixed>
+  </tendon>
+  <equality>
+    <joint name="mimic" joint1="j2" joint2="j1" polycoef="0 1 0 0 0"/>
+  </equality>
+</mujoco>
+"""
+
+
+def _write(tmp_path: Path, name: str, text: str) -> Path:
+    path = tmp_path / name
+    path.write_text(text)
+    return path
+
+
+def _assert_clean_pass(report, bound: float = 1e-12) -> None:
+    assert report.passed and report.complete, report.to_text()
+    assert report.failed == ()
+    for q in report.quantities:
+        assert q.status == "pass", q
+        assert q.max_rel_error <= bound, q  # measured <= 2e-14; the tolerance is 1e-9
+
+
+# ---------------------------------------------------------------- known robots pass
+
+
+@pytest.mark.parametrize("name", ["two_link", "two_link_torque", "two_link_torque_gravity"])
+def test_two_link_arms_agree_to_round_off(name, request):
+    report = crosscheck(request.getfixturevalue(name), n_states=200, seed=0)
+    _assert_clean_pass(report)
+    assert report.n_states == 202  # 200 random + neutral at rest + random at rest
+    assert tuple(q.name for q in report.quantities) == ALL_QUANTITIES
+    assert [f.feature for f in report.features] == ["actuators"]
+
+
+def test_two_link_with_gravity_compares_nonzero_gravity(two_link_torque_gravity):
+    report = crosscheck(two_link_torque_gravity, n_states=50, seed=1)
+    # The gravity torques are compared against their own magnitude, not against the floor.
+    assert report.quantity("gravity").max_abs_error > 0.0
+    assert report.quantity("potential_energy").max_rel_error < 1e-12
+
+
+def test_g1_agrees_to_round_off(g1):
+    report = crosscheck(g1, n_states=150, seed=0)
+    _assert_clean_pass(report)
+    assert report.state_kinds == {
+        "neutral, v = 0": 1,
+        "zero velocity": 1,
+        "lower limits": 1,
+        "upper limits": 1,
+        "random": 150,
+    }
+    handled = {f.feature: f.handling for f in report.features}
+    assert handled == {
+        "contact": EXCLUDED,
+        "joint limits": EXCLUDED,
+        "frictionloss": EXCLUDED,
+        "actuators": EXCLUDED,
+    }
+    assert report.notes == ()
+    # The caller's plant is untouched: the private copy carries the disable flags.
+    assert g1.mj_model.opt.disableflags == 0
+    assert not g1.mj_model.opt.enableflags & mujoco.mjtEnableBit.mjENBL_ENERGY
+
+
+def test_g1_edge_states_sit_on_the_limits(g1):
+    states = sample_states(g1, n_states=5, seed=2)
+    m = g1.mj_model
+    hinge_q = [j.idx_q for j in g1.joints.values() if j.kind == "hinge"]
+    jids = [i for i, j in enumerate(g1.joints.values()) if j.kind == "hinge"]
+    np.testing.assert_array_equal(states.q[2, hinge_q], m.jnt_range[jids, 0])
+    np.testing.assert_array_equal(states.q[3, hinge_q], m.jnt_range[jids, 1])
+    assert np.all(states.v[:2] == 0.0)
+    quat = states.q[:, 3:7]
+    np.testing.assert_allclose(np.linalg.norm(quat, axis=1), 1.0, atol=1e-15)
+    rand = states.q[4:, hinge_q]
+    assert np.all((rand >= m.jnt_range[jids, 0]) & (rand <= m.jnt_range[jids, 1]))
+
+
+# ---------------------------------------------------------------- robots users bring
+
+
+def test_free_and_ball_joints_agree(tmp_path):
+    robot = load_robot(_write(tmp_path, "leg.xml", BALL_FREE_XML), check=False)
+    assert [j.kind for j in robot.joints.values()] == ["free", "ball", "hinge", "slide", "ball", "hinge"]
+    report = crosscheck(robot, n_states=200, seed=3)
+    assert report.passed and report.failed == ()
+    for q in report.quantities:
+        assert q.max_rel_error <= 1e-12, q
+    handled = {f.feature: f.handling for f in report.features}
+    assert handled["static bodies with mass"] == ACCOUNTED  # the pedestal's potential energy
+    assert handled["damping"] == EXCLUDED
+    # The pedestal is merged into Pinocchio's universe: said, not silently dropped.
+    assert any("body pedestal" in n for n in report.notes)
+    assert any("total mass differs" in n for n in report.notes)
+
+
+def test_tendon_equality_gravcomp_are_not_compared(tmp_path):
+    robot = load_robot(_write(tmp_path, "coupled.xml", COUPLED_XML), check=False)
+    report = crosscheck(robot, n_states=50, seed=0)
+    handled = {f.feature: f.handling for f in report.features}
+    assert handled == {
+        "equality constraints": NOT_COMPARED,
+        "gravity compensation": NOT_COMPARED,
+        "tendons": NOT_COMPARED,
+    }
+    assert report.passed  # the rigid-body part agrees ...
+    assert not report.complete  # ... but no clean pass is claimed
+    assert report.not_compared == ("equality constraints", "gravity compensation", "tendons")
+    assert report.verdict.startswith("PASS (incomplete: not compared: equality constraints")
+    assert "NOT COMPARED" in report.to_text()
+    assert report.to_dict()["complete"] is False
+
+
+def test_pinocchio_kinetic_energy_omits_unaligned_hinge_armature(tmp_path):
+    xml = BALL_FREE_XML.replace('axis="0 1 0.2" range', 'axis="0 1 0.2" armature="0.02" range')
+    robot = load_robot(_write(tmp_path, "leg_arm.xml", xml), check=False)
+    report = crosscheck(robot, n_states=50, seed=3)
+    assert report.failed == ("kinetic_energy",)  # M, ABA, RNEA include it; the energy does not
+    assert any("computeKineticEnergy leaves out the armature" in n and "knee" in n for n in report.notes)
+
+
+def test_robot_after_another_top_level_body_fails_structure(tmp_path):
+    first, rest = BALL_FREE_XML.split('    <body name="pedestal"')
+    pedestal, tail = rest.split("    </body>\n  </worldbody>")
+    xml = (
+        first.replace(
+            '    <body name="base"',
+            '    <body name="pedestal"' + pedestal + '    </body>\n    <body name="base"',
+        )
+        + "  </worldbody>"
+        + tail
+    )
+    robot = load_robot(_write(tmp_path, "pedestal_first.xml", xml), check=False)
+    report = crosscheck(robot, n_states=10, seed=0)
+    assert not report.passed
+    assert report.failed == ("structure",)
+    assert report.quantity("structure").note.startswith("sizes differ: Pinocchio nq=0, nv=0; MuJoCo nq=18")
+    assert "builds only the first body tree" in report.quantity("structure").note
+    assert set(report.not_compared) == set(TOLERANCES)
+    json.dumps(report.to_dict(), allow_nan=False)  # NaN errors become null
+
+
+# ---------------------------------------------------------------- the check catches real errors
+
+
+def _mutated_arm(tmp_path: Path, old: str, new: str):
+    text = (ASSETS / "two_link_arm.xml").read_text()
+    assert text.count(old) == 1
+    path = _write(tmp_path, "arm.xml", text.replace(old, new))
+    robot = load_robot("two_link_torque", gravity=True, pin_model_file=path, check=False)
+    return crosscheck(robot, n_states=30, seed=0)
+
+
+DYNAMICS = ("mass_matrix", "gravity", "bias", "forward_dynamics", "inverse_dynamics")
+
+
+def test_one_percent_mass_change_fails_mass_matrix_and_gravity(tmp_path):
+    report = _mutated_arm(tmp_path, 'pos="0.15 0 0" mass="0.7"', 'pos="0.15 0 0" mass="0.707"')
+    assert set(DYNAMICS) <= set(report.failed)
+    assert {"fk_position", "fk_rotation", "jacobian_linear", "jacobian_angular"}.isdisjoint(report.failed)
+    assert report.quantity("gravity").max_rel_error > 1e-3
+    assert any("total mass differs: Pinocchio 1.757 kg, MuJoCo 1.75 kg" in n for n in report.notes)
+
+
+def test_flipped_axis_fails_kinematics(tmp_path):
+    report = _mutated_arm(tmp_path, '<joint name="elbow"/>', '<joint name="elbow" axis="0 0 -1"/>')
+    for name in ("fk_position", "fk_rotation", "jacobian_linear", "jacobian_angular"):
+        assert report.quantity(name).status == "fail"
+        assert report.quantity(name).max_rel_error > 1e-2
+    # The load-time check cannot see an axis; -z makes Pinocchio's joint "unaligned", which is noted.
+    assert not any("agreement check" in n for n in report.notes)
+    assert any("non-axis-aligned" in n and "elbow" in n for n in report.notes)
+
+
+def test_missing_armature_fails_mass_matrix_only_where_armature_enters(tmp_path):
+    report = _mutated_arm(tmp_path, ' armature="0.002"', "")
+    assert report.failed == ("mass_matrix", "forward_dynamics", "inverse_dynamics", "kinetic_energy")
+    assert report.quantity("mass_matrix").max_abs_error == pytest.approx(0.002, rel=1e-9)
+
+
+def test_shifted_inertial_frame_fails_com_and_mass_matrix(tmp_path):
+    report = _mutated_arm(tmp_path, 'pos="0.15 0 0" mass="0.7"', 'pos="0.16 0 0" mass="0.7"')
+    assert {"com", "com_jacobian", "mass_matrix"} <= set(report.failed)
+    assert {"fk_position", "jacobian_linear"}.isdisjoint(report.failed)
+    assert report.notes == ()  # same total mass: invisible to the load-time check
+
+
+# ---------------------------------------------------------------- report and errors
+
+
+def test_report_json_and_text(two_link_torque):
+    report = crosscheck(two_link_torque, n_states=5, seed=7)
+    data = json.loads(json.dumps(report.to_dict(), allow_nan=False))
+    assert data["passed"] is True and data["verdict"] == "PASS"
+    assert [q["name"] for q in data["quantities"]] == list(ALL_QUANTITIES)
+    assert data["quantities"][1]["tolerance"] == 1e-9
+    text = report.to_text()
+    assert text.splitlines()[-1] == "result: PASS"
+    assert "mass_matrix" in text and "kg m^2" in text
+
+
+def test_same_seed_same_states(two_link_torque):
+    a = sample_states(two_link_torque, 10, seed=4)
+    b = sample_states(two_link_torque, 10, seed=4)
+    np.testing.assert_array_equal(a.q, b.q)
+    np.testing.assert_array_equal(a.tau, b.tau)
+
+
+@pytest.mark.parametrize(
+    ("kwargs", "match"),
+    [
+        ({"n_states": -1}, "n_states must be an integer >= 0; got -1"),
+        ({"n_states": 2.5}, "n_states must be an integer >= 0; got 2.5"),
+        ({"seed": "x"}, "seed must be an integer >= 0; got 'x'"),
+        ({"chunk_size": 0}, "chunk_size must be an integer >= 1; got 0"),
+        ({"tolerances": {}}, "tolerances has no entry for fk_position"),
+    ],
+)
+def test_bad_arguments_raise(two_link, kwargs, match):
+    with pytest.raises(CrossCheckError, match=match):
+        crosscheck(two_link, **kwargs)
+
+
+def test_bad_tolerance_raises():
+    with pytest.raises(CrossCheckError, match="Tolerance.rtol must be a positive finite number; got 0.0"):
+        Tolerance(0.0, 1.0, "m", "x")
+
+
+def test_chunking_does_not_change_results(g1):
+    a = crosscheck(g1, n_states=20, seed=5, chunk_size=3)
+    b = crosscheck(g1, n_states=20, seed=5, chunk_size=64)
+    assert [q.max_abs_error for q in a.quantities] == [q.max_abs_error for q in b.quantities]
+
+
+# ---------------------------------------------------------------- CLI
+
+
+def _mbctl(*args: str) -> subprocess.CompletedProcess:
+    return subprocess.run(
+        [sys.executable, "-m", "mbctl.cli", *args],
+        capture_output=True,
+        text=True,
+        timeout=300,
+        env=dict(os.environ),
+    )
+
+
+def test_cli_xcheck_passes_and_writes_json(tmp_path):
+    out = _mbctl(
+        "xcheck", "two_link_torque", "--states", "20", "--seed", "3", "--json", str(tmp_path / "r.json")
+    )
+    assert out.returncode == 0, out.stderr
+    assert out.stdout.splitlines()[-1] == "result: PASS"
+    data = json.loads((tmp_path / "r.json").read_text())
+    assert data["n_states"] == 22 and data["seed"] == 3 and data["passed"] is True
+
+
+def test_cli_xcheck_exits_1_on_a_different_pin_model(tmp_path):
+    text = (ASSETS / "two_link_arm.xml").read_text().replace(' armature="0.002"', "")
+    arm = _write(tmp_path, "arm.xml", text)
+    out = _mbctl("xcheck", "two_link_torque", "--states", "10", "--pin-model", str(arm))
+    assert out.returncode == 1, out.stderr
+    assert "load-time agreement check found differences" in out.stdout
+    assert out.stdout.splitlines()[-1] == "result: FAIL"
