@@ -19,6 +19,11 @@ from mbctl.planners.exceptions import (
     PlanningError,
     TrajectoryGenerationFailed,
 )
+from mbctl.planners.polynomial import (
+    cubic_trajectory,
+    minimum_jerk_trajectory,
+    quintic_trajectory,
+)
 from mbctl.planners.ruckig_planner import JointLimits, concatenate, plan_ruckig, plan_waypoints
 from mbctl.planners.trajectory import JointTrajectory
 
@@ -38,8 +43,11 @@ __all__ = [
     "PolylinePath",
     "TrajectoryGenerationFailed",
     "concatenate",
+    "cubic_trajectory",
+    "minimum_jerk_trajectory",
     "plan_ruckig",
     "plan_waypoints",
+    "quintic_trajectory",
     "square_path",
     "time_path",
     "to_joint_trajectory",

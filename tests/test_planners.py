@@ -28,8 +28,11 @@ from mbctl.planners import (
     PlanningError,
     PolylinePath,
     TrajectoryGenerationFailed,
+    cubic_trajectory,
+    minimum_jerk_trajectory,
     plan_ruckig,
     plan_waypoints,
+    quintic_trajectory,
     square_path,
     time_path,
     to_joint_trajectory,
@@ -55,11 +58,18 @@ def _check_limits(traj: JointTrajectory, limits: JointLimits) -> dict[str, float
     return ratios
 
 
-def _check_consistent(traj: JointTrajectory, rtol: float = 2e-3) -> None:
-    """q, v, a agree with each other by central differences (O(dt^2 * jerk))."""
-    v_fd = (traj.q[2:] - traj.q[:-2]) / (2 * traj.dt_s)
-    scale = max(1.0, float(np.max(np.abs(traj.v))))
-    assert np.max(np.abs(v_fd - traj.v[1:-1])) < rtol * scale
+def _check_consistent(traj: JointTrajectory) -> float:
+    """q and v agree by central differences; returns the max error [rad/s].
+
+    The central difference errs by ``dt^2 / 6 |jerk|``; the jerk is estimated from differences
+    of a, with 50 % slack plus round-off.
+    """
+    dt = traj.dt_s
+    v_fd = (traj.q[2:] - traj.q[:-2]) / (2 * dt)
+    err = float(np.max(np.abs(v_fd - traj.v[1:-1])))
+    jerk = float(np.max(np.abs(np.diff(traj.a, axis=0)))) / dt
+    assert err <= 1.5 * dt**2 / 6 * jerk + 1e-9 * max(1.0, float(np.max(np.abs(traj.v))))
+    return err
 
 
 # ------------------------------------------------------------------------------ ruckig
@@ -175,6 +185,70 @@ def test_ruckig_bad_inputs():
         plan_waypoints([[0, 0, 0]], LIMITS3, DT, NAMES3)
     with pytest.raises(InvalidPlanningInput, match=r"waypoints must have shape \(K, 3\)"):
         plan_waypoints([[0, 0], [1, 1]], LIMITS3, DT, NAMES3)
+
+
+# ------------------------------------------------------------------------------ polynomials
+finite = st.floats(-3.0, 3.0, allow_nan=False)
+vec2 = st.lists(finite, min_size=2, max_size=2)
+
+
+@settings(max_examples=40, deadline=None)
+@given(vec2, vec2, vec2, vec2, vec2, vec2, st.floats(0.2, 3.0))
+def test_quintic_boundary_conditions_exact(q0, q1, v0, v1, a0, a1, duration):
+    traj = quintic_trajectory(q0, q1, duration, 0.01, ("a", "b"), v0, v1, a0, a1)
+    for got, want in ((traj.q[0], q0), (traj.v[0], v0), (traj.a[0], a0),
+                      (traj.q[-1], q1), (traj.v[-1], v1), (traj.a[-1], a1)):
+        np.testing.assert_array_equal(got, want)
+    assert traj.duration_s >= duration - 1e-9 and traj.duration_s < duration + 0.01
+    _check_consistent(traj)
+    # Accelerations agree with central differences of v (error dt^2 / 6 |snap|).
+    dt = traj.dt_s
+    a_fd = (traj.v[2:] - traj.v[:-2]) / (2 * dt)
+    snap = float(np.max(np.abs(np.diff(traj.a, 2, axis=0)))) / dt**2
+    bound = 1.5 * dt**2 / 6 * snap + 1e-9 * max(1.0, float(np.max(np.abs(traj.a))))
+    assert np.max(np.abs(a_fd - traj.a[1:-1])) <= bound
+
+
+@settings(max_examples=30, deadline=None)
+@given(vec2, vec2, vec2, vec2, st.floats(0.2, 3.0))
+def test_cubic_boundary_conditions_exact(q0, q1, v0, v1, duration):
+    traj = cubic_trajectory(q0, q1, duration, 0.01, ("a", "b"), v0, v1)
+    for got, want in ((traj.q[0], q0), (traj.v[0], v0), (traj.q[-1], q1), (traj.v[-1], v1)):
+        np.testing.assert_array_equal(got, want)
+    # A cubic has constant jerk: second differences of a vanish.
+    assert np.max(np.abs(np.diff(traj.a, 2, axis=0))) < 1e-9 * max(1.0, np.max(np.abs(traj.a)))
+    _check_consistent(traj)
+
+
+def test_minimum_jerk_shape_and_symmetry():
+    q0, q1, T = np.array([0.2, -1.0]), np.array([1.2, 0.5]), 2.0
+    traj = minimum_jerk_trajectory(q0, q1, T, 0.01, ("a", "b"))
+    assert len(traj.t_s) == 201 and traj.duration_s == pytest.approx(T, abs=1e-12)
+    tau = traj.t_s / T
+    expected = q0 + np.outer(10 * tau**3 - 15 * tau**4 + 6 * tau**5, q1 - q0)
+    np.testing.assert_allclose(traj.q, expected, atol=1e-14)
+    # Point symmetry about the midpoint: q(t) + q(T - t) = q0 + q1, v even, a odd.
+    np.testing.assert_allclose(traj.q + traj.q[::-1], np.broadcast_to(q0 + q1, traj.q.shape),
+                               atol=1e-14)
+    np.testing.assert_allclose(traj.v, traj.v[::-1], atol=1e-13)
+    np.testing.assert_allclose(traj.a, -traj.a[::-1], atol=1e-12)
+    np.testing.assert_allclose(traj.v[100], 1.875 * (q1 - q0) / T, rtol=1e-12)
+    np.testing.assert_array_equal(traj.v[[0, -1]], 0.0)
+    np.testing.assert_array_equal(traj.a[[0, -1]], 0.0)
+    # Squared-jerk integral: 720 dq^2 / T^5 for the minimum-jerk profile (midpoint sum).
+    jerk_cost = np.sum((np.diff(traj.a, axis=0) / 0.01) ** 2, axis=0) * 0.01
+    np.testing.assert_allclose(jerk_cost, 720 * (q1 - q0) ** 2 / T**5, rtol=1e-3)
+
+
+def test_polynomial_duration_rounding_and_bad_inputs():
+    traj = minimum_jerk_trajectory([0.0], [1.0], 0.333, 0.01, ("a",))
+    assert len(traj.t_s) == 35 and traj.duration_s == pytest.approx(0.34)
+    with pytest.raises(InvalidPlanningInput, match=r"duration_s must be finite and > 0 \[s\]"):
+        minimum_jerk_trajectory([0.0], [1.0], 0.0, 0.01, ("a",))
+    with pytest.raises(InvalidPlanningInput, match=r"target_velocity must have shape \(1,\)"):
+        cubic_trajectory([0.0], [1.0], 1.0, 0.01, ("a",), target_velocity=[1.0, 2.0])
+    with pytest.raises(InvalidPlanningInput, match="dt_s must be finite and > 0"):
+        quintic_trajectory([0.0], [1.0], 1.0, -0.01, ("a",))
 
 
 # ------------------------------------------------------------------------------ Cartesian
