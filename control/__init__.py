@@ -7,6 +7,25 @@ from mbctl.control.exceptions import (
     KinematicsError,
     UnreachableTarget,
 )
+from mbctl.control.ik_limits import (
+    BoxLimit,
+    Constraint,
+    FloatingBaseVelocityLimit,
+    JointPositionLimit,
+    JointVelocityLimit,
+    Limit,
+)
+from mbctl.control.ik_solve import DiffIK, IKResult, IKStep, solve_ik
+from mbctl.control.ik_state import IKState
+from mbctl.control.ik_tasks import (
+    ComTask,
+    DampingTask,
+    FrameOrientationTask,
+    FramePoseTask,
+    FramePositionTask,
+    PostureTask,
+    Task,
+)
 from mbctl.control.two_link import (
     ElbowBranch,
     IterativeIKResult,
@@ -18,16 +37,34 @@ from mbctl.control.two_link import (
 )
 
 __all__ = [
+    "BoxLimit",
+    "ComTask",
+    "Constraint",
     "ControlError",
+    "DampingTask",
+    "DiffIK",
     "ElbowBranch",
+    "FloatingBaseVelocityLimit",
+    "FrameOrientationTask",
+    "FramePoseTask",
+    "FramePositionTask",
     "IKInfeasible",
+    "IKResult",
     "IKSetupError",
+    "IKState",
+    "IKStep",
     "IterativeIKResult",
+    "JointPositionLimit",
+    "JointVelocityLimit",
     "KinematicsError",
+    "Limit",
+    "PostureTask",
+    "Task",
     "TwoLinkArm",
     "UnreachableTarget",
     "Workspace",
     "dls_ik",
     "pinv_ik",
     "plot_workspace",
+    "solve_ik",
 ]

@@ -1,0 +1,353 @@
+"""Differential IK as a QP on Pinocchio Jacobians, solved through ``qpsolvers.solve_problem``.
+
+Each step solves, for the tangent step ``dq`` (nv,) (``v = dq / dt``)::
+
+    min_dq  1/2 dq^T H dq + c^T dq
+    s.t.    G dq <= h,   lb <= dq <= ub
+
+    H = W^T W + (damping + sum_i mu_i) I,   c = -W^T r,
+    W = [diag(cost_i) J_i]_i (stacked),    r = [-gain_i diag(cost_i) e_i]_i,
+    mu_i = lm_damping_i |r_i|^2
+
+which is mink's problem (``mink.solve_ik``) written with Pinocchio quantities. The step is applied
+on the manifold with ``pin.integrate``.
+
+``DiffIK`` preallocates W, r, H, c and the bounds for a fixed task/limit set; one step costs one
+``pin.computeJointJacobians`` + ``pin.updateFramePlacements`` (+ CoM) and one QP.
+"""
+
+from __future__ import annotations
+
+import time
+import warnings
+from collections.abc import Sequence
+from typing import NamedTuple
+
+import numpy as np
+import numpy.typing as npt
+import pinocchio as pin
+import qpsolvers
+from mbctl.control.exceptions import IKInfeasible, IKSetupError
+from mbctl.control.ik_limits import BoxLimit, Limit
+from mbctl.control.ik_state import IKState
+from mbctl.control.ik_tasks import ComTask, Task
+from qpsolvers.warnings import SparseConversionWarning
+
+#: Magnitude standing for "no bound" in the QP (DAQP's and OSQP's infinity).
+QP_INFINITY = 1e30
+
+
+class IKStep(NamedTuple):
+    """One differential-IK step.
+
+    Attributes:
+        v: Tangent velocity (nv,) = dq / dt, Pinocchio convention (base twist in the base frame).
+        dq: Tangent step (nv,).
+        solve_time_s: Time spent in the QP backend [s] (as reported by qpsolvers).
+    """
+
+    v: np.ndarray
+    dq: np.ndarray
+    solve_time_s: float
+
+
+class IKResult(NamedTuple):
+    """Outcome of iterating differential IK to convergence.
+
+    Attributes:
+        q: Final configuration (nq,), Pinocchio convention.
+        converged: Whether every non-regularising task residual met its tolerance.
+        stalled: Whether iteration stopped because the step became negligible (closest pose to
+            an unreachable target).
+        iterations: Number of steps taken.
+        residuals: Per task name, its residual norms by quantity (``"position [m]"``,
+            ``"orientation [rad]"``, ...), at ``q``.
+        max_position_residual_history: Largest position residual [m] before each step and at
+            the end (iterations + 1,).
+        step_norms: Infinity norm of each step ``dq`` (iterations,).
+        wall_time_s: Total wall-clock time of the loop [s].
+    """
+
+    q: np.ndarray
+    converged: bool
+    stalled: bool
+    iterations: int
+    residuals: dict[str, dict[str, float]]
+    max_position_residual_history: np.ndarray
+    step_norms: np.ndarray
+    wall_time_s: float
+
+
+class DiffIK:
+    """Differential-IK QP for a fixed set of tasks and limits, with preallocated buffers.
+
+    Attributes:
+        model: Pinocchio model.
+        tasks: The tasks (targets may change between steps; the set may not).
+        limits: The limits (built once by the caller).
+        solver: qpsolvers backend name (e.g. "daqp", "osqp").
+        damping: Global Levenberg-Marquardt term added to H's diagonal [cost].
+        state: Kinematic state at the last ``update``.
+    """
+
+    def __init__(
+        self,
+        model: pin.Model,
+        tasks: Sequence[Task],
+        limits: Sequence[Limit] = (),
+        solver: str = "daqp",
+        damping: float = 1e-12,
+        solver_options: dict | None = None,
+    ):
+        """Allocate the QP buffers.
+
+        Args:
+            model: Pinocchio model.
+            tasks: Tasks (non-empty).
+            limits: Limits; box limits become QP bounds, others inequality rows.
+            solver: Any backend in ``qpsolvers.available_solvers``.
+            damping: Global LM damping (>= 0) on all dofs, floating base included.
+            solver_options: Keyword arguments for the backend (e.g. OSQP tolerances).
+
+        Raises:
+            IKSetupError: No tasks, an unavailable solver, or negative damping.
+        """
+        if not tasks:
+            raise IKSetupError("DiffIK needs at least one task.")
+        if solver not in qpsolvers.available_solvers:
+            raise IKSetupError(
+                f"QP solver {solver!r} is not installed; available: "
+                f"{', '.join(sorted(qpsolvers.available_solvers))}."
+            )
+        if not (np.isfinite(damping) and damping >= 0.0):
+            raise IKSetupError(f"damping must be >= 0; got {damping!r}")
+        self.model = model
+        self.tasks = tuple(tasks)
+        self.limits = tuple(limits)
+        self.solver = solver
+        self.damping = float(damping)
+        self.solver_options = dict(solver_options or {})
+        if solver == "osqp" and not self.solver_options:
+            self.solver_options = {"eps_abs": 1e-9, "eps_rel": 1e-9, "polishing": False}
+        self.state = IKState(model, with_com=any(isinstance(t, ComTask) for t in self.tasks))
+        nv = model.nv
+        self._slices = []
+        row = 0
+        for t in self.tasks:
+            self._slices.append(slice(row, row + t.k))
+            row += t.k
+        self._W = np.zeros((row, nv))
+        self._r = np.zeros(row)
+        self._H = np.zeros((nv, nv))
+        self._c = np.zeros(nv)
+        self._diag = np.arange(nv) * (nv + 1)
+        self._box = tuple(lim for lim in self.limits if isinstance(lim, BoxLimit))
+        self._other = tuple(lim for lim in self.limits if not isinstance(lim, BoxLimit))
+        self._lb = np.empty(nv)
+        self._ub = np.empty(nv)
+
+    # ------------------------------------------------------------------ QP
+    def update(self, q: npt.ArrayLike) -> None:
+        """Move the kinematic state to ``q`` (nq,)."""
+        self.state.update(q)
+
+    def build_problem(self, dt: float) -> qpsolvers.Problem:
+        """The QP at the current state for a step of ``dt`` [s] (buffers are reused: copy to keep).
+
+        Raises:
+            IKSetupError: ``dt`` not positive; a task without a target.
+        """
+        if not dt > 0.0:
+            raise IKSetupError(f"dt must be > 0 [s]; got {dt!r}")
+        state = self.state
+        W, r = self._W, self._r
+        mu = self.damping
+        for task, rows in zip(self.tasks, self._slices, strict=True):
+            e, J = task.error_and_jacobian(state)
+            cost = task.cost
+            np.multiply(cost[:, None], J, out=W[rows])
+            r_t = r[rows]
+            np.multiply(cost, e, out=r_t)
+            r_t *= -task.gain
+            if task.lm_damping > 0.0:
+                mu += task.lm_damping * float(r_t @ r_t)
+        H, c = self._H, self._c
+        np.matmul(W.T, W, out=H)
+        H.flat[self._diag] += mu
+        np.matmul(r, W, out=c)
+        np.negative(c, out=c)
+        lb = ub = None
+        if self._box:
+            lb, ub = self._lb, self._ub
+            lb.fill(-QP_INFINITY)
+            ub.fill(QP_INFINITY)
+            for lim in self._box:
+                lim.intersect_bounds(state, dt, lb, ub)
+        G = h = None
+        if self._other:
+            cons = [lim.compute_qp_inequalities(state, dt) for lim in self._other]
+            G = np.vstack([con.G for con in cons])
+            h = np.concatenate([con.h for con in cons])
+        return qpsolvers.Problem(H, c, G, h, None, None, lb, ub)
+
+    def solve_step(self, dt: float = 1.0) -> IKStep:
+        """Solve the QP at the current state.
+
+        Args:
+            dt: Step duration [s] (scales velocity limits; ``v = dq / dt``).
+
+        Raises:
+            IKInfeasible: The backend found no solution (carries the QP and the result).
+        """
+        problem = self.build_problem(dt)
+        if problem.lb is not None and np.any(problem.lb > problem.ub):
+            bad = np.flatnonzero(problem.lb > problem.ub)
+            result = qpsolvers.Solution(problem)
+            result.found = False
+            raise IKInfeasible(
+                f"IK limits contradict each other at dofs {bad[:8].tolist()}: lower bounds "
+                f"{problem.lb[bad[:8]].round(6).tolist()} exceed upper bounds "
+                f"{problem.ub[bad[:8]].round(6).tolist()} (is q outside its joint limits?). "
+                "Move q inside its limits or relax the limits.",
+                _copy_problem(problem),
+                result,
+                self.solver,
+            )
+        with warnings.catch_warnings():
+            # OSQP wants a sparse P; qpsolvers converts our dense one and says so every call.
+            warnings.simplefilter("ignore", SparseConversionWarning)
+            # osqp 1.x announces a future default; a failed solve is reported by IKInfeasible.
+            warnings.filterwarnings("ignore", message="The default value of raise_error")
+            warnings.filterwarnings("ignore", message="OSQP exited with status")
+            result = qpsolvers.solve_problem(problem, solver=self.solver, **self.solver_options)
+        if not result.found or result.x is None:
+            raise IKInfeasible(
+                f"QP solver {self.solver!r} found no IK step (the limits may be infeasible); "
+                "inspect .problem and .result.",
+                _copy_problem(problem),
+                result,
+                self.solver,
+            )
+        dq = np.asarray(result.x, dtype=float)
+        return IKStep(dq / dt, dq, float(result.solve_time or 0.0))
+
+    def step(self, q: npt.ArrayLike, dt: float = 1.0) -> IKStep:
+        """Update the state to ``q`` (nq,) and solve one step."""
+        self.state.update(q)
+        return self.solve_step(dt)
+
+    # ------------------------------------------------------------------ loop
+    def residuals(self) -> dict[str, dict[str, float]]:
+        """Residual norms of every task at the current state."""
+        return {t.name: t.residuals(self.state) for t in self.tasks}
+
+    def solve(
+        self,
+        q0: npt.ArrayLike,
+        dt: float = 1.0,
+        tol: float = 1e-3,
+        tol_rad: float = 1e-2,
+        max_iters: int = 50,
+        step_tol: float = 1e-6,
+    ) -> IKResult:
+        """Iterate steps from ``q0`` until all target tasks meet their tolerance.
+
+        An unreachable target is not an error: iteration stops when the step becomes negligible
+        (``stalled``) and the residuals report how far each task is from its target.
+
+        Args:
+            q0: Initial configuration (nq,).
+            dt: Step duration [s] (velocity limits allow ``v_max dt`` per step).
+            tol: Position tolerance [m] (also used for unit-less "error" residuals).
+            tol_rad: Orientation tolerance [rad].
+            max_iters: Maximum number of steps.
+            step_tol: Stop when ``|dq|_inf`` falls below this [rad or m].
+
+        Raises:
+            IKSetupError: Non-positive tolerances or iteration count.
+            IKInfeasible: A step's QP has no solution.
+        """
+        if not (tol > 0.0 and tol_rad > 0.0 and step_tol > 0.0) or int(max_iters) < 1:
+            raise IKSetupError(
+                f"tol, tol_rad, step_tol must be > 0 and max_iters >= 1; got tol={tol!r}, "
+                f"tol_rad={tol_rad!r}, step_tol={step_tol!r}, max_iters={max_iters!r}"
+            )
+        t0 = time.perf_counter()
+        self.state.update(q0)
+        history: list[float] = []
+        steps: list[float] = []
+        converged = stalled = False
+        for it in range(int(max_iters) + 1):
+            res = self.residuals()
+            converged, worst = _check(self.tasks, res, tol, tol_rad)
+            history.append(worst)
+            if converged or stalled or it == int(max_iters):
+                break
+            out = self.solve_step(dt)
+            steps.append(float(np.max(np.abs(out.dq))))
+            self.state.update(pin.integrate(self.model, self.state.q, out.dq))
+            stalled = steps[-1] < step_tol
+        return IKResult(
+            q=np.array(self.state.q),
+            converged=converged,
+            stalled=stalled and not converged,
+            iterations=len(steps),
+            residuals=res,
+            max_position_residual_history=np.array(history),
+            step_norms=np.array(steps),
+            wall_time_s=time.perf_counter() - t0,
+        )
+
+
+def _check(
+    tasks: Sequence[Task], res: dict[str, dict[str, float]], tol: float, tol_rad: float
+) -> tuple[bool, float]:
+    ok = True
+    worst = 0.0
+    for t in tasks:
+        if t.regularizing:
+            continue
+        for key, value in res[t.name].items():
+            limit = tol_rad if "[rad]" in key else tol
+            ok = ok and value <= limit
+            if "[m]" in key:
+                worst = max(worst, value)
+    return ok, worst
+
+
+def _copy_problem(p: qpsolvers.Problem) -> qpsolvers.Problem:
+    def cp(x):
+        return None if x is None else np.array(x, copy=True)
+
+    return qpsolvers.Problem(cp(p.P), cp(p.q), cp(p.G), cp(p.h), cp(p.A), cp(p.b), cp(p.lb), cp(p.ub))
+
+
+def solve_ik(
+    state: IKState,
+    tasks: Sequence[Task],
+    dt: float,
+    solver: str = "daqp",
+    damping: float = 1e-12,
+    limits: Sequence[Limit] = (),
+) -> np.ndarray:
+    """One differential-IK step at ``state`` (mink's ``solve_ik`` signature, Pinocchio side).
+
+    Convenience for one-off calls: it allocates a ``DiffIK`` each time; loops should keep one.
+
+    Args:
+        state: Kinematic state (its ``q`` is used).
+        tasks: Tasks with targets set.
+        dt: Step duration [s].
+        solver: qpsolvers backend.
+        damping: Global LM damping.
+        limits: Limits.
+
+    Returns:
+        Tangent velocity ``v`` (nv,), Pinocchio convention.
+
+    Raises:
+        IKInfeasible: The QP has no solution.
+        IKSetupError: Invalid arguments.
+    """
+    ik = DiffIK(state.model, tasks, limits, solver, damping)
+    return ik.step(state.q, dt).v

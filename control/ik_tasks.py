@@ -1,0 +1,491 @@
+"""Differential-IK tasks on Pinocchio Jacobians (the mink design, on Pinocchio).
+
+A task has an error ``e(q)`` (k,) that IK drives to zero and its Jacobian ``J(q) = de/dq`` (k, nv)
+on the configuration manifold: ``e(q ⊕ dq) ≈ e(q) + J(q) dq`` with ``⊕`` = ``pin.integrate``.
+Its QP contribution is ``|| W (J dq + alpha e) ||^2`` with ``W = diag(cost)``, plus the
+Levenberg-Marquardt term ``mu |dq|^2`` with ``mu = lm_damping |W alpha e|^2``.
+
+Notation (Drake monograms): W world, F the task frame, T the target frame, C the centre of mass.
+``X_TF = X_WT^-1 X_WF``; ``J_F`` is F's body Jacobian (twist of F in F, [v; w]).
+
+Pose errors follow mink exactly (so both solvers build the same QP): ``e = log6(X_FT) =
+-log6(X_TF)``, ``J = -Jlog6(X_TF) J_F``; the orientation task keeps the rotation rows.
+"""
+
+from __future__ import annotations
+
+import abc
+from collections.abc import Mapping
+
+import numpy as np
+import numpy.typing as npt
+import pinocchio as pin
+from mbctl.control.exceptions import IKSetupError
+from mbctl.control.ik_state import IKState
+
+
+def _cost_vector(cost: npt.ArrayLike, k: int, owner: str, what: str = "cost") -> np.ndarray:
+    arr = np.atleast_1d(np.asarray(cost, dtype=float))
+    if arr.shape == (1,):
+        arr = np.full(k, arr[0])
+    if arr.shape != (k,) or not np.all(np.isfinite(arr)) or np.any(arr < 0.0):
+        raise IKSetupError(
+            f"{owner} {what} must be a non-negative scalar or a vector of shape ({k},); "
+            f"got {np.asarray(cost).tolist()!r}"
+        )
+    return arr
+
+
+class Task(abc.ABC):
+    """A least-squares IK objective ``|| diag(cost) (J dq + gain e) ||^2``.
+
+    Subclasses implement ``compute_error`` and ``compute_jacobian`` (and may override
+    ``error_and_jacobian`` to share work between them).
+
+    Attributes:
+        name: Label used in residual reports.
+        k: Task dimension.
+        cost: Weights (k,) in [cost]/[task unit], read-only.
+        gain: Fraction ``alpha`` in [0, 1] of the error corrected per step (1 = dead-beat).
+        lm_damping: Levenberg-Marquardt scale [-] (>= 0), grows the diagonal with the error.
+        regularizing: True for tasks that never reach zero error (posture, damping); they are
+            left out of convergence checks.
+    """
+
+    regularizing: bool = False
+
+    def __init__(self, name: str, k: int, cost: npt.ArrayLike, gain: float, lm_damping: float):
+        """Validate and store the common parameters.
+
+        Raises:
+            IKSetupError: A negative cost, a gain outside [0, 1] or a negative lm_damping.
+        """
+        if not 0.0 <= gain <= 1.0:
+            raise IKSetupError(f"{name}: gain must be in [0, 1]; got {gain!r}")
+        if not (np.isfinite(lm_damping) and lm_damping >= 0.0):
+            raise IKSetupError(f"{name}: lm_damping must be >= 0; got {lm_damping!r}")
+        self.name = name
+        self.k = k
+        self.gain = float(gain)
+        self.lm_damping = float(lm_damping)
+        self._cost = _cost_vector(cost, k, name)
+        self._cost.setflags(write=False)
+
+    @property
+    def cost(self) -> np.ndarray:
+        """Weights (k,), read-only."""
+        return self._cost
+
+    def set_cost(self, cost: npt.ArrayLike) -> None:
+        """Replace the weights (scalar or (k,)).
+
+        Raises:
+            IKSetupError: A negative or misshaped cost.
+        """
+        new = _cost_vector(cost, self.k, self.name)
+        new.setflags(write=False)
+        self._cost = new
+
+    @abc.abstractmethod
+    def compute_error(self, state: IKState) -> np.ndarray:
+        """Task error ``e(q)`` (k,)."""
+
+    @abc.abstractmethod
+    def compute_jacobian(self, state: IKState) -> np.ndarray:
+        """Task Jacobian ``de/dq`` (k, nv) on the manifold."""
+
+    def error_and_jacobian(self, state: IKState) -> tuple[np.ndarray, np.ndarray]:
+        """``(e, J)`` together (override to share intermediate results)."""
+        return self.compute_error(state), self.compute_jacobian(state)
+
+    def residuals(self, state: IKState) -> dict[str, float]:
+        """Unweighted error norms for reports, by quantity (with units in the key)."""
+        return {"error": float(np.linalg.norm(self.compute_error(state)))}
+
+
+# ---------------------------------------------------------------------- frame tasks
+class _FrameTask(Task):
+    def __init__(
+        self,
+        name: str,
+        frame: str,
+        state_or_model: IKState | pin.Model,
+        k: int,
+        cost: npt.ArrayLike,
+        gain: float,
+        lm_damping: float,
+    ):
+        super().__init__(name, k, cost, gain, lm_damping)
+        model = state_or_model.model if isinstance(state_or_model, IKState) else state_or_model
+        if not model.existFrame(frame):
+            from mbctl.robots.exceptions import UnknownNameError
+
+            raise UnknownNameError("frame", frame, [f.name for f in model.frames])
+        self.frame = frame
+        self.frame_id = model.getFrameId(frame)
+        self._X_WT: pin.SE3 | None = None
+        self._X_TW: pin.SE3 | None = None
+
+    def set_target(self, transform_target_to_world: pin.SE3) -> None:
+        """Set the target pose ``X_WT``."""
+        self._X_WT = pin.SE3(transform_target_to_world)
+        self._X_TW = self._X_WT.inverse()
+
+    def set_target_from_state(self, state: IKState) -> None:
+        """Set the target to the frame's current pose."""
+        self.set_target(state.frame_pose(self.frame_id))
+
+    @property
+    def transform_target_to_world(self) -> pin.SE3:
+        """Target pose ``X_WT``.
+
+        Raises:
+            IKSetupError: No target set yet.
+        """
+        if self._X_WT is None:
+            raise IKSetupError(f"{self.name}: no target set; call set_target first.")
+        return self._X_WT
+
+    def _X_TF(self, state: IKState) -> pin.SE3:
+        if self._X_TW is None:
+            raise IKSetupError(f"{self.name}: no target set; call set_target first.")
+        return self._X_TW * state.frame_pose(self.frame_id)
+
+
+class FramePoseTask(_FrameTask):
+    """Pose of a frame: ``e = log6(X_FT)`` (6,) [m, rad] in F, ``J = -Jlog6(X_TF) J_F``.
+
+    Equal to mink's ``FrameTask``; cost is (position [3], orientation [3]).
+    """
+
+    def __init__(
+        self,
+        frame: str,
+        model: IKState | pin.Model,
+        position_cost: npt.ArrayLike = 1.0,
+        orientation_cost: npt.ArrayLike = 1.0,
+        gain: float = 1.0,
+        lm_damping: float = 0.0,
+        name: str | None = None,
+    ):
+        """Create the task (set a target before solving).
+
+        Args:
+            frame: Pinocchio frame name (body, site, operational frame).
+            model: Pinocchio model or IK state.
+            position_cost: Weight(s) on the translation error [cost]/[m], scalar or (3,).
+            orientation_cost: Weight(s) on the rotation error [cost]/[rad], scalar or (3,).
+            gain: Fraction of the error corrected per step, in [0, 1].
+            lm_damping: Levenberg-Marquardt scale [-].
+            name: Report label (default: "<frame> pose").
+
+        Raises:
+            UnknownNameError: No frame called ``frame``.
+            IKSetupError: Invalid costs, gain or damping.
+        """
+        pos = _cost_vector(position_cost, 3, frame, "position_cost")
+        rot = _cost_vector(orientation_cost, 3, frame, "orientation_cost")
+        super().__init__(
+            name or f"{frame} pose", frame, model, 6, np.concatenate([pos, rot]), gain, lm_damping
+        )
+
+    def compute_error(self, state: IKState) -> np.ndarray:
+        """``log6(X_FT)`` (6,) [m, rad]: the twist from F to the target, in F."""
+        return -pin.log6(self._X_TF(state)).vector
+
+    def compute_jacobian(self, state: IKState) -> np.ndarray:
+        """``-Jlog6(X_TF) J_F`` (6, nv)."""
+        return -pin.Jlog6(self._X_TF(state)) @ state.frame_jacobian_local(self.frame_id)
+
+    def error_and_jacobian(self, state: IKState) -> tuple[np.ndarray, np.ndarray]:
+        """Both, from one ``X_TF``."""
+        X_TF = self._X_TF(state)
+        J = pin.Jlog6(X_TF) @ state.frame_jacobian_local(self.frame_id)
+        return -pin.log6(X_TF).vector, np.negative(J, out=J)
+
+    def residuals(self, state: IKState) -> dict[str, float]:
+        """Distance [m] and rotation angle [rad] to the target; a part with zero cost is omitted."""
+        X_TF = self._X_TF(state)
+        out = {}
+        if np.any(self.cost[:3] > 0.0):
+            out["position [m]"] = float(np.linalg.norm(X_TF.translation))
+        if np.any(self.cost[3:] > 0.0):
+            out["orientation [rad]"] = float(np.linalg.norm(pin.log3(X_TF.rotation)))
+        return out
+
+
+class FramePositionTask(_FrameTask):
+    """Position of a frame origin: ``e = p_WF - p_WT`` (3,) [m] in W, ``J = R_WF J_F[:3]``."""
+
+    def __init__(
+        self,
+        frame: str,
+        model: IKState | pin.Model,
+        cost: npt.ArrayLike = 1.0,
+        gain: float = 1.0,
+        lm_damping: float = 0.0,
+        name: str | None = None,
+    ):
+        """Create the task (set a target before solving).
+
+        Args:
+            frame: Pinocchio frame name.
+            model: Pinocchio model or IK state.
+            cost: Weight(s) [cost]/[m], scalar or (3,) along world x, y, z.
+            gain: Fraction of the error corrected per step, in [0, 1].
+            lm_damping: Levenberg-Marquardt scale [-].
+            name: Report label (default: "<frame> position").
+
+        Raises:
+            UnknownNameError: No frame called ``frame``.
+            IKSetupError: Invalid cost, gain or damping.
+        """
+        super().__init__(name or f"{frame} position", frame, model, 3, cost, gain, lm_damping)
+        self._p_WT: np.ndarray | None = None
+
+    def set_target(self, transform_target_to_world: pin.SE3 | npt.ArrayLike) -> None:
+        """Set the target position ``p_WT`` (3,) [m] (an SE3's translation is used)."""
+        if isinstance(transform_target_to_world, pin.SE3):
+            p = transform_target_to_world.translation.copy()
+        else:
+            p = np.asarray(transform_target_to_world, dtype=float).copy()
+        if p.shape != (3,) or not np.all(np.isfinite(p)):
+            raise IKSetupError(f"{self.name}: target must be a finite (3,) position [m]; got {p!r}")
+        self._p_WT = p
+        super().set_target(pin.SE3(np.eye(3), p))
+
+    def _target(self) -> np.ndarray:
+        if self._p_WT is None:
+            raise IKSetupError(f"{self.name}: no target set; call set_target first.")
+        return self._p_WT
+
+    def compute_error(self, state: IKState) -> np.ndarray:
+        """``p_WF - p_WT`` (3,) [m]."""
+        return state.frame_pose(self.frame_id).translation - self._target()
+
+    def compute_jacobian(self, state: IKState) -> np.ndarray:
+        """``R_WF J_F[:3]`` (3, nv)."""
+        R_WF = state.frame_pose(self.frame_id).rotation
+        return R_WF @ state.frame_jacobian_local(self.frame_id)[:3]
+
+    def residuals(self, state: IKState) -> dict[str, float]:
+        """Distance to the target [m]."""
+        return {"position [m]": float(np.linalg.norm(self.compute_error(state)))}
+
+
+class FrameOrientationTask(_FrameTask):
+    """Orientation of a frame: ``e = log3(R_FT)`` (3,) [rad], ``J = -Jlog3(R_TF) J_F[3:]``."""
+
+    def __init__(
+        self,
+        frame: str,
+        model: IKState | pin.Model,
+        cost: npt.ArrayLike = 1.0,
+        gain: float = 1.0,
+        lm_damping: float = 0.0,
+        name: str | None = None,
+    ):
+        """Create the task (set a target before solving).
+
+        Args:
+            frame: Pinocchio frame name.
+            model: Pinocchio model or IK state.
+            cost: Weight(s) [cost]/[rad], scalar or (3,) about the frame's axes.
+            gain: Fraction of the error corrected per step, in [0, 1].
+            lm_damping: Levenberg-Marquardt scale [-].
+            name: Report label (default: "<frame> orientation").
+
+        Raises:
+            UnknownNameError: No frame called ``frame``.
+            IKSetupError: Invalid cost, gain or damping.
+        """
+        super().__init__(name or f"{frame} orientation", frame, model, 3, cost, gain, lm_damping)
+
+    def compute_error(self, state: IKState) -> np.ndarray:
+        """``log3(R_FT) = -log3(R_TF)`` (3,) [rad]."""
+        return -pin.log3(self._X_TF(state).rotation)
+
+    def compute_jacobian(self, state: IKState) -> np.ndarray:
+        """``-Jlog3(R_TF) J_F[3:]`` (3, nv)."""
+        R_TF = self._X_TF(state).rotation
+        return -pin.Jlog3(R_TF) @ state.frame_jacobian_local(self.frame_id)[3:]
+
+    def residuals(self, state: IKState) -> dict[str, float]:
+        """Rotation angle to the target [rad]."""
+        return {"orientation [rad]": float(np.linalg.norm(self.compute_error(state)))}
+
+
+# ---------------------------------------------------------------------- whole-body tasks
+class ComTask(Task):
+    """Centre of mass: ``e = p_WC - p_target`` (3,) [m], ``J = J_com`` (3, nv) (world frame)."""
+
+    def __init__(
+        self,
+        cost: npt.ArrayLike = 1.0,
+        gain: float = 1.0,
+        lm_damping: float = 0.0,
+        name: str = "com",
+    ):
+        """Create the task (set a target before solving).
+
+        Args:
+            cost: Weight(s) [cost]/[m], scalar or (3,) along world x, y, z (0 frees an axis).
+            gain: Fraction of the error corrected per step, in [0, 1].
+            lm_damping: Levenberg-Marquardt scale [-].
+            name: Report label.
+
+        Raises:
+            IKSetupError: Invalid cost, gain or damping.
+        """
+        super().__init__(name, 3, cost, gain, lm_damping)
+        self._target: np.ndarray | None = None
+
+    def set_target(self, target_com: npt.ArrayLike) -> None:
+        """Set the CoM target (3,) [m] in the world frame.
+
+        Raises:
+            IKSetupError: Not a finite (3,) vector.
+        """
+        p = np.asarray(target_com, dtype=float).copy()
+        if p.shape != (3,) or not np.all(np.isfinite(p)):
+            raise IKSetupError(f"{self.name}: target must be a finite (3,) position [m]; got {p!r}")
+        self._target = p
+
+    def set_target_from_state(self, state: IKState) -> None:
+        """Set the target to the current CoM."""
+        self.set_target(state.com())
+
+    def compute_error(self, state: IKState) -> np.ndarray:
+        """``p_WC - p_target`` (3,) [m]."""
+        if self._target is None:
+            raise IKSetupError(f"{self.name}: no target set; call set_target first.")
+        return state.com() - self._target
+
+    def compute_jacobian(self, state: IKState) -> np.ndarray:
+        """``J_com`` (3, nv)."""
+        return state.com_jacobian()
+
+    def residuals(self, state: IKState) -> dict[str, float]:
+        """Weighted-axes distance to the target [m] (axes with zero cost are ignored)."""
+        e = self.compute_error(state) * (self.cost > 0.0)
+        return {"position [m]": float(np.linalg.norm(e))}
+
+
+def _floating_dofs(model: pin.Model) -> np.ndarray:
+    """Tangent indices of free-flyer joints (left out of posture and damping)."""
+    idx: list[int] = []
+    for j in range(1, model.njoints):
+        if model.joints[j].shortname() == "JointModelFreeFlyer":
+            start = model.joints[j].idx_v
+            idx.extend(range(start, start + 6))
+    return np.array(idx, dtype=int)
+
+
+class PostureTask(Task):
+    """Joint posture: ``e = q ⊖ q_target`` (nv,) (``pin.difference``), ``J = I`` (nv, nv).
+
+    Free-flyer rows are zero (the base is not pulled to a posture), as in mink.
+    """
+
+    regularizing = True
+
+    def __init__(
+        self,
+        model: IKState | pin.Model,
+        cost: npt.ArrayLike = 1e-2,
+        gain: float = 1.0,
+        lm_damping: float = 0.0,
+        name: str = "posture",
+    ):
+        """Create the task (set a target before solving).
+
+        Args:
+            model: Pinocchio model or IK state.
+            cost: Weight(s) [cost]/[rad], scalar or (nv,).
+            gain: Fraction of the error corrected per step, in [0, 1].
+            lm_damping: Levenberg-Marquardt scale [-].
+            name: Report label.
+
+        Raises:
+            IKSetupError: Invalid cost, gain or damping.
+        """
+        self.model = model.model if isinstance(model, IKState) else model
+        super().__init__(name, self.model.nv, cost, gain, lm_damping)
+        self._free = _floating_dofs(self.model)
+        self._jacobian = np.eye(self.model.nv)
+        self._jacobian[self._free, self._free] = 0.0
+        self._jacobian.setflags(write=False)
+        self._target: np.ndarray | None = None
+
+    def set_target(self, target_q: npt.ArrayLike) -> None:
+        """Set the target configuration (nq,), Pinocchio convention.
+
+        Raises:
+            IKSetupError: Wrong shape or non-finite entries.
+        """
+        q = np.asarray(target_q, dtype=float).copy()
+        if q.shape != (self.model.nq,) or not np.all(np.isfinite(q)):
+            raise IKSetupError(
+                f"{self.name}: target must be a finite ({self.model.nq},) configuration; "
+                f"got shape {q.shape}"
+            )
+        self._target = q
+
+    def set_target_from_state(self, state: IKState) -> None:
+        """Set the target to the current configuration."""
+        self.set_target(state.q)
+
+    def compute_error(self, state: IKState) -> np.ndarray:
+        """``q ⊖ q_target`` (nv,), free-flyer entries zeroed."""
+        if self._target is None:
+            raise IKSetupError(f"{self.name}: no target set; call set_target first.")
+        e = pin.difference(self.model, self._target, state.q)
+        e[self._free] = 0.0
+        return e
+
+    def compute_jacobian(self, state: IKState) -> np.ndarray:
+        """Identity (nv, nv) with free-flyer rows zeroed (constant, read-only)."""
+        return self._jacobian
+
+
+class DampingTask(Task):
+    """Minimum-motion regulariser: ``e = 0``, ``J = I`` (free-flyer rows zero), gain 0.
+
+    Adds ``sum_i cost_i^2 dq_i^2`` to the objective (mink's ``DampingTask``).
+    """
+
+    regularizing = True
+
+    def __init__(self, model: IKState | pin.Model, cost: npt.ArrayLike = 1e-3, name: str = "damping"):
+        """Create the task.
+
+        Args:
+            model: Pinocchio model or IK state.
+            cost: Weight(s) [cost]/[rad], scalar or (nv,).
+            name: Report label.
+
+        Raises:
+            IKSetupError: Invalid cost.
+        """
+        self.model = model.model if isinstance(model, IKState) else model
+        super().__init__(name, self.model.nv, cost, 0.0, 0.0)
+        self._jacobian = np.eye(self.model.nv)
+        free = _floating_dofs(self.model)
+        self._jacobian[free, free] = 0.0
+        self._jacobian.setflags(write=False)
+        self._zero = np.zeros(self.model.nv)
+        self._zero.setflags(write=False)
+
+    def compute_error(self, state: IKState) -> np.ndarray:
+        """Zero (nv,)."""
+        return self._zero
+
+    def compute_jacobian(self, state: IKState) -> np.ndarray:
+        """Identity (nv, nv) with free-flyer rows zeroed."""
+        return self._jacobian
+
+
+def task_residuals(tasks: Mapping[str, Task] | list[Task], state: IKState) -> dict[str, dict]:
+    """Residual norms of each task at ``state``, keyed by task name."""
+    items = tasks.values() if isinstance(tasks, Mapping) else tasks
+    return {t.name: t.residuals(state) for t in items}

@@ -1,0 +1,256 @@
+"""Differential IK on Pinocchio: task Jacobians vs finite differences on the manifold, the QP
+with daqp and OSQP, limits, unreachable targets and infeasibility."""
+
+from __future__ import annotations
+
+import numpy as np
+import pinocchio as pin
+import pytest
+import qpsolvers
+from mbctl.control import (
+    ComTask,
+    Constraint,
+    DampingTask,
+    DiffIK,
+    FloatingBaseVelocityLimit,
+    FrameOrientationTask,
+    FramePoseTask,
+    FramePositionTask,
+    IKInfeasible,
+    IKSetupError,
+    IKState,
+    JointPositionLimit,
+    JointVelocityLimit,
+    Limit,
+    PostureTask,
+    TwoLinkArm,
+    solve_ik,
+)
+from mbctl.robots import UnknownNameError
+
+SOLVERS = ["daqp", "osqp"]
+
+
+def _random_q(model: pin.Model, rng: np.random.Generator, scale: float = 0.3, q0=None):
+    q0 = pin.neutral(model) if q0 is None else q0
+    return pin.integrate(model, q0, scale * rng.standard_normal(model.nv))
+
+
+def _fd_jacobian(task, state: IKState, q: np.ndarray, h: float = 1e-6) -> np.ndarray:
+    """Central differences of e(q ⊕ h e_i) on the manifold."""
+    model = state.model
+    cols = []
+    for i in range(model.nv):
+        d = np.zeros(model.nv)
+        d[i] = h
+        state.update(pin.integrate(model, q, d))
+        e_plus = np.array(task.compute_error(state))
+        state.update(pin.integrate(model, q, -d))
+        e_minus = np.array(task.compute_error(state))
+        cols.append((e_plus - e_minus) / (2 * h))
+    state.update(q)
+    return np.column_stack(cols)
+
+
+def _tasks_for(model: pin.Model, frame: str, state: IKState, rng: np.random.Generator):
+    """Every task type, with targets away from the current pose (rotation included)."""
+    X_WF = state.frame_pose(state.frame_id(frame))
+    target = X_WF * pin.exp6(pin.Motion(0.05 * rng.standard_normal(6)))
+    pose = FramePoseTask(frame, model, 1.0, 1.0)
+    pose.set_target(target)
+    pos = FramePositionTask(frame, model)
+    pos.set_target(target.translation)
+    ori = FrameOrientationTask(frame, model)
+    ori.set_target(target)
+    com = ComTask()
+    com.set_target(state.com() + 0.03 * rng.standard_normal(3))
+    posture = PostureTask(model)
+    posture.set_target(_random_q(model, rng))
+    # DampingTask is left out: its "Jacobian" is a regulariser, not de/dq (e is always 0).
+    return [pose, pos, ori, com, posture]
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_task_jacobians_match_finite_differences_two_link(two_link, seed):
+    rng = np.random.default_rng(seed)
+    model = two_link.pin_model
+    q = _random_q(model, rng, 1.0)
+    state = IKState(model, q)
+    for task in _tasks_for(model, "end_effector", state, rng):
+        e, J = task.error_and_jacobian(state)
+        np.testing.assert_array_equal(e, task.compute_error(state))
+        err = np.max(np.abs(J - _fd_jacobian(task, state, q)))
+        assert err < 1e-7, f"{task.name}: |J - J_fd|_inf = {err:.2e}"
+
+
+@pytest.mark.parametrize("seed", [0, 1])
+def test_task_jacobians_match_finite_differences_g1(g1, seed):
+    rng = np.random.default_rng(seed)
+    model = g1.pin_model
+    q = _random_q(model, rng, 0.3, g1.keyframe_q("stand"))
+    state = IKState(model, q)
+    for frame in ("left_foot", "pelvis", "right_wrist_yaw_link"):
+        for task in _tasks_for(model, frame, state, rng):
+            err = np.max(np.abs(task.compute_jacobian(state) - _fd_jacobian(task, state, q)))
+            assert err < 1e-6, f"{task.name} on {frame}: |J - J_fd|_inf = {err:.2e}"
+
+
+def test_pose_task_jacobian_at_zero_relative_rotation(g1):
+    # Pure-translation error (the palm-target case): Jlog6 keeps its -[p]x/2 block.
+    model = g1.pin_model
+    q = g1.keyframe_q("stand")
+    state = IKState(model, q)
+    task = FramePoseTask("left_wrist_yaw_link", model, 1.0, 0.0)
+    X = pin.SE3(state.frame_pose(state.frame_id("left_wrist_yaw_link")))
+    X.translation = X.translation + np.array([0.1, 0.0, 0.0])
+    task.set_target(X)
+    assert np.max(np.abs(task.compute_jacobian(state) - _fd_jacobian(task, state, q))) < 1e-7
+
+
+def test_damping_task_adds_cost_squared_on_joint_diagonal(g1):
+    model = g1.pin_model
+    cost = np.linspace(0.1, 1.0, model.nv)
+    ik = DiffIK(model, [DampingTask(model, cost)], damping=0.0)
+    ik.update(g1.keyframe_q("stand"))
+    problem = ik.build_problem(1.0)
+    expected = cost**2
+    expected[:6] = 0.0  # floating base left free, as in mink
+    np.testing.assert_allclose(problem.P, np.diag(expected), atol=1e-15)
+    np.testing.assert_array_equal(problem.q, np.zeros(model.nv))
+
+
+@pytest.mark.parametrize("solver", SOLVERS)
+def test_two_link_reaches_target_with_each_solver(two_link, solver):
+    model = two_link.pin_model
+    arm = TwoLinkArm.from_robot(two_link)
+    target = np.array([*arm.forward_kinematics([0.4, 1.2]), 0.0])
+    task = FramePositionTask("end_effector", model, cost=1.0)
+    task.set_target(target)
+    ik = DiffIK(model, [task, DampingTask(model, 1e-3)], [JointVelocityLimit(model, {
+        "shoulder": 2.0, "elbow": 2.0})], solver=solver)
+    res = ik.solve(np.array([0.1, 0.5]), dt=0.5, tol=1e-8)
+    assert res.converged and not res.stalled
+    assert res.iterations <= 8
+    assert res.residuals["end_effector position"]["position [m]"] < 1e-8
+    np.testing.assert_allclose(arm.forward_kinematics(res.q), target[:2], atol=1e-8)
+    # velocity limit: every step within v_max dt = 1 rad
+    assert np.all(res.step_norms <= 1.0 + 1e-7)
+
+
+def test_daqp_and_osqp_give_the_same_step(g1):
+    model = g1.pin_model
+    rng = np.random.default_rng(3)
+    q = _random_q(model, rng, 0.2, g1.keyframe_q("stand"))
+    state = IKState(model, q)
+    tasks = _tasks_for(model, "left_foot", state, rng)
+    limits = [JointPositionLimit(model), FloatingBaseVelocityLimit(model, 0.5, 1.0)]
+    v = {s: DiffIK(model, tasks, limits, s, damping=1e-3).step(q, 0.1).v for s in SOLVERS}
+    assert np.max(np.abs(v["daqp"] - v["osqp"])) < 1e-5
+    # the functional form gives the daqp answer
+    np.testing.assert_allclose(
+        solve_ik(state, tasks, 0.1, "daqp", 1e-3, limits), v["daqp"], atol=1e-12, rtol=0
+    )
+
+
+def test_unreachable_target_converges_to_closest_pose(two_link):
+    model = two_link.pin_model
+    arm = TwoLinkArm.from_robot(two_link)
+    task = FramePositionTask("end_effector", model, cost=1.0, lm_damping=1.0)
+    task.set_target([0.9, 0.0, 0.0])
+    ik = DiffIK(model, [task, DampingTask(model, 1e-2)], [JointVelocityLimit(model, {
+        "shoulder": 2.0, "elbow": 2.0})])
+    res = ik.solve(np.array([0.1, 0.5]), dt=0.5, tol=1e-6, max_iters=200)
+    assert not res.converged and res.stalled
+    residual = res.residuals["end_effector position"]["position [m]"]
+    assert residual == pytest.approx(0.9 - arm.r_max, abs=1e-6)
+
+
+def test_joint_position_limits_hold_on_g1(g1):
+    model = g1.pin_model
+    q0 = g1.keyframe_q("stand")
+    state = IKState(model, q0)
+    task = FramePositionTask("left_wrist_yaw_link", model, cost=1.0, lm_damping=1.0)
+    task.set_target(state.frame_pose(state.frame_id("left_wrist_yaw_link")).translation
+                    + [0.0, 1.0, 1.0])  # far out of reach: limits must bind
+    limit = JointPositionLimit(model)
+    ik = DiffIK(model, [task, DampingTask(model, 1e-2)], [limit, FloatingBaseVelocityLimit(
+        model, 1e-9, 1e-9)])
+    res = ik.solve(q0, dt=1.0, max_iters=40)
+    assert not res.converged
+    qj = res.q[limit.idx_q]
+    assert np.all(qj >= limit.q_min - 1e-9) and np.all(qj <= limit.q_max + 1e-9)
+    assert min(min(m) for m in limit.margins(res.q).values()) < 1e-2  # some joint hit a limit
+    np.testing.assert_allclose(res.q[:7], q0[:7], atol=1e-7)  # base pinned by its limit
+
+
+def test_floating_base_velocity_limit_bounds_local_twist(g1):
+    model = g1.pin_model
+    q0 = g1.keyframe_q("stand")
+    state = IKState(model, q0)
+    task = FramePoseTask("pelvis", model, 1.0, 1.0)
+    task.set_target(state.frame_pose(state.frame_id("pelvis")) * pin.exp6(pin.Motion(
+        np.array([0.5, -0.5, 0.2, 0.3, -0.3, 0.4]))))
+    lim = FloatingBaseVelocityLimit(model, linear=0.1, angular=[0.2, 0.2, 0.05])
+    step = DiffIK(model, [task], [lim]).step(q0, dt=0.5)
+    bound = lim.max_velocity * 0.5
+    assert np.all(np.abs(step.dq[:6]) <= bound + 1e-9)
+    assert np.any(np.abs(step.dq[:6]) >= bound - 1e-9)  # active
+
+
+@pytest.mark.parametrize("solver", SOLVERS)
+def test_contradictory_bounds_raise_ik_infeasible(two_link, solver):
+    model = two_link.pin_model
+    limited = model.copy()
+    limited.lowerPositionLimit = np.array([-1.0, -1.0])
+    limited.upperPositionLimit = np.array([1.0, 1.0])
+    task = FramePositionTask("end_effector", limited)
+    task.set_target([0.3, 0.3, 0.0])
+    ik = DiffIK(limited, [task], [JointPositionLimit(limited), JointVelocityLimit(
+        limited, {"shoulder": 0.1, "elbow": 0.1})], solver=solver)
+    with pytest.raises(IKInfeasible) as info:
+        ik.step(np.array([2.0, 0.0]), dt=1.0)  # shoulder 1 rad beyond its upper limit
+    exc = info.value
+    assert isinstance(exc.problem, qpsolvers.Problem)
+    assert exc.result.found is False
+    assert exc.problem.lb[0] > exc.problem.ub[0]
+    assert "dofs [0]" in str(exc) and "outside its joint limits" in str(exc)
+
+
+class _ContradictoryLimit(Limit):
+    """dq_0 <= -1 and dq_0 >= 1."""
+
+    def compute_qp_inequalities(self, state, dt):
+        G = np.zeros((2, state.nv))
+        G[0, 0], G[1, 0] = 1.0, -1.0
+        return Constraint(G, np.array([-1.0, -1.0]))
+
+
+@pytest.mark.parametrize("solver", SOLVERS)
+def test_infeasible_qp_reported_by_solver_raises_ik_infeasible(two_link, solver):
+    model = two_link.pin_model
+    task = FramePositionTask("end_effector", model)
+    task.set_target([0.3, 0.3, 0.0])
+    ik = DiffIK(model, [task], [_ContradictoryLimit()], solver=solver)
+    with pytest.raises(IKInfeasible, match=f"QP solver '{solver}' found no IK step") as info:
+        ik.step(np.array([0.2, 0.3]))
+    assert info.value.solver == solver
+    assert info.value.result.found is False
+    np.testing.assert_array_equal(info.value.problem.h, [-1.0, -1.0])
+
+
+def test_setup_errors(two_link):
+    model = two_link.pin_model
+    with pytest.raises(UnknownNameError, match="Unknown frame 'end_efector'.*end_effector"):
+        FramePoseTask("end_efector", model)
+    with pytest.raises(IKSetupError, match="position_cost must be a non-negative"):
+        FramePoseTask("end_effector", model, position_cost=-1.0)
+    with pytest.raises(IKSetupError, match="gain must be in \\[0, 1\\]; got 1.5"):
+        FramePositionTask("end_effector", model, gain=1.5)
+    with pytest.raises(IKSetupError, match="QP solver 'nosuch' is not installed; available:"):
+        DiffIK(model, [DampingTask(model)], solver="nosuch")
+    with pytest.raises(IKSetupError, match="needs a free-flyer joint"):
+        FloatingBaseVelocityLimit(model)
+    with pytest.raises(IKSetupError, match="no target set"):
+        DiffIK(model, [FramePositionTask("end_effector", model)]).step(np.zeros(2))
+    with pytest.raises(UnknownNameError, match="Unknown joint 'wrist'"):
+        JointVelocityLimit(model, {"wrist": 1.0})
