@@ -313,11 +313,9 @@ class _Evaluator:
         self.tops = top_moving_bodies(m)
         self.top_mass = np.array(m.body_subtreemass[self.tops])
         self.static = static_bodies(m)
+        # Per-state outputs of each engine; the frame quantities of Pinocchio live in _H and _J_pin,
+        # MuJoCo's Jacobians in _J_mj (mapped through T per chunk).
         shapes = {
-            "fk_position": (nf, 3),
-            "fk_rotation": (nf, 3, 3),
-            "jacobian_linear": (nf, 3, nv),
-            "jacobian_angular": (nf, 3, nv),
             "com": (3,),
             "com_jacobian": (3, nv),
             "mass_matrix": (nv, nv),
@@ -332,9 +330,21 @@ class _Evaluator:
         }
         self.pin_out = {k: np.zeros((chunk, *s)) for k, s in shapes.items()}
         self.mj_out = {k: np.zeros((chunk, *s)) for k, s in shapes.items()}
+        self.mj_out["fk_position"] = np.zeros((chunk, nf, 3))
+        self.mj_out["fk_rotation"] = np.zeros((chunk, nf, 3, 3))
         self._H = np.zeros((chunk, nf, 4, 4))
         self._J_pin = np.zeros((chunk, nf, 6, nv))
-        self._J_mj = np.zeros((nf, 6, nv))
+        self._J_mj = np.zeros((chunk, nf, 6, nv))
+        self._T = np.zeros((chunk, nv, nv))
+        # Output views made once: (function, jacp (3, nv), jacr (3, nv), body or site id).
+        self._jac_calls = [
+            [(mujoco.mj_jacBody, J[k, :3], J[k, 3:], int(b)) for k, b in enumerate(frames.mj_body_ids)]
+            + [
+                (mujoco.mj_jacSite, J[k, :3], J[k, 3:], int(s))
+                for k, s in enumerate(frames.mj_site_ids, start=frames.mj_body_ids.size)
+            ]
+            for J in self._J_mj
+        ]
         self._M_mj = np.zeros((nv, nv))
         self._jac_com = np.zeros((3, nv))
         self._g_mj = np.zeros(nv)
@@ -379,15 +389,9 @@ class _Evaluator:
         pos[nb:] = d.site_xpos[fr.mj_site_ids]
         rot[:nb] = d.xmat[fr.mj_body_ids].reshape(-1, 3, 3)
         rot[nb:] = d.site_xmat[fr.mj_site_ids].reshape(-1, 3, 3)
-        J = self._J_mj
-        for k, b in enumerate(fr.mj_body_ids):
-            mujoco.mj_jacBody(m, d, J[k, :3], J[k, 3:], b)
-        for k, s in enumerate(fr.mj_site_ids, start=nb):
-            mujoco.mj_jacSite(m, d, J[k, :3], J[k, 3:], s)
-        # J_mj v_mj = J_mj T v_pin, so J_pin = J_mj T.
-        JT = (J.reshape(-1, m.nv) @ T).reshape(J.shape)
-        out["jacobian_linear"][i] = JT[:, :3]
-        out["jacobian_angular"][i] = JT[:, 3:]
+        for jac, jacp, jacr, obj in self._jac_calls[i]:
+            jac(m, d, jacp, jacr, obj)
+        self._T[i] = T
         mujoco.mj_fullM(m, d, self._M_mj)
         M_mj = self._M_mj
         out["mass_matrix"][i] = T.T @ M_mj @ T
@@ -426,7 +430,7 @@ class _Evaluator:
     def run(self, states: States) -> dict[str, tuple[np.ndarray, np.ndarray]]:
         """Per quantity: (abs error per state (n,), MuJoCo magnitude per state (n,))."""
         n = len(states.kinds)
-        errors = {k: (np.zeros(n), np.zeros(n)) for k in self.pin_out}
+        errors = {k: (np.zeros(n), np.zeros(n)) for k in TOLERANCES}
         for start in range(0, n, self.chunk):
             stop = min(start + self.chunk, n)
             for i, s in enumerate(range(start, stop)):
@@ -434,21 +438,23 @@ class _Evaluator:
                 self._pin_state(*args)
                 self._mj_state(*args)
             c = stop - start
-            P = self.pin_out
+            P, Q = {k: v[:c] for k, v in self.pin_out.items()}, {k: v[:c] for k, v in self.mj_out.items()}
             H, Jp = self._H[:c], self._J_pin[:c]
-            P["fk_position"][:c] = H[:, :, :3, 3]
-            P["fk_rotation"][:c] = H[:, :, :3, :3]
-            P["jacobian_linear"][:c] = Jp[:, :, :3]
-            P["jacobian_angular"][:c] = Jp[:, :, 3:]
-            M = np.triu(P["mass_matrix"][:c])
-            P["mass_matrix"][:c] = M + np.triu(M, 1).swapaxes(-1, -2)
+            P["fk_position"], P["fk_rotation"] = H[:, :, :3, 3], H[:, :, :3, :3]
+            P["jacobian_linear"], P["jacobian_angular"] = Jp[:, :, :3], Jp[:, :, 3:]
+            M = np.triu(P["mass_matrix"])  # crba fills the upper triangle
+            P["mass_matrix"] = M + np.triu(M, 1).swapaxes(-1, -2)
+            # J_mj v_mj = J_mj T v_pin, so J_pin = J_mj T (one batched product per chunk).
+            Jm = np.matmul(self._J_mj[:c].reshape(c, -1, self.m.nv), self._T[:c]).reshape(
+                self._J_mj[:c].shape
+            )
+            Q["jacobian_linear"], Q["jacobian_angular"] = Jm[:, :, :3], Jm[:, :, 3:]
             for k, (err, scale) in errors.items():
-                a = P[k][:c].reshape(c, -1)
-                b = self.mj_out[k][:c].reshape(c, -1)
-                if a.shape[1] == 0:
+                b = Q[k].reshape(c, -1)
+                if b.shape[1] == 0:
                     continue
-                diff = np.abs(a - b)
-                err[start:stop] = np.where(np.isfinite(diff).all(axis=1), diff.max(axis=1), np.inf)
+                worst = np.abs(P[k].reshape(c, -1) - b).max(axis=1)  # NaN propagates
+                err[start:stop] = np.where(np.isnan(worst), np.inf, worst)
                 scale[start:stop] = np.abs(b).max(axis=1)
         return errors
 
