@@ -36,3 +36,24 @@ __all__ = [
     "quat_wxyz_to_xyzw",
     "quat_xyzw_to_wxyz",
 ]
+
+# Cross-validation of the Pinocchio model against the MuJoCo plant.
+from mbctl.robots.crosscheck import (  # noqa: E402
+    TOLERANCES,
+    CrossCheckError,
+    Sampling,
+    Tolerance,
+    crosscheck,
+)
+from mbctl.robots.crosscheck_report import FeatureNote, QuantityResult, Report  # noqa: E402
+
+__all__ += [
+    "TOLERANCES",
+    "CrossCheckError",
+    "FeatureNote",
+    "QuantityResult",
+    "Report",
+    "Sampling",
+    "Tolerance",
+    "crosscheck",
+]
