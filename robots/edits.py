@@ -50,8 +50,10 @@ def weld_base(robot: Robot, keyframe: str | None = None) -> Robot:
     """Weld a floating base to the world at a keyframe's pose, in both engines.
 
     MuJoCo: the free joint is deleted from the MjSpec, the base body is placed at the keyframe's
-    base position and orientation, and every keyframe drops the free joint's 7 qpos and 6 qvel
-    entries. Pinocchio: the model is rebuilt from the edited spec
+    base position and orientation, every keyframe drops the free joint's 7 qpos and 6 qvel
+    entries, and contacts between the base and its child bodies are excluded (MuJoCo does not
+    filter parent-child contacts of a body welded to the world, so they would start to collide).
+    Pinocchio: the model is rebuilt from the edited spec
     (:func:`~mbctl.robots.model_pair.pin_model_from_spec`), so it has no free-flyer and the same
     fixed base pose. The pair is then checked for agreement like any loaded robot.
 
@@ -91,6 +93,10 @@ def weld_base(robot: Robot, keyframe: str | None = None) -> Robot:
         joint = spec.joint(free.name)
         body = joint.parent
         spec.delete(joint)
+        # MuJoCo filters parent-child contacts except for bodies welded to the world; keep the
+        # floating robot's behaviour by excluding the base from its children explicitly.
+        for child in body.bodies:
+            spec.add_exclude(bodyname1=body.name, bodyname2=child.name)
         if pos is not None:
             body.pos = np.array(pos)
             body.quat = np.array(quat_wxyz)
