@@ -96,6 +96,43 @@ COUPLED_XML = """
 """
 
 
+# The 2-link arm as URDF: same kinematics and inertias, but URDF cannot carry armature.
+ARM_URDF = """<?xml version="1.0"?>
+<robot name="two_link_arm">
+  <link name="world"/>
+  <joint name="shoulder" type="revolute">
+    <parent link="world"/><child link="link1"/>
+    <origin xyz="0 0 0"/><axis xyz="0 0 1"/>
+    <limit lower="-10" upper="10" effort="30" velocity="10"/>
+  </joint>
+  <link name="link1">
+    <inertial><origin xyz="0.15 0 0"/><mass value="1.0"/>
+      <inertia ixx="0.000242" iyy="0.007621" izz="0.007621" ixy="0" ixz="0" iyz="0"/></inertial>
+  </link>
+  <joint name="elbow" type="revolute">
+    <parent link="link1"/><child link="link2"/>
+    <origin xyz="0.3 0 0"/><axis xyz="0 0 1"/>
+    <limit lower="-10" upper="10" effort="20" velocity="10"/>
+  </joint>
+  <link name="link2">
+    <inertial><origin xyz="0.15 0 0"/><mass value="0.7"/>
+      <inertia ixx="0.0001134" iyy="0.0053067" izz="0.0053067" ixy="0" ixz="0" iyz="0"/></inertial>
+  </link>
+  <joint name="ee_fixed" type="fixed">
+    <parent link="link2"/><child link="ee_body"/><origin xyz="0.3 0 0"/>
+  </joint>
+  <link name="ee_body">
+    <inertial><origin xyz="0 0 0"/><mass value="0.05"/>
+      <inertia ixx="2e-6" iyy="2e-6" izz="2e-6" ixy="0" ixz="0" iyz="0"/></inertial>
+  </link>
+  <joint name="ee_site_joint" type="fixed">
+    <parent link="ee_body"/><child link="end_effector"/><origin xyz="0.015 0 0"/>
+  </joint>
+  <link name="end_effector"/>
+</robot>
+"""
+
+
 def _write(tmp_path: Path, name: str, text: str) -> Path:
     path = tmp_path / name
     path.write_text(text)
@@ -273,6 +310,18 @@ def test_shifted_inertial_frame_fails_com_and_mass_matrix(tmp_path):
     assert {"com", "com_jacobian", "mass_matrix"} <= set(report.failed)
     assert {"fk_position", "jacobian_linear"}.isdisjoint(report.failed)
     assert report.notes == ()  # same total mass: invisible to the load-time check
+
+
+def test_urdf_pin_model_differs_only_by_armature(tmp_path):
+    path = _write(tmp_path, "arm.urdf", ARM_URDF)
+    robot = load_robot("two_link_torque", gravity=True, pin_model_file=path, check=False)
+    report = crosscheck(robot, n_states=30, seed=0)
+    assert report.failed == ("mass_matrix", "forward_dynamics", "inverse_dynamics", "kinetic_energy")
+    for name in ("fk_position", "jacobian_linear", "com", "gravity", "bias", "momentum_angular"):
+        assert report.quantity(name).max_rel_error < 1e-12
+    assert report.pin_model_file == str(path)
+    assert any("armature differs at dofs [0, 1]" in n for n in report.notes)
+    assert not any("no Pinocchio frame" in n for n in report.notes)  # the site is a URDF link
 
 
 # ---------------------------------------------------------------- report and errors
