@@ -16,6 +16,7 @@ from mbctl.planners.exceptions import (
     InvalidPath,
     InvalidPlanningInput,
     PathIKFailed,
+    PathNotTrackable,
     PlanningError,
     TrajectoryGenerationFailed,
 )
@@ -39,6 +40,7 @@ __all__ = [
     "LinePath",
     "PathIKFailed",
     "PathLimits",
+    "PathNotTrackable",
     "PlanningError",
     "PolylinePath",
     "TrajectoryGenerationFailed",

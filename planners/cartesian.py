@@ -33,6 +33,7 @@ from mbctl.planners.exceptions import (
     InvalidPath,
     InvalidPlanningInput,
     PathIKFailed,
+    PathNotTrackable,
 )
 from mbctl.planners.ruckig_planner import JointLimits, _check_dt, _check_names, plan_ruckig
 from mbctl.planners.trajectory import JointTrajectory
@@ -40,6 +41,10 @@ from mbctl.planners.trajectory import JointTrajectory
 #: Relative step [-] of the central difference of J along qd used when no ``jacobian_dot`` is
 #: given: the joint displacement is ``h |qd| = FD_JOINT_STEP`` [rad].
 FD_JOINT_STEP = 1e-6
+
+#: Relative tolerance [-] on ``|J qd - v|`` and ``|J qdd + Jdot qd - a|`` (relative to the
+#: largest of 1 and the Cartesian magnitude) before a sample counts as not trackable.
+TRACKING_RTOL = 1e-8
 
 #: Tolerance [m] on the motion along Cartesian axes that a (m < 3)-row Jacobian ignores.
 IGNORED_AXIS_ATOL = 1e-12
@@ -419,6 +424,7 @@ def to_joint_trajectory(
     jacobian_dot: Callable[[np.ndarray, np.ndarray], npt.ArrayLike] | None = None,
     max_joint_step_rad: float = 0.5,
     task_dims: int | None = None,
+    unwrap: bool = False,
 ) -> JointTrajectory:
     """Joint trajectory that moves a point along a Cartesian trajectory.
 
@@ -440,6 +446,9 @@ def to_joint_trajectory(
             IK is considered to have jumped branches.
         task_dims: m, the number of Cartesian components used (2: x-y, 3: x-y-z). If None, it
             is the row count of ``jacobian(zeros(n))`` (one probe call at q = 0).
+        unwrap: If True, every joint is revolute and each IK solution is shifted by whole turns
+            (2 pi) to the one nearest the previous sample, so an IK that wraps angles into
+            (-pi, pi] gives a continuous trajectory (check the result against joint limits).
 
     Returns:
         A JointTrajectory on the same time grid.
@@ -447,6 +456,8 @@ def to_joint_trajectory(
     Raises:
         PathIKFailed: The IK raised at a sample (time, index and target in the message; the
             IK's exception is the ``__cause__``).
+        PathNotTrackable: ``J qd != v`` or ``J qdd + Jdot qd != a`` beyond round-off at a sample
+            (a singular Jacobian with motion along its null direction).
         InvalidPath: The trajectory moves along an axis the m-row Jacobian ignores.
         InvalidPlanningInput: Bad names, a Jacobian or IK output of the wrong shape, non-finite
             outputs, or an IK branch jump.
@@ -483,6 +494,8 @@ def to_joint_trajectory(
             raise InvalidPlanningInput(
                 f"ik returned {q_i!r} at t = {t_i:.6g} s; expected {n} finite joint positions"
             )
+        if unwrap and i > 0:
+            q_i = q_i + 2.0 * math.pi * np.round((q[i - 1] - q_i) / (2.0 * math.pi))
         J = np.asarray(jacobian(q_i), dtype=float)
         if J.shape != (m, n):
             raise InvalidPlanningInput(
@@ -514,9 +527,26 @@ def to_joint_trajectory(
                 Jdot_qd = (J_plus - J_minus) @ qd_i / (2.0 * h)
             else:
                 Jdot_qd = np.zeros(m)
+        qdd_i = J_pinv @ (cart_traj.a[i, :m] - Jdot_qd)
+        for label, unit, got, want in (
+            ("velocity", "m/s", J @ qd_i, cart_traj.v[i, :m]),
+            ("acceleration", "m/s^2", J @ qdd_i + Jdot_qd, cart_traj.a[i, :m]),
+        ):
+            residual = float(np.linalg.norm(got - want))
+            if residual > TRACKING_RTOL * max(1.0, float(np.linalg.norm(want))):
+                raise PathNotTrackable(
+                    f"at t = {t_i:.6g} s (sample {i}) the joints cannot produce the Cartesian "
+                    f"{label} {want.tolist()} {unit}: residual {residual:.3g} {unit} with "
+                    f"Jacobian singular values {np.linalg.svd(J, compute_uv=False).tolist()}. "
+                    "Keep the path away from singular configurations (e.g. the workspace "
+                    "boundary) or slow it to rest there.",
+                    t_i,
+                    i,
+                    residual,
+                )
         q[i] = q_i
         qd[i] = qd_i
-        qdd[i] = J_pinv @ (cart_traj.a[i, :m] - Jdot_qd)
+        qdd[i] = qdd_i
     return JointTrajectory(cart_traj.t_s.copy(), q, qd, qdd, names)
 
 

@@ -70,3 +70,22 @@ class PathIKFailed(PlanningError):
             f"{[float(x) for x in position]} m: {type(cause).__name__}: {cause}. Move or shrink "
             "the path so that every point is reachable."
         )
+
+
+class PathNotTrackable(PlanningError):
+    """The joint velocity or acceleration cannot reproduce the Cartesian one at a sample.
+
+    This happens at (or numerically near) a singular Jacobian, where the pseudo-inverse drops
+    the component of the Cartesian velocity that the arm cannot produce.
+
+    Attributes:
+        t_s: Time of the sample [s].
+        sample_index: Index of the sample.
+        residual: ``|J qd - v|`` [m/s] or ``|J qdd + Jdot qd - a|`` [m/s^2] at that sample.
+    """
+
+    def __init__(self, message: str, t_s: float, sample_index: int, residual: float):
+        self.t_s = t_s
+        self.sample_index = sample_index
+        self.residual = residual
+        super().__init__(message)

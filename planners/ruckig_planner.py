@@ -39,6 +39,13 @@ from ruckig import (
 #: requested target before the last sample is snapped to the target exactly.
 END_STATE_ATOL = 1e-8
 
+#: Scale factors [-] applied to all limits on successive attempts. Ruckig 0.19 rejects some
+#: inputs that sit exactly on a boundary between profile types (e.g. a 0.02000000000000002 rad
+#: move with max_velocity 0.25, max_acceleration 1, max_jerk 10, where the jerk-only profile
+#: just reaches max_acceleration); slightly tighter limits move the input off the boundary and
+#: still respect the requested limits.
+RETRY_LIMIT_FACTORS = (1.0, 1.0 - 1e-9, 1.0 - 1e-6)
+
 _LIMIT_UNITS = {
     "max_velocity": "rad/s",
     "max_acceleration": "rad/s^2",
@@ -188,44 +195,28 @@ def plan_ruckig(
                 "ErrorInvalidInput",
             )
 
-    otg = Ruckig(n, dt)
-    inp = InputParameter(n)
-    inp.current_position = q0.tolist()
-    inp.current_velocity = v0.tolist()
-    inp.current_acceleration = a0.tolist()
-    inp.target_position = q1.tolist()
-    inp.target_velocity = v1.tolist()
-    inp.target_acceleration = a1.tolist()
-    inp.max_velocity = limits.max_velocity.tolist()
-    inp.max_acceleration = limits.max_acceleration.tolist()
-    inp.max_jerk = limits.max_jerk.tolist()
-    inp.synchronization = Synchronization.Time
-    inp.duration_discretization = DurationDiscretization.Discrete
-    if minimum_duration_s is not None:
-        if not (np.isfinite(minimum_duration_s) and minimum_duration_s >= 0.0):
-            raise InvalidPlanningInput(
-                f"minimum_duration_s must be finite and >= 0 [s]; got {minimum_duration_s!r}"
-            )
-        inp.minimum_duration = float(minimum_duration_s)
-
-    traj = Trajectory(n)
-    try:
-        result = otg.calculate(inp, traj)
-    except RuckigError as exc:
-        details = str(exc).strip()
+    if minimum_duration_s is not None and not (
+        np.isfinite(minimum_duration_s) and minimum_duration_s >= 0.0
+    ):
+        raise InvalidPlanningInput(
+            f"minimum_duration_s must be finite and >= 0 [s]; got {minimum_duration_s!r}"
+        )
+    traj, error = None, None
+    for factor in RETRY_LIMIT_FACTORS:
+        try:
+            traj = _calculate(q0, v0, a0, q1, v1, a1, limits, factor, dt, minimum_duration_s)
+            break
+        except (RuckigError, _ResultError) as exc:
+            error = exc
+    if traj is None:
+        details = str(error).strip()
         raise TrajectoryGenerationFailed(
             f"ruckig found no trajectory for {names} from {q0.tolist()} to {q1.tolist()} rad: "
             f"{details.splitlines()[0] if details else 'no details'}. Check that the limits are "
             "reasonable for the distance (very large moves or tiny limits overflow).",
-            "RuckigError",
+            getattr(error, "result", "RuckigError"),
             details,
-        ) from exc
-    if result not in (Result.Working, Result.Finished):
-        raise TrajectoryGenerationFailed(
-            f"ruckig returned {result.name} for {names} from {q0.tolist()} to {q1.tolist()} rad",
-            result.name,
-        )
-
+        ) from error
     duration = float(traj.duration)
     n_steps = max(int(round(duration / dt)), 0)
     t = np.arange(n_steps + 1) * dt
@@ -247,6 +238,56 @@ def plan_ruckig(
     # Ruckig's end state agrees to round-off; make it exact.
     q[-1], v[-1], a[-1] = q1, v1, a1
     return JointTrajectory(t, q, v, a, names)
+
+
+class _ResultError(Exception):
+    """Internal: ruckig returned an error ``Result`` (kept by name in ``result``)."""
+
+    def __init__(self, result: str):
+        self.result = result
+        super().__init__(f"ruckig returned Result.{result}")
+
+
+def _calculate(
+    q0: np.ndarray,
+    v0: np.ndarray,
+    a0: np.ndarray,
+    q1: np.ndarray,
+    v1: np.ndarray,
+    a1: np.ndarray,
+    limits: JointLimits,
+    factor: float,
+    dt: float,
+    minimum_duration_s: float | None,
+) -> Trajectory:
+    """One ruckig calculation with the limits scaled by ``factor`` (<= 1).
+
+    Raises:
+        RuckigError: Ruckig rejected the input (the bindings raise).
+        _ResultError: Ruckig returned an error code instead of raising.
+    """
+    n = q0.size
+    otg = Ruckig(n, dt)
+    inp = InputParameter(n)
+    inp.current_position = q0.tolist()
+    inp.current_velocity = v0.tolist()
+    inp.current_acceleration = a0.tolist()
+    inp.target_position = q1.tolist()
+    inp.target_velocity = v1.tolist()
+    inp.target_acceleration = a1.tolist()
+    # Tightened limits must still admit the target state (checked against the unscaled ones).
+    inp.max_velocity = np.maximum(limits.max_velocity * factor, np.abs(v1)).tolist()
+    inp.max_acceleration = np.maximum(limits.max_acceleration * factor, np.abs(a1)).tolist()
+    inp.max_jerk = (limits.max_jerk * factor).tolist()
+    inp.synchronization = Synchronization.Time
+    inp.duration_discretization = DurationDiscretization.Discrete
+    if minimum_duration_s is not None:
+        inp.minimum_duration = float(minimum_duration_s)
+    traj = Trajectory(n)
+    result = otg.calculate(inp, traj)
+    if result not in (Result.Working, Result.Finished):
+        raise _ResultError(result.name)
+    return traj
 
 
 def plan_waypoints(

@@ -25,6 +25,7 @@ from mbctl.planners import (
     LinePath,
     PathIKFailed,
     PathLimits,
+    PathNotTrackable,
     PlanningError,
     PolylinePath,
     TrajectoryGenerationFailed,
@@ -91,6 +92,38 @@ def test_ruckig_reaches_target_exactly_within_limits_and_synchronized():
     for i in range(3):
         moving = np.flatnonzero(np.abs(traj.v[:, i]) > 1e-9)
         assert traj.t_s[moving[-1]] > traj.duration_s - 2 * DT
+
+
+def test_ruckig_duration_is_the_slowest_single_dof_duration():
+    q0, q1 = np.array([0.0, 0.5, -1.0]), np.array([1.2, -0.3, 0.4])
+    traj = plan_ruckig(q0, q1, LIMITS3, DT, NAMES3)
+    singles = [
+        plan_ruckig(q0[[i]], q1[[i]], JointLimits(LIMITS3.max_velocity[[i]],
+                                                  LIMITS3.max_acceleration[[i]],
+                                                  LIMITS3.max_jerk[[i]]), DT, (NAMES3[i],))
+        for i in range(3)
+    ]
+    durations = [s.duration_s for s in singles]
+    assert traj.duration_s == pytest.approx(max(durations), abs=1e-12)
+    assert min(durations) < traj.duration_s - 0.1  # some DoF was slowed down to synchronize
+
+
+def test_ruckig_profile_boundary_input_is_retried():
+    # Ruckig 0.19 alone raises for this input (a jerk-only profile exactly reaching max_accel,
+    # one ulp long); the planner retries with limits tightened by 1e-9 relative.
+    limits = JointLimits([0.25], [1.0], [10.0])
+    traj = plan_ruckig([0.0], [0.02000000000000002], limits, 0.005, ("s",))
+    assert traj.q[-1, 0] == 0.02000000000000002
+    _check_limits(traj, limits)
+
+
+def test_ruckig_chains_with_joint_trajectory_then():
+    first = plan_ruckig([0, 0, 0], [0.3, 0.2, 0.1], LIMITS3, DT, NAMES3)
+    second = plan_ruckig([0.3, 0.2, 0.1], [0, 0, 0], LIMITS3, DT, NAMES3)
+    both = first.then(second)
+    assert len(both.t_s) == len(first.t_s) + len(second.t_s) - 1
+    np.testing.assert_allclose(np.diff(both.t_s), DT, rtol=1e-9)
+    np.testing.assert_array_equal(both.q[-1], 0.0)
 
 
 def test_ruckig_with_initial_and_target_velocity():
@@ -311,6 +344,13 @@ def test_circle_joint_trajectory_accelerations(arm):
     ct = time_path(circle, PATH_LIMITS, DT)
     np.testing.assert_allclose(ct.p[-1], ct.p[0], atol=1e-15)
     np.testing.assert_allclose(np.linalg.norm(ct.p - circle.center, axis=1), 0.1, atol=1e-15)
+    _check_path_limits(ct, PATH_LIMITS)
+    # a = t s_ddot + k s_dot^2 with k normal to t: the tangential part is s_ddot.
+    s_acc = np.einsum("ij,ij->i", ct.a, circle.tangent(ct.s))
+    assert np.max(np.abs(s_acc)) <= PATH_LIMITS.max_acceleration * (1 + LIMIT_RTOL)
+    assert np.max(np.abs(np.diff(s_acc)) / DT) <= PATH_LIMITS.max_jerk * (1 + LIMIT_RTOL)
+    normal_acc = np.linalg.norm(ct.a - s_acc[:, None] * circle.tangent(ct.s), axis=1)
+    np.testing.assert_allclose(normal_acc, ct.speed**2 / 0.1, rtol=1e-9, atol=1e-15)
     jt = to_joint_trajectory(ct, arm.inverse_kinematics, arm.jacobian, ("shoulder", "elbow"))
     fk = np.array([arm.forward_kinematics(q) for q in jt.q])
     assert np.max(np.abs(fk - ct.p[:, :2])) < 1e-9
@@ -357,6 +397,48 @@ def test_unreachable_path_raises_with_time(arm):
     assert np.hypot(*err.position) > arm.r_max
     assert np.hypot(*ct.p[err.sample_index - 1, :2]) <= arm.r_max
     assert type(err.__cause__).__name__ == "UnreachableTarget"
+
+
+@settings(max_examples=15, deadline=None)
+@given(st.floats(0.1, 0.45), st.floats(-math.pi, math.pi), st.floats(0.02, 0.12),
+       st.floats(-math.pi, math.pi))
+def test_square_property_fk_reproduction(arm, radius, angle, side, edge_angle):
+    center = np.array([radius * math.cos(angle), radius * math.sin(angle), 0.0])
+    # Keep the whole square inside the annulus (with margin from the singular boundaries).
+    half_diag = side / math.sqrt(2)
+    if radius + half_diag > arm.r_max - 0.02 or radius - half_diag < arm.r_min + 0.05:
+        return
+    sq = square_path(center, side, edge_direction=(math.cos(edge_angle), math.sin(edge_angle), 0))
+    ct = time_path(sq, PATH_LIMITS, 0.005)
+    np.testing.assert_array_equal(ct.v[list(ct.corner_indices)], 0.0)
+    jt = to_joint_trajectory(ct, arm.inverse_kinematics, arm.jacobian, ("shoulder", "elbow"),
+                             unwrap=True)
+    fk = np.array([arm.forward_kinematics(q) for q in jt.q])
+    assert np.max(np.abs(fk - ct.p[:, :2])) < 1e-9
+    _check_consistent(jt)
+
+
+def test_square_across_the_angle_wrap_needs_unwrap(arm):
+    # Centred where the UP-branch shoulder angle is pi: it crosses +-pi, where the IK wraps.
+    center = np.append(arm.forward_kinematics([math.pi, -1.0]), 0.0)
+    ct = time_path(square_path(center, 0.05), PATH_LIMITS, 0.005)
+    with pytest.raises(InvalidPlanningInput, match="ik jumped 6.28 rad on joint 'shoulder'"):
+        to_joint_trajectory(ct, arm.inverse_kinematics, arm.jacobian, ("shoulder", "elbow"))
+    jt = to_joint_trajectory(ct, arm.inverse_kinematics, arm.jacobian, ("shoulder", "elbow"),
+                             unwrap=True)
+    assert np.max(np.abs(jt.q[:, 0])) > math.pi  # continued past +-pi instead of jumping
+    fk = np.array([arm.forward_kinematics(q) for q in jt.q])
+    assert np.max(np.abs(fk - ct.p[:, :2])) < 1e-9
+    _check_consistent(jt)
+
+
+def test_singular_jacobian_is_not_trackable():
+    ct = time_path(LinePath([0.0, 0.0, 0.0], [0.0, 0.1, 0.0]), PATH_LIMITS, DT)
+    # A "robot" that can only move along x: J has rank 1 and v_y is lost by the pseudo-inverse.
+    with pytest.raises(PathNotTrackable, match=r"cannot produce the Cartesian velocity") as info:
+        to_joint_trajectory(ct, lambda p: np.array([p[0], 0.0]),
+                            lambda q: np.array([[1.0, 0.0], [0.0, 0.0]]), ("a", "b"))
+    assert info.value.sample_index == 1 and info.value.residual > 0.0
 
 
 def test_ik_branch_jump_and_off_plane_motion_rejected(arm):
