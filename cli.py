@@ -26,6 +26,8 @@ def _register_commands() -> None:
     # further command families register below
     from mbctl import cli_demo
     cli_demo.register(app)
+    from mbctl import cli_g1
+    cli_g1.register(app)
     from mbctl import cli_xcheck
     cli_xcheck.register(app)
 

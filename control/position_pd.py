@@ -1,0 +1,90 @@
+"""Joint PD executed by the robot's position actuators: the controller outputs position targets.
+
+A MuJoCo position actuator (as in the Menagerie G1) applies ``f = kp (u - q) - kv v`` for a
+target ``u`` [rad], with its own ``kp`` [N m/rad] and ``kv`` [N m s/rad]. Choosing::
+
+    u = q_ref + (kv v_ref + tau_ff) / kp
+
+turns it into ``f = kp (q_ref - q) + kv (v_ref - v) + tau_ff``: the actuator's PD tracks the
+reference velocity too, and ``tau_ff`` [N m] is a feed-forward, here the gravity ``g(q)`` of the
+Pinocchio model (optional). The gains are the actuators' own (the plant's stiffness and damping
+are integrated implicitly by MuJoCo, so stiff gains stay stable). Targets outside the actuator's
+ctrlrange are clipped and counted.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import replace
+
+import numpy as np
+import pinocchio as pin
+from mbctl.control.controller import JointMap, JointReference, TorqueSaturation
+from mbctl.control.exceptions import ControllerSetupError
+from mbctl.robots.commands import Command, CommandKind
+from mbctl.robots.interface import RobotState
+from mbctl.robots.model_pair import Robot
+
+
+class PositionTargetPD:
+    """PD through position actuators, with optional gravity feed-forward; position-target output.
+
+    Args:
+        robot: The robot; every controlled joint must be driven by a position actuator.
+        joints: Controlled joints (default: every actuated joint, actuator order).
+        gravity_feedforward: Add ``g(q)`` of the Pinocchio model through the target offset.
+        pin_model: The analytic model (default ``robot.pin_model``).
+
+    Raises:
+        ControllerSetupError: A joint driven by a non-position actuator, or an actuator with
+            ``kp <= 0``.
+    """
+
+    name = "position_pd"
+
+    def __init__(
+        self,
+        robot: Robot,
+        joints: Sequence[str] | None = None,
+        *,
+        gravity_feedforward: bool = True,
+        pin_model: pin.Model | None = None,
+    ):
+        self.robot = robot
+        jmap = JointMap.from_robot(robot, joints)
+        infos = [robot.actuator(a) for a in jmap.actuators]
+        wrong = [f"{a.name} ({a.kind})" for a in infos if a.kind != "position" or a.kp <= 0]
+        if wrong:
+            raise ControllerSetupError(
+                f"PositionTargetPD needs position actuators with kp > 0; got {', '.join(wrong[:6])}. "
+                "Use JointPD or PDGravity (torque output) on motor actuators instead."
+            )
+        self.kp = np.array([a.kp for a in infos])
+        self.kv = np.array([a.kv for a in infos])
+        low = np.array([a.ctrl_range[0] for a in infos])
+        high = np.array([a.ctrl_range[1] for a in infos])
+        self.joint_map = replace(jmap, tau_low=low, tau_high=high)
+        self.saturation = TorqueSaturation(self.joint_map)  # here: targets clipped to ctrlrange
+        self.model = pin_model if pin_model is not None else robot.pin_model
+        self.data = self.model.createData()
+        self.gravity_feedforward = gravity_feedforward
+        self._idx_v = np.asarray(jmap.idx_v)
+        self._names = jmap.command_names
+        self._kv_over_kp = self.kv / self.kp
+
+    @property
+    def joints(self) -> tuple[str, ...]:
+        """Controlled joint names, the order of references and targets."""
+        return self.joint_map.joints
+
+    def reset(self) -> None:
+        """Zero the clip counters."""
+        self.saturation.reset()
+
+    def compute(self, state: RobotState, reference: JointReference) -> Command:
+        """Position-target command (n,) [rad] for the controlled joints' actuators."""
+        u = reference.q + self._kv_over_kp * reference.v
+        if self.gravity_feedforward:
+            g = pin.computeGeneralizedGravity(self.model, self.data, state.q)
+            u = u + g[self._idx_v] / self.kp
+        return Command(CommandKind.POSITION, self.saturation.apply(u), self._names)
