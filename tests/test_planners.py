@@ -145,15 +145,24 @@ def test_ruckig_minimum_duration_and_zero_motion():
 limited = st.floats(-2.0, 2.0, allow_nan=False)
 
 
-@settings(max_examples=25, deadline=None)
-@given(st.lists(limited, min_size=6, max_size=6), st.lists(st.floats(-0.7, 0.7), min_size=3,
-                                                          max_size=3))
-def test_ruckig_property_random_states(positions, start_velocity):
+unit = st.floats(-1.0, 1.0, allow_nan=False)
+
+
+@settings(max_examples=40, deadline=None)
+@given(st.lists(limited, min_size=6, max_size=6), st.lists(unit, min_size=6, max_size=6),
+       st.lists(st.floats(0.2, 3.0), min_size=3, max_size=3),
+       st.lists(st.floats(0.5, 10.0), min_size=3, max_size=3),
+       st.lists(st.floats(2.0, 100.0), min_size=3, max_size=3))
+def test_ruckig_property_random_states_and_limits(positions, velocity_fractions, v_max, a_max,
+                                                  j_max):
+    limits = JointLimits(v_max, a_max, j_max)
     q0, q1 = np.array(positions[:3]), np.array(positions[3:])
-    traj = plan_ruckig(q0, q1, LIMITS3, 0.005, NAMES3, current_velocity=start_velocity)
-    np.testing.assert_array_equal(traj.q[-1], q1)
-    np.testing.assert_array_equal(traj.v[-1], 0.0)
-    _check_limits(traj, LIMITS3)
+    v0 = np.array(velocity_fractions[:3]) * limits.max_velocity
+    v1 = np.array(velocity_fractions[3:]) * limits.max_velocity
+    traj = plan_ruckig(q0, q1, limits, 0.005, NAMES3, current_velocity=v0, target_velocity=v1)
+    np.testing.assert_array_equal(traj.q[[0, -1]], [q0, q1])
+    np.testing.assert_array_equal(traj.v[[0, -1]], [v0, v1])
+    _check_limits(traj, limits)
 
 
 def test_waypoints_pass_through_every_waypoint_and_stop():
@@ -214,6 +223,10 @@ def test_ruckig_bad_inputs():
     with pytest.raises(TrajectoryGenerationFailed, match="ruckig found no trajectory") as info:
         plan_ruckig([0, 0, 0], [1e12, 0, 0], LIMITS3, DT, NAMES3)
     assert info.value.result == "RuckigError"
+    with pytest.raises(TrajectoryGenerationFailed,
+                       match=r"segment 0 \(waypoint 0 -> 1\): target_velocity\[1\] = 2.0 rad/s"):
+        plan_waypoints([[0, 0, 0], [1, 1, 1], [0, 0, 0]], LIMITS3, DT, NAMES3,
+                       waypoint_velocities=[[0, 0, 0], [0, 2.0, 0], [0, 0, 0]])
     with pytest.raises(InvalidPlanningInput, match=r"waypoints needs at least 2 rows"):
         plan_waypoints([[0, 0, 0]], LIMITS3, DT, NAMES3)
     with pytest.raises(InvalidPlanningInput, match=r"waypoints must have shape \(K, 3\)"):
