@@ -1,0 +1,286 @@
+"""Controllers, gains, the control loop and the 2-link square demo (plant = MuJoCo, model = Pinocchio)."""
+
+from __future__ import annotations
+
+import ast
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+import mujoco
+import numpy as np
+import pytest
+from mbctl.control.computed_torque import ComputedTorque
+from mbctl.control.controller import (
+    Controller,
+    JointMap,
+    JointReference,
+    joint_reference,
+    task_reference,
+)
+from mbctl.control.exceptions import (
+    ControlError,
+    ControllerSetupError,
+    GainsError,
+    ReferenceMismatch,
+)
+from mbctl.control.gains import PDGains, gains_from_frequency
+from mbctl.control.loop import presample, run
+from mbctl.control.pd import JointPD
+from mbctl.control.pd_gravity import PDGravity
+from mbctl.control.position_pd import PositionTargetPD
+from mbctl.control.task_space import TaskSpaceComputedTorque
+from mbctl.control.two_link import TwoLinkArm
+from mbctl.exceptions import ToolkitError
+from mbctl.planners.trajectory import JointTrajectory
+from mbctl.robots.commands import CommandKind
+from mbctl.robots.exceptions import CommandError, UnknownNameError
+from mbctl.robots.registry import load_robot
+from mbctl.sim.demo import DemoConfig, run_demo, scale_masses, square_reference, track_square
+from mbctl.sim.simulator import Simulator
+
+CONTROL_DIR = Path(__file__).resolve().parents[1] / "control"
+
+
+@pytest.fixture(scope="module")
+def two_link_gravity_pos():
+    """The 2-link arm with position actuators and in-plane gravity."""
+    return load_robot("two_link", gravity=True)
+
+
+# ------------------------------------------------------------------------------------ gains
+def test_gains_from_frequency_follow_inertia_omega_zeta():
+    g = gains_from_frequency([10.0, 20.0], 0.7, [0.5, 2.0])
+    np.testing.assert_allclose(g.kp, [0.5 * 100.0, 2.0 * 400.0])
+    np.testing.assert_allclose(g.kd, [2 * 0.7 * 0.5 * 10.0, 2 * 0.7 * 2.0 * 20.0])
+    unit = gains_from_frequency(30.0)
+    np.testing.assert_allclose([unit.kp[0], unit.kd[0]], [900.0, 60.0])
+
+
+def test_gains_are_read_only_and_frozen():
+    g = PDGains([1.0, 2.0], [0.1, 0.2])
+    with pytest.raises(ValueError):
+        g.kp[0] = 5.0
+    with pytest.raises(AttributeError):
+        g.kp = np.zeros(2)  # type: ignore[misc]
+
+
+@pytest.mark.parametrize(
+    ("make", "fragment"),
+    [
+        (lambda: PDGains([1.0, -2.0], [0.1, 0.2]), "kp must be finite and >= 0"),
+        (lambda: PDGains([1.0, 2.0], [0.1]), "same length"),
+        (lambda: PDGains([1.0], [np.nan]), "kd must be finite"),
+        (lambda: PDGains([], []), "at least one"),
+        (lambda: gains_from_frequency(0.0, 1.0, 1.0), "omega_rad_s must be finite and > 0"),
+        (lambda: gains_from_frequency(10.0, -0.1, 1.0), "zeta must be finite and >= 0"),
+        (lambda: gains_from_frequency(10.0, 1.0, [1.0, 0.0]), "inertia must be finite and > 0"),
+        (lambda: gains_from_frequency([1.0, 2.0], 1.0, [1.0, 2.0, 3.0]), "one length"),
+        (lambda: PDGains([1.0, 2.0], [1.0, 2.0]).broadcast(3), "controller has 3 joints"),
+    ],
+)
+def test_gains_validation_names_the_bad_value(make, fragment):
+    with pytest.raises(GainsError, match=fragment) as info:
+        make()
+    assert isinstance(info.value, ToolkitError)
+
+
+# ------------------------------------------------------------------------------------ setup
+def test_joint_map_and_setup_errors(two_link_torque):
+    jm = JointMap.from_robot(two_link_torque)
+    assert jm.joints == ("shoulder", "elbow")
+    assert jm.covers_all_actuators and jm.command_names is None
+    np.testing.assert_allclose(jm.tau_low, [-30.0, -20.0])
+    partial = JointMap.from_robot(two_link_torque, ["elbow"])
+    assert partial.command_names == ("elbow",)
+    with pytest.raises(UnknownNameError):
+        JointMap.from_robot(two_link_torque, ["elbo"])
+    with pytest.raises(ControllerSetupError, match="distinct"):
+        JointMap.from_robot(two_link_torque, ["elbow", "elbow"])
+    with pytest.raises(ControllerSetupError, match="every dof"):
+        ComputedTorque(two_link_torque, gains_from_frequency(10.0), ["elbow"])
+    with pytest.raises(ControllerSetupError, match="position actuators"):
+        PositionTargetPD(two_link_torque)
+    with pytest.raises(ReferenceMismatch):
+        joint_reference([0.0, 1.0], v=[0.0])
+
+
+def test_controllers_satisfy_the_protocol(two_link_torque):
+    g = gains_from_frequency(10.0)
+    for c in (JointPD(two_link_torque, g), PDGravity(two_link_torque, g),
+              ComputedTorque(two_link_torque, g), TaskSpaceComputedTorque(two_link_torque, g)):
+        assert isinstance(c, Controller)
+
+
+def test_control_never_imports_sim():
+    for path in sorted(CONTROL_DIR.glob("*.py")):
+        tree = ast.parse(path.read_text())
+        for node in ast.walk(tree):
+            if isinstance(node, ast.ImportFrom) and node.module:
+                assert not node.module.startswith("mbctl.sim"), f"{path.name} imports {node.module}"
+            if isinstance(node, ast.Import):
+                for alias in node.names:
+                    assert not alias.name.startswith("mbctl.sim"), f"{path.name} imports sim"
+    code = ("import sys, mbctl.control.loop, mbctl.control.computed_torque, mbctl.control.pd_gravity, "
+            "mbctl.control.task_space, mbctl.control.position_pd; "
+            "assert not [m for m in sys.modules if m.startswith('mbctl.sim')]")
+    subprocess.run([sys.executable, "-c", code], check=True)
+
+
+# ------------------------------------------------------------------------------------ laws
+def test_computed_torque_inverts_the_plant_dynamics(two_link_torque_gravity):
+    """With zero feedback, CT torques give the plant exactly the reference acceleration."""
+    robot = two_link_torque_gravity
+    ct = ComputedTorque(robot, PDGains([0.0], [0.0]), saturate=False)
+    sim = Simulator(robot)
+    rng = np.random.default_rng(0)
+    for _ in range(5):
+        q, v, a = rng.uniform(-1, 1, 2), rng.uniform(-2, 2, 2), rng.uniform(-5, 5, 2)
+        sim.reset(q=q, v=v)
+        cmd = ct.compute(sim.read_state(), JointReference(q, v, a))
+        sim.send(cmd)
+        mujoco.mj_forward(sim.model, sim.data)
+        np.testing.assert_allclose(sim.data.qacc, a, atol=1e-9)
+
+
+def test_pd_gravity_holds_a_pose_pd_sags(two_link_torque_gravity):
+    robot = two_link_torque_gravity
+    q_ref = np.array([0.3, 0.6])
+    gains = gains_from_frequency(20.0, 1.0, [0.19, 0.03])
+    errors = {}
+    for c in (JointPD(robot, gains), PDGravity(robot, gains)):
+        sim = Simulator(robot)
+        sim.reset(q=q_ref)
+        log = run(sim, c, joint_reference(q_ref), 2.0)
+        errors[c.name] = np.abs(log.q[-1] - q_ref).max()
+    assert errors["pd_gravity"] < 1e-4 < 1e-2 < errors["pd"]
+
+
+def test_task_space_ct_reaches_a_point(two_link_torque_gravity):
+    robot = two_link_torque_gravity
+    arm = TwoLinkArm.from_robot(robot)
+    sim = Simulator(robot)
+    sim.reset(q=[0.4, 1.2])
+    target = arm.forward_kinematics([0.4, 1.2]) + np.array([0.05, -0.03])
+    c = TaskSpaceComputedTorque(robot, gains_from_frequency(20.0))
+    run(sim, c, task_reference(target), 1.5)
+    sim.forward()
+    p, _ = sim.site_pose("end_effector")
+    np.testing.assert_allclose(p[:2], target, atol=1e-5)
+    with pytest.raises(ReferenceMismatch):
+        c.compute(sim.read_state(), task_reference([0.1, 0.2, 0.3]))
+
+
+def test_saturation_is_counted_and_clipped(two_link_torque):
+    c = JointPD(two_link_torque, PDGains([1e4], [0.0]))
+    sim = Simulator(two_link_torque)
+    sim.reset(q=[0.0, 0.0])
+    log = run(sim, c, joint_reference([1.0, -1.0]), 0.02)
+    assert c.saturation.saturated_cycles > 0
+    assert c.saturation.by_joint()["shoulder"] > 0
+    assert np.all(log.command[:, 0] <= 30.0) and np.all(log.command[:, 1] >= -20.0)
+    assert sim.saturations() == {}  # the controller clipped before the plant had to
+    summary = c.saturation.summary()
+    assert summary["limits_N_m"]["elbow"] == [-20.0, 20.0]
+    c.reset()
+    assert c.saturation.saturated_cycles == 0 and not c.saturation.by_joint()
+
+
+def test_torque_controller_on_position_actuators_is_an_error(two_link):
+    """The 2-link arm with position actuators rejects torque commands, through the simulator."""
+    c = PDGravity(two_link, gains_from_frequency(10.0, 1.0, 0.1))
+    sim = Simulator(two_link)
+    cmd = c.compute(sim.read_state(), joint_reference([0.1, 0.2]))
+    assert cmd.kind is CommandKind.TORQUE
+    with pytest.raises(CommandError, match="torque command cannot drive shoulder"):
+        sim.send(cmd)
+    with pytest.raises(CommandError):
+        run(sim, c, joint_reference([0.1, 0.2]), 0.01)
+
+
+def test_position_target_pd_on_position_actuators(two_link_gravity_pos):
+    robot = two_link_gravity_pos
+    c = PositionTargetPD(robot)
+    sim = Simulator(robot)
+    sim.reset(q=[0.2, 0.4])
+    log = run(sim, c, joint_reference([0.2, 0.4]), 1.0)
+    assert c.compute(sim.read_state(), joint_reference([0.2, 0.4])).kind is CommandKind.POSITION
+    np.testing.assert_allclose(log.q[-1], [0.2, 0.4], atol=1e-4)  # gravity offset: no sag
+
+
+# ------------------------------------------------------------------------------------ loop
+def test_loop_validates_and_presamples(two_link_torque):
+    sim = Simulator(two_link_torque)
+    c = JointPD(two_link_torque, gains_from_frequency(10.0, 1.0, 0.1))
+    with pytest.raises(ControlError, match="duration_s"):
+        run(sim, c, joint_reference([0.0, 0.0]), 0.0)
+    with pytest.raises(ReferenceMismatch):
+        run(sim, c, "not a reference", 0.01)  # type: ignore[arg-type]
+    t = np.arange(5) * 0.1
+    traj = JointTrajectory(t, np.c_[t, 2 * t], np.c_[np.ones(5), 2 * np.ones(5)], np.zeros((5, 2)),
+                           ("shoulder", "elbow"))
+    q, v, _ = presample(traj, np.array([0.05, 0.15, 1.0]), ("elbow", "shoulder"))
+    np.testing.assert_allclose(q, [[0.1, 0.05], [0.3, 0.15], [0.8, 0.4]])
+    np.testing.assert_allclose(v[-1], [0.0, 0.0])  # held after the end
+    with pytest.raises(ReferenceMismatch, match="not controlled"):
+        presample(traj, t, ("elbow",))
+    log = run(sim, c, traj, 0.1)
+    assert log.cycles == 50 and log.command.shape == (50, 2)
+    np.testing.assert_allclose(log.t_s[:3], [0.0, 0.002, 0.004])
+
+
+# ------------------------------------------------------------------------------------ demo
+@pytest.fixture(scope="module")
+def square(two_link_torque_gravity):
+    return square_reference(two_link_torque_gravity, DemoConfig(), two_link_torque_gravity.timestep_s)
+
+
+def test_ct_square_is_sub_millimetre_with_gravity(two_link_torque_gravity, square):
+    result, _ = track_square(two_link_torque_gravity, square, DemoConfig(controller="ct"))
+    assert result.rms_error_m < 1e-3
+    assert result.max_error_m < 1e-3
+    assert result.saturated_cycles == 0
+
+
+def test_pd_gravity_beats_pd_and_ct_beats_both(two_link_torque_gravity, square):
+    rms = {
+        name: track_square(two_link_torque_gravity, square, DemoConfig(controller=name))[0].rms_error_m
+        for name in ("pd", "pd_gravity", "ct", "task_ct")
+    }
+    assert rms["pd_gravity"] < 0.5 * rms["pd"]
+    assert rms["ct"] < 0.2 * rms["pd_gravity"]
+    assert rms["task_ct"] < 1e-3
+
+
+def test_model_error_degrades_computed_torque(two_link_torque_gravity, square):
+    exact, _ = track_square(two_link_torque_gravity, square, DemoConfig())
+    wrong, _ = track_square(two_link_torque_gravity, square, DemoConfig(model_error_pct=30.0))
+    assert wrong.rms_error_m > 3.0 * exact.rms_error_m
+    assert wrong.model_error_pct == 30.0
+    scaled = scale_masses(two_link_torque_gravity.pin_model, 1.3)
+    assert scaled.inertias[1].mass == pytest.approx(1.3 * two_link_torque_gravity.pin_model.inertias[1].mass)
+    assert two_link_torque_gravity.pin_model.inertias[1].mass == pytest.approx(1.0)  # original untouched
+
+
+def test_demo_writes_outputs(tmp_path):
+    result = run_demo(DemoConfig(duration_s=0.3, model_error_pct=10.0), tmp_path)
+    for role in ("csv", "plot", "report"):
+        assert result.files[role].is_file()
+    report = json.loads(result.files["report"].read_text())
+    assert report["job"] == "demo" and report["values"]["rms_error_m"] > 0
+    assert report["exact_model"]["model_error_pct"] == 0.0
+    header = result.files["csv"].read_text().splitlines()[0].split(",")
+    assert {"time_s", "p_ref_x_m", "p_x_m", "error_m", "tau_shoulder_N_m"} <= set(header)
+    with pytest.raises(ControllerSetupError, match="choose one of"):
+        DemoConfig(controller="lqr")
+
+
+def test_demo_cli(tmp_path):
+    out = subprocess.run(
+        [sys.executable, "-m", "mbctl.cli", "demo", "--duration", "0.2", "--compare",
+         "--output", str(tmp_path)],
+        capture_output=True, text=True, check=True,
+    ).stdout
+    assert "Cartesian RMS error" in out and "pd_gravity" in out
+    assert (tmp_path / "demo.png").is_file()
