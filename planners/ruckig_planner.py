@@ -160,7 +160,9 @@ def plan_ruckig(
 
     Returns:
         Samples at ``t = 0, dt_s, ..., T`` with ``T`` the synchronized duration rounded up to a
-        whole number of periods; the last sample is exactly the target state.
+        whole number of periods; the last sample is exactly the target state. If the start
+        already equals the target (to ruckig's round-off) the result is a single sample holding
+        the target state.
 
     Raises:
         InvalidPlanningInput: Wrong shapes, non-finite states, bad ``dt_s``, names or

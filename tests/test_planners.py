@@ -160,8 +160,12 @@ def test_ruckig_property_random_states_and_limits(positions, velocity_fractions,
     v0 = np.array(velocity_fractions[:3]) * limits.max_velocity
     v1 = np.array(velocity_fractions[3:]) * limits.max_velocity
     traj = plan_ruckig(q0, q1, limits, 0.005, NAMES3, current_velocity=v0, target_velocity=v1)
-    np.testing.assert_array_equal(traj.q[[0, -1]], [q0, q1])
-    np.testing.assert_array_equal(traj.v[[0, -1]], [v0, v1])
+    np.testing.assert_array_equal(traj.q[-1], q1)
+    np.testing.assert_array_equal(traj.v[-1], v1)
+    # A single sample (start == target to round-off, e.g. v1 = 5e-39) holds the target state.
+    if len(traj.t_s) > 1:
+        np.testing.assert_array_equal(traj.q[0], q0)
+        np.testing.assert_array_equal(traj.v[0], v0)
     _check_limits(traj, limits)
 
 
