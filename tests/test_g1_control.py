@@ -1,0 +1,119 @@
+"""G1 control: base weld (engines agree on M), standing under PD + gravity, computed torque on
+the welded base, arm PD through the Menagerie position actuators, and setup errors."""
+
+from __future__ import annotations
+
+import json
+
+import mujoco
+import numpy as np
+import pinocchio as pin
+import pytest
+from mbctl.control.computed_torque import ComputedTorque
+from mbctl.control.controller import JointMap, joint_reference
+from mbctl.control.exceptions import ControllerSetupError
+from mbctl.control.gains import gains_from_frequency
+from mbctl.control.pd_gravity import PDGravity
+from mbctl.robots.commands import CommandKind
+from mbctl.robots.edits import position_to_motor, weld_base
+from mbctl.robots.exceptions import CommandError, RobotError
+from mbctl.sim.g1_jobs import g1_arm_pd, g1_stand, g1_track
+from mbctl.sim.simulator import Simulator
+
+
+@pytest.fixture(scope="module")
+def g1_welded(g1):
+    return weld_base(g1, "stand")
+
+
+def test_weld_base_engines_agree_on_mass_matrix_and_bias(g1_welded, g1):
+    robot = g1_welded
+    assert not robot.has_floating_base
+    assert (robot.nq, robot.nv, robot.nu) == (g1.nq - 7, g1.nv - 6, g1.nu)
+    assert "floating_base_joint" not in robot.joints
+    assert robot.mj_model.key_qpos.shape == (len(robot.keyframes), robot.nq)
+    m, d = robot.mj_model, mujoco.MjData(robot.mj_model)
+    pdata = robot.pin_model.createData()
+    rng = np.random.default_rng(3)
+    lo, hi = m.jnt_range[:, 0], m.jnt_range[:, 1]
+    for _ in range(3):
+        q = rng.uniform(lo, hi)
+        v = rng.uniform(-1.0, 1.0, robot.nv)
+        d.qpos[:], d.qvel[:] = q, v
+        mujoco.mj_forward(m, d)
+        M_mj = np.zeros((m.nv, m.nv))
+        mujoco.mj_fullM(m, d, M_mj)
+        M_pin = pin.crba(robot.pin_model, pdata, q)
+        np.testing.assert_allclose(M_pin, M_mj, atol=1e-10)
+        np.testing.assert_allclose(pin.nonLinearEffects(robot.pin_model, pdata, q, v), d.qfrc_bias,
+                                   atol=1e-9)
+    # the pelvis sits at the keyframe pose in both engines
+    d.qpos[:] = robot.keyframe_q("stand")
+    mujoco.mj_kinematics(m, d)
+    key = g1.mj_model.key_qpos[g1.keyframe_id("stand")]
+    np.testing.assert_allclose(d.xpos[robot.body_id("pelvis")], key[:3])
+    assert any("welded" in e for e in robot.source.edits)
+
+
+def test_weld_base_needs_a_floating_base(two_link_torque):
+    with pytest.raises(RobotError, match="no floating base"):
+        weld_base(two_link_torque)
+
+
+def test_floating_base_setup_errors(g1):
+    motors = position_to_motor(g1)
+    with pytest.raises(ControllerSetupError, match="every dof"):
+        ComputedTorque(motors, gains_from_frequency(10.0))
+    with pytest.raises(ControllerSetupError, match="free joint"):
+        JointMap.from_robot(motors, ["floating_base_joint"])
+    jm = JointMap.from_robot(motors)
+    assert jm.size == 29 and jm.idx_v.min() == 6  # actuated joints only, base dofs excluded
+
+
+def test_torque_controller_on_menagerie_position_actuators_is_an_error(g1):
+    c = PDGravity(g1, gains_from_frequency(10.0, 1.0, 0.1))
+    sim = Simulator(g1)
+    sim.reset("stand")
+    cmd = c.compute(sim.read_state(), joint_reference(g1.keyframe_q("stand")[7:]))
+    with pytest.raises(CommandError, match="position_to_motor"):
+        sim.send(cmd)
+
+
+def test_g1_stands_ten_seconds_under_pd_gravity(g1, tmp_path):
+    result = g1_stand(10.0, tmp_path, robot=g1)
+    v = result.values
+    assert v["simulated_time_s"] == pytest.approx(10.0)
+    assert v["pelvis_max_deviation_m"] < 0.02
+    assert not v["fell"]
+    assert v["saturated_cycles"] == 0
+    report = json.loads((tmp_path / "g1_stand_report.json").read_text())
+    assert report["run"]["warnings"] == {} or "BADQACC" not in report["run"]["warnings"]
+    assert (tmp_path / "g1_stand.png").is_file() and (tmp_path / "g1_stand.csv").is_file()
+
+
+def test_g1_welded_computed_torque_tracks_ruckig(g1, tmp_path):
+    result = g1_track(None, tmp_path, robot=g1)
+    v = result.values
+    assert v["joint_rms_error_rad"] < 1e-3
+    assert v["saturated_cycles"] == 0
+    assert v["contacts_at_end"] == 0
+    moved = np.ptp(result.log.reference, axis=0)
+    names = list(v["rms_error_by_joint_rad"])
+    for joint in ("left_knee_joint", "right_knee_joint", "left_elbow_joint",
+                  "right_shoulder_pitch_joint"):
+        assert moved[names.index(joint)] > 0.15  # arms and legs really move
+
+
+def test_g1_arm_pd_through_position_targets(g1, tmp_path):
+    result = g1_arm_pd(None, tmp_path, robot=g1)
+    v = result.values
+    assert v["joint_rms_error_rad"] < 5e-3
+    assert v["final_max_error_rad"] < 1e-3
+    assert v["pelvis_max_deviation_m"] < 0.02
+    sim = Simulator(g1)
+    from mbctl.control.position_pd import PositionTargetPD
+
+    c = PositionTargetPD(g1, ["left_elbow_joint"])
+    cmd = c.compute(sim.read_state(), joint_reference([0.5]))
+    assert cmd.kind is CommandKind.POSITION and cmd.names == ("left_elbow_joint",)
+    sim.send(cmd)  # accepted by the position actuator
