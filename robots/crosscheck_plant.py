@@ -62,13 +62,14 @@ def audit(m: mujoco.MjModel) -> tuple[FeatureNote, ...]:
     """What ``m`` simulates beyond rigid-body dynamics, and how the cross-check handles each."""
     notes: list[FeatureNote] = []
     collidable = np.flatnonzero((m.geom_contype != 0) | (m.geom_conaffinity != 0))
-    if collidable.size:
+    if collidable.size or m.npair:
         notes.append(
             FeatureNote(
                 "contact",
                 EXCLUDED,
-                f"{collidable.size} geoms can collide; contact forces need a contact model that "
-                "Pinocchio's rigid-body algorithms do not have (mjDSBL_CONTACT).",
+                f"{collidable.size} geoms with contype/conaffinity and {m.npair} explicit contact "
+                "pairs; contact forces need a contact model that Pinocchio's rigid-body algorithms "
+                "do not have (mjDSBL_CONTACT).",
             )
         )
     limited = np.flatnonzero(m.jnt_limited)
