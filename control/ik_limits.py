@@ -48,7 +48,13 @@ class Limit(abc.ABC):
 
 
 class BoxLimit(Limit):
-    """A limit of the form ``lower <= dq <= upper`` on some tangent indices."""
+    """A limit of the form ``lower <= dq <= upper`` on some tangent indices.
+
+    Attributes:
+        state_dependent: False when the box depends only on ``dt`` (the solver then caches it).
+    """
+
+    state_dependent: bool = True
 
     @abc.abstractmethod
     def intersect_bounds(
@@ -66,6 +72,13 @@ class BoxLimit(Limit):
         up = np.isfinite(upper)
         lo = np.isfinite(lower)
         return Constraint(np.vstack([eye[up], -eye[lo]]), np.concatenate([upper[up], -lower[lo]]))
+
+
+def _as_slice(idx: np.ndarray) -> slice | np.ndarray:
+    """A contiguous index array as a slice (cheaper to gather and scatter), else itself."""
+    if idx.size and np.array_equal(idx, np.arange(idx[0], idx[0] + idx.size)):
+        return slice(int(idx[0]), int(idx[0]) + idx.size)
+    return idx
 
 
 def _one_dof_joints(model: pin.Model) -> list[int]:
@@ -115,6 +128,8 @@ class JointPositionLimit(BoxLimit):
             )
         for arr in (self.idx_q, self.idx_v, self.q_min, self.q_max):
             arr.setflags(write=False)
+        self._sq = _as_slice(self.idx_q)
+        self._sv = _as_slice(self.idx_v)
         self.gain = float(gain)
         self.joint_names = tuple(
             model.names[j] for j in _one_dof_joints(model) if model.joints[j].idx_q in set(iq)
@@ -124,10 +139,14 @@ class JointPositionLimit(BoxLimit):
         self, state: IKState, dt: float, lower: np.ndarray, upper: np.ndarray
     ) -> None:
         """Tighten with ``gain (q_min - q)`` and ``gain (q_max - q)`` on the limited dofs."""
-        q = state.q[self.idx_q]
-        iv = self.idx_v
-        lower[iv] = np.maximum(lower[iv], self.gain * (self.q_min - q))
-        upper[iv] = np.minimum(upper[iv], self.gain * (self.q_max - q))
+        q = state.q[self._sq]
+        iv = self._sv
+        lo = self.q_min - q
+        lo *= self.gain
+        hi = self.q_max - q
+        hi *= self.gain
+        lower[iv] = np.maximum(lower[iv], lo)
+        upper[iv] = np.minimum(upper[iv], hi)
 
     def margins(self, q: npt.ArrayLike) -> dict[str, tuple[float, float]]:
         """Distance to the lower and upper limit of each limited joint [rad or m], by name."""
@@ -145,6 +164,8 @@ class JointVelocityLimit(BoxLimit):
         idx_v: Tangent indices of the limited joints.
         max_velocity: Limits [rad/s or m/s] (read-only).
     """
+
+    state_dependent = False
 
     def __init__(self, model: pin.Model, velocities: Mapping[str, float] | None = None):
         """Build the limit.
@@ -201,6 +222,8 @@ class FloatingBaseVelocityLimit(BoxLimit):
         idx_v: The six tangent indices of the free flyer.
         max_velocity: (6,) bounds, linear [m/s] then angular [rad/s] (read-only).
     """
+
+    state_dependent = False
 
     def __init__(
         self,

@@ -30,7 +30,7 @@ import qpsolvers
 from mbctl.control.exceptions import IKInfeasible, IKSetupError
 from mbctl.control.ik_limits import BoxLimit, Limit
 from mbctl.control.ik_state import IKState
-from mbctl.control.ik_tasks import ComTask, Task
+from mbctl.control.ik_tasks import ComTask, DiagonalTask, Task
 from qpsolvers.warnings import SparseConversionWarning
 
 #: Magnitude standing for "no bound" in the QP (DAQP's and OSQP's infinity).
@@ -131,25 +131,54 @@ class DiffIK:
             self.solver_options = {"eps_abs": 1e-9, "eps_rel": 1e-9, "polishing": False}
         self.state = IKState(model, with_com=any(isinstance(t, ComTask) for t in self.tasks))
         nv = model.nv
-        self._slices = []
+        self._dense = tuple(t for t in self.tasks if not isinstance(t, DiagonalTask))
+        self._diagonal = tuple(t for t in self.tasks if isinstance(t, DiagonalTask))
+        n_rows = sum(t.k for t in self._dense)
+        self._W = np.zeros((n_rows, nv))
+        self._r = np.zeros(n_rows)
+        # Per dense task: (task, its rows of W, its entries of r) -- views, made once.
+        views = []
         row = 0
-        for t in self.tasks:
-            self._slices.append(slice(row, row + t.k))
+        for t in self._dense:
+            views.append((t, self._W[row : row + t.k], self._r[row : row + t.k]))
             row += t.k
-        self._W = np.zeros((row, nv))
-        self._r = np.zeros(row)
+        self._views = tuple(views)
         self._H = np.zeros((nv, nv))
+        self._H_diag = np.einsum("ii->i", self._H)  # writable view of H's diagonal
         self._c = np.zeros(nv)
-        self._diag = np.arange(nv) * (nv + 1)
+        self._tmp = np.zeros(nv)
         self._box = tuple(lim for lim in self.limits if isinstance(lim, BoxLimit))
+        self._box_dynamic = tuple(lim for lim in self._box if lim.state_dependent)
+        self._box_static = tuple(lim for lim in self._box if not lim.state_dependent)
         self._other = tuple(lim for lim in self.limits if not isinstance(lim, BoxLimit))
         self._lb = np.empty(nv)
         self._ub = np.empty(nv)
+        self._static_dt: float | None = None
+        self._static_lb = np.empty(nv)
+        self._static_ub = np.empty(nv)
+        self._quiet = solver == "osqp"
+        self._cost2_cache: dict[int, tuple[np.ndarray, np.ndarray]] = {}
 
     # ------------------------------------------------------------------ QP
     def update(self, q: npt.ArrayLike) -> None:
         """Move the kinematic state to ``q`` (nq,)."""
         self.state.update(q)
+
+    def _bounds(self, dt: float) -> tuple[np.ndarray, np.ndarray] | tuple[None, None]:
+        if not self._box:
+            return None, None
+        if self._static_dt != dt:
+            self._static_lb.fill(-QP_INFINITY)
+            self._static_ub.fill(QP_INFINITY)
+            for lim in self._box_static:
+                lim.intersect_bounds(self.state, dt, self._static_lb, self._static_ub)
+            self._static_dt = dt
+        lb, ub = self._lb, self._ub
+        np.copyto(lb, self._static_lb)
+        np.copyto(ub, self._static_ub)
+        for lim in self._box_dynamic:
+            lim.intersect_bounds(self.state, dt, lb, ub)
+        return lb, ub
 
     def build_problem(self, dt: float) -> qpsolvers.Problem:
         """The QP at the current state for a step of ``dt`` [s] (buffers are reused: copy to keep).
@@ -160,35 +189,40 @@ class DiffIK:
         if not dt > 0.0:
             raise IKSetupError(f"dt must be > 0 [s]; got {dt!r}")
         state = self.state
-        W, r = self._W, self._r
         mu = self.damping
-        for task, rows in zip(self.tasks, self._slices, strict=True):
-            e, J = task.error_and_jacobian(state)
-            cost = task.cost
-            np.multiply(cost[:, None], J, out=W[rows])
-            r_t = r[rows]
-            np.multiply(cost, e, out=r_t)
-            r_t *= -task.gain
-            if task.lm_damping > 0.0:
-                mu += task.lm_damping * float(r_t @ r_t)
+        for task, W_t, r_t in self._views:
+            mu += task.write_qp_rows(state, W_t, r_t)
         H, c = self._H, self._c
-        np.matmul(W.T, W, out=H)
-        H.flat[self._diag] += mu
-        np.matmul(r, W, out=c)
+        np.matmul(self._W.T, self._W, out=H)
+        np.matmul(self._r, self._W, out=c)
         np.negative(c, out=c)
-        lb = ub = None
-        if self._box:
-            lb, ub = self._lb, self._ub
-            lb.fill(-QP_INFINITY)
-            ub.fill(QP_INFINITY)
-            for lim in self._box:
-                lim.intersect_bounds(state, dt, lb, ub)
+        self._H_diag += mu
+        tmp = self._tmp
+        for task in self._diagonal:
+            # W_t = diag(cost mask), r_t = -gain cost e  =>  H += cost^2 mask, c += gain cost^2 mask e
+            cost2_mask = self._cost2_mask(task)
+            self._H_diag += cost2_mask
+            if task.gain > 0.0:
+                np.multiply(cost2_mask, task.compute_error(state), out=tmp)
+                tmp *= task.gain
+                c += tmp
+            if task.lm_damping > 0.0:
+                err = task.gain * task.cost * task.compute_error(state)
+                self._H_diag += task.lm_damping * float(err @ err)
+        lb, ub = self._bounds(dt)
         G = h = None
         if self._other:
             cons = [lim.compute_qp_inequalities(state, dt) for lim in self._other]
             G = np.vstack([con.G for con in cons])
             h = np.concatenate([con.h for con in cons])
         return qpsolvers.Problem(H, c, G, h, None, None, lb, ub)
+
+    def _cost2_mask(self, task: DiagonalTask) -> np.ndarray:
+        cached = self._cost2_cache.get(id(task))
+        if cached is None or cached[0] is not task.cost:
+            cached = (task.cost, task.cost * task.cost * task.mask)
+            self._cost2_cache[id(task)] = cached
+        return cached[1]
 
     def solve_step(self, dt: float = 1.0) -> IKStep:
         """Solve the QP at the current state.
@@ -200,36 +234,41 @@ class DiffIK:
             IKInfeasible: The backend found no solution (carries the QP and the result).
         """
         problem = self.build_problem(dt)
-        if problem.lb is not None and np.any(problem.lb > problem.ub):
-            bad = np.flatnonzero(problem.lb > problem.ub)
+        if problem.lb is not None and (problem.lb > problem.ub).any():
+            # Contradictory boxes (q outside its limits): OSQP refuses such data outright.
             result = qpsolvers.Solution(problem)
             result.found = False
-            raise IKInfeasible(
+            raise self._infeasible(problem, result)
+        if self._quiet:
+            with warnings.catch_warnings():
+                # OSQP wants a sparse P; qpsolvers converts our dense one and says so each call.
+                warnings.simplefilter("ignore", SparseConversionWarning)
+                # osqp 1.x announces a future default; a failed solve raises IKInfeasible.
+                warnings.filterwarnings("ignore", message="The default value of raise_error")
+                warnings.filterwarnings("ignore", message="OSQP exited with status")
+                result = qpsolvers.solve_problem(problem, solver=self.solver, **self.solver_options)
+        else:
+            result = qpsolvers.solve_problem(problem, solver=self.solver, **self.solver_options)
+        if not result.found or result.x is None:
+            raise self._infeasible(problem, result)
+        dq = result.x
+        return IKStep(dq / dt, dq, float(result.solve_time or 0.0))
+
+    def _infeasible(self, problem: qpsolvers.Problem, result: qpsolvers.Solution) -> IKInfeasible:
+        if problem.lb is not None and np.any(problem.lb > problem.ub):
+            bad = np.flatnonzero(problem.lb > problem.ub)
+            message = (
                 f"IK limits contradict each other at dofs {bad[:8].tolist()}: lower bounds "
                 f"{problem.lb[bad[:8]].round(6).tolist()} exceed upper bounds "
                 f"{problem.ub[bad[:8]].round(6).tolist()} (is q outside its joint limits?). "
-                "Move q inside its limits or relax the limits.",
-                _copy_problem(problem),
-                result,
-                self.solver,
+                "Move q inside its limits or relax the limits."
             )
-        with warnings.catch_warnings():
-            # OSQP wants a sparse P; qpsolvers converts our dense one and says so every call.
-            warnings.simplefilter("ignore", SparseConversionWarning)
-            # osqp 1.x announces a future default; a failed solve is reported by IKInfeasible.
-            warnings.filterwarnings("ignore", message="The default value of raise_error")
-            warnings.filterwarnings("ignore", message="OSQP exited with status")
-            result = qpsolvers.solve_problem(problem, solver=self.solver, **self.solver_options)
-        if not result.found or result.x is None:
-            raise IKInfeasible(
+        else:
+            message = (
                 f"QP solver {self.solver!r} found no IK step (the limits may be infeasible); "
-                "inspect .problem and .result.",
-                _copy_problem(problem),
-                result,
-                self.solver,
+                "inspect .problem and .result."
             )
-        dq = np.asarray(result.x, dtype=float)
-        return IKStep(dq / dt, dq, float(result.solve_time or 0.0))
+        return IKInfeasible(message, _copy_problem(problem), result, self.solver)
 
     def step(self, q: npt.ArrayLike, dt: float = 1.0) -> IKStep:
         """Update the state to ``q`` (nq,) and solve one step."""

@@ -64,12 +64,14 @@ class IKState:
         Raises:
             IKSetupError: ``q`` has the wrong shape or non-finite entries.
         """
-        q_arr = np.asarray(q, dtype=float)
-        if q_arr.shape != (self.model.nq,) or not np.all(np.isfinite(q_arr)):
+        try:
+            self._q[:] = q
+        except (ValueError, TypeError) as exc:
             raise IKSetupError(
-                f"q must be a finite vector of shape ({self.model.nq},); got shape {q_arr.shape}"
-            )
-        np.copyto(self._q, q_arr)
+                f"q must be a finite vector of shape ({self.model.nq},); got {q!r}"
+            ) from exc
+        if not np.isfinite(self._q).all():
+            raise IKSetupError(f"q must be finite; got {self._q.tolist()}")
         pin.computeJointJacobians(self.model, self.data, self._q)
         pin.updateFramePlacements(self.model, self.data)
         if self.with_com:

@@ -102,6 +102,32 @@ class Task(abc.ABC):
         """Unweighted error norms for reports, by quantity (with units in the key)."""
         return {"error": float(np.linalg.norm(self.compute_error(state)))}
 
+    def _weights(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """``(cost[:, None], -cost[:, None], -gain cost)``, cached until cost or gain change."""
+        cached = self.__dict__.get("_weights_cache")
+        if cached is None or cached[0] is not self._cost or cached[1] != self.gain:
+            col = self._cost[:, None].copy()
+            cached = (self._cost, self.gain, col, -col, -self.gain * self._cost)
+            self.__dict__["_weights_cache"] = cached
+        return cached[2], cached[3], cached[4]
+
+    def write_qp_rows(self, state: IKState, W_t: np.ndarray, r_t: np.ndarray) -> float:
+        """Fill this task's least-squares rows in place and return its LM term.
+
+        Args:
+            state: Kinematic state.
+            W_t: (k, nv) output, ``diag(cost) J``.
+            r_t: (k,) output, ``-gain diag(cost) e``.
+
+        Returns:
+            ``mu = lm_damping |r_t|^2`` [cost^2].
+        """
+        e, J = self.error_and_jacobian(state)
+        col, _, neg_gain_cost = self._weights()
+        np.multiply(col, J, out=W_t)
+        np.multiply(neg_gain_cost, e, out=r_t)
+        return self.lm_damping * float(r_t @ r_t) if self.lm_damping > 0.0 else 0.0
+
 
 # ---------------------------------------------------------------------- frame tasks
 class _FrameTask(Task):
@@ -198,10 +224,29 @@ class FramePoseTask(_FrameTask):
         return -pin.Jlog6(self._X_TF(state)) @ state.frame_jacobian_local(self.frame_id)
 
     def error_and_jacobian(self, state: IKState) -> tuple[np.ndarray, np.ndarray]:
-        """Both, from one ``X_TF``."""
-        X_TF = self._X_TF(state)
-        J = pin.Jlog6(X_TF) @ state.frame_jacobian_local(self.frame_id)
+        """Both, from one ``X_TF`` (the hot path of ``DiffIK``)."""
+        if self._X_TW is None:
+            raise IKSetupError(f"{self.name}: no target set; call set_target first.")
+        X_TF = self._X_TW * state.data.oMf[self.frame_id]
+        J_F = pin.getFrameJacobian(state.model, state.data, self.frame_id, pin.LOCAL)
+        J = pin.Jlog6(X_TF) @ J_F
         return -pin.log6(X_TF).vector, np.negative(J, out=J)
+
+    def write_qp_rows(self, state: IKState, W_t: np.ndarray, r_t: np.ndarray) -> float:
+        """Fast path of ``Task.write_qp_rows``, same values, fewer temporaries.
+
+        ``W_t = -diag(cost) Jlog6(X_TF) J_F`` and ``r_t = gain diag(cost) log6(X_TF)``.
+        """
+        if self._X_TW is None:
+            raise IKSetupError(f"{self.name}: no target set; call set_target first.")
+        X_TF = self._X_TW * state.data.oMf[self.frame_id]
+        J_F = pin.getFrameJacobian(state.model, state.data, self.frame_id, pin.LOCAL)
+        _, neg_col, neg_gain_cost = self._weights()
+        np.matmul(pin.Jlog6(X_TF), J_F, out=W_t)
+        W_t *= neg_col
+        np.multiply(neg_gain_cost, pin.log6(X_TF).vector, out=r_t)
+        np.negative(r_t, out=r_t)
+        return self.lm_damping * float(r_t @ r_t) if self.lm_damping > 0.0 else 0.0
 
     def residuals(self, state: IKState) -> dict[str, float]:
         """Distance [m] and rotation angle [rad] to the target; a part with zero cost is omitted."""
@@ -310,6 +355,15 @@ class FrameOrientationTask(_FrameTask):
         R_TF = self._X_TF(state).rotation
         return -pin.Jlog3(R_TF) @ state.frame_jacobian_local(self.frame_id)[3:]
 
+    def error_and_jacobian(self, state: IKState) -> tuple[np.ndarray, np.ndarray]:
+        """Both, from one ``R_TF``."""
+        if self._X_TW is None:
+            raise IKSetupError(f"{self.name}: no target set; call set_target first.")
+        R_TF = self._X_TW.rotation @ state.data.oMf[self.frame_id].rotation
+        J_F = pin.getFrameJacobian(state.model, state.data, self.frame_id, pin.LOCAL)
+        J = pin.Jlog3(R_TF) @ J_F[3:]
+        return -pin.log3(R_TF), np.negative(J, out=J)
+
     def residuals(self, state: IKState) -> dict[str, float]:
         """Rotation angle to the target [rad]."""
         return {"orientation [rad]": float(np.linalg.norm(self.compute_error(state)))}
@@ -381,7 +435,20 @@ def _floating_dofs(model: pin.Model) -> np.ndarray:
     return np.array(idx, dtype=int)
 
 
-class PostureTask(Task):
+class DiagonalTask(Task):
+    """A task whose Jacobian is a constant 0/1 diagonal ``diag(mask)`` (nv, nv).
+
+    ``DiffIK`` adds such tasks straight onto the diagonal of H (``cost^2 mask``) and into c
+    (``gain cost^2 mask e``) instead of stacking nv more rows into the least-squares matrix.
+
+    Attributes:
+        mask: (nv,) 1.0 where the task acts, 0.0 elsewhere (read-only).
+    """
+
+    mask: np.ndarray
+
+
+class PostureTask(DiagonalTask):
     """Joint posture: ``e = q ⊖ q_target`` (nv,) (``pin.difference``), ``J = I`` (nv, nv).
 
     Free-flyer rows are zero (the base is not pulled to a posture), as in mink.
@@ -415,6 +482,8 @@ class PostureTask(Task):
         self._jacobian = np.eye(self.model.nv)
         self._jacobian[self._free, self._free] = 0.0
         self._jacobian.setflags(write=False)
+        self.mask = np.diag(self._jacobian).copy()
+        self.mask.setflags(write=False)
         self._target: np.ndarray | None = None
 
     def set_target(self, target_q: npt.ArrayLike) -> None:
@@ -440,7 +509,8 @@ class PostureTask(Task):
         if self._target is None:
             raise IKSetupError(f"{self.name}: no target set; call set_target first.")
         e = pin.difference(self.model, self._target, state.q)
-        e[self._free] = 0.0
+        if self._free.size:
+            e[self._free] = 0.0
         return e
 
     def compute_jacobian(self, state: IKState) -> np.ndarray:
@@ -448,7 +518,7 @@ class PostureTask(Task):
         return self._jacobian
 
 
-class DampingTask(Task):
+class DampingTask(DiagonalTask):
     """Minimum-motion regulariser: ``e = 0``, ``J = I`` (free-flyer rows zero), gain 0.
 
     Adds ``sum_i cost_i^2 dq_i^2`` to the objective (mink's ``DampingTask``).
@@ -473,6 +543,8 @@ class DampingTask(Task):
         free = _floating_dofs(self.model)
         self._jacobian[free, free] = 0.0
         self._jacobian.setflags(write=False)
+        self.mask = np.diag(self._jacobian).copy()
+        self.mask.setflags(write=False)
         self._zero = np.zeros(self.model.nv)
         self._zero.setflags(write=False)
 

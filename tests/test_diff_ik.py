@@ -23,6 +23,7 @@ from mbctl.control import (
     JointVelocityLimit,
     Limit,
     PostureTask,
+    Task,
     TwoLinkArm,
     solve_ik,
 )
@@ -70,6 +71,24 @@ def _tasks_for(model: pin.Model, frame: str, state: IKState, rng: np.random.Gene
     return [pose, pos, ori, com, posture]
 
 
+def _check_fast_rows(task, state):
+    """A task's write_qp_rows (fast path) equals the generic one from compute_error/jacobian."""
+    task.lm_damping = 0.5
+    task.gain = 0.7
+    W_fast, r_fast = np.zeros((task.k, state.nv)), np.zeros(task.k)
+    W_ref, r_ref = np.zeros((task.k, state.nv)), np.zeros(task.k)
+    mu_fast = task.write_qp_rows(state, W_fast, r_fast)
+    mu_ref = Task.write_qp_rows(task, state, W_ref, r_ref)
+    np.testing.assert_allclose(W_fast, task.cost[:, None] * task.compute_jacobian(state),
+                               atol=1e-13, rtol=0)
+    np.testing.assert_allclose(W_fast, W_ref, atol=1e-13, rtol=0)
+    np.testing.assert_allclose(r_fast, -0.7 * task.cost * task.compute_error(state), atol=1e-13)
+    np.testing.assert_allclose(r_fast, r_ref, atol=1e-13, rtol=0)
+    assert mu_fast == pytest.approx(mu_ref, abs=1e-13)
+    task.lm_damping = 0.0
+    task.gain = 1.0
+
+
 @pytest.mark.parametrize("seed", [0, 1, 2])
 def test_task_jacobians_match_finite_differences_two_link(two_link, seed):
     rng = np.random.default_rng(seed)
@@ -78,7 +97,9 @@ def test_task_jacobians_match_finite_differences_two_link(two_link, seed):
     state = IKState(model, q)
     for task in _tasks_for(model, "end_effector", state, rng):
         e, J = task.error_and_jacobian(state)
-        np.testing.assert_array_equal(e, task.compute_error(state))
+        np.testing.assert_allclose(e, task.compute_error(state), atol=1e-14, rtol=0)
+        np.testing.assert_allclose(J, task.compute_jacobian(state), atol=1e-14, rtol=0)
+        _check_fast_rows(task, state)
         err = np.max(np.abs(J - _fd_jacobian(task, state, q)))
         assert err < 1e-7, f"{task.name}: |J - J_fd|_inf = {err:.2e}"
 
@@ -91,6 +112,7 @@ def test_task_jacobians_match_finite_differences_g1(g1, seed):
     state = IKState(model, q)
     for frame in ("left_foot", "pelvis", "right_wrist_yaw_link"):
         for task in _tasks_for(model, frame, state, rng):
+            _check_fast_rows(task, state)
             err = np.max(np.abs(task.compute_jacobian(state) - _fd_jacobian(task, state, q)))
             assert err < 1e-6, f"{task.name} on {frame}: |J - J_fd|_inf = {err:.2e}"
 

@@ -1,0 +1,149 @@
+"""Whole-body IK on the G1: palm sites, our Pinocchio QP vs mink, convergence, limits."""
+
+from __future__ import annotations
+
+import mujoco
+import numpy as np
+import pinocchio as pin
+import pytest
+from mbctl.control.exceptions import IKSetupError
+from mbctl.control.g1_wbik import (
+    PALM_OFFSET_IN_WRIST_YAW_M,
+    PALM_SITES,
+    MinkWholeBodyIK,
+    PinocchioWholeBodyIK,
+    WholeBodyIKConfig,
+    with_palm_sites,
+)
+
+#: Agreement of the mink and Pinocchio velocity steps [rad/s, m/s] (inf-norm): both solve the
+#: same strictly convex QP with daqp; the residual is round-off.
+STEP_ATOL = 1e-8
+
+
+@pytest.fixture(scope="module")
+def g1p(g1):
+    return with_palm_sites(g1)
+
+
+def _perturbed(robot, seed, scale=0.05):
+    rng = np.random.default_rng(seed)
+    return pin.integrate(robot.pin_model, robot.keyframe_q("stand"), scale * rng.standard_normal(
+        robot.nv))
+
+
+def test_palm_sites_added_in_both_engines(g1p, g1):
+    assert "left_palm" not in g1.sites  # the fixture's model is untouched
+    assert any("left_palm/right_palm" in e for e in g1p.source.edits)
+    q = _perturbed(g1p, 0, 0.3)
+    data = mujoco.MjData(g1p.mj_model)
+    data.qpos[:] = g1p.converter.q_pin_to_mj(q)
+    mujoco.mj_kinematics(g1p.mj_model, data)
+    pdata = g1p.pin_model.createData()
+    pin.framesForwardKinematics(g1p.pin_model, pdata, q)
+    for site, body in PALM_SITES.items():
+        p_mj = data.site_xpos[g1p.site_id(site)]
+        X_pin = pdata.oMf[g1p.frame_id(site)]
+        np.testing.assert_allclose(X_pin.translation, p_mj, atol=1e-12, rtol=0)
+        # the offset is where documented: in the wrist-yaw body frame
+        X_body = pdata.oMf[g1p.pin_model.getFrameId(body, pin.FrameType.BODY)]
+        np.testing.assert_allclose(X_body.actInv(X_pin).translation, PALM_OFFSET_IN_WRIST_YAW_M,
+                                   atol=1e-12)
+
+
+def _both(robot, q_ref, offset, com_xy=None):
+    ours = PinocchioWholeBodyIK(robot, q_ref)
+    theirs = MinkWholeBodyIK(robot, q_ref)
+    for palm in PALM_SITES:
+        target = ours.frame_pose(palm).translation + offset
+        ours.set_palm_target(palm, target)
+        theirs.set_palm_target(palm, target)
+    if com_xy is not None:
+        ours.set_com_target(com_xy)
+        theirs.set_com_target(com_xy)
+    return ours, theirs
+
+
+@pytest.mark.parametrize("seed", [1, 2, 3])
+def test_mink_and_pinocchio_give_the_same_step(g1p, seed):
+    q_ref = _perturbed(g1p, seed)
+    ours, theirs = _both(g1p, q_ref, np.array([0.08, -0.03, 0.05]), com_xy=[0.01, -0.01])
+    # Evaluate away from q_ref so that no task sits at exactly zero relative rotation (see below).
+    q = _perturbed(g1p, seed + 100, 0.03)
+    q[:7] = pin.integrate(g1p.pin_model, q, np.r_[0.02, -0.01, 0.03, 0.05, -0.04, 0.1,
+                                                   np.zeros(g1p.nv - 6)])[:7]
+    v_ours = ours.step(q).v
+    v_mink = theirs.step(q)
+    assert np.max(np.abs(v_ours)) > 1e-2  # a real step, not a trivial zero
+    assert np.max(np.abs(v_ours - v_mink)) < STEP_ATOL
+    # mink's free-joint linear velocity is in the world frame: converted, not equal raw
+    v_mink_raw = theirs.step_mj()
+    assert np.max(np.abs(v_mink_raw[:3] - v_ours[:3])) > 1e-4
+
+
+def test_mink_jlog_drops_translation_coupling_at_zero_rotation(g1p):
+    """Known difference: at exactly zero relative rotation mink's SE3 jlog is the identity,
+    Pinocchio's keeps the -[p]x/2 block; finite differences side with Pinocchio. The steps then
+    differ at the first iteration of a pure-translation target (a property of mink 1.3)."""
+    q = g1p.keyframe_q("stand")
+    ours, theirs = _both(g1p, q, np.array([0.1, 0.0, 0.0]))
+    theirs.update(q)
+    T = g1p.converter.velocity_map(q)
+    task = ours.tasks["left_palm"]
+    ours.ik.update(q)
+    J_ours = task.compute_jacobian(ours.state)
+    J_mink = theirs.tasks["left_palm"].compute_jacobian(theirs.configuration) @ T
+    h = 1e-6
+    J_fd = np.column_stack([
+        (task.compute_error(_at(ours, q, h * e)) - task.compute_error(_at(ours, q, -h * e)))
+        / (2 * h) for e in np.eye(g1p.nv)
+    ])
+    assert np.max(np.abs(J_ours - J_fd)) < 1e-7
+    assert np.max(np.abs(J_mink - J_fd)) > 1e-2
+
+
+def _at(ik, q, dq):
+    ik.ik.update(pin.integrate(ik.robot.pin_model, q, dq))
+    return ik.state
+
+
+@pytest.mark.parametrize("offset", [[0.1, 0.0, 0.0], [0.0, -0.1, 0.0]])
+def test_palms_moved_10cm_converge_to_1mm_in_4_iterations(g1p, offset):
+    q0 = g1p.keyframe_q("stand")
+    ours = PinocchioWholeBodyIK(g1p, q0)
+    for palm in PALM_SITES:
+        ours.set_palm_target(palm, ours.frame_pose(palm).translation + offset)
+    res = ours.solve(q0, tol=1e-3, max_iters=10)
+    assert res.converged
+    assert res.iterations <= 4
+    for palm in PALM_SITES:
+        assert res.residuals[palm]["position [m]"] < 1e-3
+    for foot in ("left_foot", "right_foot"):
+        assert res.residuals[foot]["position [m]"] < 1e-3
+    margins = ours.position_limit.margins(res.q)
+    assert min(min(m) for m in margins.values()) >= -1e-9
+
+
+def test_unreachable_palm_target_reports_residual(g1p):
+    q0 = g1p.keyframe_q("stand")
+    ours = PinocchioWholeBodyIK(g1p, q0)
+    far = ours.frame_pose("left_palm").translation + [1.5, 0.0, 0.0]
+    ours.set_palm_target("left_palm", far)
+    res = ours.solve(q0, tol=1e-3, max_iters=60)  # no exception: closest compromise pose
+    assert not res.converged
+    assert set(res.residuals) == set(ours.tasks)  # every task reports its residual
+    assert res.residuals["left_palm"]["position [m]"] > 0.5
+    # Feet are soft tasks (cost 10 vs palm 5): the 1.5 m pull drags them a few cm, no more.
+    assert res.residuals["left_foot"]["position [m]"] < 5e-2
+    assert res.residuals["right_palm"]["position [m]"] < 0.1
+    margins = ours.position_limit.margins(res.q)
+    assert min(min(m) for m in margins.values()) >= -1e-9
+
+
+def test_palm_sites_required_and_config_validated(g1):
+    with pytest.raises(IKSetupError, match="load it through with_palm_sites"):
+        PinocchioWholeBodyIK(g1, g1.keyframe_q("stand"))
+    with pytest.raises(IKSetupError, match="posture_cost must be >= 0; got -1"):
+        WholeBodyIKConfig(posture_cost=-1)
+    with pytest.raises(IKSetupError, match="dt must be > 0"):
+        WholeBodyIKConfig(dt=0.0)
