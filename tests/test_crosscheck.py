@@ -267,6 +267,33 @@ def test_robot_after_another_top_level_body_fails_structure(tmp_path):
     json.dumps(report.to_dict(), allow_nan=False)  # NaN errors become null
 
 
+def test_plant_without_gravity_fails_gravity_terms_springs_and_fluid_excluded(tmp_path):
+    xml = COUPLED_XML.replace('gravcomp="1"', "").replace(
+        '<option gravity="0 0 -9.81"/>',
+        '<option gravity="0 0 -9.81" density="1.2" viscosity="1e-5"><flag gravity="disable"/></option>',
+    )
+    xml = xml.split("  <tendon>")[0] + "</mujoco>\n"
+    xml = xml.replace('<joint name="j1" axis="0 1 0"/>', '<joint name="j1" axis="0 1 0" stiffness="5"/>')
+    robot = load_robot(_write(tmp_path, "no_gravity.xml", xml), check=False)
+    report = crosscheck(robot, n_states=20, seed=0)
+    handled = {f.feature: f.handling for f in report.features}
+    assert handled == {
+        "springs": EXCLUDED,
+        "fluid forces": EXCLUDED,
+        "gravity disabled in the plant": EXCLUDED,
+    }
+    # Pinocchio keeps opt.gravity, the plant has none: the difference shows, it is not hidden.
+    assert report.failed == ("gravity", "bias", "forward_dynamics", "inverse_dynamics", "potential_energy")
+
+
+def test_g1_states_exercise_the_free_flyer_bias_term(g1):
+    states = sample_states(g1, n_states=20, seed=0)
+    extra = [
+        np.abs(g1.converter.velocity_map_dot_v(q, v)).max() for q, v in zip(states.q, states.v, strict=True)
+    ]
+    assert max(extra) > 0.1  # the M Tdot v term in b_pin is far above the 1e-9 tolerance
+
+
 # ---------------------------------------------------------------- the check catches real errors
 
 
