@@ -25,7 +25,13 @@ from mbctl.planners.polynomial import (
     minimum_jerk_trajectory,
     quintic_trajectory,
 )
-from mbctl.planners.ruckig_planner import JointLimits, concatenate, plan_ruckig, plan_waypoints
+from mbctl.planners.ruckig_planner import (
+    JointLimits,
+    concatenate,
+    pass_through_velocities,
+    plan_ruckig,
+    plan_waypoints,
+)
 from mbctl.planners.trajectory import JointTrajectory
 
 __all__ = [
@@ -47,6 +53,7 @@ __all__ = [
     "concatenate",
     "cubic_trajectory",
     "minimum_jerk_trajectory",
+    "pass_through_velocities",
     "plan_ruckig",
     "plan_waypoints",
     "quintic_trajectory",

@@ -183,7 +183,10 @@ class PolylinePath(CartesianPath):
 
     @property
     def corners(self) -> tuple[float, ...]:
-        """Arc lengths of every vertex [m] (the path stops at each)."""
+        """Arc lengths of every vertex [m]; the timing law stops at each.
+
+        It also stops at collinear interior vertices; merge those if it should not.
+        """
         return tuple(float(x) for x in self._s)
 
     def _evaluate(self, s: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -432,6 +435,10 @@ def to_joint_trajectory(
     components of the Cartesian samples, m = 3 uses x-y-z):
 
         q = ik(p[:m]),   qd = J^+ v[:m],   qdd = J^+ (a[:m] - Jdot qd).
+
+    For a redundant arm (n > m) ``qd`` and ``qdd`` are the minimum-norm solutions; they are the
+    time derivatives of ``q`` only if the IK resolves the redundancy the same way. The tests
+    cover the non-redundant case (2-link arm, identity "robot").
 
     Args:
         cart_traj: The Cartesian trajectory (world frame W).

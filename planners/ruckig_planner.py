@@ -351,6 +351,50 @@ def plan_waypoints(
     return concatenate(segments)
 
 
+def pass_through_velocities(
+    waypoints: npt.ArrayLike, limits: JointLimits, dt_s: float, names: Sequence[str]
+) -> np.ndarray:
+    """Heuristic velocities for passing through waypoints without stopping.
+
+    For each interior waypoint k and DoF i, with ``d_prev`` and ``d_next`` the displacements of
+    the adjacent segments and ``T_prev``, ``T_next`` their rest-to-rest ruckig durations, the
+    velocity is the mean of the two average segment velocities,
+    ``0.5 (d_prev / T_prev + d_next / T_next)``, if both move the same way, else 0 (the DoF
+    reverses there, so it should stop). The first and last rows are zero. The values are within
+    ``max_velocity`` (an average velocity cannot exceed it). Pass them to ``plan_waypoints``.
+
+    Args:
+        waypoints: Positions (K, n) [rad], K >= 2.
+        limits: Limits for the n DoFs.
+        dt_s: Control period [s] (used for the rest-to-rest duration estimates).
+        names: Joint names of the n DoFs.
+
+    Returns:
+        Velocities (K, n) [rad/s].
+
+    Raises:
+        InvalidPlanningInput: Bad shapes or values.
+        InvalidLimits: ``limits`` has a different number of DoFs.
+        TrajectoryGenerationFailed: Ruckig failed on a rest-to-rest estimate.
+    """
+    names = _check_names(names)
+    wps = _matrix("waypoints", waypoints, len(names))
+    if wps.shape[0] < 2:
+        raise InvalidPlanningInput(
+            f"waypoints needs at least 2 rows (start and goal); got {wps.shape[0]}"
+        )
+    d = np.diff(wps, axis=0)
+    durations = np.array([
+        plan_ruckig(wps[k], wps[k + 1], limits, dt_s, names).duration_s for k in range(len(d))
+    ])
+    mean_v = np.divide(d, durations[:, None], out=np.zeros_like(d),
+                       where=durations[:, None] > 0.0)
+    vels = np.zeros_like(wps)
+    same_way = np.sign(d[:-1]) * np.sign(d[1:]) > 0.0
+    vels[1:-1] = np.where(same_way, 0.5 * (mean_v[:-1] + mean_v[1:]), 0.0)
+    return np.clip(vels, -limits.max_velocity, limits.max_velocity)
+
+
 def concatenate(segments: Sequence[JointTrajectory]) -> JointTrajectory:
     """Segments played one after the other, each starting exactly at the previous end state.
 

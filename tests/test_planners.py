@@ -31,6 +31,7 @@ from mbctl.planners import (
     TrajectoryGenerationFailed,
     cubic_trajectory,
     minimum_jerk_trajectory,
+    pass_through_velocities,
     plan_ruckig,
     plan_waypoints,
     quintic_trajectory,
@@ -189,6 +190,24 @@ def test_waypoints_pass_through_with_velocities():
     _check_limits(traj, LIMITS3)
     stop = plan_waypoints(wps, LIMITS3, DT, NAMES3)
     assert traj.duration_s < stop.duration_s
+
+
+def test_waypoints_pass_through_heuristic():
+    wps = np.array([[0.0, 0.0, 0.0], [0.4, 0.3, 0.2], [0.8, 0.1, 0.5], [1.2, 0.5, 0.6]])
+    vels = pass_through_velocities(wps, LIMITS3, DT, NAMES3)
+    np.testing.assert_array_equal(vels[[0, -1]], 0.0)
+    assert vels[1, 0] > 0 and vels[2, 0] > 0  # joint 1 keeps moving forward
+    assert vels[1, 1] == 0.0 and vels[2, 1] == 0.0  # joint 2 reverses at both: stops there
+    assert np.all(np.abs(vels) <= LIMITS3.max_velocity)
+    traj = plan_waypoints(wps, LIMITS3, DT, NAMES3, waypoint_velocities=vels)
+    hits = [int(np.flatnonzero(np.all(traj.q == w, axis=1))[0]) for w in wps]
+    assert hits == sorted(hits)
+    np.testing.assert_array_equal(traj.v[hits], vels)
+    _check_limits(traj, LIMITS3)
+    _check_consistent(traj)
+    # Joint 1 never backs up between its waypoints (no overshoot on a monotone joint).
+    assert np.all(traj.v[:, 0] >= -1e-12)
+    assert traj.duration_s < plan_waypoints(wps, LIMITS3, DT, NAMES3).duration_s
 
 
 def test_joint_limits_are_frozen_and_validated():
