@@ -193,6 +193,8 @@ class Report:
             f"{self.n_states} states ({kinds}), seed {self.seed}, "
             f"{self.elapsed_s:.3f} s ({self.states_per_second:.0f} states/s)",
             "convention: Pinocchio's (free-flyer velocity in the base frame; Jacobians LOCAL_WORLD_ALIGNED)",
+            "errors: abs = max over states and entries of |Pinocchio - MuJoCo|; "
+            "rel = abs / max(max |MuJoCo|, floor); pass when rel <= tolerance",
             "",
             f"{'quantity':20s} {'unit':10s} {'max abs err':>12s} {'max rel err':>12s} "
             f"{'tolerance':>10s} {'worst':>6s}  {'state kind':16s} result",
