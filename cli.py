@@ -30,6 +30,8 @@ def _register_commands() -> None:
     cli_g1.register(app)
     from mbctl import cli_xcheck
     cli_xcheck.register(app)
+    from mbctl import cli_ik
+    cli_ik.register(app)
 
 
 def fail(message: str, code: int = 2) -> typer.Exit:

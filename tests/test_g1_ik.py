@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import json
+
 import mujoco
 import numpy as np
 import pinocchio as pin
@@ -147,3 +149,44 @@ def test_palm_sites_required_and_config_validated(g1):
         WholeBodyIKConfig(posture_cost=-1)
     with pytest.raises(IKSetupError, match="dt must be > 0"):
         WholeBodyIKConfig(dt=0.0)
+
+
+# ---------------------------------------------------------------------- CLI
+def _mbctl(*args):
+    import os
+    import subprocess
+    import sys
+
+    return subprocess.run([sys.executable, "-m", "mbctl.cli", *args], capture_output=True,
+                          text=True, timeout=300, env=dict(os.environ))
+
+
+def test_cli_ik_g1_converges_and_writes_pose(g1, tmp_path):
+    out = _mbctl("ik", "g1", "--target", "left_palm=0.1,0,0", "--target", "right_palm=0.1,0,0",
+                 "--relative", "--com", "0,0", "--output", str(tmp_path), "--tol", "1e-3",
+                 "--max-iters", "10", "--solver", "osqp")
+    assert out.returncode == 0, out.stderr
+    assert "converged in" in out.stdout and "us/iteration" in out.stdout
+    assert "left_palm" in out.stdout and "joint-limit margins" in out.stdout
+    pose = json.loads((tmp_path / "ik_pose.json").read_text())
+    assert pose["converged"] is True and pose["iterations"] <= 10
+    assert pose["residuals"]["left_palm"]["position [m]"] < 1e-3
+    assert set(pose["q"]) == set(g1.joints)
+    assert len(pose["q"]["floating_base_joint"]) == 7
+    assert pose["min_joint_limit_margin"] >= -1e-9
+
+
+@pytest.mark.parametrize(
+    ("args", "message"),
+    [
+        (["--target", "left_plam=0.1,0.3,0.9"], "Did you mean 'left_palm'"),
+        (["--target", "left_palm=0.1,0.3"], "must be 3 finite numbers in metres as X,Y,Z"),
+        (["--target", "left_palm"], "--target must look like FRAME=X,Y,Z"),
+        (["--target", "left_palm=0.1,0.3,0.9", "--com", "0.1"], "--com must be 2 finite numbers"),
+    ],
+)
+def test_cli_ik_bad_input_exits_2_with_message(g1, tmp_path, args, message):
+    out = _mbctl("ik", "g1", *args, "--output", str(tmp_path))
+    assert out.returncode == 2
+    assert message in out.stderr
+    assert "Traceback" not in out.stderr
