@@ -161,7 +161,7 @@ class StateConverter:
         out = np.zeros(self.nv)
         v = np.asarray(v_pin, dtype=float)
         for (_, iv), R_WB in zip(self._free, self._rotations(np.asarray(q_pin)), strict=True):
-            out[iv : iv + 3] = R_WB @ np.cross(v[iv + 3 : iv + 6], v[iv : iv + 3])
+            out[iv : iv + 3] = R_WB @ _cross3(v[iv + 3 : iv + 6], v[iv : iv + 3])
         return out
 
     # ------------------------------------------------------------------ accelerations
@@ -184,6 +184,13 @@ class StateConverter:
         """``b_pin = T^T (b_mj + M_mj Tdot v_pin)`` (nv,)."""
         extra = M_mj @ self.velocity_map_dot_v(q_pin, v_pin)
         return self.force_mj_to_pin(q_pin, np.asarray(b_mj) + extra)
+
+
+def _cross3(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """``a x b`` for two (3,) vectors; np.cross costs ~20 us per call, this ~1 us."""
+    a0, a1, a2 = a.tolist()
+    b0, b1, b2 = b.tolist()
+    return np.array([a1 * b2 - a2 * b1, a2 * b0 - a0 * b2, a0 * b1 - a1 * b0])
 
 
 def _check_vector(x: npt.ArrayLike, n: int, what: str) -> np.ndarray:
