@@ -145,8 +145,12 @@ class JointPositionLimit(BoxLimit):
         lo *= self.gain
         hi = self.q_max - q
         hi *= self.gain
-        lower[iv] = np.maximum(lower[iv], lo)
-        upper[iv] = np.minimum(upper[iv], hi)
+        if isinstance(iv, slice):  # contiguous dofs: tighten the views in place
+            np.maximum(lower[iv], lo, out=lower[iv])
+            np.minimum(upper[iv], hi, out=upper[iv])
+        else:
+            lower[iv] = np.maximum(lower[iv], lo)
+            upper[iv] = np.minimum(upper[iv], hi)
 
     def margins(self, q: npt.ArrayLike) -> dict[str, tuple[float, float]]:
         """Distance to the lower and upper limit of each limited joint [rad or m], by name."""

@@ -234,8 +234,9 @@ class DiffIK:
             IKInfeasible: The backend found no solution (carries the QP and the result).
         """
         problem = self.build_problem(dt)
-        if problem.lb is not None and (problem.lb > problem.ub).any():
-            # Contradictory boxes (q outside its limits): OSQP refuses such data outright.
+        if self._quiet and problem.lb is not None and (problem.lb > problem.ub).any():
+            # Contradictory boxes (q outside its limits): OSQP refuses such data outright
+            # (daqp reports them as infeasible, which _infeasible then diagnoses).
             result = qpsolvers.Solution(problem)
             result.found = False
             raise self._infeasible(problem, result)

@@ -11,6 +11,8 @@ as (x, y, z, w) and v is the base velocity in the base (local) frame.
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 import numpy.typing as npt
 import pinocchio as pin
@@ -39,6 +41,8 @@ class IKState:
         self.data = model.createData()
         self.with_com = with_com
         self._q = pin.neutral(model)
+        # References into ``data`` (stable for its lifetime), fetched once for the hot path.
+        self.oMf = self.data.oMf
         self.update(self._q if q is None else q)
 
     @property
@@ -64,18 +68,20 @@ class IKState:
         Raises:
             IKSetupError: ``q`` has the wrong shape or non-finite entries.
         """
+        q_new = self._q
         try:
-            self._q[:] = q
+            q_new[:] = q
         except (ValueError, TypeError) as exc:
             raise IKSetupError(
                 f"q must be a finite vector of shape ({self.model.nq},); got {q!r}"
             ) from exc
-        if not np.isfinite(self._q).all():
-            raise IKSetupError(f"q must be finite; got {self._q.tolist()}")
-        pin.computeJointJacobians(self.model, self.data, self._q)
-        pin.updateFramePlacements(self.model, self.data)
+        if not math.isfinite(q_new @ q_new):  # any nan/inf (or an absurd magnitude)
+            raise IKSetupError(f"q must be finite; got {q_new.tolist()}")
+        model, data = self.model, self.data
+        pin.computeJointJacobians(model, data, q_new)
+        pin.updateFramePlacements(model, data)
         if self.with_com:
-            pin.jacobianCenterOfMass(self.model, self.data, False)
+            pin.jacobianCenterOfMass(model, data, False)
 
     def frame_id(self, name: str) -> int:
         """Pinocchio frame id of ``name`` (body, site or added operational frame).
@@ -89,7 +95,7 @@ class IKState:
 
     def frame_pose(self, frame_id: int) -> pin.SE3:
         """Pose ``X_WF`` of frame ``frame_id`` in the world."""
-        return self.data.oMf[frame_id]
+        return self.oMf[frame_id]
 
     def frame_jacobian_local(self, frame_id: int) -> np.ndarray:
         """Body Jacobian ``J_F`` (6, nv): the frame's twist in its own frame, [v; w]."""

@@ -102,14 +102,18 @@ class Task(abc.ABC):
         """Unweighted error norms for reports, by quantity (with units in the key)."""
         return {"error": float(np.linalg.norm(self.compute_error(state)))}
 
-    def _weights(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """``(cost[:, None], -cost[:, None], -gain cost)``, cached until cost or gain change."""
+    def _weights(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """``(cost[:, None], -cost[:, None], -gain cost, gain cost)``, cached.
+
+        The cache is rebuilt when ``cost`` (replaced by ``set_cost``) or ``gain`` change.
+        """
         cached = self.__dict__.get("_weights_cache")
         if cached is None or cached[0] is not self._cost or cached[1] != self.gain:
             col = self._cost[:, None].copy()
-            cached = (self._cost, self.gain, col, -col, -self.gain * self._cost)
+            gain_cost = self.gain * self._cost
+            cached = (self._cost, self.gain, col, -col, -gain_cost, gain_cost)
             self.__dict__["_weights_cache"] = cached
-        return cached[2], cached[3], cached[4]
+        return cached[2], cached[3], cached[4], cached[5]
 
     def write_qp_rows(self, state: IKState, W_t: np.ndarray, r_t: np.ndarray) -> float:
         """Fill this task's least-squares rows in place and return its LM term.
@@ -123,7 +127,7 @@ class Task(abc.ABC):
             ``mu = lm_damping |r_t|^2`` [cost^2].
         """
         e, J = self.error_and_jacobian(state)
-        col, _, neg_gain_cost = self._weights()
+        col, _, neg_gain_cost, _ = self._weights()
         np.multiply(col, J, out=W_t)
         np.multiply(neg_gain_cost, e, out=r_t)
         return self.lm_damping * float(r_t @ r_t) if self.lm_damping > 0.0 else 0.0
@@ -227,7 +231,7 @@ class FramePoseTask(_FrameTask):
         """Both, from one ``X_TF`` (the hot path of ``DiffIK``)."""
         if self._X_TW is None:
             raise IKSetupError(f"{self.name}: no target set; call set_target first.")
-        X_TF = self._X_TW * state.data.oMf[self.frame_id]
+        X_TF = self._X_TW * state.oMf[self.frame_id]
         J_F = pin.getFrameJacobian(state.model, state.data, self.frame_id, pin.LOCAL)
         J = pin.Jlog6(X_TF) @ J_F
         return -pin.log6(X_TF).vector, np.negative(J, out=J)
@@ -239,13 +243,12 @@ class FramePoseTask(_FrameTask):
         """
         if self._X_TW is None:
             raise IKSetupError(f"{self.name}: no target set; call set_target first.")
-        X_TF = self._X_TW * state.data.oMf[self.frame_id]
+        X_TF = self._X_TW * state.oMf[self.frame_id]
         J_F = pin.getFrameJacobian(state.model, state.data, self.frame_id, pin.LOCAL)
-        _, neg_col, neg_gain_cost = self._weights()
+        _, neg_col, _, gain_cost = self._weights()
         np.matmul(pin.Jlog6(X_TF), J_F, out=W_t)
         W_t *= neg_col
-        np.multiply(neg_gain_cost, pin.log6(X_TF).vector, out=r_t)
-        np.negative(r_t, out=r_t)
+        np.multiply(gain_cost, pin.log6(X_TF).vector, out=r_t)
         return self.lm_damping * float(r_t @ r_t) if self.lm_damping > 0.0 else 0.0
 
     def residuals(self, state: IKState) -> dict[str, float]:
@@ -359,7 +362,7 @@ class FrameOrientationTask(_FrameTask):
         """Both, from one ``R_TF``."""
         if self._X_TW is None:
             raise IKSetupError(f"{self.name}: no target set; call set_target first.")
-        R_TF = self._X_TW.rotation @ state.data.oMf[self.frame_id].rotation
+        R_TF = self._X_TW.rotation @ state.oMf[self.frame_id].rotation
         J_F = pin.getFrameJacobian(state.model, state.data, self.frame_id, pin.LOCAL)
         J = pin.Jlog3(R_TF) @ J_F[3:]
         return -pin.log3(R_TF), np.negative(J, out=J)
@@ -419,6 +422,16 @@ class ComTask(Task):
         """``J_com`` (3, nv)."""
         return state.com_jacobian()
 
+    def write_qp_rows(self, state: IKState, W_t: np.ndarray, r_t: np.ndarray) -> float:
+        """Fast path of ``Task.write_qp_rows`` (same values)."""
+        if self._target is None:
+            raise IKSetupError(f"{self.name}: no target set; call set_target first.")
+        col, _, neg_gain_cost, _ = self._weights()
+        np.multiply(col, state.data.Jcom, out=W_t)
+        np.subtract(state.data.com[0], self._target, out=r_t)
+        r_t *= neg_gain_cost
+        return self.lm_damping * float(r_t @ r_t) if self.lm_damping > 0.0 else 0.0
+
     def residuals(self, state: IKState) -> dict[str, float]:
         """Weighted-axes distance to the target [m] (axes with zero cost are ignored)."""
         e = self.compute_error(state) * (self.cost > 0.0)
@@ -433,6 +446,15 @@ def _floating_dofs(model: pin.Model) -> np.ndarray:
             start = model.joints[j].idx_v
             idx.extend(range(start, start + 6))
     return np.array(idx, dtype=int)
+
+
+def _as_slice_or_array(idx: np.ndarray) -> slice | np.ndarray | None:
+    """None when empty, a slice when contiguous (cheap to assign), else the index array."""
+    if idx.size == 0:
+        return None
+    if np.array_equal(idx, np.arange(idx[0], idx[0] + idx.size)):
+        return slice(int(idx[0]), int(idx[0]) + idx.size)
+    return idx
 
 
 class DiagonalTask(Task):
@@ -478,9 +500,10 @@ class PostureTask(DiagonalTask):
         """
         self.model = model.model if isinstance(model, IKState) else model
         super().__init__(name, self.model.nv, cost, gain, lm_damping)
-        self._free = _floating_dofs(self.model)
+        free = _floating_dofs(self.model)
         self._jacobian = np.eye(self.model.nv)
-        self._jacobian[self._free, self._free] = 0.0
+        self._jacobian[free, free] = 0.0
+        self._free = _as_slice_or_array(free)
         self._jacobian.setflags(write=False)
         self.mask = np.diag(self._jacobian).copy()
         self.mask.setflags(write=False)
@@ -509,7 +532,7 @@ class PostureTask(DiagonalTask):
         if self._target is None:
             raise IKSetupError(f"{self.name}: no target set; call set_target first.")
         e = pin.difference(self.model, self._target, state.q)
-        if self._free.size:
+        if self._free is not None:
             e[self._free] = 0.0
         return e
 
