@@ -26,11 +26,10 @@ from mbctl.control.controller import (
     JointMap,
     JointReference,
     TorqueSaturation,
-    torque_command,
 )
 from mbctl.control.exceptions import ControllerSetupError
 from mbctl.control.gains import PDGains
-from mbctl.robots.commands import Command
+from mbctl.robots.commands import Command, CommandKind
 from mbctl.robots.interface import RobotState
 from mbctl.robots.model_pair import Robot
 
@@ -85,16 +84,19 @@ class ComputedTorque:
         self.data = self.model.createData()
         self.gains = gains.broadcast(self.joint_map.size)
         self.saturation = TorqueSaturation(self.joint_map, saturate)
-        self._idx_q = np.asarray(self.joint_map.idx_q)
-        self._idx_v = np.asarray(self.joint_map.idx_v)
-        self._identity = bool(np.array_equal(self._idx_v, np.arange(robot.nv))
-                              and np.array_equal(self._idx_q, np.arange(robot.nq)))
+        self._idx_q = self.joint_map.q_selector
+        self._idx_v = self.joint_map.v_selector
+        self._identity = bool(np.array_equal(self.joint_map.idx_v, np.arange(robot.nv))
+                              and np.array_equal(self.joint_map.idx_q, np.arange(robot.nq)))
         self._names = self.joint_map.command_names
         friction = np.asarray(self.model.friction)[self._idx_v]
         damping = np.asarray(self.model.damping)[self._idx_v]
         self._friction = friction if friction_feedforward and np.any(friction) else None
         self._damping = damping if friction_feedforward and np.any(damping) else None
+        self._kp = np.asarray(self.gains.kp)
+        self._kd = np.asarray(self.gains.kd)
         self._a_des = np.zeros(self.joint_map.size)
+        self._ev = np.zeros(self.joint_map.size)
         self._a_full = np.zeros(robot.nv)
 
     @property
@@ -108,10 +110,16 @@ class ComputedTorque:
 
     def desired_acceleration(self, state: RobotState, reference: JointReference) -> np.ndarray:
         """``a_des = a_ref + kp e + kd de`` (n,) [rad/s^2] (internal buffer)."""
-        a = self._a_des
-        np.subtract(reference.q, state.q[self._idx_q], out=a)
-        a *= self.gains.kp
-        a += self.gains.kd * (reference.v - state.v[self._idx_v])
+        a, ev = self._a_des, self._ev
+        if self._identity:
+            np.subtract(reference.q, state.q, out=a)
+            np.subtract(reference.v, state.v, out=ev)
+        else:
+            np.subtract(reference.q, state.q[self._idx_q], out=a)
+            np.subtract(reference.v, state.v[self._idx_v], out=ev)
+        a *= self._kp
+        ev *= self._kd
+        a += ev
         a += reference.a
         return a
 
@@ -119,13 +127,14 @@ class ComputedTorque:
         """Torque command (n,) [N m] for the controlled joints."""
         a = self.desired_acceleration(state, reference)
         if self._identity:
-            tau = pin.rnea(self.model, self.data, state.q, state.v, a).copy()
+            # a view of the controller's own pin.Data.tau: clipped in place, copied by Command
+            tau = pin.rnea(self.model, self.data, state.q, state.v, a)
         else:
             self._a_full[self._idx_v] = a
-            tau = pin.rnea(self.model, self.data, state.q, state.v, self._a_full)[self._idx_v]
+            tau = pin.rnea(self.model, self.data, state.q, state.v, self._a_full)[self._idx_v].copy()
         if self._friction is not None:
             v_ref = reference.v
             tau += self._friction * np.sign(v_ref) * (np.abs(v_ref) > FRICTION_DEADBAND_RAD_S)
         if self._damping is not None:
             tau += self._damping * reference.v
-        return torque_command(self.saturation.apply(tau), self._names)
+        return Command(CommandKind.TORQUE, self.saturation.apply(tau), self._names)

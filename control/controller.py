@@ -141,6 +141,16 @@ class JointMap:
         return len(self.joints)
 
     @property
+    def q_selector(self) -> slice | np.ndarray:
+        """Selects the joints from q: a slice when the indices are contiguous (a view, no copy)."""
+        return _selector(self.idx_q)
+
+    @property
+    def v_selector(self) -> slice | np.ndarray:
+        """Selects the joints from v: a slice when the indices are contiguous (a view, no copy)."""
+        return _selector(self.idx_v)
+
+    @property
     def command_names(self) -> tuple[str, ...] | None:
         """Names for a command over these actuators (None: a full vector)."""
         return None if self.covers_all_actuators else self.actuators
@@ -207,6 +217,12 @@ class JointMap:
                    tau_high)
 
 
+def _selector(index: np.ndarray) -> slice | np.ndarray:
+    if index.size and np.array_equal(index, np.arange(index[0], index[0] + index.size)):
+        return slice(int(index[0]), int(index[0]) + int(index.size))
+    return np.asarray(index)
+
+
 class TorqueSaturation:
     """Clips torques to the actuators' limits and counts how often each one saturates.
 
@@ -226,6 +242,8 @@ class TorqueSaturation:
         self.counts = np.zeros(len(self.joints), dtype=int)
         self.saturated_cycles = 0
         self.cycles = 0
+        self._below = np.zeros(len(self.joints), dtype=bool)
+        self._above = np.zeros(len(self.joints), dtype=bool)
 
     def reset(self) -> None:
         """Zero the counters."""
@@ -237,11 +255,16 @@ class TorqueSaturation:
         """Clip ``tau`` (n,) in place to [low, high]; count the clipped joints. Returns ``tau``."""
         self.cycles += 1
         if self.enabled:
-            hit = (tau < self.low) | (tau > self.high)
-            if hit.any():
-                self.counts += hit
+            # hot path: two comparisons into preallocated masks and two counts (cheaper than
+            # np.clip or ndarray.any on small vectors); clip only when something is out of range
+            below = np.less(tau, self.low, out=self._below)
+            above = np.greater(tau, self.high, out=self._above)
+            if np.count_nonzero(below) or np.count_nonzero(above):
+                self.counts += below
+                self.counts += above
                 self.saturated_cycles += 1
-                np.clip(tau, self.low, self.high, out=tau)
+                np.maximum(tau, self.low, out=tau)
+                np.minimum(tau, self.high, out=tau)
         return tau
 
     def by_joint(self) -> dict[str, int]:

@@ -171,32 +171,44 @@ def run(
     log_t = np.empty(n_cycles)
     log_q = np.empty((n_cycles, robot.nq))
     log_v = np.empty((n_cycles, robot.nv))
-    log_ref = np.empty((n_cycles, k_ref))
-    log_ref_v = np.empty((n_cycles, k_ref))
+    log_ref = np.empty((n_cycles, k_ref) if ref_q is None else (0, k_ref))
+    log_ref_v = np.empty((n_cycles, k_ref) if ref_q is None else (0, k_ref))
     log_cmd = np.empty((n_cycles, 0))  # resized on the first command (its width is the controller's)
+    refs: list[JointReference] | None = None
+    if ref_q is not None:
+        for arr in (ref_q, ref_v, ref_a):
+            arr.setflags(write=False)
+        refs = [JointReference(ref_q[k], ref_v[k], ref_a[k]) for k in range(n_cycles)]
     controller.reset()
     t0 = interface.time_s
+    # bound methods looked up once: the loop body is the hot path
+    read_state, compute = interface.read_state, controller.compute
+    send, sync = interface.send, interface.sync
+    log_refs = refs is None
     wall0 = time.perf_counter()
     for k in range(n_cycles):
-        state = interface.read_state()
-        if ref_q is not None:
-            ref: Reference = JointReference(ref_q[k], ref_v[k], ref_a[k])
+        state = read_state()
+        if refs is not None:
+            ref: Reference = refs[k]
         elif fn is not None:
             ref = fn(state.time_s - t0)
         else:
             ref = constant  # type: ignore[assignment]
-        command = controller.compute(state, ref)
-        interface.send(command)
+        command = compute(state, ref)
+        send(command)
         if on_step is not None:
             on_step(k, state, command)
-        interface.sync()
+        sync()
         if k == 0:
             log_cmd = np.empty((n_cycles, command.values.size))
         log_t[k] = state.time_s
         log_q[k] = state.q
         log_v[k] = state.v
         log_cmd[k] = command.values
-        log_ref[k] = ref[0]
-        log_ref_v[k] = ref[1]
+        if log_refs:
+            log_ref[k] = ref[0]
+            log_ref_v[k] = ref[1]
     wall = time.perf_counter() - wall0
+    if ref_q is not None:  # a pre-sampled trajectory is its own log
+        log_ref, log_ref_v = ref_q, ref_v
     return RunLog(log_t, log_q, log_v, log_cmd, log_ref, log_ref_v, wall)

@@ -13,9 +13,9 @@ from __future__ import annotations
 from collections.abc import Sequence
 
 import numpy as np
-from mbctl.control.controller import JointMap, JointReference, TorqueSaturation, torque_command
+from mbctl.control.controller import JointMap, JointReference, TorqueSaturation
 from mbctl.control.gains import PDGains
-from mbctl.robots.commands import Command
+from mbctl.robots.commands import Command, CommandKind
 from mbctl.robots.interface import RobotState
 from mbctl.robots.model_pair import Robot
 
@@ -48,10 +48,13 @@ class JointPD:
         self.joint_map = JointMap.from_robot(robot, joints)
         self.gains = gains.broadcast(self.joint_map.size)
         self.saturation = TorqueSaturation(self.joint_map, saturate)
-        self._idx_q = np.asarray(self.joint_map.idx_q)
-        self._idx_v = np.asarray(self.joint_map.idx_v)
+        self._idx_q = self.joint_map.q_selector
+        self._idx_v = self.joint_map.v_selector
         self._names = self.joint_map.command_names
+        self._kp = np.asarray(self.gains.kp)
+        self._kd = np.asarray(self.gains.kd)
         self._tau = np.zeros(self.joint_map.size)
+        self._ev = np.zeros(self.joint_map.size)
 
     @property
     def joints(self) -> tuple[str, ...]:
@@ -64,13 +67,15 @@ class JointPD:
 
     def feedback(self, state: RobotState, reference: JointReference) -> np.ndarray:
         """``kp e + kd de`` (n,) [N m] into an internal buffer (overwritten on the next call)."""
-        tau = self._tau
+        tau, ev = self._tau, self._ev
         np.subtract(reference.q, state.q[self._idx_q], out=tau)
-        tau *= self.gains.kp
-        tau += self.gains.kd * (reference.v - state.v[self._idx_v])
+        tau *= self._kp
+        np.subtract(reference.v, state.v[self._idx_v], out=ev)
+        ev *= self._kd
+        tau += ev
         return tau
 
     def compute(self, state: RobotState, reference: JointReference) -> Command:
         """Torque command (n,) [N m] for the controlled joints."""
         tau = self.feedback(state, reference)
-        return torque_command(self.saturation.apply(tau), self._names)
+        return Command(CommandKind.TORQUE, self.saturation.apply(tau), self._names)

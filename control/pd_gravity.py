@@ -17,11 +17,11 @@ from collections.abc import Sequence
 
 import numpy as np
 import pinocchio as pin
-from mbctl.control.controller import JointReference, torque_command
+from mbctl.control.controller import JointReference
 from mbctl.control.exceptions import ControllerSetupError
 from mbctl.control.gains import PDGains
 from mbctl.control.pd import JointPD
-from mbctl.robots.commands import Command
+from mbctl.robots.commands import Command, CommandKind
 from mbctl.robots.interface import RobotState
 from mbctl.robots.model_pair import Robot
 
@@ -70,4 +70,4 @@ class PDGravity(JointPD):
         """Torque command (n,) [N m] for the controlled joints."""
         tau = self.feedback(state, reference)
         tau += self.gravity(state.q)[self._idx_v]
-        return torque_command(self.saturation.apply(tau), self._names)
+        return Command(CommandKind.TORQUE, self.saturation.apply(tau), self._names)
