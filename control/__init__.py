@@ -68,3 +68,45 @@ __all__ = [
     "plot_workspace",
     "solve_ik",
 ]
+
+# Controllers, gains and the control loop (appended; the IK names above are another module family).
+from mbctl.control.computed_torque import ComputedTorque  # noqa: E402
+from mbctl.control.controller import (  # noqa: E402
+    Controller,
+    JointMap,
+    JointReference,
+    TaskReference,
+    TorqueSaturation,
+    joint_reference,
+    task_reference,
+)
+from mbctl.control.exceptions import ControllerSetupError, GainsError, ReferenceMismatch  # noqa: E402
+from mbctl.control.gains import PDGains, gains_from_frequency  # noqa: E402
+from mbctl.control.loop import RunLog, presample, run  # noqa: E402
+from mbctl.control.pd import JointPD  # noqa: E402
+from mbctl.control.pd_gravity import PDGravity  # noqa: E402
+from mbctl.control.position_pd import PositionTargetPD  # noqa: E402
+from mbctl.control.task_space import TaskSpaceComputedTorque  # noqa: E402
+
+__all__ += [
+    "ComputedTorque",
+    "Controller",
+    "ControllerSetupError",
+    "GainsError",
+    "JointMap",
+    "JointPD",
+    "JointReference",
+    "PDGains",
+    "PDGravity",
+    "PositionTargetPD",
+    "ReferenceMismatch",
+    "RunLog",
+    "TaskReference",
+    "TaskSpaceComputedTorque",
+    "TorqueSaturation",
+    "gains_from_frequency",
+    "joint_reference",
+    "presample",
+    "run",
+    "task_reference",
+]
