@@ -131,8 +131,10 @@ class DiffIK:
             self.solver_options = {"eps_abs": 1e-9, "eps_rel": 1e-9, "polishing": False}
         self.state = IKState(model, with_com=any(isinstance(t, ComTask) for t in self.tasks))
         nv = model.nv
-        self._dense = tuple(t for t in self.tasks if not isinstance(t, DiagonalTask))
-        self._diagonal = tuple(t for t in self.tasks if isinstance(t, DiagonalTask))
+        self._diagonal = tuple(
+            t for t in self.tasks if isinstance(t, DiagonalTask) and t.is_diagonal
+        )
+        self._dense = tuple(t for t in self.tasks if t not in self._diagonal)
         n_rows = sum(t.k for t in self._dense)
         self._W = np.zeros((n_rows, nv))
         self._r = np.zeros(n_rows)

@@ -465,15 +465,20 @@ class DiagonalTask(Task):
 
     Attributes:
         mask: (nv,) 1.0 where the task acts, 0.0 elsewhere (read-only).
+        is_diagonal: Whether the Jacobian really is ``diag(mask)`` for this model (the solver
+            takes the diagonal shortcut only then).
     """
 
     mask: np.ndarray
+    is_diagonal: bool = True
 
 
 class PostureTask(DiagonalTask):
-    """Joint posture: ``e = q ⊖ q_target`` (nv,) (``pin.difference``), ``J = I`` (nv, nv).
+    """Joint posture: ``e = q ⊖ q_target`` (nv,) (``pin.difference``), ``J = de/dq`` (nv, nv).
 
-    Free-flyer rows are zero (the base is not pulled to a posture), as in mink.
+    Free-flyer rows are zero (the base is not pulled to a posture), as in mink. For 1-dof
+    joints ``J`` is the identity; for ball joints it is the exact ``pin.dDifference`` block
+    (mink uses the identity there, a first-order approximation).
     """
 
     regularizing = True
@@ -504,9 +509,14 @@ class PostureTask(DiagonalTask):
         self._jacobian = np.eye(self.model.nv)
         self._jacobian[free, free] = 0.0
         self._free = _as_slice_or_array(free)
+        self._free_idx = free
         self._jacobian.setflags(write=False)
         self.mask = np.diag(self._jacobian).copy()
         self.mask.setflags(write=False)
+        self.is_diagonal = all(
+            joint.nv == 1 or joint.shortname() == "JointModelFreeFlyer"
+            for joint in list(self.model.joints)[1:]
+        )
         self._target: np.ndarray | None = None
 
     def set_target(self, target_q: npt.ArrayLike) -> None:
@@ -537,8 +547,17 @@ class PostureTask(DiagonalTask):
         return e
 
     def compute_jacobian(self, state: IKState) -> np.ndarray:
-        """Identity (nv, nv) with free-flyer rows zeroed (constant, read-only)."""
-        return self._jacobian
+        """``d(q ⊖ q_target)/dq`` (nv, nv), free-flyer rows zeroed.
+
+        The identity (constant, read-only) unless the model has ball joints.
+        """
+        if self.is_diagonal:
+            return self._jacobian
+        if self._target is None:
+            raise IKSetupError(f"{self.name}: no target set; call set_target first.")
+        J = pin.dDifference(self.model, self._target, state.q, pin.ArgumentPosition.ARG1)
+        J[self._free_idx, :] = 0.0
+        return J
 
 
 class DampingTask(DiagonalTask):

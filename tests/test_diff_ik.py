@@ -276,3 +276,69 @@ def test_setup_errors(two_link):
         DiffIK(model, [FramePositionTask("end_effector", model)]).step(np.zeros(2))
     with pytest.raises(UnknownNameError, match="Unknown joint 'wrist'"):
         JointVelocityLimit(model, {"wrist": 1.0})
+
+
+TINY_MJCF = """
+<mujoco model="tiny">
+  <compiler angle="radian" autolimits="true" inertiafromgeom="false"/>
+  <worldbody>
+    <body name="base" pos="0 0 1">
+      <freejoint name="root"/>
+      <inertial pos="0 0 0" mass="2" diaginertia="0.1 0.1 0.1"/>
+      <body name="shoulder" pos="0.1 0 0">
+        <joint name="ball" type="ball"/>
+        <inertial pos="0.1 0 0" mass="1" diaginertia="0.01 0.01 0.01"/>
+        <body name="slider" pos="0.2 0 0">
+          <joint name="slide" type="slide" axis="1 0 0" range="-0.1 0.2"/>
+          <inertial pos="0 0 0" mass="0.5" diaginertia="0.01 0.01 0.01"/>
+          <body name="hand" pos="0.1 0 0">
+            <joint name="wrist" type="hinge" axis="0 1 0" range="-1 1"/>
+            <inertial pos="0.05 0 0" mass="0.3" diaginertia="0.001 0.001 0.001"/>
+            <site name="tip" pos="0.1 0 0.02"/>
+          </body>
+        </body>
+      </body>
+    </body>
+  </worldbody>
+</mujoco>
+"""
+
+
+@pytest.fixture(scope="module")
+def tiny(tmp_path_factory):
+    from mbctl.robots import load_robot
+
+    path = tmp_path_factory.mktemp("tiny") / "tiny.xml"
+    path.write_text(TINY_MJCF)
+    return load_robot(path)
+
+
+def test_any_robot_free_ball_slide_hinge_fd_and_solve(tiny):
+    """A model in code with every joint kind: Jacobians on the manifold and a solve to target."""
+    model = tiny.pin_model
+    rng = np.random.default_rng(7)
+    q = _random_q(model, rng, 0.4)
+    q[-2:] = [0.02, 0.3]  # slide and wrist inside their ranges
+    state = IKState(model, q)
+    for task in _tasks_for(model, "tip", state, rng):
+        _check_fast_rows(task, state)
+        err = np.max(np.abs(task.compute_jacobian(state) - _fd_jacobian(task, state, q)))
+        assert err < 1e-6, f"{task.name}: |J - J_fd|_inf = {err:.2e}"
+    limit = JointPositionLimit(model)
+    assert limit.joint_names == ("slide", "wrist")  # ball and free joints are not boxes
+    # a reachable target: the tip pose at another joint configuration, same base pose
+    dq_joints = np.r_[np.zeros(6), 0.3, -0.2, 0.25, 0.05, 0.4]
+    goal = IKState(model, pin.integrate(model, q, dq_joints))
+    target = goal.frame_pose(goal.frame_id("tip"))
+    pose = FramePoseTask("tip", model, 1.0, 1.0)
+    pose.set_target(target)
+    base = FramePoseTask("base", model, 10.0, 10.0)  # hold the floating base
+    base.set_target_from_state(state)
+    ik = DiffIK(model, [pose, base, DampingTask(model, 1e-3)],
+                [limit, FloatingBaseVelocityLimit(model, 0.5, 1.0)])
+    res = ik.solve(q, dt=1.0, tol=1e-6, tol_rad=1e-6, max_iters=50)
+    assert res.converged, res.residuals
+    qj = res.q[limit.idx_q]
+    assert np.all(qj >= limit.q_min - 1e-9) and np.all(qj <= limit.q_max + 1e-9)
+    quat = res.q[3:7]  # manifold integration keeps the free-flyer quaternion unit
+    assert abs(np.linalg.norm(quat) - 1.0) < 1e-12
