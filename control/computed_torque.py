@@ -52,6 +52,7 @@ class ComputedTorque:
     Raises:
         GainsError: Gains that do not match the number of joints.
         ControllerSetupError: A floating base or unactuated dofs, or a model of another size.
+        UnknownNameError: An unknown joint name.
     """
 
     name = "computed_torque"

@@ -68,3 +68,15 @@ class ControllerSetupError(ControlError, ValueError):
 
 class ReferenceMismatch(ControlError, ValueError):
     """A reference whose shape or names do not match the controller's joints or task."""
+
+
+class SingularJacobian(ControlError):
+    """A task Jacobian that cannot be inverted at the current configuration (a singularity).
+
+    Attributes:
+        q: The configuration (nq,) [rad] where it happened.
+    """
+
+    def __init__(self, message: str, q: Any):
+        self.q = q
+        super().__init__(message)

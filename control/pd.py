@@ -32,6 +32,7 @@ class JointPD:
     Raises:
         GainsError: Gains that do not match the number of joints.
         ControllerSetupError: Joints that cannot be controlled (see ``JointMap.from_robot``).
+        UnknownNameError: An unknown joint name.
     """
 
     name = "pd"

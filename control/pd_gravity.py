@@ -40,6 +40,7 @@ class PDGravity(JointPD):
     Raises:
         GainsError: Gains that do not match the number of joints.
         ControllerSetupError: Uncontrollable joints, or a model of another size.
+        UnknownNameError: An unknown joint name.
     """
 
     name = "pd_gravity"

@@ -38,6 +38,7 @@ class PositionTargetPD:
     Raises:
         ControllerSetupError: A joint driven by a non-position actuator, or an actuator with
             ``kp <= 0``.
+        UnknownNameError: An unknown joint name.
     """
 
     name = "position_pd"

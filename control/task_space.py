@@ -23,7 +23,7 @@ from collections.abc import Sequence
 import numpy as np
 import pinocchio as pin
 from mbctl.control.controller import JointMap, TaskReference, TorqueSaturation, torque_command
-from mbctl.control.exceptions import ControllerSetupError, ReferenceMismatch
+from mbctl.control.exceptions import ControllerSetupError, ReferenceMismatch, SingularJacobian
 from mbctl.control.gains import PDGains
 from mbctl.robots.commands import Command
 from mbctl.robots.interface import RobotState
@@ -46,8 +46,11 @@ class TaskSpaceComputedTorque:
     Raises:
         ControllerSetupError: Unknown axes, a floating base or unactuated dofs, a model of
             another size.
-        UnknownNameError: Unknown frame.
+        UnknownNameError: Unknown frame or joint.
         GainsError: Gains that do not match the number of axes.
+
+    ``compute`` raises ReferenceMismatch for a reference of the wrong size and SingularJacobian
+    where J cannot be inverted.
     """
 
     name = "task_space_ct"
@@ -120,6 +123,13 @@ class TaskSpaceComputedTorque:
             reference.v - J @ v
         )
         rhs = a_task - dJv
-        a_des = np.linalg.solve(J, rhs) if self._square else np.linalg.pinv(J) @ rhs
+        try:
+            a_des = np.linalg.solve(J, rhs) if self._square else np.linalg.pinv(J) @ rhs
+        except np.linalg.LinAlgError as exc:
+            raise SingularJacobian(
+                f"task Jacobian of {self.frame!r} on axes {self.axes!r} is singular at "
+                f"q={np.round(q, 6).tolist()} rad; keep the reference away from singular "
+                "configurations (e.g. the stretched 2-link arm)", q.copy()
+            ) from exc
         tau = pin.rnea(model, data, q, v, a_des)[self._idx_v]
         return torque_command(self.saturation.apply(tau), self._names)

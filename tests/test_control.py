@@ -284,3 +284,14 @@ def test_demo_cli(tmp_path):
     ).stdout
     assert "Cartesian RMS error" in out and "pd_gravity" in out
     assert (tmp_path / "demo.png").is_file()
+
+
+def test_task_space_ct_at_a_singularity_raises(two_link_torque):
+    from mbctl.control.exceptions import SingularJacobian
+
+    c = TaskSpaceComputedTorque(two_link_torque, gains_from_frequency(10.0))
+    sim = Simulator(two_link_torque)
+    sim.reset(q=[0.3, 0.0])  # stretched out: det J = l1 l2 sin(q2) = 0
+    with pytest.raises(SingularJacobian, match="singular") as info:
+        c.compute(sim.read_state(), task_reference([0.5, 0.1]))
+    np.testing.assert_allclose(info.value.q, [0.3, 0.0])
