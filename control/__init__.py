@@ -7,6 +7,12 @@ from mbctl.control.exceptions import (
     KinematicsError,
     UnreachableTarget,
 )
+from mbctl.control.g1_wbik import (
+    MinkWholeBodyIK,
+    PinocchioWholeBodyIK,
+    WholeBodyIKConfig,
+    with_palm_sites,
+)
 from mbctl.control.ik_limits import (
     BoxLimit,
     Constraint,
@@ -58,15 +64,19 @@ __all__ = [
     "JointVelocityLimit",
     "KinematicsError",
     "Limit",
+    "MinkWholeBodyIK",
+    "PinocchioWholeBodyIK",
     "PostureTask",
     "Task",
     "TwoLinkArm",
     "UnreachableTarget",
+    "WholeBodyIKConfig",
     "Workspace",
     "dls_ik",
     "pinv_ik",
     "plot_workspace",
     "solve_ik",
+    "with_palm_sites",
 ]
 
 # Controllers, gains and the control loop (appended; the IK names above are another module family).
