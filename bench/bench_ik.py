@@ -35,7 +35,7 @@ def _setup(robot, q0, solver, offset):
     return ours, theirs
 
 
-def _time_ours(ours, q0, n):
+def _time_ours(ours, q0, n, qp_times=None):
     times = []
     ik = ours.ik
     dt = ours.config.dt
@@ -48,6 +48,8 @@ def _time_ours(ours, q0, n):
             step = ik.solve_step(dt)
             q = pin.integrate(model, q, step.dq)
             times.append(time.perf_counter() - t0)
+            if qp_times is not None:
+                qp_times.append(step.solve_time_s)
     return times
 
 
@@ -82,9 +84,10 @@ def main() -> None:
     _time_mink(theirs, q0_mj, 10)
     t_ours: list[float] = []
     t_mink: list[float] = []
+    t_qp: list[float] = []
     blocks = 10
     for _ in range(blocks):
-        t_ours += _time_ours(ours, q0, args.repeats // blocks)
+        t_ours += _time_ours(ours, q0, args.repeats // blocks, t_qp)
         t_mink += _time_mink(theirs, q0_mj, args.repeats // blocks)
     med_ours = statistics.median(t_ours)
     med_mink = statistics.median(t_mink)
@@ -94,7 +97,10 @@ def main() -> None:
     palm_err = max(res.residuals[p]["position [m]"] for p in PALM_SITES)
 
     print(f"G1 whole-body IK, solver={args.solver}, {len(t_ours)} iterations timed per solver")
-    print(f"  ours (Pinocchio QP): median {med_ours * 1e6:8.1f} us/iteration")
+    print(
+        f"  ours (Pinocchio QP): median {med_ours * 1e6:8.1f} us/iteration "
+        f"(of which daqp itself {statistics.median(t_qp) * 1e6:.1f} us)"
+    )
     print(f"  mink               : median {med_mink * 1e6:8.1f} us/iteration")
     print(f"  ratio ours/mink    : {med_ours / med_mink:.3f}  (goal <= 0.5)")
     print("convergence, palms +10 cm in x, tol 1 mm:")

@@ -76,7 +76,9 @@ class IKState:
                 f"q must be a finite vector of shape ({self.model.nq},); got {q!r}"
             ) from exc
         if not math.isfinite(q_new @ q_new):  # any nan/inf (or an absurd magnitude)
-            raise IKSetupError(f"q must be finite; got {q_new.tolist()}")
+            raise IKSetupError(
+                f"q must be finite (and of sane magnitude, |q| < 1e150); got {q_new.tolist()}"
+            )
         model, data = self.model, self.data
         pin.computeJointJacobians(model, data, q_new)
         pin.updateFramePlacements(model, data)
