@@ -22,6 +22,7 @@ import numpy.typing as npt
 import pinocchio as pin
 from mbctl.control.exceptions import IKSetupError
 from mbctl.control.ik_state import IKState
+from mbctl.robots.exceptions import UnknownNameError
 
 
 def _cost_vector(cost: npt.ArrayLike, k: int, owner: str, what: str = "cost") -> np.ndarray:
@@ -148,8 +149,6 @@ class _FrameTask(Task):
         super().__init__(name, k, cost, gain, lm_damping)
         model = state_or_model.model if isinstance(state_or_model, IKState) else state_or_model
         if not model.existFrame(frame):
-            from mbctl.robots.exceptions import UnknownNameError
-
             raise UnknownNameError("frame", frame, [f.name for f in model.frames])
         self.frame = frame
         self.frame_id = model.getFrameId(frame)
