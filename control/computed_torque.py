@@ -56,6 +56,7 @@ class ComputedTorque:
     """
 
     name = "computed_torque"
+    reference_type = JointReference
 
     def __init__(
         self,

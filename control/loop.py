@@ -140,7 +140,8 @@ def run(
 
     Raises:
         ControlError: A non-positive or non-finite duration.
-        ReferenceMismatch: A trajectory that does not fit the controller's joints.
+        ReferenceMismatch: A trajectory that does not fit the controller's joints, or a
+            reference of another type than the controller's ``reference_type`` (if it has one).
         ToolkitError: Whatever the interface raises (bad command kind, divergence).
     """
     if not np.isfinite(duration_s) or duration_s <= 0:
@@ -167,6 +168,12 @@ def run(
     first = constant if constant is not None else (
         fn(0.0) if fn is not None else JointReference(ref_q[0], ref_v[0], ref_a[0])
     )
+    expected = getattr(controller, "reference_type", None)
+    if expected is not None and not isinstance(first, expected):
+        raise ReferenceMismatch(
+            f"{type(controller).__name__} takes a {expected.__name__}; the reference gives a "
+            f"{type(first).__name__}"
+        )
     k_ref = np.size(first[0])
     log_t = np.empty(n_cycles)
     log_q = np.empty((n_cycles, robot.nq))

@@ -36,6 +36,7 @@ class JointPD:
     """
 
     name = "pd"
+    reference_type = JointReference
 
     def __init__(
         self,

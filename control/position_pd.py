@@ -42,6 +42,7 @@ class PositionTargetPD:
     """
 
     name = "position_pd"
+    reference_type = JointReference
 
     def __init__(
         self,

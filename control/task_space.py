@@ -54,6 +54,7 @@ class TaskSpaceComputedTorque:
     """
 
     name = "task_space_ct"
+    reference_type = TaskReference
 
     def __init__(
         self,

@@ -295,3 +295,13 @@ def test_task_space_ct_at_a_singularity_raises(two_link_torque):
     with pytest.raises(SingularJacobian, match="singular") as info:
         c.compute(sim.read_state(), task_reference([0.5, 0.1]))
     np.testing.assert_allclose(info.value.q, [0.3, 0.0])
+
+
+def test_loop_rejects_a_reference_of_the_wrong_kind(two_link_torque):
+    sim = Simulator(two_link_torque)
+    task = TaskSpaceComputedTorque(two_link_torque, gains_from_frequency(10.0))
+    with pytest.raises(ReferenceMismatch, match="takes a TaskReference"):
+        run(sim, task, joint_reference([0.1, 0.2]), 0.01)
+    pd = JointPD(two_link_torque, gains_from_frequency(10.0, 1.0, 0.1))
+    with pytest.raises(ReferenceMismatch, match="takes a JointReference"):
+        run(sim, pd, task_reference([0.1, 0.2]), 0.01)
