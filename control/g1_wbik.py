@@ -21,6 +21,7 @@ from __future__ import annotations
 
 from collections.abc import Mapping
 from dataclasses import dataclass
+from typing import Any
 
 import mujoco
 import numpy as np
@@ -293,7 +294,7 @@ class MinkWholeBodyIK:
         self.solver = solver
         m = robot.mj_model
         self.configuration = mink.Configuration(m)
-        self.tasks = {
+        self.tasks: dict[str, Any] = {  # mink task types differ in their target setters
             foot: mink.FrameTask(
                 foot, "site", cfg.foot_position_cost, cfg.foot_orientation_cost,
                 lm_damping=cfg.lm_damping,

@@ -258,12 +258,13 @@ class DiffIK:
         return IKStep(dq / dt, dq, float(result.solve_time or 0.0))
 
     def _infeasible(self, problem: qpsolvers.Problem, result: qpsolvers.Solution) -> IKInfeasible:
-        if problem.lb is not None and np.any(problem.lb > problem.ub):
-            bad = np.flatnonzero(problem.lb > problem.ub)
+        lb, ub = problem.lb, problem.ub
+        if lb is not None and ub is not None and np.any(lb > ub):
+            bad = np.flatnonzero(lb > ub)
             message = (
                 f"IK limits contradict each other at dofs {bad[:8].tolist()}: lower bounds "
-                f"{problem.lb[bad[:8]].round(6).tolist()} exceed upper bounds "
-                f"{problem.ub[bad[:8]].round(6).tolist()} (is q outside its joint limits?). "
+                f"{lb[bad[:8]].round(6).tolist()} exceed upper bounds "
+                f"{ub[bad[:8]].round(6).tolist()} (is q outside its joint limits?). "
                 "Move q inside its limits or relax the limits."
             )
         else:
