@@ -6,16 +6,14 @@ it; a hardware driver would implement the same protocol.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
-from typing import Protocol, runtime_checkable
+from typing import NamedTuple, Protocol, runtime_checkable
 
 import numpy as np
 from mbctl.robots.commands import Command
 from mbctl.robots.model_pair import Robot
 
 
-@dataclass(frozen=True)
-class RobotState:
+class RobotState(NamedTuple):
     """Measured state in Pinocchio's convention.
 
     Attributes:

@@ -78,7 +78,6 @@ class Simulator:
         self._out_of_range = out_of_range
         self._binder = CommandBinder(robot)
         self._conv = robot.converter
-        self._fast_state = not self._conv.has_quaternions
         self.saturation_counts = np.zeros(self.model.nu, dtype=int)
         self.n_steps = 0
         self._last_command: Command | None = None
@@ -106,7 +105,7 @@ class Simulator:
 
     def read_state(self) -> RobotState:
         """Current state (q, v in Pinocchio's convention, time) as read-only copies."""
-        q, v = self.q, self.v
+        q, v = self._conv.state_mj_to_pin(self.data.qpos, self.data.qvel)
         q.setflags(write=False)
         v.setflags(write=False)
         return RobotState(q, v, float(self.data.time))
@@ -217,16 +216,12 @@ class Simulator:
     @property
     def q(self) -> np.ndarray:
         """Configuration (nq,), Pinocchio convention (copy)."""
-        if self._fast_state:
-            return self.data.qpos.copy()
         return self._conv.q_mj_to_pin(self.data.qpos)
 
     @property
     def v(self) -> np.ndarray:
         """Velocity (nv,), Pinocchio convention (copy)."""
-        if self._fast_state:
-            return self.data.qvel.copy()
-        return self._conv.v_mj_to_pin(self.q, self.data.qvel)
+        return self._conv.state_mj_to_pin(self.data.qpos, self.data.qvel)[1]
 
     @property
     def ctrl(self) -> np.ndarray:
