@@ -223,6 +223,10 @@ def _selector(index: np.ndarray) -> slice | np.ndarray:
     return np.asarray(index)
 
 
+#: Up to this many joints the saturation check runs in plain Python (faster than numpy there).
+_SMALL = 16
+
+
 class TorqueSaturation:
     """Clips torques to the actuators' limits and counts how often each one saturates.
 
@@ -242,6 +246,8 @@ class TorqueSaturation:
         self.counts = np.zeros(len(self.joints), dtype=int)
         self.saturated_cycles = 0
         self.cycles = 0
+        self._low_list = self.low.tolist()
+        self._high_list = self.high.tolist()
         self._below = np.zeros(len(self.joints), dtype=bool)
         self._above = np.zeros(len(self.joints), dtype=bool)
 
@@ -255,7 +261,12 @@ class TorqueSaturation:
         """Clip ``tau`` (n,) in place to [low, high]; count the clipped joints. Returns ``tau``."""
         self.cycles += 1
         if self.enabled:
-            # hot path: two comparisons into preallocated masks and two counts (cheaper than
+            if len(tau) <= _SMALL and not any(
+                t < lo or t > hi
+                for t, lo, hi in zip(tau.tolist(), self._low_list, self._high_list)  # noqa: B905
+            ):
+                return tau  # few joints, none out of range: plain Python is the cheap check
+            # two comparisons into preallocated masks and two counts (cheaper than
             # np.clip or ndarray.any on small vectors); clip only when something is out of range
             below = np.less(tau, self.low, out=self._below)
             above = np.greater(tau, self.high, out=self._above)

@@ -29,40 +29,51 @@ class CommandKind(str, Enum):
     VELOCITY = "velocity"  # target [rad/s] or [m/s] of a velocity actuator
 
 
-@dataclass(frozen=True, eq=False)
+@dataclass(frozen=True, eq=False, init=False)
 class Command:
     """One command: its kind, values and (optionally) the names they address.
 
     Attributes:
         kind: Torque, position target or velocity target.
-        values: Values, shape (nu,) for a full command or (len(names),); read-only.
+        values: Values, shape (nu,) for a full command or (len(names),); read-only copy.
         names: Actuator or joint names the values address; None for a full vector.
+
+    Raises:
+        CommandError: Values that are not a vector, a names/values length mismatch, or
+            non-finite values (named by position or name).
     """
 
     kind: CommandKind
     values: np.ndarray
-    names: tuple[str, ...] | None = None
+    names: tuple[str, ...] | None
 
-    def __post_init__(self) -> None:
-        values = np.array(self.values, dtype=float, ndmin=1)
-        if values.ndim != 1:
-            raise CommandError(f"{self.kind.value} command must be a vector; got shape {values.shape}")
-        if self.names is not None and len(self.names) != values.size:
+    def __init__(
+        self, kind: CommandKind, values: npt.ArrayLike, names: tuple[str, ...] | None = None
+    ) -> None:
+        # Hand-written __init__ (validate, then set each field once): commands are built every
+        # control cycle, and this halves the cost of the generated __init__ + __post_init__.
+        arr = np.array(values, dtype=float, ndmin=1)
+        if arr.ndim != 1:
+            raise CommandError(f"{kind.value} command must be a vector; got shape {arr.shape}")
+        if names is not None and len(names) != arr.size:
             raise CommandError(
-                f"{self.kind.value} command names {len(self.names)} actuators but has "
-                f"{values.size} values"
+                f"{kind.value} command names {len(names)} actuators but has {arr.size} values"
             )
         # sum() of the Python floats is NaN/inf iff some entry is (or the sum overflows, in
         # which case the exact check below passes): ~5x cheaper than np.isfinite on small
-        # vectors, and commands are built once per control cycle.
-        bad = () if math.isfinite(sum(values.tolist())) else np.flatnonzero(~np.isfinite(values))
-        if len(bad):
-            where = [self.names[i] for i in bad] if self.names else bad.tolist()
-            raise CommandError(
-                f"{self.kind.value} command must be finite; got {values[bad].tolist()} at {where}"
-            )
-        values.setflags(write=False)
-        object.__setattr__(self, "values", values)
+        # vectors.
+        if not math.isfinite(sum(arr.tolist())):
+            bad = np.flatnonzero(~np.isfinite(arr))
+            if len(bad):
+                where = [names[i] for i in bad] if names else bad.tolist()
+                raise CommandError(
+                    f"{kind.value} command must be finite; got {arr[bad].tolist()} at {where}"
+                )
+        arr.flags.writeable = False
+        setattr_ = object.__setattr__
+        setattr_(self, "kind", kind)
+        setattr_(self, "values", arr)
+        setattr_(self, "names", names)
 
     @property
     def key(self) -> tuple[CommandKind, tuple[str, ...] | None]:

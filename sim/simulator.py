@@ -144,8 +144,16 @@ class Simulator:
         self._last_command = command
 
     def sync(self) -> None:
-        """Advance the physics by one control period (``n_substeps`` steps)."""
-        self.step(None, self.n_substeps)
+        """Advance the physics by one control period (``n_substeps`` steps).
+
+        Raises:
+            SimulationDiverged: MuJoCo flagged bad qpos/qvel/qacc/ctrl during the period.
+        """
+        # step() inlined: this runs once per control cycle
+        mujoco.mj_step(self.model, self.data, self.n_substeps)
+        self.n_steps += self.n_substeps
+        self._stale = True
+        self._check_divergence()
 
     # ------------------------------------------------------------------ stepping
     def step(self, command: Command | None = None, n: int = 1) -> None:
