@@ -12,6 +12,7 @@ from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 from types import MappingProxyType
+from typing import TypeVar
 
 import mujoco
 import numpy as np
@@ -20,6 +21,8 @@ import pinocchio as pin
 from mbctl.robots.conventions import JointLayout, StateConverter
 from mbctl.robots.exceptions import ModelFileError, ModelMismatchError, UnknownNameError
 from mbctl.robots.names import ActuatorInfo, SensorInfo, actuator_infos, names_of, sensor_infos
+
+_T = TypeVar("_T")
 
 _MJ_JOINT_KIND = {
     mujoco.mjtJoint.mjJNT_FREE: "free",
@@ -196,17 +199,11 @@ class Robot:
     # ------------------------------------------------------------------ lookups
     def joint(self, name: str) -> JointLayout:
         """The joint called ``name``; UnknownNameError lists close matches."""
-        try:
-            return self.joints[name]
-        except KeyError:
-            raise UnknownNameError("joint", name, self.joints) from None
+        return _lookup("joint", self.joints, name)
 
     def actuator(self, name: str) -> ActuatorInfo:
         """The actuator called ``name``; UnknownNameError lists close matches."""
-        try:
-            return self.actuators[name]
-        except KeyError:
-            raise UnknownNameError("actuator", name, self.actuators) from None
+        return _lookup("actuator", self.actuators, name)
 
     def actuator_for_joint(self, joint: str) -> ActuatorInfo:
         """The (first) actuator driving ``joint``."""
@@ -220,10 +217,7 @@ class Robot:
 
     def sensor(self, name: str) -> SensorInfo:
         """The sensor called ``name``; UnknownNameError lists close matches."""
-        try:
-            return self.sensors[name]
-        except KeyError:
-            raise UnknownNameError("sensor", name, self.sensors) from None
+        return _lookup("sensor", self.sensors, name)
 
     def site_id(self, name: str) -> int:
         """MuJoCo id of site ``name``."""
@@ -293,6 +287,13 @@ class Robot:
 
     def __repr__(self) -> str:
         return f"Robot({self.name!r}, nq={self.nq}, nv={self.nv}, nu={self.nu})"
+
+
+def _lookup(kind: str, table: Mapping[str, _T], name: str) -> _T:
+    try:
+        return table[name]
+    except KeyError:
+        raise UnknownNameError(kind, name, table) from None
 
 
 def check_agreement(robot: Robot) -> None:
