@@ -116,10 +116,12 @@ def _solve_generic(robot, cfg: IKCommandConfig, q0: np.ndarray):
         JointPositionLimit,
         PostureTask,
     )
+    from mbctl.control.ik_limits import Limit
+    from mbctl.control.ik_tasks import Task
 
     model = robot.pin_model
     state = IKState(model, q0)
-    tasks = []
+    tasks: list[Task] = []
     for name, xyz in cfg.targets:
         robot.frame_id(name)  # UnknownNameError with close matches
         task = FramePositionTask(name, model, cost=1.0, lm_damping=1.0, name=name)
@@ -138,7 +140,7 @@ def _solve_generic(robot, cfg: IKCommandConfig, q0: np.ndarray):
     posture.set_target(q0)
     tasks.append(posture)
     position_limit = JointPositionLimit(model)
-    limits = [position_limit]
+    limits: list[Limit] = [position_limit]
     if robot.has_floating_base:
         limits.append(FloatingBaseVelocityLimit(model, 1.0, 2.0))
     return robot, DiffIK(model, tasks, limits, cfg.solver, 1e-6), position_limit, 1.0

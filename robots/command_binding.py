@@ -56,7 +56,7 @@ class CommandBinder:
 
     def __init__(self, robot: Robot):
         self.robot = robot
-        self._by_joint = {a.joint: a for a in reversed(robot.actuators.values()) if a.joint}
+        self._by_joint = {a.joint: a for a in reversed(list(robot.actuators.values())) if a.joint}
         self._cache: dict[tuple, Binding] = {}
 
     def bind(self, command: Command) -> Binding:

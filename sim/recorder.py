@@ -11,6 +11,7 @@ import csv
 import os
 from collections.abc import Callable, Iterable, Sequence
 from dataclasses import dataclass
+from functools import partial
 from pathlib import Path
 
 import numpy as np
@@ -26,6 +27,19 @@ class Column:
     read: Callable[[Simulator], float]
 
 
+def _qpos(i: int, sim: Simulator) -> float:
+    return float(sim.data.qpos[i])
+
+
+def _ctrl(i: int, sim: Simulator) -> float:
+    return float(sim.data.ctrl[i])
+
+
+def _sensor_channel(adr: int, sim: Simulator) -> float:
+    sim.forward()  # sensors are derived quantities: bring them up to the current state
+    return float(sim.data.sensordata[adr])
+
+
 def time_column() -> Column:
     """Simulated time [s]."""
     return Column("time_s", lambda sim: sim.time_s)
@@ -37,7 +51,7 @@ def joint_columns(sim: Simulator, joints: Iterable[str]) -> list[Column]:
     for name in joints:
         j = sim.robot.joint(name)
         unit = "m" if j.kind == "slide" else "rad"
-        cols.append(Column(f"q_{name}_{unit}", lambda s, i=j.idx_q: float(s.data.qpos[i])))
+        cols.append(Column(f"q_{name}_{unit}", partial(_qpos, j.idx_q)))
     return cols
 
 
@@ -46,7 +60,7 @@ def target_columns(sim: Simulator, actuators: Iterable[str]) -> list[Column]:
     cols = []
     for name in actuators:
         a = sim.robot.actuator(name)
-        cols.append(Column(f"ctrl_{name}_{a.kind}", lambda s, i=a.index: float(s.data.ctrl[i])))
+        cols.append(Column(f"ctrl_{name}_{a.kind}", partial(_ctrl, a.index)))
     return cols
 
 
@@ -62,7 +76,7 @@ def sensor_columns(sim: Simulator, sensors: Iterable[str]) -> list[Column]:
         info = sim.robot.sensor(name)
         for k in range(info.dim):
             label = name if info.dim == 1 else f"{name}[{k}]"
-            cols.append(Column(label, lambda s, n=name, k=k: float(s.sensor(n)[k])))
+            cols.append(Column(label, partial(_sensor_channel, info.data_slice.start + k)))
     return cols
 
 
