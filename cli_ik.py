@@ -255,6 +255,25 @@ def ik(
         raise typer.Exit(code)
 
 
+def workspace(
+    robot: Annotated[str, typer.Argument(help="two_link or two_link_torque.")] = "two_link",
+    output: Annotated[Path, typer.Option(help="Output directory for workspace.png.")] = Path("out/workspace"),
+) -> None:
+    """The 2-link arm's reachable annulus (r_min, r_max) and a sampled workspace plot (PNG)."""
+    from mbctl.control.two_link import TwoLinkArm, plot_workspace
+    from mbctl.robots import load_robot
+
+    model = load_robot(robot)
+    arm = TwoLinkArm.from_robot(model)
+    path = plot_workspace(arm, output / "workspace.png", robot=model)
+    typer.echo(
+        f"links {arm.link1_length:.4f} m and {arm.link2_length:.4f} m (to the site); reachable "
+        f"annulus r_min = {arm.r_min:.4f} m, r_max = {arm.r_max:.4f} m around the shoulder"
+    )
+    typer.echo(f"wrote {path}")
+
+
 def register(app: typer.Typer) -> None:
-    """Add ``mbctl ik`` to ``app``."""
+    """Add ``mbctl ik`` and ``mbctl workspace`` to ``app``."""
     app.command("ik")(ik)
+    app.command("workspace")(workspace)
