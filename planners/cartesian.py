@@ -28,6 +28,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 import numpy.typing as npt
+from mbctl.planners._validation import check_names, check_time
 from mbctl.planners.exceptions import (
     InvalidLimits,
     InvalidPath,
@@ -35,8 +36,8 @@ from mbctl.planners.exceptions import (
     PathIKFailed,
     PathNotTrackable,
 )
-from mbctl.planners.ruckig_planner import JointLimits, _check_dt, _check_names, plan_ruckig
-from mbctl.planners.trajectory import JointTrajectory
+from mbctl.planners.ruckig_planner import JointLimits, concatenate, plan_ruckig
+from mbctl.planners.trajectory import JointTrajectory, _UniformGrid
 
 #: Relative step [-] of the central difference of J along qd used when no ``jacobian_dot`` is
 #: given: the joint displacement is ``h |qd| = FD_JOINT_STEP`` [rad].
@@ -300,7 +301,7 @@ def square_path(
 
 # ---------------------------------------------------------------------------------- timing
 @dataclass(frozen=True)
-class CartesianTrajectory:
+class CartesianTrajectory(_UniformGrid):
     """A timed Cartesian point trajectory on a uniform grid (positions in the world frame W).
 
     Attributes:
@@ -357,16 +358,6 @@ class CartesianTrajectory:
         object.__setattr__(self, "corner_indices", tuple(int(i) for i in self.corner_indices))
 
     @property
-    def duration_s(self) -> float:
-        """Time of the last sample [s]."""
-        return float(self.t_s[-1])
-
-    @property
-    def dt_s(self) -> float:
-        """Sample period [s] (0 for a single sample)."""
-        return float(self.t_s[1] - self.t_s[0]) if len(self.t_s) > 1 else 0.0
-
-    @property
     def speed(self) -> np.ndarray:
         """Path speed ``|v|`` (N,) [m/s]."""
         return np.linalg.norm(self.v, axis=1)
@@ -391,31 +382,22 @@ def time_path(path: CartesianPath, limits: PathLimits, dt_s: float) -> Cartesian
         InvalidPlanningInput: Bad ``dt_s``.
         TrajectoryGenerationFailed: Ruckig failed on a section.
     """
-    dt = _check_dt(dt_s)
+    dt = check_time("dt_s", dt_s)
     corners = path.corners
     joint_limits = limits.as_joint_limits()
-    t_parts = [np.zeros(1)]
-    s_parts = [np.array([corners[0]])]
-    sd_parts = [np.zeros(1)]
-    sdd_parts = [np.zeros(1)]
-    corner_indices = [0]
-    n_samples = 1
-    for s0, s1 in zip(corners[:-1], corners[1:], strict=True):
-        seg = plan_ruckig([s0], [s1], joint_limits, dt, ("s",))
-        t_parts.append(seg.t_s[1:] + t_parts[-1][-1])
-        s_parts.append(seg.q[1:, 0])
-        sd_parts.append(seg.v[1:, 0])
-        sdd_parts.append(seg.a[1:, 0])
-        n_samples += len(seg.t_s) - 1
-        corner_indices.append(n_samples - 1)
-    t = np.concatenate(t_parts)
-    s = np.concatenate(s_parts)
-    sd = np.concatenate(sd_parts)
-    sdd = np.concatenate(sdd_parts)
+    sections = [
+        plan_ruckig([s0], [s1], joint_limits, dt, ("s",))
+        for s0, s1 in zip(corners[:-1], corners[1:], strict=True)
+    ]
+    # concatenate keeps each shared corner sample once, so corner k follows the steps of
+    # sections 0..k-1.
+    corner_indices = np.cumsum([0] + [len(sec.t_s) - 1 for sec in sections])
+    law = concatenate(sections)
+    s, sd, sdd = law.q[:, 0], law.v[:, 0], law.a[:, 0]
     p, tangent, curvature = path.evaluate(s)
     v = tangent * sd[:, None]
     a = tangent * sdd[:, None] + curvature * (sd * sd)[:, None]
-    return CartesianTrajectory(t, p, v, a, s=s, corner_indices=tuple(corner_indices))
+    return CartesianTrajectory(law.t_s, p, v, a, s=s, corner_indices=tuple(corner_indices))
 
 
 # ---------------------------------------------------------------------------------- joints
@@ -469,7 +451,7 @@ def to_joint_trajectory(
         InvalidPlanningInput: Bad names, a Jacobian or IK output of the wrong shape, non-finite
             outputs, or an IK branch jump.
     """
-    names = _check_names(names)
+    names = check_names(names)
     n = len(names)
     if not (math.isfinite(max_joint_step_rad) and max_joint_step_rad > 0.0):
         raise InvalidPlanningInput(

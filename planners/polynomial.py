@@ -21,8 +21,8 @@ from collections.abc import Sequence
 
 import numpy as np
 import numpy.typing as npt
-from mbctl.planners.exceptions import InvalidPlanningInput, PlanningError
-from mbctl.planners.ruckig_planner import _check_dt, _check_names, _state
+from mbctl.planners._validation import check_boundary_states, check_names, check_time
+from mbctl.planners.exceptions import PlanningError
 from mbctl.planners.trajectory import JointTrajectory
 
 #: Relative tolerance [-] under which ``duration_s / dt_s`` counts as a whole number of periods
@@ -64,12 +64,10 @@ def cubic_trajectory(
             period.
         PlanningError: The evaluated end state misses the boundary values beyond round-off.
     """
-    names = _check_names(names)
-    n = len(names)
-    q0 = _state("current_position", current_position, n)
-    q1 = _state("target_position", target_position, n)
-    v0 = _state("current_velocity", current_velocity, n)
-    v1 = _state("target_velocity", target_velocity, n)
+    names = check_names(names)
+    q0, q1, v0, v1, _, _ = check_boundary_states(
+        len(names), current_position, target_position, current_velocity, target_velocity
+    )
     t, T = _grid(duration_s, dt_s)
     # q(t) = q0 + v0 t + c2 t^2 + c3 t^3.
     dq = q1 - q0
@@ -114,14 +112,11 @@ def quintic_trajectory(
             period.
         PlanningError: The evaluated end state misses the boundary values beyond round-off.
     """
-    names = _check_names(names)
-    n = len(names)
-    q0 = _state("current_position", current_position, n)
-    q1 = _state("target_position", target_position, n)
-    v0 = _state("current_velocity", current_velocity, n)
-    v1 = _state("target_velocity", target_velocity, n)
-    a0 = _state("current_acceleration", current_acceleration, n)
-    a1 = _state("target_acceleration", target_acceleration, n)
+    names = check_names(names)
+    q0, q1, v0, v1, a0, a1 = check_boundary_states(
+        len(names), current_position, target_position, current_velocity, target_velocity,
+        current_acceleration, target_acceleration,
+    )
     t, T = _grid(duration_s, dt_s)
     # q(t) = q0 + v0 t + a0/2 t^2 + c3 t^3 + c4 t^4 + c5 t^5, the standard closed form.
     dq = q1 - q0
@@ -164,14 +159,8 @@ def minimum_jerk_trajectory(
 
 def _grid(duration_s: float, dt_s: float) -> tuple[np.ndarray, float]:
     """Uniform times ``0..T`` and ``T``: the duration rounded up to whole periods."""
-    dt = _check_dt(dt_s)
-    try:
-        duration = float(duration_s)
-    except (TypeError, ValueError) as exc:
-        raise InvalidPlanningInput(f"duration_s must be a number [s]; got {duration_s!r}") from exc
-    if not (math.isfinite(duration) and duration > 0.0):
-        raise InvalidPlanningInput(f"duration_s must be finite and > 0 [s]; got {duration_s!r}")
-    periods = duration / dt
+    dt = check_time("dt_s", dt_s)
+    periods = check_time("duration_s", duration_s) / dt
     n_steps = max(1, int(math.ceil(periods * (1.0 - PERIOD_RTOL))))
     t = np.arange(n_steps + 1) * dt
     return t, float(t[-1])
@@ -197,5 +186,5 @@ def _evaluate(coeffs: np.ndarray, t: np.ndarray) -> tuple[np.ndarray, np.ndarray
     dcoeffs = coeffs[1:] * powers[1:, None]
     v = (t[:, None] ** powers[:-1]) @ dcoeffs
     ddcoeffs = dcoeffs[1:] * powers[1:-1, None]
-    a = (t[:, None] ** powers[:-2]) @ ddcoeffs if len(ddcoeffs) else np.zeros_like(q)
+    a = (t[:, None] ** powers[:-2]) @ ddcoeffs
     return q, v, a

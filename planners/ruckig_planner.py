@@ -19,6 +19,13 @@ from dataclasses import dataclass
 
 import numpy as np
 import numpy.typing as npt
+from mbctl.planners._validation import (
+    check_boundary_states,
+    check_matrix,
+    check_names,
+    check_time,
+    check_waypoints,
+)
 from mbctl.planners.exceptions import (
     InvalidLimits,
     InvalidPlanningInput,
@@ -171,15 +178,13 @@ def plan_ruckig(
         TrajectoryGenerationFailed: Ruckig rejected the input (e.g. a target velocity above
             ``max_velocity``) or found no trajectory.
     """
-    names = _check_names(names)
+    names = check_names(names)
     n = len(names)
-    dt = _check_dt(dt_s)
-    q0 = _state("current_position", current_position, n)
-    q1 = _state("target_position", target_position, n)
-    v0 = _state("current_velocity", current_velocity, n)
-    v1 = _state("target_velocity", target_velocity, n)
-    a0 = _state("current_acceleration", current_acceleration, n)
-    a1 = _state("target_acceleration", target_acceleration, n)
+    dt = check_time("dt_s", dt_s)
+    q0, q1, v0, v1, a0, a1 = check_boundary_states(
+        n, current_position, target_position, current_velocity, target_velocity,
+        current_acceleration, target_acceleration,
+    )
     if limits.dofs != n:
         raise InvalidLimits(
             f"limits cover {limits.dofs} DoFs but the trajectory has {n} joints {names}"
@@ -323,17 +328,13 @@ def plan_waypoints(
         InvalidLimits: ``limits`` has a different number of DoFs.
         TrajectoryGenerationFailed: Ruckig failed on a segment (the message names it).
     """
-    names = _check_names(names)
+    names = check_names(names)
     n = len(names)
-    wps = _matrix("waypoints", waypoints, n)
-    if wps.shape[0] < 2:
-        raise InvalidPlanningInput(
-            f"waypoints needs at least 2 rows (start and goal); got {wps.shape[0]}"
-        )
+    wps = check_waypoints(waypoints, n)
     if waypoint_velocities is None:
         vels = np.zeros_like(wps)
     else:
-        vels = _matrix("waypoint_velocities", waypoint_velocities, n)
+        vels = check_matrix("waypoint_velocities", waypoint_velocities, n)
         if vels.shape != wps.shape:
             raise InvalidPlanningInput(
                 f"waypoint_velocities must have the shape of waypoints {wps.shape}; got "
@@ -377,12 +378,8 @@ def pass_through_velocities(
         InvalidLimits: ``limits`` has a different number of DoFs.
         TrajectoryGenerationFailed: Ruckig failed on a rest-to-rest estimate.
     """
-    names = _check_names(names)
-    wps = _matrix("waypoints", waypoints, len(names))
-    if wps.shape[0] < 2:
-        raise InvalidPlanningInput(
-            f"waypoints needs at least 2 rows (start and goal); got {wps.shape[0]}"
-        )
+    names = check_names(names)
+    wps = check_waypoints(waypoints, len(names))
     d = np.diff(wps, axis=0)
     durations = np.array([
         plan_ruckig(wps[k], wps[k + 1], limits, dt_s, names).duration_s for k in range(len(d))
@@ -428,47 +425,3 @@ def concatenate(segments: Sequence[JointTrajectory]) -> JointTrajectory:
     return JointTrajectory(np.concatenate(t), np.vstack(rows["q"]), np.vstack(rows["v"]),
                            np.vstack(rows["a"]), first.names)
 
-
-def _check_names(names: Sequence[str]) -> tuple[str, ...]:
-    if isinstance(names, str):
-        raise InvalidPlanningInput(f"names must be a sequence of joint names; got the string "
-                                   f"{names!r}")
-    out = tuple(names)
-    if not out or not all(isinstance(x, str) for x in out):
-        raise InvalidPlanningInput(f"names must be a non-empty sequence of strings; got {names!r}")
-    if len(set(out)) != len(out):
-        raise InvalidPlanningInput(f"names must be unique; got {out}")
-    return out
-
-
-def _check_dt(dt_s: float) -> float:
-    try:
-        dt = float(dt_s)
-    except (TypeError, ValueError) as exc:
-        raise InvalidPlanningInput(f"dt_s must be a number [s]; got {dt_s!r}") from exc
-    if not (np.isfinite(dt) and dt > 0.0):
-        raise InvalidPlanningInput(f"dt_s must be finite and > 0 [s]; got {dt_s!r}")
-    return dt
-
-
-def _state(label: str, value: npt.ArrayLike | None, n: int) -> np.ndarray:
-    if value is None:
-        return np.zeros(n)
-    arr = np.asarray(value, dtype=float)
-    if arr.shape != (n,):
-        raise InvalidPlanningInput(f"{label} must have shape ({n},); got {arr.shape}")
-    bad = np.flatnonzero(~np.isfinite(arr))
-    if bad.size:
-        i = int(bad[0])
-        raise InvalidPlanningInput(f"{label}[{i}] = {float(arr[i])!r} (DoF {i}) must be finite")
-    return arr
-
-
-def _matrix(label: str, value: npt.ArrayLike, n: int) -> np.ndarray:
-    arr = np.asarray(value, dtype=float)
-    if arr.ndim != 2 or arr.shape[1] != n:
-        raise InvalidPlanningInput(f"{label} must have shape (K, {n}); got {arr.shape}")
-    if not np.all(np.isfinite(arr)):
-        row, col = (int(x) for x in np.argwhere(~np.isfinite(arr))[0])
-        raise InvalidPlanningInput(f"{label}[{row}, {col}] = {float(arr[row, col])!r} must be finite")
-    return arr

@@ -2,15 +2,30 @@
 
 from __future__ import annotations
 
-from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
 from mbctl.planners.exceptions import PlanningError
 
 
+class _UniformGrid:
+    """Timing of samples on a uniform grid ``t_s`` (N,) [s] that starts at 0."""
+
+    t_s: np.ndarray
+
+    @property
+    def duration_s(self) -> float:
+        """Time of the last sample [s]."""
+        return float(self.t_s[-1])
+
+    @property
+    def dt_s(self) -> float:
+        """Sample period [s] (0 for a single sample)."""
+        return float(self.t_s[1] - self.t_s[0]) if len(self.t_s) > 1 else 0.0
+
+
 @dataclass(frozen=True)
-class JointTrajectory:
+class JointTrajectory(_UniformGrid):
     """Positions, velocities and accelerations sampled on a uniform time grid.
 
     Attributes:
@@ -45,16 +60,6 @@ class JointTrajectory:
             raise PlanningError("JointTrajectory.t_s must be non-empty and strictly increasing")
         t.setflags(write=False)
         object.__setattr__(self, "t_s", t)
-
-    @property
-    def duration_s(self) -> float:
-        """Time of the last sample [s]."""
-        return float(self.t_s[-1])
-
-    @property
-    def dt_s(self) -> float:
-        """Sample period [s] (0 for a single sample)."""
-        return float(self.t_s[1] - self.t_s[0]) if len(self.t_s) > 1 else 0.0
 
     def sample(self, t_s: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """(q, v, a) at time ``t_s`` [s].
@@ -92,8 +97,3 @@ class JointTrajectory:
             self.names,
         )
 
-
-def stack(names: Sequence[str], t_s: np.ndarray, q, v, a) -> JointTrajectory:
-    """Build a JointTrajectory from arrays (convenience for planners)."""
-    return JointTrajectory(np.asarray(t_s, float), np.asarray(q, float), np.asarray(v, float),
-                           np.asarray(a, float), tuple(names))
