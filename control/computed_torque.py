@@ -22,12 +22,7 @@ from collections.abc import Sequence
 
 import numpy as np
 import pinocchio as pin
-from mbctl.control.controller import (
-    JointMap,
-    JointReference,
-    TorqueSaturation,
-)
-from mbctl.control.exceptions import ControllerSetupError
+from mbctl.control.controller import JointFeedbackController, JointReference
 from mbctl.control.gains import PDGains
 from mbctl.robots.commands import Command, CommandKind
 from mbctl.robots.interface import RobotState
@@ -37,7 +32,7 @@ from mbctl.robots.model_pair import Robot
 FRICTION_DEADBAND_RAD_S = 1e-3
 
 
-class ComputedTorque:
+class ComputedTorque(JointFeedbackController):
     """Joint-space computed torque over every dof of a fixed-base, fully actuated robot.
 
     Args:
@@ -56,7 +51,6 @@ class ComputedTorque:
     """
 
     name = "computed_torque"
-    reference_type = JointReference
 
     def __init__(
         self,
@@ -68,60 +62,18 @@ class ComputedTorque:
         friction_feedforward: bool = True,
         saturate: bool = True,
     ):
-        self.robot = robot
-        self.joint_map = JointMap.from_robot(robot, joints)
-        if sorted(self.joint_map.idx_v.tolist()) != list(range(robot.nv)):
-            missing = sorted(set(range(robot.nv)) - set(self.joint_map.idx_v.tolist()))
-            raise ControllerSetupError(
-                f"computed torque needs every dof actuated and controlled; {robot.name!r} has "
-                f"nv={robot.nv} and dofs {missing[:12]} are not controlled joints "
-                "(floating base? weld it with mbctl.robots.edits.weld_base)"
-            )
-        self.model = pin_model if pin_model is not None else robot.pin_model
-        if (self.model.nq, self.model.nv) != (robot.nq, robot.nv):
-            raise ControllerSetupError(
-                f"pin_model has nq={self.model.nq}, nv={self.model.nv}; the robot has "
-                f"nq={robot.nq}, nv={robot.nv}"
-            )
-        self.data = self.model.createData()
-        self.gains = gains.broadcast(self.joint_map.size)
-        self.saturation = TorqueSaturation(self.joint_map, saturate)
-        self._idx_q = self.joint_map.q_selector
-        self._idx_v = self.joint_map.v_selector
-        self._identity = bool(np.array_equal(self.joint_map.idx_v, np.arange(robot.nv))
-                              and np.array_equal(self.joint_map.idx_q, np.arange(robot.nq)))
-        self._names = self.joint_map.command_names
+        super().__init__(robot, gains, joints, saturate=saturate)
+        self._require_every_dof("computed torque")
+        self._use_model(pin_model)
         friction = np.asarray(self.model.friction)[self._idx_v]
         damping = np.asarray(self.model.damping)[self._idx_v]
         self._friction = friction if friction_feedforward and np.any(friction) else None
         self._damping = damping if friction_feedforward and np.any(damping) else None
-        self._kp = np.asarray(self.gains.kp)
-        self._kd = np.asarray(self.gains.kd)
-        self._a_des = np.zeros(self.joint_map.size)
-        self._ev = np.zeros(self.joint_map.size)
         self._a_full = np.zeros(robot.nv)
-
-    @property
-    def joints(self) -> tuple[str, ...]:
-        """Controlled joint names, the order of references and torques."""
-        return self.joint_map.joints
-
-    def reset(self) -> None:
-        """Zero the saturation counters."""
-        self.saturation.reset()
 
     def desired_acceleration(self, state: RobotState, reference: JointReference) -> np.ndarray:
         """``a_des = a_ref + kp e + kd de`` (n,) [rad/s^2] (internal buffer)."""
-        a, ev = self._a_des, self._ev
-        if self._identity:
-            np.subtract(reference.q, state.q, out=a)
-            np.subtract(reference.v, state.v, out=ev)
-        else:
-            np.subtract(reference.q, state.q[self._idx_q], out=a)
-            np.subtract(reference.v, state.v[self._idx_v], out=ev)
-        a *= self._kp
-        ev *= self._kd
-        a += ev
+        a = self.feedback(state, reference)
         a += reference.a
         return a
 

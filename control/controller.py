@@ -10,6 +10,10 @@ Joint-space controllers act on a tuple of *controlled joints*: 1-dof joints driv
 actuator, by default every actuated joint in actuator order. ``JointMap`` resolves, once, where
 each controlled joint sits in q and v (Pinocchio convention) and which actuator drives it, so a
 floating-base robot gets torques for its actuated joints only.
+
+``ControllerBase`` holds the plumbing every controller shares (joint map, output clipping,
+command names, the analytic model and its checks); ``JointFeedbackController`` adds per-joint
+gains and the feedback ``kp e + kd de`` the joint-space laws build on.
 """
 
 from __future__ import annotations
@@ -20,8 +24,10 @@ from typing import NamedTuple, Protocol, runtime_checkable
 
 import numpy as np
 import numpy.typing as npt
+import pinocchio as pin
 from mbctl.control.exceptions import ControllerSetupError, ReferenceMismatch
-from mbctl.robots.commands import Command, CommandKind
+from mbctl.control.gains import PDGains
+from mbctl.robots.commands import Command
 from mbctl.robots.interface import RobotState
 from mbctl.robots.model_pair import Robot
 
@@ -73,6 +79,14 @@ def _checked(name: str, x: npt.ArrayLike | None, n: int) -> np.ndarray:
     return arr
 
 
+def _checked_triple(
+    name: str, x: npt.ArrayLike, v: npt.ArrayLike | None, a: npt.ArrayLike | None
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    x_arr = _checked(name, x, int(np.size(x)))
+    n = x_arr.size
+    return x_arr, _checked("v", v, n), _checked("a", a, n)
+
+
 def joint_reference(
     q: npt.ArrayLike, v: npt.ArrayLike | None = None, a: npt.ArrayLike | None = None
 ) -> JointReference:
@@ -81,9 +95,7 @@ def joint_reference(
     Raises:
         ReferenceMismatch: Shapes differ from q's, or non-finite values.
     """
-    q_arr = _checked("q", q, int(np.size(q)))
-    n = q_arr.size
-    return JointReference(q_arr, _checked("v", v, n), _checked("a", a, n))
+    return JointReference(*_checked_triple("q", q, v, a))
 
 
 def task_reference(
@@ -94,9 +106,7 @@ def task_reference(
     Raises:
         ReferenceMismatch: Shapes differ from p's, or non-finite values.
     """
-    p_arr = _checked("p", p, int(np.size(p)))
-    n = p_arr.size
-    return TaskReference(p_arr, _checked("v", v, n), _checked("a", a, n))
+    return TaskReference(*_checked_triple("p", p, v, a))
 
 
 @runtime_checkable
@@ -293,6 +303,112 @@ class TorqueSaturation:
         }
 
 
-def torque_command(values: np.ndarray, names: tuple[str, ...] | None) -> Command:
-    """A torque command [N m] over ``names`` (None: every actuator), from a float vector."""
-    return Command(CommandKind.TORQUE, values, names)
+class ControllerBase:
+    """Plumbing the controllers share: joint map, output clipping, command names, analytic model.
+
+    Subclasses set ``name`` and ``reference_type`` and implement ``compute``.
+
+    Attributes:
+        robot: The robot.
+        joint_map: Controlled joints and the limits their outputs are clipped to.
+        saturation: Clips the outputs to the joint map's limits and counts the clips.
+        model: The analytic Pinocchio model (controllers that call ``_use_model``).
+        data: Its ``pin.Data``, owned by the controller.
+    """
+
+    name: str
+    reference_type: type[JointReference] | type[TaskReference] = JointReference
+    model: pin.Model
+    data: pin.Data
+
+    def __init__(self, robot: Robot, joint_map: JointMap, saturate: bool = True):
+        self.robot = robot
+        self.joint_map = joint_map
+        self.saturation = TorqueSaturation(joint_map, saturate)
+        self._names = joint_map.command_names
+
+    @property
+    def joints(self) -> tuple[str, ...]:
+        """Controlled joint names: the order of joint references and of the command's values."""
+        return self.joint_map.joints
+
+    def reset(self) -> None:
+        """Zero the saturation (clip) counters."""
+        self.saturation.reset()
+
+    def _use_model(self, pin_model: pin.Model | None) -> None:
+        """Set ``model`` (default ``robot.pin_model``) and a fresh ``data``.
+
+        Raises:
+            ControllerSetupError: A model whose nq or nv differ from the robot's.
+        """
+        robot = self.robot
+        model = pin_model if pin_model is not None else robot.pin_model
+        if (model.nq, model.nv) != (robot.nq, robot.nv):
+            raise ControllerSetupError(
+                f"pin_model has nq={model.nq}, nv={model.nv}; the robot has "
+                f"nq={robot.nq}, nv={robot.nv}"
+            )
+        self.model = model
+        self.data = model.createData()
+
+    def _require_every_dof(self, law: str) -> None:
+        """Check that the controlled joints are every dof of the robot (a fixed, fully actuated base).
+
+        Raises:
+            ControllerSetupError: Some dofs are not controlled joints.
+        """
+        robot, idx_v = self.robot, self.joint_map.idx_v.tolist()
+        if sorted(idx_v) != list(range(robot.nv)):
+            missing = sorted(set(range(robot.nv)) - set(idx_v))
+            raise ControllerSetupError(
+                f"{law} needs every dof actuated and controlled; {robot.name!r} has "
+                f"nv={robot.nv} and dofs {missing[:12]} are not controlled joints "
+                "(floating base? weld it with mbctl.robots.edits.weld_base)"
+            )
+
+
+class JointFeedbackController(ControllerBase):
+    """A controller with per-joint gains and the feedback ``kp e + kd de`` over its joints.
+
+    ``e = q_ref - q`` and ``de = v_ref - v`` on the controlled joints; the gains' units are the
+    subclass's (torque per error for PD laws, acceleration per error for computed torque).
+
+    Attributes:
+        gains: kp, kd, one pair per controlled joint.
+    """
+
+    def __init__(
+        self,
+        robot: Robot,
+        gains: PDGains,
+        joints: Sequence[str] | None = None,
+        *,
+        saturate: bool = True,
+    ):
+        super().__init__(robot, JointMap.from_robot(robot, joints), saturate)
+        jmap = self.joint_map
+        self.gains = gains.broadcast(jmap.size)
+        self._idx_q = jmap.q_selector
+        self._idx_v = jmap.v_selector
+        # the joints are q and v in order (fixed base, every dof): no gather needed
+        self._identity = bool(np.array_equal(jmap.idx_v, np.arange(robot.nv))
+                              and np.array_equal(jmap.idx_q, np.arange(robot.nq)))
+        self._kp = np.asarray(self.gains.kp)
+        self._kd = np.asarray(self.gains.kd)
+        self._out = np.zeros(jmap.size)
+        self._ev = np.zeros(jmap.size)
+
+    def feedback(self, state: RobotState, reference: JointReference) -> np.ndarray:
+        """``kp e + kd de`` (n,) into an internal buffer (overwritten on the next call)."""
+        out, ev = self._out, self._ev
+        if self._identity:
+            np.subtract(reference.q, state.q, out=out)
+            np.subtract(reference.v, state.v, out=ev)
+        else:
+            np.subtract(reference.q, state.q[self._idx_q], out=out)
+            np.subtract(reference.v, state.v[self._idx_v], out=ev)
+        out *= self._kp
+        ev *= self._kd
+        out += ev
+        return out

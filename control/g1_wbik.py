@@ -19,6 +19,7 @@ Palm sites. The Menagerie G1 has no palm sites, so ``with_palm_sites`` adds them
 
 from __future__ import annotations
 
+import abc
 from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import Any
@@ -165,7 +166,52 @@ def _hinge_names(robot: Robot) -> list[str]:
     return [j.name for j in robot.joints.values() if j.kind in ("hinge", "slide")]
 
 
-class PinocchioWholeBodyIK:
+class _WholeBodyIK(abc.ABC):
+    """What both G1 whole-body IK wrappers share: checks, config, and the build-then-target order.
+
+    Subclasses implement ``_build`` (tasks and limits) and ``reset_targets``.
+    """
+
+    def __init__(
+        self,
+        robot: Robot,
+        q_ref: npt.ArrayLike,
+        config: WholeBodyIKConfig | None = None,
+        solver: str = "daqp",
+    ):
+        """Build tasks and limits; targets start at the pose ``q_ref`` (nq,), Pinocchio convention.
+
+        Args:
+            robot: The G1 model pair with palm sites (``with_palm_sites``).
+            q_ref: Configuration (nq,) whose poses are the first targets.
+            config: Weights and limits (default ``WholeBodyIKConfig()``).
+            solver: qpsolvers backend name.
+
+        Raises:
+            IKSetupError: The robot lacks palm sites (use ``with_palm_sites``).
+        """
+        _require_palms(robot)
+        self.robot = robot
+        self.config = config or WholeBodyIKConfig()
+        self.solver = solver
+        self._build(self.config)
+        self.reset_targets(q_ref)
+
+    @abc.abstractmethod
+    def _build(self, cfg: WholeBodyIKConfig) -> None:
+        """Create the tasks and limits."""
+
+    @abc.abstractmethod
+    def reset_targets(self, q: npt.ArrayLike) -> None:
+        """Every target at the pose ``q`` (nq,), Pinocchio convention."""
+
+
+def _check_palm(palm: str) -> None:
+    if palm not in PALM_SITES:
+        raise IKSetupError(f"Unknown palm {palm!r}; available: {', '.join(PALM_SITES)}.")
+
+
+class PinocchioWholeBodyIK(_WholeBodyIK):
     """The G1 task set on our Pinocchio QP (``DiffIK``); limits and buffers built once.
 
     Attributes:
@@ -177,22 +223,8 @@ class PinocchioWholeBodyIK:
         ik: The underlying ``DiffIK``.
     """
 
-    def __init__(
-        self,
-        robot: Robot,
-        q_ref: npt.ArrayLike,
-        config: WholeBodyIKConfig | None = None,
-        solver: str = "daqp",
-    ):
-        """Build tasks and limits; targets start at the pose ``q_ref`` (nq,).
-
-        Raises:
-            IKSetupError: The robot lacks palm sites (use ``with_palm_sites``) or bad config.
-        """
-        _require_palms(robot)
-        self.robot = robot
-        self.config = cfg = config or WholeBodyIKConfig()
-        m = robot.pin_model
+    def _build(self, cfg: WholeBodyIKConfig) -> None:
+        m = self.robot.pin_model
         self.tasks: dict[str, Task] = {
             foot: FramePoseTask(
                 foot, m, cfg.foot_position_cost, cfg.foot_orientation_cost,
@@ -212,13 +244,12 @@ class PinocchioWholeBodyIK:
         self.position_limit = JointPositionLimit(m, gain=cfg.joint_position_gain)
         limits = [
             self.position_limit,
-            JointVelocityLimit(m, {n: cfg.joint_max_velocity for n in _hinge_names(robot)}),
+            JointVelocityLimit(m, {n: cfg.joint_max_velocity for n in _hinge_names(self.robot)}),
             FloatingBaseVelocityLimit(
                 m, cfg.base_max_linear_velocity, cfg.base_max_angular_velocity
             ),
         ]
-        self.ik = DiffIK(m, list(self.tasks.values()), limits, solver, cfg.damping)
-        self.reset_targets(q_ref)
+        self.ik = DiffIK(m, list(self.tasks.values()), limits, self.solver, cfg.damping)
 
     @property
     def state(self):
@@ -241,8 +272,7 @@ class PinocchioWholeBodyIK:
         Raises:
             IKSetupError: Not a palm site name.
         """
-        if palm not in PALM_SITES:
-            raise IKSetupError(f"Unknown palm {palm!r}; available: {', '.join(PALM_SITES)}.")
+        _check_palm(palm)
         X = pin.SE3(self.frame_pose(palm))
         X.translation = np.asarray(position, dtype=float)
         self.tasks[palm].set_target(X)
@@ -262,7 +292,7 @@ class PinocchioWholeBodyIK:
         return self.ik.solve(q0, self.config.dt, tol=tol, tol_rad=10 * tol, max_iters=max_iters)
 
 
-class MinkWholeBodyIK:
+class MinkWholeBodyIK(_WholeBodyIK):
     """The same task set on mink (MuJoCo model); limits built once.
 
     Attributes:
@@ -273,26 +303,11 @@ class MinkWholeBodyIK:
         limits: mink limits (configuration, joint velocity, free-joint velocity).
     """
 
-    def __init__(
-        self,
-        robot: Robot,
-        q_ref: npt.ArrayLike,
-        config: WholeBodyIKConfig | None = None,
-        solver: str = "daqp",
-    ):
-        """Build tasks and limits; targets start at the pose ``q_ref`` (nq,), Pinocchio order.
-
-        Raises:
-            IKSetupError: The robot lacks palm sites.
-        """
+    def _build(self, cfg: WholeBodyIKConfig) -> None:
         import mink
 
-        _require_palms(robot)
         self._mink = mink
-        self.robot = robot
-        self.config = cfg = config or WholeBodyIKConfig()
-        self.solver = solver
-        m = robot.mj_model
+        m = self.robot.mj_model
         self.configuration = mink.Configuration(m)
         self.tasks: dict[str, Any] = {  # mink task types differ in their target setters
             foot: mink.FrameTask(
@@ -311,12 +326,11 @@ class MinkWholeBodyIK:
         self._task_list = list(self.tasks.values())
         self.limits = [
             mink.ConfigurationLimit(m, gain=cfg.joint_position_gain),
-            mink.VelocityLimit(m, {n: cfg.joint_max_velocity for n in _hinge_names(robot)}),
+            mink.VelocityLimit(m, {n: cfg.joint_max_velocity for n in _hinge_names(self.robot)}),
             mink.FreeJointVelocityLimit(
                 m, cfg.base_max_linear_velocity, cfg.base_max_angular_velocity
             ),
         ]
-        self.reset_targets(q_ref)
 
     def update(self, q: npt.ArrayLike) -> None:
         """Set the configuration from ``q`` (nq,), Pinocchio convention."""
@@ -326,17 +340,14 @@ class MinkWholeBodyIK:
         """Every target at the pose ``q`` (nq,), Pinocchio convention."""
         self.update(q)
         for name, task in self.tasks.items():
-            if name == "posture":
-                task.set_target_from_configuration(self.configuration)
-            elif name == "com":
+            if name == "com":
                 task.set_target(self.configuration.data.subtree_com[1].copy())
             else:
                 task.set_target_from_configuration(self.configuration)
 
     def set_palm_target(self, palm: str, position: npt.ArrayLike) -> None:
         """Target position [m] (world) of ``palm``; orientation kept at the current one."""
-        if palm not in PALM_SITES:
-            raise IKSetupError(f"Unknown palm {palm!r}; available: {', '.join(PALM_SITES)}.")
+        _check_palm(palm)
         X = self.configuration.get_transform_frame_to_world(palm, "site")
         target = self._mink.SE3.from_rotation_and_translation(
             X.rotation(), np.asarray(position, dtype=float)

@@ -109,19 +109,19 @@ class JointPositionLimit(BoxLimit):
         """
         if not 0.0 < gain <= 1.0:
             raise IKSetupError(f"JointPositionLimit gain must be in (0, 1]; got {gain!r}")
-        iq, iv = [], []
+        iq, iv, names = [], [], []
         for j in _one_dof_joints(model):
             q0 = model.joints[j].idx_q
             if np.isfinite(model.lowerPositionLimit[q0]) and np.isfinite(model.upperPositionLimit[q0]):
                 iq.append(q0)
                 iv.append(model.joints[j].idx_v)
+                names.append(model.names[j])
         self.idx_q = np.array(iq, dtype=int)
         self.idx_v = np.array(iv, dtype=int)
         self.q_min = np.asarray(model.lowerPositionLimit)[self.idx_q] + margin
         self.q_max = np.asarray(model.upperPositionLimit)[self.idx_q] - margin
         bad = np.flatnonzero(self.q_min > self.q_max)
         if bad.size:
-            names = [model.names[j] for j in _one_dof_joints(model)]
             raise IKSetupError(
                 f"margin {margin!r} leaves an empty range for joints "
                 f"{[names[i] for i in bad[:5]]}; use a smaller margin."
@@ -131,9 +131,7 @@ class JointPositionLimit(BoxLimit):
         self._sq = _as_slice(self.idx_q)
         self._sv = _as_slice(self.idx_v)
         self.gain = float(gain)
-        self.joint_names = tuple(
-            model.names[j] for j in _one_dof_joints(model) if model.joints[j].idx_q in set(iq)
-        )
+        self.joint_names = tuple(names)
 
     def intersect_bounds(
         self, state: IKState, dt: float, lower: np.ndarray, upper: np.ndarray
@@ -161,15 +159,39 @@ class JointPositionLimit(BoxLimit):
         }
 
 
-class JointVelocityLimit(BoxLimit):
+class _VelocityBox(BoxLimit):
+    """``-v_max dt <= dq <= v_max dt`` on fixed tangent indices (depends on ``dt`` only).
+
+    Attributes:
+        idx_v: Tangent indices of the limited dofs (read-only).
+        max_velocity: Speed bounds of those dofs [rad/s or m/s] (read-only).
+    """
+
+    state_dependent = False
+
+    def _set_bounds(self, idx_v: npt.ArrayLike, max_velocity: npt.ArrayLike) -> None:
+        self.idx_v = np.array(idx_v, dtype=int)
+        self.max_velocity = np.array(max_velocity, dtype=float)
+        self.idx_v.setflags(write=False)
+        self.max_velocity.setflags(write=False)
+
+    def intersect_bounds(
+        self, state: IKState, dt: float, lower: np.ndarray, upper: np.ndarray
+    ) -> None:
+        """Tighten with ``-v_max dt <= dq <= v_max dt``."""
+        iv = self.idx_v
+        step = self.max_velocity * dt
+        lower[iv] = np.maximum(lower[iv], -step)
+        upper[iv] = np.minimum(upper[iv], step)
+
+
+class JointVelocityLimit(_VelocityBox):
     """``|dq_i| <= v_max,i dt`` on named 1-dof joints.
 
     Attributes:
         idx_v: Tangent indices of the limited joints.
         max_velocity: Limits [rad/s or m/s] (read-only).
     """
-
-    state_dependent = False
 
     def __init__(self, model: pin.Model, velocities: Mapping[str, float] | None = None):
         """Build the limit.
@@ -204,30 +226,16 @@ class JointVelocityLimit(BoxLimit):
                 raise IKSetupError(f"max velocity of {name!r} must be > 0 [rad/s]; got {speed!r}")
             iv.append(model.joints[j].idx_v)
             vmax.append(float(speed))
-        self.idx_v = np.array(iv, dtype=int)
-        self.max_velocity = np.array(vmax)
-        self.idx_v.setflags(write=False)
-        self.max_velocity.setflags(write=False)
-
-    def intersect_bounds(
-        self, state: IKState, dt: float, lower: np.ndarray, upper: np.ndarray
-    ) -> None:
-        """Tighten with ``-v_max dt <= dq <= v_max dt``."""
-        iv = self.idx_v
-        step = self.max_velocity * dt
-        lower[iv] = np.maximum(lower[iv], -step)
-        upper[iv] = np.minimum(upper[iv], step)
+        self._set_bounds(iv, vmax)
 
 
-class FloatingBaseVelocityLimit(BoxLimit):
+class FloatingBaseVelocityLimit(_VelocityBox):
     """Per-axis bounds on the free-flyer twist in the base frame: ``|v_B| <= v dt``, ``|w_B| <= w dt``.
 
     Attributes:
         idx_v: The six tangent indices of the free flyer.
         max_velocity: (6,) bounds, linear [m/s] then angular [rad/s] (read-only).
     """
-
-    state_dependent = False
 
     def __init__(
         self,
@@ -257,16 +265,4 @@ class FloatingBaseVelocityLimit(BoxLimit):
         if not (np.all(np.isfinite(vmax)) and np.all(vmax > 0.0)):
             raise IKSetupError(f"floating-base velocity bounds must be > 0; got {vmax.tolist()}")
         start = model.joints[free[0]].idx_v
-        self.idx_v = np.arange(start, start + 6)
-        self.max_velocity = vmax.copy()
-        self.idx_v.setflags(write=False)
-        self.max_velocity.setflags(write=False)
-
-    def intersect_bounds(
-        self, state: IKState, dt: float, lower: np.ndarray, upper: np.ndarray
-    ) -> None:
-        """Tighten with ``-v_max dt <= dq_base <= v_max dt``."""
-        iv = self.idx_v
-        step = self.max_velocity * dt
-        lower[iv] = np.maximum(lower[iv], -step)
-        upper[iv] = np.minimum(upper[iv], step)
+        self._set_bounds(np.arange(start, start + 6), vmax)

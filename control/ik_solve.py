@@ -204,13 +204,14 @@ class DiffIK:
             # W_t = diag(cost mask), r_t = -gain cost e  =>  H += cost^2 mask, c += gain cost^2 mask e
             cost2_mask = self._cost2_mask(task)
             self._H_diag += cost2_mask
-            if task.gain > 0.0:
-                np.multiply(cost2_mask, task.compute_error(state), out=tmp)
+            if task.gain > 0.0:  # with gain 0, r_t and so the LM term are zero too
+                e = task.compute_error(state)
+                np.multiply(cost2_mask, e, out=tmp)
                 tmp *= task.gain
                 c += tmp
-            if task.lm_damping > 0.0:
-                err = task.gain * task.cost * task.compute_error(state)
-                self._H_diag += task.lm_damping * float(err @ err)
+                if task.lm_damping > 0.0:
+                    err = task.gain * task.cost * e
+                    self._H_diag += task.lm_damping * float(err @ err)
         lb, ub = self._bounds(dt)
         G = h = None
         if self._other:

@@ -25,6 +25,10 @@ from mbctl.control.ik_state import IKState
 from mbctl.robots.exceptions import UnknownNameError
 
 
+def _pin_model(state_or_model: IKState | pin.Model) -> pin.Model:
+    return state_or_model.model if isinstance(state_or_model, IKState) else state_or_model
+
+
 def _cost_vector(cost: npt.ArrayLike, k: int, owner: str, what: str = "cost") -> np.ndarray:
     arr = np.atleast_1d(np.asarray(cost, dtype=float))
     if arr.shape == (1,):
@@ -131,11 +135,21 @@ class Task(abc.ABC):
         col, _, neg_gain_cost, _ = self._weights()
         np.multiply(col, J, out=W_t)
         np.multiply(neg_gain_cost, e, out=r_t)
+        return self._lm_term(r_t)
+
+    def _no_target(self) -> IKSetupError:
+        """The error for a task asked for its error before ``set_target``."""
+        return IKSetupError(f"{self.name}: no target set; call set_target first.")
+
+    def _lm_term(self, r_t: np.ndarray) -> float:
+        """``mu = lm_damping |r_t|^2`` [cost^2] for the rows ``r_t`` (k,) (0 without LM damping)."""
         return self.lm_damping * float(r_t @ r_t) if self.lm_damping > 0.0 else 0.0
 
 
 # ---------------------------------------------------------------------- frame tasks
 class _FrameTask(Task):
+    """A task on the pose of one Pinocchio frame F against a target pose ``X_WT``."""
+
     def __init__(
         self,
         name: str,
@@ -147,7 +161,7 @@ class _FrameTask(Task):
         lm_damping: float,
     ):
         super().__init__(name, k, cost, gain, lm_damping)
-        model = state_or_model.model if isinstance(state_or_model, IKState) else state_or_model
+        model = _pin_model(state_or_model)
         if not model.existFrame(frame):
             raise UnknownNameError("frame", frame, [f.name for f in model.frames])
         self.frame = frame
@@ -172,13 +186,18 @@ class _FrameTask(Task):
             IKSetupError: No target set yet.
         """
         if self._X_WT is None:
-            raise IKSetupError(f"{self.name}: no target set; call set_target first.")
+            raise self._no_target()
         return self._X_WT
 
     def _X_TF(self, state: IKState) -> pin.SE3:
+        """``X_TF = X_WT^-1 X_WF`` at ``state``.
+
+        Raises:
+            IKSetupError: No target set yet.
+        """
         if self._X_TW is None:
-            raise IKSetupError(f"{self.name}: no target set; call set_target first.")
-        return self._X_TW * state.frame_pose(self.frame_id)
+            raise self._no_target()
+        return self._X_TW * state.oMf[self.frame_id]
 
 
 class FramePoseTask(_FrameTask):
@@ -224,31 +243,27 @@ class FramePoseTask(_FrameTask):
 
     def compute_jacobian(self, state: IKState) -> np.ndarray:
         """``-Jlog6(X_TF) J_F`` (6, nv)."""
-        return -pin.Jlog6(self._X_TF(state)) @ state.frame_jacobian_local(self.frame_id)
+        return self.error_and_jacobian(state)[1]
 
     def error_and_jacobian(self, state: IKState) -> tuple[np.ndarray, np.ndarray]:
-        """Both, from one ``X_TF`` (the hot path of ``DiffIK``)."""
-        if self._X_TW is None:
-            raise IKSetupError(f"{self.name}: no target set; call set_target first.")
-        X_TF = self._X_TW * state.oMf[self.frame_id]
-        J_F = pin.getFrameJacobian(state.model, state.data, self.frame_id, pin.LOCAL)
-        J = pin.Jlog6(X_TF) @ J_F
+        """Both, from one ``X_TF``."""
+        X_TF = self._X_TF(state)
+        J = pin.Jlog6(X_TF) @ state.frame_jacobian_local(self.frame_id)
         return -pin.log6(X_TF).vector, np.negative(J, out=J)
 
     def write_qp_rows(self, state: IKState, W_t: np.ndarray, r_t: np.ndarray) -> float:
-        """Fast path of ``Task.write_qp_rows``, same values, fewer temporaries.
+        """Fast path of ``Task.write_qp_rows`` (the hot path of ``DiffIK``): same values.
 
-        ``W_t = -diag(cost) Jlog6(X_TF) J_F`` and ``r_t = gain diag(cost) log6(X_TF)``.
+        ``W_t = -diag(cost) Jlog6(X_TF) J_F`` and ``r_t = gain diag(cost) log6(X_TF)``, written
+        in place with no temporaries for the negations.
         """
-        if self._X_TW is None:
-            raise IKSetupError(f"{self.name}: no target set; call set_target first.")
-        X_TF = self._X_TW * state.oMf[self.frame_id]
+        X_TF = self._X_TF(state)
         J_F = pin.getFrameJacobian(state.model, state.data, self.frame_id, pin.LOCAL)
         _, neg_col, _, gain_cost = self._weights()
         np.matmul(pin.Jlog6(X_TF), J_F, out=W_t)
         W_t *= neg_col
         np.multiply(gain_cost, pin.log6(X_TF).vector, out=r_t)
-        return self.lm_damping * float(r_t @ r_t) if self.lm_damping > 0.0 else 0.0
+        return self._lm_term(r_t)
 
     def residuals(self, state: IKState) -> dict[str, float]:
         """Distance [m] and rotation angle [rad] to the target; a part with zero cost is omitted."""
@@ -261,8 +276,10 @@ class FramePoseTask(_FrameTask):
         return out
 
 
-class FramePositionTask(_FrameTask):
-    """Position of a frame origin: ``e = p_WF - p_WT`` (3,) [m] in W, ``J = R_WF J_F[:3]``."""
+class _FrameAxesTask(_FrameTask):
+    """A 3-dimensional frame task (position or orientation); ``kind`` names it in reports."""
+
+    kind: str
 
     def __init__(
         self,
@@ -278,37 +295,42 @@ class FramePositionTask(_FrameTask):
         Args:
             frame: Pinocchio frame name.
             model: Pinocchio model or IK state.
-            cost: Weight(s) [cost]/[m], scalar or (3,) along world x, y, z.
+            cost: Weight(s), scalar or (3,): [cost]/[m] along world x, y, z for a position
+                task, [cost]/[rad] about the frame's axes for an orientation task.
             gain: Fraction of the error corrected per step, in [0, 1].
             lm_damping: Levenberg-Marquardt scale [-].
-            name: Report label (default: "<frame> position").
+            name: Report label (default: "<frame> position" or "<frame> orientation").
 
         Raises:
             UnknownNameError: No frame called ``frame``.
             IKSetupError: Invalid cost, gain or damping.
         """
-        super().__init__(name or f"{frame} position", frame, model, 3, cost, gain, lm_damping)
-        self._p_WT: np.ndarray | None = None
+        super().__init__(name or f"{frame} {self.kind}", frame, model, 3, cost, gain, lm_damping)
+
+
+class FramePositionTask(_FrameAxesTask):
+    """Position of a frame origin: ``e = p_WF - p_WT`` (3,) [m] in W, ``J = R_WF J_F[:3]``."""
+
+    kind = "position"
 
     def set_target(self, transform_target_to_world: pin.SE3 | npt.ArrayLike) -> None:
-        """Set the target position ``p_WT`` (3,) [m] (an SE3's translation is used)."""
+        """Set the target position ``p_WT`` (3,) [m] (an SE3's translation is used).
+
+        Raises:
+            IKSetupError: Not a finite (3,) position.
+        """
         if isinstance(transform_target_to_world, pin.SE3):
             p = transform_target_to_world.translation.copy()
         else:
             p = np.asarray(transform_target_to_world, dtype=float).copy()
         if p.shape != (3,) or not np.all(np.isfinite(p)):
             raise IKSetupError(f"{self.name}: target must be a finite (3,) position [m]; got {p!r}")
-        self._p_WT = p
         super().set_target(pin.SE3(np.eye(3), p))
-
-    def _target(self) -> np.ndarray:
-        if self._p_WT is None:
-            raise IKSetupError(f"{self.name}: no target set; call set_target first.")
-        return self._p_WT
 
     def compute_error(self, state: IKState) -> np.ndarray:
         """``p_WF - p_WT`` (3,) [m]."""
-        return state.frame_pose(self.frame_id).translation - self._target()
+        p_WT = self.transform_target_to_world.translation
+        return state.frame_pose(self.frame_id).translation - p_WT
 
     def compute_jacobian(self, state: IKState) -> np.ndarray:
         """``R_WF J_F[:3]`` (3, nv)."""
@@ -320,33 +342,10 @@ class FramePositionTask(_FrameTask):
         return {"position [m]": float(np.linalg.norm(self.compute_error(state)))}
 
 
-class FrameOrientationTask(_FrameTask):
+class FrameOrientationTask(_FrameAxesTask):
     """Orientation of a frame: ``e = log3(R_FT)`` (3,) [rad], ``J = -Jlog3(R_TF) J_F[3:]``."""
 
-    def __init__(
-        self,
-        frame: str,
-        model: IKState | pin.Model,
-        cost: npt.ArrayLike = 1.0,
-        gain: float = 1.0,
-        lm_damping: float = 0.0,
-        name: str | None = None,
-    ):
-        """Create the task (set a target before solving).
-
-        Args:
-            frame: Pinocchio frame name.
-            model: Pinocchio model or IK state.
-            cost: Weight(s) [cost]/[rad], scalar or (3,) about the frame's axes.
-            gain: Fraction of the error corrected per step, in [0, 1].
-            lm_damping: Levenberg-Marquardt scale [-].
-            name: Report label (default: "<frame> orientation").
-
-        Raises:
-            UnknownNameError: No frame called ``frame``.
-            IKSetupError: Invalid cost, gain or damping.
-        """
-        super().__init__(name or f"{frame} orientation", frame, model, 3, cost, gain, lm_damping)
+    kind = "orientation"
 
     def compute_error(self, state: IKState) -> np.ndarray:
         """``log3(R_FT) = -log3(R_TF)`` (3,) [rad]."""
@@ -354,14 +353,11 @@ class FrameOrientationTask(_FrameTask):
 
     def compute_jacobian(self, state: IKState) -> np.ndarray:
         """``-Jlog3(R_TF) J_F[3:]`` (3, nv)."""
-        R_TF = self._X_TF(state).rotation
-        return -pin.Jlog3(R_TF) @ state.frame_jacobian_local(self.frame_id)[3:]
+        return self.error_and_jacobian(state)[1]
 
     def error_and_jacobian(self, state: IKState) -> tuple[np.ndarray, np.ndarray]:
         """Both, from one ``R_TF``."""
-        if self._X_TW is None:
-            raise IKSetupError(f"{self.name}: no target set; call set_target first.")
-        R_TF = self._X_TW.rotation @ state.oMf[self.frame_id].rotation
+        R_TF = self._X_TF(state).rotation
         J_F = pin.getFrameJacobian(state.model, state.data, self.frame_id, pin.LOCAL)
         J = pin.Jlog3(R_TF) @ J_F[3:]
         return -pin.log3(R_TF), np.negative(J, out=J)
@@ -414,7 +410,7 @@ class ComTask(Task):
     def compute_error(self, state: IKState) -> np.ndarray:
         """``p_WC - p_target`` (3,) [m]."""
         if self._target is None:
-            raise IKSetupError(f"{self.name}: no target set; call set_target first.")
+            raise self._no_target()
         return state.com() - self._target
 
     def compute_jacobian(self, state: IKState) -> np.ndarray:
@@ -424,12 +420,12 @@ class ComTask(Task):
     def write_qp_rows(self, state: IKState, W_t: np.ndarray, r_t: np.ndarray) -> float:
         """Fast path of ``Task.write_qp_rows`` (same values)."""
         if self._target is None:
-            raise IKSetupError(f"{self.name}: no target set; call set_target first.")
+            raise self._no_target()
         col, _, neg_gain_cost, _ = self._weights()
         np.multiply(col, state.data.Jcom, out=W_t)
         np.subtract(state.data.com[0], self._target, out=r_t)
         r_t *= neg_gain_cost
-        return self.lm_damping * float(r_t @ r_t) if self.lm_damping > 0.0 else 0.0
+        return self._lm_term(r_t)
 
     def residuals(self, state: IKState) -> dict[str, float]:
         """Weighted-axes distance to the target [m] (axes with zero cost are ignored)."""
@@ -468,8 +464,20 @@ class DiagonalTask(Task):
             takes the diagonal shortcut only then).
     """
 
-    mask: np.ndarray
     is_diagonal: bool = True
+
+    def __init__(
+        self, name: str, model: IKState | pin.Model, cost: npt.ArrayLike, gain: float,
+        lm_damping: float,
+    ):
+        self.model = _pin_model(model)
+        super().__init__(name, self.model.nv, cost, gain, lm_damping)
+        self._free_idx = _floating_dofs(self.model)
+        self._jacobian = np.eye(self.model.nv)
+        self._jacobian[self._free_idx, self._free_idx] = 0.0
+        self._jacobian.setflags(write=False)
+        self.mask = np.diag(self._jacobian).copy()
+        self.mask.setflags(write=False)
 
 
 class PostureTask(DiagonalTask):
@@ -502,16 +510,8 @@ class PostureTask(DiagonalTask):
         Raises:
             IKSetupError: Invalid cost, gain or damping.
         """
-        self.model = model.model if isinstance(model, IKState) else model
-        super().__init__(name, self.model.nv, cost, gain, lm_damping)
-        free = _floating_dofs(self.model)
-        self._jacobian = np.eye(self.model.nv)
-        self._jacobian[free, free] = 0.0
-        self._free = _as_slice_or_array(free)
-        self._free_idx = free
-        self._jacobian.setflags(write=False)
-        self.mask = np.diag(self._jacobian).copy()
-        self.mask.setflags(write=False)
+        super().__init__(name, model, cost, gain, lm_damping)
+        self._free = _as_slice_or_array(self._free_idx)
         self.is_diagonal = all(
             joint.nv == 1 or joint.shortname() == "JointModelFreeFlyer"
             for joint in list(self.model.joints)[1:]
@@ -539,7 +539,7 @@ class PostureTask(DiagonalTask):
     def compute_error(self, state: IKState) -> np.ndarray:
         """``q ⊖ q_target`` (nv,), free-flyer entries zeroed."""
         if self._target is None:
-            raise IKSetupError(f"{self.name}: no target set; call set_target first.")
+            raise self._no_target()
         e = pin.difference(self.model, self._target, state.q)
         if self._free is not None:
             e[self._free] = 0.0
@@ -553,7 +553,7 @@ class PostureTask(DiagonalTask):
         if self.is_diagonal:
             return self._jacobian
         if self._target is None:
-            raise IKSetupError(f"{self.name}: no target set; call set_target first.")
+            raise self._no_target()
         J = pin.dDifference(self.model, self._target, state.q, pin.ArgumentPosition.ARG1)
         J[self._free_idx, :] = 0.0
         return J
@@ -578,14 +578,7 @@ class DampingTask(DiagonalTask):
         Raises:
             IKSetupError: Invalid cost.
         """
-        self.model = model.model if isinstance(model, IKState) else model
-        super().__init__(name, self.model.nv, cost, 0.0, 0.0)
-        self._jacobian = np.eye(self.model.nv)
-        free = _floating_dofs(self.model)
-        self._jacobian[free, free] = 0.0
-        self._jacobian.setflags(write=False)
-        self.mask = np.diag(self._jacobian).copy()
-        self.mask.setflags(write=False)
+        super().__init__(name, model, cost, 0.0, 0.0)
         self._zero = np.zeros(self.model.nv)
         self._zero.setflags(write=False)
 

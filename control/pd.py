@@ -10,17 +10,12 @@ joint under load settles with the steady-state error ``g_i(q) / kp_i``.
 
 from __future__ import annotations
 
-from collections.abc import Sequence
-
-import numpy as np
-from mbctl.control.controller import JointMap, JointReference, TorqueSaturation
-from mbctl.control.gains import PDGains
+from mbctl.control.controller import JointFeedbackController, JointReference
 from mbctl.robots.commands import Command, CommandKind
 from mbctl.robots.interface import RobotState
-from mbctl.robots.model_pair import Robot
 
 
-class JointPD:
+class JointPD(JointFeedbackController):
     """PD on joint positions and velocities; outputs torques for the controlled joints.
 
     Args:
@@ -36,46 +31,6 @@ class JointPD:
     """
 
     name = "pd"
-    reference_type = JointReference
-
-    def __init__(
-        self,
-        robot: Robot,
-        gains: PDGains,
-        joints: Sequence[str] | None = None,
-        *,
-        saturate: bool = True,
-    ):
-        self.robot = robot
-        self.joint_map = JointMap.from_robot(robot, joints)
-        self.gains = gains.broadcast(self.joint_map.size)
-        self.saturation = TorqueSaturation(self.joint_map, saturate)
-        self._idx_q = self.joint_map.q_selector
-        self._idx_v = self.joint_map.v_selector
-        self._names = self.joint_map.command_names
-        self._kp = np.asarray(self.gains.kp)
-        self._kd = np.asarray(self.gains.kd)
-        self._tau = np.zeros(self.joint_map.size)
-        self._ev = np.zeros(self.joint_map.size)
-
-    @property
-    def joints(self) -> tuple[str, ...]:
-        """Controlled joint names, the order of references and torques."""
-        return self.joint_map.joints
-
-    def reset(self) -> None:
-        """Zero the saturation counters."""
-        self.saturation.reset()
-
-    def feedback(self, state: RobotState, reference: JointReference) -> np.ndarray:
-        """``kp e + kd de`` (n,) [N m] into an internal buffer (overwritten on the next call)."""
-        tau, ev = self._tau, self._ev
-        np.subtract(reference.q, state.q[self._idx_q], out=tau)
-        tau *= self._kp
-        np.subtract(reference.v, state.v[self._idx_v], out=ev)
-        ev *= self._kd
-        tau += ev
-        return tau
 
     def compute(self, state: RobotState, reference: JointReference) -> Command:
         """Torque command (n,) [N m] for the controlled joints."""

@@ -18,7 +18,6 @@ from collections.abc import Sequence
 import numpy as np
 import pinocchio as pin
 from mbctl.control.controller import JointReference
-from mbctl.control.exceptions import ControllerSetupError
 from mbctl.control.gains import PDGains
 from mbctl.control.pd import JointPD
 from mbctl.robots.commands import Command, CommandKind
@@ -55,13 +54,7 @@ class PDGravity(JointPD):
         saturate: bool = True,
     ):
         super().__init__(robot, gains, joints, saturate=saturate)
-        self.model = pin_model if pin_model is not None else robot.pin_model
-        if (self.model.nq, self.model.nv) != (robot.nq, robot.nv):
-            raise ControllerSetupError(
-                f"pin_model has nq={self.model.nq}, nv={self.model.nv}; the robot has "
-                f"nq={robot.nq}, nv={robot.nv}"
-            )
-        self.data = self.model.createData()
+        self._use_model(pin_model)
 
     def gravity(self, q: np.ndarray) -> np.ndarray:
         """Generalized gravity g(q) (nv,) [N m] of the analytic model, Pinocchio convention."""

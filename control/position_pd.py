@@ -19,30 +19,29 @@ from dataclasses import replace
 
 import numpy as np
 import pinocchio as pin
-from mbctl.control.controller import JointMap, JointReference, TorqueSaturation
+from mbctl.control.controller import ControllerBase, JointMap, JointReference
 from mbctl.control.exceptions import ControllerSetupError
 from mbctl.robots.commands import Command, CommandKind
 from mbctl.robots.interface import RobotState
 from mbctl.robots.model_pair import Robot
 
 
-class PositionTargetPD:
+class PositionTargetPD(ControllerBase):
     """PD through position actuators, with optional gravity feed-forward; position-target output.
 
     Args:
         robot: The robot; every controlled joint must be driven by a position actuator.
         joints: Controlled joints (default: every actuated joint, actuator order).
         gravity_feedforward: Add ``g(q)`` of the Pinocchio model through the target offset.
-        pin_model: The analytic model (default ``robot.pin_model``).
+        pin_model: The analytic model (default ``robot.pin_model``). Same nq and nv as the robot.
 
     Raises:
-        ControllerSetupError: A joint driven by a non-position actuator, or an actuator with
-            ``kp <= 0``.
+        ControllerSetupError: A joint driven by a non-position actuator, an actuator with
+            ``kp <= 0``, or a model of another size.
         UnknownNameError: An unknown joint name.
     """
 
     name = "position_pd"
-    reference_type = JointReference
 
     def __init__(
         self,
@@ -52,7 +51,6 @@ class PositionTargetPD:
         gravity_feedforward: bool = True,
         pin_model: pin.Model | None = None,
     ):
-        self.robot = robot
         jmap = JointMap.from_robot(robot, joints)
         infos = [robot.actuator(a) for a in jmap.actuators]
         wrong = [f"{a.name} ({a.kind})" for a in infos if a.kind != "position" or a.kp <= 0]
@@ -65,28 +63,17 @@ class PositionTargetPD:
         self.kv = np.array([a.kv for a in infos])
         low = np.array([a.ctrl_range[0] for a in infos])
         high = np.array([a.ctrl_range[1] for a in infos])
-        self.joint_map = replace(jmap, tau_low=low, tau_high=high)
-        self.saturation = TorqueSaturation(self.joint_map)  # here: targets clipped to ctrlrange
-        self.model = pin_model if pin_model is not None else robot.pin_model
-        self.data = self.model.createData()
+        # the "torque" limits of this joint map are the actuators' ctrlrange: targets are clipped
+        super().__init__(robot, replace(jmap, tau_low=low, tau_high=high))
+        self._use_model(pin_model)
         self.gravity_feedforward = gravity_feedforward
-        self._idx_v = np.asarray(jmap.idx_v)
-        self._names = jmap.command_names
+        self._idx_v = jmap.v_selector
         self._kv_over_kp = self.kv / self.kp
-
-    @property
-    def joints(self) -> tuple[str, ...]:
-        """Controlled joint names, the order of references and targets."""
-        return self.joint_map.joints
-
-    def reset(self) -> None:
-        """Zero the clip counters."""
-        self.saturation.reset()
 
     def compute(self, state: RobotState, reference: JointReference) -> Command:
         """Position-target command (n,) [rad] for the controlled joints' actuators."""
         u = reference.q + self._kv_over_kp * reference.v
         if self.gravity_feedforward:
             g = pin.computeGeneralizedGravity(self.model, self.data, state.q)
-            u = u + g[self._idx_v] / self.kp
+            u += g[self._idx_v] / self.kp
         return Command(CommandKind.POSITION, self.saturation.apply(u), self._names)

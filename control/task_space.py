@@ -22,17 +22,17 @@ from collections.abc import Sequence
 
 import numpy as np
 import pinocchio as pin
-from mbctl.control.controller import JointMap, TaskReference, TorqueSaturation, torque_command
+from mbctl.control.controller import ControllerBase, JointMap, TaskReference
 from mbctl.control.exceptions import ControllerSetupError, ReferenceMismatch, SingularJacobian
 from mbctl.control.gains import PDGains
-from mbctl.robots.commands import Command
+from mbctl.robots.commands import Command, CommandKind
 from mbctl.robots.interface import RobotState
 from mbctl.robots.model_pair import Robot
 
 _AXES = {"x": 0, "y": 1, "z": 2}
 
 
-class TaskSpaceComputedTorque:
+class TaskSpaceComputedTorque(ControllerBase):
     """Computed torque on the position of one frame, over chosen world axes.
 
     Args:
@@ -69,40 +69,17 @@ class TaskSpaceComputedTorque:
     ):
         if not axes or any(a not in _AXES for a in axes) or len(set(axes)) != len(axes):
             raise ControllerSetupError(f"axes must be distinct letters of 'xyz'; got {axes!r}")
-        self.robot = robot
-        self.joint_map = JointMap.from_robot(robot, joints)
-        if not np.array_equal(np.sort(self.joint_map.idx_v), np.arange(robot.nv)):
-            raise ControllerSetupError(
-                f"task-space computed torque needs every one of the {robot.nv} dofs of "
-                f"{robot.name!r} actuated and controlled"
-            )
-        self.model = pin_model if pin_model is not None else robot.pin_model
-        if (self.model.nq, self.model.nv) != (robot.nq, robot.nv):
-            raise ControllerSetupError(
-                f"pin_model has nq={self.model.nq}, nv={self.model.nv}; the robot has "
-                f"nq={robot.nq}, nv={robot.nv}"
-            )
-        self.data = self.model.createData()
+        super().__init__(robot, JointMap.from_robot(robot, joints), saturate)
+        self._require_every_dof("task-space computed torque")
+        self._use_model(pin_model)
         self.frame_id = robot.frame_id(frame)
         self.frame = frame
         self.axes = axes
         self._rows = np.array([_AXES[a] for a in axes], dtype=int)
         self.gains = gains.broadcast(len(axes))
-        self.saturation = TorqueSaturation(self.joint_map, saturate)
-        self._idx_v = np.asarray(self.joint_map.idx_v)
-        self._names = self.joint_map.command_names
+        self._idx_v = self.joint_map.v_selector
         self._zero_a = np.zeros(robot.nv)
         self._square = len(axes) == robot.nv
-        self.last_position = np.zeros(len(axes))
-
-    @property
-    def joints(self) -> tuple[str, ...]:
-        """Joint order of the output torques."""
-        return self.joint_map.joints
-
-    def reset(self) -> None:
-        """Zero the saturation counters."""
-        self.saturation.reset()
 
     def compute(self, state: RobotState, reference: TaskReference) -> Command:
         """Torque command (n,) [N m] moving the frame along ``reference`` (task axes, W)."""
@@ -119,7 +96,6 @@ class TaskSpaceComputedTorque:
         dJv = pin.getFrameClassicalAcceleration(model, data, fid, frame).linear[rows]
         p = data.oMf[fid].translation[rows]
         J = pin.computeFrameJacobian(model, data, q, fid, frame)[rows]
-        self.last_position[:] = p
         a_task = reference.a + self.gains.kp * (reference.p - p) + self.gains.kd * (
             reference.v - J @ v
         )
@@ -133,4 +109,4 @@ class TaskSpaceComputedTorque:
                 "configurations (e.g. the stretched 2-link arm)", q.copy()
             ) from exc
         tau = pin.rnea(model, data, q, v, a_des)[self._idx_v]
-        return torque_command(self.saturation.apply(tau), self._names)
+        return Command(CommandKind.TORQUE, self.saturation.apply(tau), self._names)
