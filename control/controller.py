@@ -20,7 +20,7 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from dataclasses import dataclass
-from typing import NamedTuple, Protocol, runtime_checkable
+from typing import NamedTuple, Protocol, TypeVar, runtime_checkable
 
 import numpy as np
 import numpy.typing as npt
@@ -109,14 +109,19 @@ def task_reference(
     return TaskReference(*_checked_triple("p", p, v, a))
 
 
+#: The reference a controller takes (JointReference or TaskReference); contravariant because a
+#: controller is a consumer of references.
+RefT_contra = TypeVar("RefT_contra", contravariant=True)
+
+
 @runtime_checkable
-class Controller(Protocol):
+class Controller(Protocol[RefT_contra]):
     """A pure control law: state and reference in, typed command out."""
 
     def reset(self) -> None:
         """Clear internal state (saturation counts, integrators) before a new run."""
 
-    def compute(self, state: RobotState, reference: JointReference | TaskReference) -> Command:
+    def compute(self, state: RobotState, reference: RefT_contra) -> Command:
         """The command for ``state`` (Pinocchio convention) tracking ``reference``."""
 
 

@@ -22,7 +22,7 @@ from __future__ import annotations
 import abc
 from collections.abc import Mapping
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, cast
 
 import mujoco
 import numpy as np
@@ -275,13 +275,13 @@ class PinocchioWholeBodyIK(_WholeBodyIK):
         _check_palm(palm)
         X = pin.SE3(self.frame_pose(palm))
         X.translation = np.asarray(position, dtype=float)
-        self.tasks[palm].set_target(X)
+        cast(FramePoseTask, self.tasks[palm]).set_target(X)
 
     def set_com_target(self, xy: npt.ArrayLike) -> None:
         """CoM target (x, y) [m] in the world (z is free)."""
         p = np.array(self.ik.state.com())
         p[:2] = np.asarray(xy, dtype=float)
-        self.tasks["com"].set_target(p)
+        cast(ComTask, self.tasks["com"]).set_target(p)
 
     def step(self, q: npt.ArrayLike) -> IKStep:
         """One step at ``q`` (nq,); ``v`` (nv,) in Pinocchio's convention."""
@@ -358,7 +358,7 @@ class MinkWholeBodyIK(_WholeBodyIK):
         """CoM target (x, y) [m] in the world (z is free)."""
         p = self.configuration.data.subtree_com[1].copy()
         p[:2] = np.asarray(xy, dtype=float)
-        self.tasks["com"].set_target(p)
+        cast(ComTask, self.tasks["com"]).set_target(p)
 
     def step_mj(self) -> np.ndarray:
         """One step at the current configuration: MuJoCo qvel-convention velocity (nv,)."""

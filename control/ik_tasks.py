@@ -76,6 +76,9 @@ class Task(abc.ABC):
         self._cost = _cost_vector(cost, k, name)
         self._cost.setflags(write=False)
 
+    def set_target_from_state(self, state: IKState) -> None:  # noqa: B027 - optional hook
+        """Set the target to the current value at ``state``; tasks without a target ignore it."""
+
     @property
     def cost(self) -> np.ndarray:
         """Weights (k,), read-only."""

@@ -14,6 +14,7 @@ from __future__ import annotations
 import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 from mbctl.control.controller import Controller, JointReference, TaskReference
@@ -115,7 +116,7 @@ def presample(
 
 def run(
     interface: RobotInterface,
-    controller: Controller,
+    controller: Controller[Any],
     reference: JointTrajectory | ReferenceFn | Reference,
     duration_s: float,
     on_step: OnStep | None = None,
@@ -151,11 +152,11 @@ def run(
     t_rel = np.arange(n_cycles) * period
     robot = interface.robot
     fn: ReferenceFn | None = None
-    ref_q = ref_v = ref_a = None
+    sampled: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None
     constant: Reference | None = None
     if isinstance(reference, JointTrajectory):
         joints = getattr(controller, "joints", None) or reference.names
-        ref_q, ref_v, ref_a = presample(reference, t_rel, joints, hold_q)
+        sampled = presample(reference, t_rel, joints, hold_q)
     elif isinstance(reference, (JointReference, TaskReference)):
         constant = reference
     elif callable(reference):
@@ -165,9 +166,18 @@ def run(
             "reference must be a JointTrajectory, a function of time, or a JointReference / "
             f"TaskReference; got {type(reference).__name__}"
         )
-    first = constant if constant is not None else (
-        fn(0.0) if fn is not None else JointReference(ref_q[0], ref_v[0], ref_a[0])
-    )
+    refs: list[JointReference] | None = None
+    if sampled is not None:
+        for arr in sampled:
+            arr.setflags(write=False)
+        ref_q, ref_v, ref_a = sampled
+        refs = [JointReference(ref_q[k], ref_v[k], ref_a[k]) for k in range(n_cycles)]
+    if constant is not None:
+        first: Reference = constant
+    elif fn is not None:
+        first = fn(0.0)
+    else:
+        first = refs[0]  # type: ignore[index]  # one of the three branches above set it
     expected = getattr(controller, "reference_type", None)
     if expected is not None and not isinstance(first, expected):
         raise ReferenceMismatch(
@@ -178,14 +188,9 @@ def run(
     log_t = np.empty(n_cycles)
     log_q = np.empty((n_cycles, robot.nq))
     log_v = np.empty((n_cycles, robot.nv))
-    log_ref = np.empty((n_cycles, k_ref) if ref_q is None else (0, k_ref))
-    log_ref_v = np.empty((n_cycles, k_ref) if ref_q is None else (0, k_ref))
+    log_ref = np.empty((n_cycles, k_ref) if sampled is None else (0, k_ref))
+    log_ref_v = np.empty((n_cycles, k_ref) if sampled is None else (0, k_ref))
     log_cmd = np.empty((n_cycles, 0))  # resized on the first command (its width is the controller's)
-    refs: list[JointReference] | None = None
-    if ref_q is not None:
-        for arr in (ref_q, ref_v, ref_a):
-            arr.setflags(write=False)
-        refs = [JointReference(ref_q[k], ref_v[k], ref_a[k]) for k in range(n_cycles)]
     controller.reset()
     t0 = interface.time_s
     # bound methods looked up once: the loop body is the hot path
@@ -216,6 +221,6 @@ def run(
             log_ref[k] = ref[0]
             log_ref_v[k] = ref[1]
     wall = time.perf_counter() - wall0
-    if ref_q is not None:  # a pre-sampled trajectory is its own log
-        log_ref, log_ref_v = ref_q, ref_v
+    if sampled is not None:  # a pre-sampled trajectory is its own log
+        log_ref, log_ref_v = sampled[0], sampled[1]
     return RunLog(log_t, log_q, log_v, log_cmd, log_ref, log_ref_v, wall)

@@ -84,7 +84,9 @@ class PathLimits:
 
     def as_joint_limits(self) -> JointLimits:
         """The same limits as a 1-DoF JointLimits on s."""
-        return JointLimits([self.max_speed], [self.max_acceleration], [self.max_jerk])
+        return JointLimits(
+            np.array([self.max_speed]), np.array([self.max_acceleration]), np.array([self.max_jerk])
+        )
 
 
 # ---------------------------------------------------------------------------------- paths

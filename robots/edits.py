@@ -82,11 +82,11 @@ def weld_base(robot: Robot, keyframe: str | None = None) -> Robot:
     m = robot.mj_model
     if keyframe is None and robot.keyframes:
         keyframe = robot.keyframes[0]
+    pos: np.ndarray | None = None
+    quat_wxyz: np.ndarray | None = None
     if keyframe is not None:
         qpos = np.array(m.key_qpos[robot.keyframe_id(keyframe)])
         pos, quat_wxyz = qpos[free.idx_q : free.idx_q + 3], qpos[free.idx_q + 3 : free.idx_q + 7]
-    else:
-        pos = quat_wxyz = None
     edited: list[mujoco.MjSpec] = []
 
     def edit(spec: mujoco.MjSpec) -> None:
@@ -97,7 +97,7 @@ def weld_base(robot: Robot, keyframe: str | None = None) -> Robot:
         # floating robot's behaviour by excluding the base from its children explicitly.
         for child in body.bodies:
             spec.add_exclude(bodyname1=body.name, bodyname2=child.name)
-        if pos is not None:
+        if pos is not None and quat_wxyz is not None:
             body.pos = np.array(pos)
             body.quat = np.array(quat_wxyz)
         keep_q = np.r_[0 : free.idx_q, free.idx_q + free.nq : m.nq]
@@ -112,7 +112,9 @@ def weld_base(robot: Robot, keyframe: str | None = None) -> Robot:
     def pin_edit(_model):  # noqa: ANN001, ANN202 - pin.Model in, pin.Model out
         return pin_model_from_spec(edited[-1])
 
-    where = (f"at keyframe {keyframe!r} pose p={np.round(pos, 6).tolist()} m, "
-             f"quat_wxyz={np.round(quat_wxyz, 6).tolist()}") if pos is not None else "at its model pose"
+    where = "at its model pose"
+    if pos is not None and quat_wxyz is not None:
+        where = (f"at keyframe {keyframe!r} pose p={np.round(pos, 6).tolist()} m, "
+                 f"quat_wxyz={np.round(quat_wxyz, 6).tolist()}")
     return robot.with_edits(f"base welded to the world ({free.name} removed) {where}",
                             mj_edit=edit, pin_edit=pin_edit)

@@ -143,7 +143,7 @@ def g1_stand(
     sim = Simulator(robot)
     sim.reset(KEYFRAME)
     q0 = robot.keyframe_q(KEYFRAME)
-    probe = PDGravity(robot, PDGains([1.0], [1.0]))
+    probe = PDGravity(robot, PDGains(np.ones(1), np.ones(1)))
     inertia = stance_inertia(robot, q0, probe.joints)
     controller = PDGravity(robot, gains_from_frequency(omega_rad_s, zeta, inertia))
     reference = joint_reference(q0[controller.joint_map.idx_q])
