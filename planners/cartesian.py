@@ -22,6 +22,7 @@ Joint conversion (``to_joint_trajectory``): q from the caller's IK at each sampl
 
 from __future__ import annotations
 
+import abc
 import math
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
@@ -90,24 +91,25 @@ class PathLimits:
 
 
 # ---------------------------------------------------------------------------------- paths
-class CartesianPath:
+class CartesianPath(abc.ABC):
     """Base class of arc-length parameterised paths ``p(s)``, s in 0..length [m].
 
     Subclasses implement ``length``, ``corners`` and the vectorised ``_evaluate``.
     """
 
     @property
+    @abc.abstractmethod
     def length(self) -> float:
         """Total arc length L [m]."""
-        raise NotImplementedError
 
     @property
     def corners(self) -> tuple[float, ...]:
         """Arc lengths [m] where the timing law must stop: 0, each sharp corner, and L."""
         return (0.0, self.length)
 
+    @abc.abstractmethod
     def _evaluate(self, s: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        raise NotImplementedError
+        """Position, tangent and curvature vector (N, 3) each at valid arc lengths ``s`` (N,)."""
 
     def evaluate(self, s: npt.ArrayLike) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Position, unit tangent and curvature vector at arc lengths ``s``.
