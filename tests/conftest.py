@@ -5,7 +5,14 @@ from __future__ import annotations
 import os
 
 import pytest
+from hypothesis import settings
 from mbctl.robots import ModelNotFoundError, Robot, load_robot
+
+# CI runs property tests with a fixed derivation of examples (reproducible, no flakes); local
+# runs explore new examples each time.
+settings.register_profile("ci", derandomize=True, deadline=None)
+if os.environ.get("CI"):
+    settings.load_profile("ci")
 
 
 @pytest.fixture(scope="session")

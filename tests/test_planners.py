@@ -257,7 +257,7 @@ def test_ruckig_bad_inputs():
 
 
 # ------------------------------------------------------------------------------ polynomials
-finite = st.floats(-3.0, 3.0, allow_nan=False)
+finite = st.floats(-3.0, 3.0, allow_nan=False, allow_subnormal=False)
 vec2 = st.lists(finite, min_size=2, max_size=2)
 
 
