@@ -16,7 +16,8 @@ import time
 
 import numpy as np
 import pinocchio as pin
-from mbctl.control.g1_wbik import (
+
+from mbctl.control.ik.whole_body import (
     PALM_SITES,
     MinkWholeBodyIK,
     PinocchioWholeBodyIK,

@@ -14,6 +14,7 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).parent))
 from harness import interleaved  # noqa: E402
+
 from mbctl.robots import load_robot  # noqa: E402
 from mbctl.sim import Simulator, position_target, torque  # noqa: E402
 

@@ -7,13 +7,7 @@ from mbctl.control.exceptions import (
     KinematicsError,
     UnreachableTarget,
 )
-from mbctl.control.g1_wbik import (
-    MinkWholeBodyIK,
-    PinocchioWholeBodyIK,
-    WholeBodyIKConfig,
-    with_palm_sites,
-)
-from mbctl.control.ik_limits import (
+from mbctl.control.ik.limits import (
     BoxLimit,
     Constraint,
     FloatingBaseVelocityLimit,
@@ -21,9 +15,9 @@ from mbctl.control.ik_limits import (
     JointVelocityLimit,
     Limit,
 )
-from mbctl.control.ik_solve import DiffIK, IKResult, IKStep, solve_ik
-from mbctl.control.ik_state import IKState
-from mbctl.control.ik_tasks import (
+from mbctl.control.ik.solve import DiffIK, IKResult, IKStep, solve_ik
+from mbctl.control.ik.state import IKState
+from mbctl.control.ik.tasks import (
     ComTask,
     DampingTask,
     FrameOrientationTask,
@@ -32,7 +26,7 @@ from mbctl.control.ik_tasks import (
     PostureTask,
     Task,
 )
-from mbctl.control.two_link import (
+from mbctl.control.ik.two_link import (
     ElbowBranch,
     IterativeIKResult,
     TwoLinkArm,
@@ -40,6 +34,12 @@ from mbctl.control.two_link import (
     dls_ik,
     pinv_ik,
     plot_workspace,
+)
+from mbctl.control.ik.whole_body import (
+    MinkWholeBodyIK,
+    PinocchioWholeBodyIK,
+    WholeBodyIKConfig,
+    with_palm_sites,
 )
 
 __all__ = [

@@ -22,6 +22,7 @@ from collections.abc import Sequence
 
 import numpy as np
 import pinocchio as pin
+
 from mbctl.control.controller import JointFeedbackController, JointReference
 from mbctl.control.gains import PDGains
 from mbctl.robots.commands import Command, CommandKind

@@ -25,6 +25,7 @@ from typing import NamedTuple, Protocol, TypeVar, runtime_checkable
 import numpy as np
 import numpy.typing as npt
 import pinocchio as pin
+
 from mbctl.control.exceptions import ControllerSetupError, ReferenceMismatch
 from mbctl.control.gains import PDGains
 from mbctl.robots.commands import Command

@@ -17,6 +17,7 @@ from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
+
 from mbctl.control.controller import Controller, JointReference, TaskReference
 from mbctl.control.exceptions import ControlError, ReferenceMismatch
 from mbctl.planners.trajectory import JointTrajectory

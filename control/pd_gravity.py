@@ -17,6 +17,7 @@ from collections.abc import Sequence
 
 import numpy as np
 import pinocchio as pin
+
 from mbctl.control.controller import JointReference
 from mbctl.control.gains import PDGains
 from mbctl.control.pd import JointPD

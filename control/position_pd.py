@@ -19,6 +19,7 @@ from dataclasses import replace
 
 import numpy as np
 import pinocchio as pin
+
 from mbctl.control.controller import ControllerBase, JointMap, JointReference
 from mbctl.control.exceptions import ControllerSetupError
 from mbctl.robots.commands import Command, CommandKind

@@ -22,6 +22,7 @@ from collections.abc import Sequence
 
 import numpy as np
 import pinocchio as pin
+
 from mbctl.control.controller import ControllerBase, JointMap, TaskReference
 from mbctl.control.exceptions import ControllerSetupError, ReferenceMismatch, SingularJacobian
 from mbctl.control.gains import PDGains

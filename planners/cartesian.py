@@ -29,6 +29,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 import numpy.typing as npt
+
 from mbctl.planners._validation import check_names, check_time
 from mbctl.planners.exceptions import (
     InvalidLimits,

@@ -21,6 +21,7 @@ from collections.abc import Sequence
 
 import numpy as np
 import numpy.typing as npt
+
 from mbctl.planners._validation import check_boundary_states, check_names, check_time
 from mbctl.planners.exceptions import PlanningError
 from mbctl.planners.trajectory import JointTrajectory

@@ -19,6 +19,16 @@ from dataclasses import dataclass
 
 import numpy as np
 import numpy.typing as npt
+from ruckig import (
+    DurationDiscretization,
+    InputParameter,
+    Result,
+    Ruckig,
+    RuckigError,
+    Synchronization,
+    Trajectory,
+)
+
 from mbctl.planners._validation import (
     check_boundary_states,
     check_matrix,
@@ -32,15 +42,6 @@ from mbctl.planners.exceptions import (
     TrajectoryGenerationFailed,
 )
 from mbctl.planners.trajectory import JointTrajectory
-from ruckig import (
-    DurationDiscretization,
-    InputParameter,
-    Result,
-    Ruckig,
-    RuckigError,
-    Synchronization,
-    Trajectory,
-)
 
 #: Largest mismatch [rad] or [rad/s] or [rad/s^2] accepted between ruckig's end state and the
 #: requested target before the last sample is snapped to the target exactly.

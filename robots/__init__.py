@@ -41,11 +41,13 @@ __all__ = [
 from mbctl.robots.crosscheck import (  # noqa: E402
     TOLERANCES,
     CrossCheckError,
+    FeatureNote,
+    QuantityResult,
+    Report,
     Sampling,
     Tolerance,
     crosscheck,
 )
-from mbctl.robots.crosscheck_report import FeatureNote, QuantityResult, Report  # noqa: E402
 
 __all__ += [
     "TOLERANCES",

@@ -18,6 +18,7 @@ from enum import Enum
 
 import numpy as np
 import numpy.typing as npt
+
 from mbctl.robots.exceptions import CommandError
 
 

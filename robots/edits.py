@@ -6,6 +6,7 @@ from collections.abc import Iterable
 
 import mujoco
 import numpy as np
+
 from mbctl.robots.model_pair import Robot
 
 

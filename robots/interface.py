@@ -9,6 +9,7 @@ from __future__ import annotations
 from typing import NamedTuple, Protocol, runtime_checkable
 
 import numpy as np
+
 from mbctl.robots.commands import Command
 from mbctl.robots.model_pair import Robot
 

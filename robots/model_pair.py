@@ -18,6 +18,7 @@ import mujoco
 import numpy as np
 import numpy.typing as npt
 import pinocchio as pin
+
 from mbctl.robots.conventions import JointLayout, StateConverter
 from mbctl.robots.exceptions import ModelFileError, ModelMismatchError, UnknownNameError
 from mbctl.robots.names import ActuatorInfo, SensorInfo, actuator_infos, names_of, sensor_infos

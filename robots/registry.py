@@ -8,6 +8,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
+
 from mbctl.robots.exceptions import ModelNotFoundError, UnknownNameError
 from mbctl.robots.menagerie import resolve_menagerie_dir
 from mbctl.robots.model_pair import ModelSource, Robot, load_mj_spec, load_pin_model

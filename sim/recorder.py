@@ -15,6 +15,7 @@ from functools import partial
 from pathlib import Path
 
 import numpy as np
+
 from mbctl.sim.atomic import AtomicFile
 from mbctl.sim.simulator import Simulator
 

@@ -8,6 +8,7 @@ from importlib import metadata
 from typing import Any
 
 import mujoco
+
 from mbctl.robots.menagerie import sha256_file
 from mbctl.sim.simulator import Simulator
 

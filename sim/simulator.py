@@ -13,11 +13,12 @@ from typing import Literal
 import mujoco
 import numpy as np
 import numpy.typing as npt
-from mbctl.robots.command_binding import CommandBinder
+
 from mbctl.robots.commands import Command
 from mbctl.robots.exceptions import CommandOutOfRange
 from mbctl.robots.interface import RobotState
 from mbctl.robots.model_pair import Robot
+from mbctl.sim.command_binding import CommandBinder
 from mbctl.sim.exceptions import SimError, SimulationDiverged
 
 #: MuJoCo warnings after which the run cannot be trusted: bad qpos/qvel/qacc mean the

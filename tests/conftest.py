@@ -6,6 +6,7 @@ import os
 
 import pytest
 from hypothesis import settings
+
 from mbctl.robots import ModelNotFoundError, Robot, load_robot
 
 # CI runs property tests with a fixed derivation of examples (reproducible, no flakes); local

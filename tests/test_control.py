@@ -11,6 +11,7 @@ from pathlib import Path
 import mujoco
 import numpy as np
 import pytest
+
 from mbctl.control.computed_torque import ComputedTorque
 from mbctl.control.controller import (
     Controller,
@@ -26,18 +27,18 @@ from mbctl.control.exceptions import (
     ReferenceMismatch,
 )
 from mbctl.control.gains import PDGains, gains_from_frequency
+from mbctl.control.ik.two_link import TwoLinkArm
 from mbctl.control.loop import presample, run
 from mbctl.control.pd import JointPD
 from mbctl.control.pd_gravity import PDGravity
 from mbctl.control.position_pd import PositionTargetPD
 from mbctl.control.task_space import TaskSpaceComputedTorque
-from mbctl.control.two_link import TwoLinkArm
 from mbctl.exceptions import ToolkitError
+from mbctl.jobs.demo import DemoConfig, run_demo, scale_masses, square_reference, track_square
 from mbctl.planners.trajectory import JointTrajectory
 from mbctl.robots.commands import CommandKind
 from mbctl.robots.exceptions import CommandError, UnknownNameError
 from mbctl.robots.registry import load_robot
-from mbctl.sim.demo import DemoConfig, run_demo, scale_masses, square_reference, track_square
 from mbctl.sim.simulator import Simulator
 
 CONTROL_DIR = Path(__file__).resolve().parents[1] / "control"

@@ -9,6 +9,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 from hypothesis.extra.numpy import arrays
+
 from mbctl.robots import StateError, quat_wxyz_to_xyzw, quat_xyzw_to_wxyz
 from mbctl.robots.conventions import rotation_from_quat_xyzw
 

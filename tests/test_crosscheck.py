@@ -11,15 +11,16 @@ from pathlib import Path
 import mujoco
 import numpy as np
 import pytest
+
 from mbctl.robots import load_robot
-from mbctl.robots.crosscheck import (
+from mbctl.robots.crosscheck.evaluate import (
     TOLERANCES,
     CrossCheckError,
     Tolerance,
     crosscheck,
     sample_states,
 )
-from mbctl.robots.crosscheck_report import ACCOUNTED, EXCLUDED, NOT_COMPARED
+from mbctl.robots.crosscheck.report import ACCOUNTED, EXCLUDED, NOT_COMPARED
 from mbctl.robots.registry import ASSETS
 
 ALL_QUANTITIES = ("structure", *TOLERANCES)

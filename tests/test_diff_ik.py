@@ -7,6 +7,7 @@ import numpy as np
 import pinocchio as pin
 import pytest
 import qpsolvers
+
 from mbctl.control import (
     ComTask,
     Constraint,

@@ -9,15 +9,16 @@ import mujoco
 import numpy as np
 import pinocchio as pin
 import pytest
+
 from mbctl.control.computed_torque import ComputedTorque
 from mbctl.control.controller import JointMap, joint_reference
 from mbctl.control.exceptions import ControllerSetupError
 from mbctl.control.gains import gains_from_frequency
 from mbctl.control.pd_gravity import PDGravity
+from mbctl.jobs.g1 import g1_arm_pd, g1_stand, g1_track
 from mbctl.robots.commands import CommandKind
 from mbctl.robots.edits import position_to_motor, weld_base
 from mbctl.robots.exceptions import CommandError, RobotError
-from mbctl.sim.g1_jobs import g1_arm_pd, g1_stand, g1_track
 from mbctl.sim.simulator import Simulator
 
 

@@ -8,8 +8,9 @@ import mujoco
 import numpy as np
 import pinocchio as pin
 import pytest
+
 from mbctl.control.exceptions import IKSetupError
-from mbctl.control.g1_wbik import (
+from mbctl.control.ik.whole_body import (
     PALM_OFFSET_IN_WRIST_YAW_M,
     PALM_SITES,
     MinkWholeBodyIK,

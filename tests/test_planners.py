@@ -13,7 +13,8 @@ import numpy as np
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
-from mbctl.control.two_link import ElbowBranch, TwoLinkArm
+
+from mbctl.control.ik.two_link import ElbowBranch, TwoLinkArm
 from mbctl.planners import (
     CartesianTrajectory,
     CirclePath,

@@ -7,13 +7,14 @@ import os
 
 import numpy as np
 import pytest
+
+from mbctl.jobs.joint_step import joint_step
 from mbctl.robots import UnknownNameError
 from mbctl.robots.edits import position_to_motor
 from mbctl.robots.exceptions import CommandError
 from mbctl.robots.menagerie import sha256_file
 from mbctl.sim import Simulator, torque
 from mbctl.sim.atomic import write_json_atomic
-from mbctl.sim.joint_step import joint_step
 from mbctl.sim.recorder import Recorder, joint_columns, read_csv, sensor_columns, time_column
 from mbctl.sim.report import execution_report
 

@@ -6,6 +6,7 @@ import mujoco
 import numpy as np
 import pinocchio as pin
 import pytest
+
 from mbctl.robots import StateError, UnknownNameError, load_robot
 from mbctl.robots.exceptions import CommandError, CommandOutOfRange
 from mbctl.robots.interface import RobotInterface

@@ -10,6 +10,7 @@ import pinocchio as pin
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
+
 from mbctl.control import (
     ElbowBranch,
     IKSetupError,
@@ -198,7 +199,7 @@ def test_dls_unreachable_converges_to_closest_point(arm):
 def test_workspace_plot_png(arm, tmp_path, two_link):
     out = plot_workspace(arm, tmp_path / "ws.png", robot=two_link, n=41)
     assert out.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
-    from mbctl.control.two_link import sample_workspace
+    from mbctl.control.ik.two_link import sample_workspace
 
     r = np.hypot(*sample_workspace(arm, n=41).T)
     assert r.min() >= arm.r_min - 1e-12 and r.max() <= arm.r_max + 1e-12

@@ -6,9 +6,10 @@ from pathlib import Path
 from typing import Annotated
 
 import typer
+
+from mbctl.jobs.joint_step import joint_step as run_joint_step
+from mbctl.jobs.verify import verify_two_link
 from mbctl.robots import load_robot
-from mbctl.sim.joint_step import joint_step as run_joint_step
-from mbctl.sim.verify import verify_two_link
 
 
 def verify(

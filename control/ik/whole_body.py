@@ -28,14 +28,15 @@ import mujoco
 import numpy as np
 import numpy.typing as npt
 import pinocchio as pin
+
 from mbctl.control.exceptions import IKSetupError
-from mbctl.control.ik_limits import (
+from mbctl.control.ik.limits import (
     FloatingBaseVelocityLimit,
     JointPositionLimit,
     JointVelocityLimit,
 )
-from mbctl.control.ik_solve import DiffIK, IKResult, IKStep
-from mbctl.control.ik_tasks import (
+from mbctl.control.ik.solve import DiffIK, IKResult, IKStep
+from mbctl.control.ik.tasks import (
     ComTask,
     FrameOrientationTask,
     FramePoseTask,

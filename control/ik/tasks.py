@@ -20,8 +20,9 @@ from collections.abc import Mapping
 import numpy as np
 import numpy.typing as npt
 import pinocchio as pin
+
 from mbctl.control.exceptions import IKSetupError
-from mbctl.control.ik_state import IKState
+from mbctl.control.ik.state import IKState
 from mbctl.robots.exceptions import UnknownNameError
 
 

@@ -29,6 +29,7 @@ from typing import Any
 
 import numpy as np
 import pinocchio as pin
+
 from mbctl.control.computed_torque import ComputedTorque
 from mbctl.control.controller import joint_reference
 from mbctl.control.exceptions import ControlError
@@ -36,13 +37,13 @@ from mbctl.control.gains import PDGains, gains_from_frequency
 from mbctl.control.loop import RunLog, run
 from mbctl.control.pd_gravity import PDGravity
 from mbctl.control.position_pd import PositionTargetPD
+from mbctl.jobs.output import new_figure, save_figure, write_columns_csv
 from mbctl.planners.ruckig_planner import JointLimits, plan_ruckig, plan_waypoints
 from mbctl.planners.trajectory import JointTrajectory
 from mbctl.robots.edits import position_to_motor, weld_base
 from mbctl.robots.model_pair import Robot
 from mbctl.robots.registry import load_robot
 from mbctl.sim.atomic import write_json_atomic
-from mbctl.sim.job_output import new_figure, save_figure, write_columns_csv
 from mbctl.sim.report import execution_report
 from mbctl.sim.simulator import Simulator
 

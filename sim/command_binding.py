@@ -9,6 +9,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+
 from mbctl.robots.commands import Command
 from mbctl.robots.exceptions import CommandError, UnknownNameError
 from mbctl.robots.model_pair import Robot

@@ -27,11 +27,12 @@ import numpy as np
 import numpy.typing as npt
 import pinocchio as pin
 import qpsolvers
-from mbctl.control.exceptions import IKInfeasible, IKSetupError
-from mbctl.control.ik_limits import BoxLimit, Limit
-from mbctl.control.ik_state import IKState
-from mbctl.control.ik_tasks import ComTask, DiagonalTask, Task
 from qpsolvers.warnings import SparseConversionWarning
+
+from mbctl.control.exceptions import IKInfeasible, IKSetupError
+from mbctl.control.ik.limits import BoxLimit, Limit
+from mbctl.control.ik.state import IKState
+from mbctl.control.ik.tasks import ComTask, DiagonalTask, Task
 
 #: Magnitude standing for "no bound" in the QP (DAQP's and OSQP's infinity).
 QP_INFINITY = 1e30

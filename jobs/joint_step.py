@@ -7,6 +7,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
+
 from mbctl.robots.commands import position_target
 from mbctl.robots.exceptions import CommandError
 from mbctl.robots.model_pair import Robot

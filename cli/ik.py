@@ -2,7 +2,7 @@
 
 ``mbctl ik g1 --target left_palm=X,Y,Z --target right_palm=X,Y,Z [--com X,Y] --output DIR``
 runs the G1 whole-body task set (feet held, palm targets, CoM, pelvis orientation, posture;
-``mbctl.control.g1_wbik``) on our Pinocchio QP. Any other robot gets position targets on any of
+``mbctl.control.ik.whole_body``) on our Pinocchio QP. Any other robot gets position targets on any of
 its frames, a posture regulariser and its joint limits.
 
 Exit codes: 0 converged; 1 solved but not converged (unreachable target: the closest pose is
@@ -20,6 +20,7 @@ from typing import Annotated
 
 import numpy as np
 import typer
+
 from mbctl.control.exceptions import IKSetupError
 from mbctl.exceptions import unknown_name_message
 
@@ -86,7 +87,7 @@ def _start_q(robot, keyframe: str | None) -> np.ndarray:
 
 
 def _solve_g1(robot, cfg: IKCommandConfig, q0: np.ndarray):
-    from mbctl.control.g1_wbik import PALM_SITES, PinocchioWholeBodyIK, with_palm_sites
+    from mbctl.control.ik.whole_body import PALM_SITES, PinocchioWholeBodyIK, with_palm_sites
 
     robot = with_palm_sites(robot)
     for name, _ in cfg.targets:
@@ -116,8 +117,8 @@ def _solve_generic(robot, cfg: IKCommandConfig, q0: np.ndarray):
         JointPositionLimit,
         PostureTask,
     )
-    from mbctl.control.ik_limits import Limit
-    from mbctl.control.ik_tasks import Task
+    from mbctl.control.ik.limits import Limit
+    from mbctl.control.ik.tasks import Task
 
     model = robot.pin_model
     state = IKState(model, q0)
@@ -260,7 +261,7 @@ def workspace(
     output: Annotated[Path, typer.Option(help="Output directory for workspace.png.")] = Path("out/workspace"),
 ) -> None:
     """The 2-link arm's reachable annulus (r_min, r_max) and a sampled workspace plot (PNG)."""
-    from mbctl.control.two_link import TwoLinkArm, plot_workspace
+    from mbctl.control.ik.two_link import TwoLinkArm, plot_workspace
     from mbctl.robots import load_robot
 
     model = load_robot(robot)

@@ -12,6 +12,7 @@ from pathlib import Path
 
 import mujoco
 import numpy as np
+
 from mbctl.robots.model_pair import Robot
 from mbctl.sim.atomic import AtomicFile
 

@@ -5,6 +5,7 @@ from __future__ import annotations
 import sys
 
 import typer
+
 from mbctl.exceptions import ToolkitError
 
 app = typer.Typer(
@@ -19,19 +20,10 @@ app = typer.Typer(
 def _register_commands() -> None:
     # One module per command family; each exposes register(app). Imported here, not at module
     # top, so `mbctl --help` stays fast and a broken family names itself in the traceback.
-    from mbctl import cli_robots, cli_sim
+    from mbctl.cli import demo, g1, ik, robots, sim, xcheck
 
-    cli_robots.register(app)
-    cli_sim.register(app)
-    # further command families register below
-    from mbctl import cli_demo
-    cli_demo.register(app)
-    from mbctl import cli_g1
-    cli_g1.register(app)
-    from mbctl import cli_xcheck
-    cli_xcheck.register(app)
-    from mbctl import cli_ik
-    cli_ik.register(app)
+    for family in (robots, sim, demo, g1, xcheck, ik):
+        family.register(app)
 
 
 def fail(message: str, code: int = 2) -> typer.Exit:

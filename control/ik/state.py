@@ -16,6 +16,7 @@ import math
 import numpy as np
 import numpy.typing as npt
 import pinocchio as pin
+
 from mbctl.control.exceptions import IKSetupError
 from mbctl.robots.exceptions import UnknownNameError
 

@@ -20,7 +20,8 @@ import copy
 
 import mujoco
 import numpy as np
-from mbctl.robots.crosscheck_report import ACCOUNTED, EXCLUDED, NOT_COMPARED, FeatureNote
+
+from mbctl.robots.crosscheck.report import ACCOUNTED, EXCLUDED, NOT_COMPARED, FeatureNote
 
 _D = mujoco.mjtDisableBit
 

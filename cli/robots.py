@@ -7,6 +7,7 @@ from typing import Annotated
 import mujoco
 import numpy as np
 import typer
+
 from mbctl.robots import KNOWN_ROBOTS, Robot, load_robot
 
 RobotArg = Annotated[str, typer.Argument(help="Known robot name (see `mbctl robots`) or MJCF path.")]

@@ -36,8 +36,9 @@ from typing import NamedTuple
 import mujoco
 import numpy as np
 import pinocchio as pin
-from mbctl.robots.crosscheck_plant import comparison_model, static_bodies, top_moving_bodies
-from mbctl.robots.crosscheck_report import (
+
+from mbctl.robots.crosscheck.plant import comparison_model, static_bodies, top_moving_bodies
+from mbctl.robots.crosscheck.report import (
     FAIL,
     NOT_COMPARED,
     PASS,

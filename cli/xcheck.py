@@ -8,9 +8,10 @@ from pathlib import Path
 from typing import Annotated
 
 import typer
+
 from mbctl.robots import load_robot
-from mbctl.robots.crosscheck import crosscheck
-from mbctl.robots.crosscheck_report import Report
+from mbctl.robots.crosscheck.evaluate import crosscheck
+from mbctl.robots.crosscheck.report import Report
 
 
 @dataclass(frozen=True)

@@ -30,6 +30,7 @@ from typing import NamedTuple
 
 import numpy as np
 import numpy.typing as npt
+
 from mbctl.control.exceptions import IKSetupError, KinematicsError, UnreachableTarget
 from mbctl.robots.model_pair import Robot
 

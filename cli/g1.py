@@ -6,7 +6,8 @@ from pathlib import Path
 from typing import Annotated
 
 import typer
-from mbctl.sim.g1_jobs import g1_arm_pd, g1_stand, g1_track
+
+from mbctl.jobs.g1 import g1_arm_pd, g1_stand, g1_track
 
 Output = Annotated[Path | None, typer.Option(help="Output directory (default out/<command>).")]
 

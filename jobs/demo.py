@@ -25,15 +25,17 @@ from typing import Any
 
 import numpy as np
 import pinocchio as pin
+
 from mbctl.control.computed_torque import ComputedTorque
 from mbctl.control.controller import TaskReference
 from mbctl.control.exceptions import ControllerSetupError
 from mbctl.control.gains import gains_from_frequency
+from mbctl.control.ik.two_link import ElbowBranch, TwoLinkArm
 from mbctl.control.loop import RunLog, presample, run
 from mbctl.control.pd import JointPD
 from mbctl.control.pd_gravity import PDGravity
 from mbctl.control.task_space import TaskSpaceComputedTorque
-from mbctl.control.two_link import ElbowBranch, TwoLinkArm
+from mbctl.jobs.output import new_figure, save_figure, site_positions, write_columns_csv
 from mbctl.planners.cartesian import (
     CartesianTrajectory,
     PathLimits,
@@ -45,7 +47,6 @@ from mbctl.planners.trajectory import JointTrajectory
 from mbctl.robots.model_pair import Robot
 from mbctl.robots.registry import load_robot
 from mbctl.sim.atomic import write_json_atomic
-from mbctl.sim.job_output import new_figure, save_figure, site_positions, write_columns_csv
 from mbctl.sim.report import execution_report
 from mbctl.sim.simulator import Simulator
 

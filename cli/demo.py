@@ -6,7 +6,8 @@ from pathlib import Path
 from typing import Annotated
 
 import typer
-from mbctl.sim.demo import CONTROLLERS, DemoConfig, run_demo
+
+from mbctl.jobs.demo import CONTROLLERS, DemoConfig, run_demo
 
 
 def demo(

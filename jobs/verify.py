@@ -5,6 +5,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+
 from mbctl.robots.commands import position_target
 from mbctl.robots.model_pair import Robot
 from mbctl.sim.simulator import Simulator

@@ -1,0 +1,1 @@
+"""What the CLI runs: jobs on one runner (streamed CSV, report with a status, plots)."""
