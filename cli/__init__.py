@@ -40,6 +40,9 @@ def main() -> None:
     except ToolkitError as exc:  # commands raise toolkit errors; users see the message only
         typer.echo(f"error: {exc}", err=True)
         sys.exit(2)
+    except KeyboardInterrupt:  # before a job's runner took over (loading, parsing)
+        typer.echo("interrupted", err=True)
+        sys.exit(130)
 
 
 if __name__ == "__main__":

@@ -2,21 +2,18 @@
 
 from __future__ import annotations
 
-from pathlib import Path
 from typing import Annotated
 
 import typer
 
-from mbctl.jobs.demo import CONTROLLERS, DemoConfig, run_demo
+from mbctl.cli._run import OutputOpt, QuietOpt, execute
+from mbctl.jobs.demo import CONTROLLERS, DEMO, DemoConfig
 
 
 def demo(
-    output: Annotated[Path, typer.Option(help="Output directory for CSV, JSON report and PNG.")] = Path(
-        "out/demo"
-    ),
     controller: Annotated[str, typer.Option(help=f"One of: {', '.join(CONTROLLERS)}.")] = "ct",
     compare: Annotated[
-        bool, typer.Option("--compare", help="Run every controller on the same reference (gravity on).")
+        bool, typer.Option("--compare", help="Run every controller on the same reference.")
     ] = False,
     model_error: Annotated[
         float, typer.Option("--model-error", help="Controller model link masses off by PCT (%).")
@@ -27,7 +24,14 @@ def demo(
     side: Annotated[float, typer.Option(help="Square side length (m).")] = 0.2,
     speed: Annotated[float, typer.Option(help="Path speed limit (m/s).")] = 0.5,
     omega: Annotated[float, typer.Option(help="Closed-loop natural frequency (rad/s).")] = 30.0,
-    no_gravity: Annotated[bool, typer.Option("--no-gravity", help="Switch gravity off.")] = False,
+    gravity: Annotated[
+        bool, typer.Option("--gravity/--no-gravity", help="In-plane gravity (-y) on or off.")
+    ] = True,
+    max_rms_mm: Annotated[
+        float | None, typer.Option("--max-rms-mm", help="Exit 1 if the Cartesian RMS error exceeds this (mm).")
+    ] = None,
+    output: OutputOpt = None,
+    quiet: QuietOpt = False,
 ) -> None:
     """Track a Cartesian square on the 2-link torque arm; print RMS and max Cartesian error."""
     config = DemoConfig(
@@ -37,9 +41,11 @@ def demo(
         omega_rad_s=omega,
         duration_s=duration,
         model_error_pct=model_error,
-        gravity=not no_gravity,
+        gravity=gravity,
+        compare=compare,
+        max_rms_error_m=None if max_rms_mm is None else max_rms_mm * 1e-3,
     )
-    typer.echo(run_demo(config, output, compare=compare).summary())
+    execute(DEMO, config, output, quiet)
 
 
 def register(app: typer.Typer) -> None:

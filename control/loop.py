@@ -26,7 +26,7 @@ from mbctl.robots.interface import RobotInterface, RobotState
 
 Reference = JointReference | TaskReference
 ReferenceFn = Callable[[float], Reference]
-OnStep = Callable[[int, RobotState, Command], None]
+OnStep = Callable[[int, RobotState, Any, Command], None]
 
 
 @dataclass(frozen=True)
@@ -133,7 +133,8 @@ def run(
             ``controller.joints`` by name), a function of time since start ``t [s] -> reference``,
             or a constant JointReference / TaskReference.
         duration_s: How long to run [s]; rounded to whole control periods (at least one).
-        on_step: Called after each cycle's send as ``on_step(k, state, command)``.
+        on_step: Called after each cycle's send as ``on_step(k, state, reference, command)``
+            (e.g. to stream a row: the run keeps every completed cycle even if interrupted).
         hold_q: For a trajectory that covers only some of the controller's joints: positions
             (n,) [rad] the others hold.
 
@@ -210,7 +211,7 @@ def run(
         command = compute(state, ref)
         send(command)
         if on_step is not None:
-            on_step(k, state, command)
+            on_step(k, state, ref, command)
         sync()
         if k == 0:
             log_cmd = np.empty((n_cycles, command.values.size))

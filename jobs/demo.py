@@ -18,9 +18,7 @@ disagree and the computed-torque cancellation is imperfect.
 
 from __future__ import annotations
 
-import os
-from dataclasses import asdict, dataclass, field
-from pathlib import Path
+from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
@@ -35,7 +33,9 @@ from mbctl.control.loop import RunLog, presample, run
 from mbctl.control.pd import JointPD
 from mbctl.control.pd_gravity import PDGravity
 from mbctl.control.task_space import TaskSpaceComputedTorque
-from mbctl.jobs.output import new_figure, save_figure, site_positions, write_columns_csv
+from mbctl.jobs.plots import new_figure
+from mbctl.jobs.recording import LoopRows, PlantSite, command_columns
+from mbctl.jobs.runner import Job, Outcome, RunContext, Work
 from mbctl.planners.cartesian import (
     CartesianTrajectory,
     PathLimits,
@@ -44,13 +44,15 @@ from mbctl.planners.cartesian import (
     to_joint_trajectory,
 )
 from mbctl.planners.trajectory import JointTrajectory
+from mbctl.robots.interface import RobotState
 from mbctl.robots.model_pair import Robot
 from mbctl.robots.registry import load_robot
-from mbctl.sim.atomic import write_json_atomic
-from mbctl.sim.report import execution_report
 from mbctl.sim.simulator import Simulator
 
 CONTROLLERS = ("pd", "pd_gravity", "ct", "task_ct")
+#: Full names for plots and summaries.
+LABELS = {"pd": "joint PD", "pd_gravity": "PD + gravity", "ct": "computed torque",
+          "task_ct": "task-space computed torque"}
 SITE = "end_effector"
 
 
@@ -72,6 +74,9 @@ class DemoConfig:
         model_error_pct: Link masses and inertias of the controller's model off by this [%].
         gravity: In-plane gravity (-y) on in both engines.
         branch: Elbow branch of the IK ("up" or "down").
+        compare: Also run every controller (exact model) on the same reference.
+        max_rms_error_m: Bound on the chosen controller's Cartesian RMS error [m] (exit 1 above
+            it); None: no bound.
     """
 
     controller: str = "ct"
@@ -87,6 +92,8 @@ class DemoConfig:
     model_error_pct: float = 0.0
     gravity: bool = True
     branch: str = "down"
+    compare: bool = False
+    max_rms_error_m: float | None = None
 
     def __post_init__(self) -> None:
         if self.controller not in CONTROLLERS:
@@ -99,6 +106,13 @@ class DemoConfig:
             raise ControllerSetupError(
                 f"model_error_pct must be a finite percentage > -100; got {self.model_error_pct}"
             )
+        for name in ("side_m", "max_speed_m_s", "max_acceleration_m_s2", "max_jerk_m_s3", "omega_rad_s",
+                     "zeta"):
+            value = getattr(self, name)
+            if not (np.isfinite(value) and value > 0):
+                raise ControllerSetupError(f"{name} must be finite and > 0; got {value}")
+        if self.max_rms_error_m is not None and not self.max_rms_error_m > 0:
+            raise ControllerSetupError(f"max_rms_error_m must be > 0 [m]; got {self.max_rms_error_m}")
         if self.branch not in ("up", "down"):
             raise ControllerSetupError(f"branch must be 'up' or 'down'; got {self.branch!r}")
 
@@ -221,8 +235,13 @@ def track_square(
     config: DemoConfig,
     controller_name: str | None = None,
     model_error_pct: float | None = None,
+    ctx: RunContext | None = None,
 ) -> tuple[Tracking, Simulator]:
-    """Run one controller on the square from rest at its first corner; measure on the plant."""
+    """Run one controller on the square from rest at its first corner; measure on the plant.
+
+    With ``ctx``, the simulator is the run's plant (its report sections) and every cycle streams
+    a row to the run's CSV as it happens.
+    """
     name = controller_name or config.controller
     pct = config.model_error_pct if model_error_pct is None else model_error_pct
     pin_model = scale_masses(robot.pin_model, 1.0 + pct / 100.0) if pct else None
@@ -236,6 +255,27 @@ def track_square(
     idx = np.minimum(np.rint(t_rel / cart.dt_s).astype(int), len(cart.t_s) - 1)
     at_end = t_rel >= cart.t_s[-1]
     p_ref = cart.p[idx, :2]
+    on_step = None
+    if ctx is not None:
+        ctx.attach(sim)
+        site = PlantSite(robot, SITE)
+        t_start = sim.time_s
+
+        def extra(state: RobotState) -> list[float]:
+            k = min(int(round((state.time_s - t_start) / sim.control_period_s)), n - 1)
+            p = site(state.q)
+            return [*p_ref[k], p[0], p[1], float(np.hypot(*(p_ref[k] - p[:2])))]
+
+        width = 2 if name == "task_ct" else len(controller.joints)
+        ref_names = ([f"p_ref_{a}_m" for a in "xy"] if name == "task_ct" else
+                     [f"q_ref_{j}_rad" for j in controller.joints])
+        header = LoopRows.header(robot, ref_names, command_columns(robot.actuators, "N_m"),
+                                 ["p_ref_x_m", "p_ref_y_m", "p_x_m", "p_y_m", "error_m"])
+        if name == "task_ct":  # the reference *is* p_ref: do not write it twice
+            header = header[:1] + header[3:]
+            width = 0
+        ctx.progress.start(n, f"demo ({LABELS[name]})")
+        on_step = LoopRows(ctx.open_csv(header), width, extra, ctx.progress.advance)
     if name == "task_ct":
         v_ref = np.where(at_end[:, None], 0.0, cart.v[idx, :2])
         a_ref = np.where(at_end[:, None], 0.0, cart.a[idx, :2])
@@ -245,12 +285,12 @@ def track_square(
         def reference_fn(t_s: float) -> TaskReference:
             return refs[min(int(round(t_s / period)), n - 1)]
 
-        log = run(sim, controller, reference_fn, duration)
+        log = run(sim, controller, reference_fn, duration, on_step)
         q_ref, _, _ = presample(q_traj, t_rel, controller.joints)
     else:
-        log = run(sim, controller, q_traj, duration)
+        log = run(sim, controller, q_traj, duration, on_step)
         q_ref = log.reference
-    p = site_positions(robot, log.q, SITE)[:, :2]
+    p = PlantSite(robot, SITE).many(log.q)[:, :2]
     err = np.linalg.norm(p_ref - p, axis=1)
     joint_err = q_ref - log.q[:, controller.joint_map.idx_q]
     result = Tracking(
@@ -269,144 +309,100 @@ def track_square(
     return result, sim
 
 
-@dataclass(frozen=True)
-class DemoResult:
-    """Outcome of ``run_demo``.
-
-    Attributes:
-        main: The tracking run of the chosen controller (with the configured model error).
-        compare: Every controller on the same reference (with ``--compare``).
-        exact_model: The same controller with an exact model (with ``--model-error``).
-        files: Written files by role.
-    """
-
-    main: Tracking
-    compare: tuple[Tracking, ...]
-    exact_model: Tracking | None
-    files: dict[str, Path]
-
-    def summary(self) -> str:
-        """Human-readable results with units."""
-        m = self.main
-        lines = [
-            f"controller {m.controller}"
-            + (f" (model masses {m.model_error_pct:+g} %)" if m.model_error_pct else "")
-            + f": Cartesian RMS error {m.rms_error_m * 1e3:.4f} mm, max {m.max_error_m * 1e3:.4f} mm, "
-            f"joint RMS {m.joint_rms_error_rad:.3e} rad, saturated cycles {m.saturated_cycles}",
-        ]
-        if self.exact_model is not None:
-            e = self.exact_model
-            ratio = m.rms_error_m / e.rms_error_m if e.rms_error_m > 0 else float("inf")
+def summary_lines(main: Tracking, exact: Tracking | None, runs: tuple[Tracking, ...]) -> list[str]:
+    """Human-readable results with units."""
+    lines = [
+        f"{LABELS[main.controller]}"
+        + (f" (model masses {main.model_error_pct:+g} %)" if main.model_error_pct else "")
+        + f": Cartesian RMS error {main.rms_error_m * 1e3:.4f} mm, max {main.max_error_m * 1e3:.4f} mm, "
+        f"joint RMS {main.joint_rms_error_rad:.3e} rad, saturated cycles {main.saturated_cycles}",
+    ]
+    if exact is not None:
+        ratio = main.rms_error_m / exact.rms_error_m if exact.rms_error_m > 0 else float("inf")
+        lines.append(
+            f"exact model: RMS {exact.rms_error_m * 1e3:.4f} mm, max {exact.max_error_m * 1e3:.4f} mm; "
+            f"with {main.model_error_pct:+g} % mass error the RMS error is {ratio:.1f}x larger"
+        )
+    if runs:
+        lines.append(f"{'controller':<28} {'RMS (mm)':>10} {'max (mm)':>10} "
+                     f"{'joint RMS (rad)':>16} {'saturated':>10}")
+        for t in runs:
             lines.append(
-                f"exact model: RMS {e.rms_error_m * 1e3:.4f} mm, max {e.max_error_m * 1e3:.4f} mm; "
-                f"with {m.model_error_pct:+g} % mass error the RMS error is {ratio:.1f}x larger"
+                f"{LABELS[t.controller]:<28} {t.rms_error_m * 1e3:>10.4f} {t.max_error_m * 1e3:>10.4f} "
+                f"{t.joint_rms_error_rad:>16.3e} {t.saturated_cycles:>10d}"
             )
-        if self.compare:
-            lines.append(f"{'controller':<12} {'RMS [mm]':>10} {'max [mm]':>10} "
-                         f"{'joint RMS [rad]':>16} {'saturated':>10}")
-            for t in self.compare:
-                lines.append(
-                    f"{t.controller:<12} {t.rms_error_m * 1e3:>10.4f} {t.max_error_m * 1e3:>10.4f} "
-                    f"{t.joint_rms_error_rad:>16.3e} {t.saturated_cycles:>10d}"
-                )
-        lines.append("wrote " + ", ".join(str(p) for p in self.files.values()))
-        return "\n".join(lines)
+    return lines
 
 
-def run_demo(
-    config: DemoConfig,
-    output_dir: str | os.PathLike,
-    *,
-    compare: bool = False,
-    robot: Robot | None = None,
-) -> DemoResult:
-    """Run the square demo, write CSV, JSON report and PNG into ``output_dir``.
-
-    Args:
-        config: Demo settings.
-        output_dir: Directory for ``demo.csv``, ``demo_report.json`` and ``demo.png``.
-        compare: Also run every controller (exact model) on the same reference.
-        robot: The 2-link torque arm (default: loaded with ``config.gravity``).
+def prepare(config: DemoConfig, robot: Robot | None = None) -> Work:
+    """Load the 2-link torque arm and plan the square (bad settings fail here, before any output).
 
     Raises:
-        ControllerSetupError: Bad settings.
-        PlanningError: A square outside the workspace.
-        SimulationDiverged: The plant diverged.
+        PlanningError: A square outside the workspace or through a singularity.
     """
     robot = robot or load_robot("two_link_torque", gravity=config.gravity)
-    dt = robot.timestep_s
-    reference = square_reference(robot, config, dt)
-    main, sim = track_square(robot, reference, config)
-    exact = None
-    if config.model_error_pct:
-        exact, _ = track_square(robot, reference, config, model_error_pct=0.0)
-    runs: list[Tracking] = []
-    if compare:
-        for name in CONTROLLERS:
-            same = name == main.controller and not config.model_error_pct
-            runs.append(main if same else track_square(robot, reference, config, name, 0.0)[0])
-    out = Path(output_dir)
-    files = {
-        "csv": _write_csv(out / "demo.csv", robot, main),
-        "plot": _plot(out / "demo.png", main, exact, tuple(runs)),
-    }
-    report = execution_report(
-        sim,
-        "demo",
-        inputs={**asdict(config), "compare": compare},
-        reference={
+    reference = square_reference(robot, config, robot.timestep_s)
+
+    def work(ctx: RunContext) -> Outcome:
+        ctx.sections["reference"] = {
             "duration_s": reference.cartesian.duration_s,
             "samples": len(reference.cartesian.t_s),
             "corners_m": [list(map(float, reference.cartesian.p[i, :2]))
                           for i in reference.cartesian.corner_indices],
-        },
-        values=main.row(),
-        exact_model=exact.row() if exact else None,
-        compare=[t.row() for t in runs],
-        outputs={k: str(v) for k, v in files.items()},
-    )
-    files["report"] = write_json_atomic(out / "demo_report.json", report)
-    return DemoResult(main, tuple(runs), exact, files)
+        }
+        main, _ = track_square(robot, reference, config, ctx=ctx)
+        ctx.values.update(main.row())
+        exact = None
+        if config.model_error_pct:
+            exact, _ = track_square(robot, reference, config, model_error_pct=0.0)
+            ctx.sections["exact_model"] = exact.row()
+        runs: list[Tracking] = []
+        if config.compare:
+            for name in CONTROLLERS:
+                same = name == main.controller and not config.model_error_pct
+                runs.append(main if same else track_square(robot, reference, config, name, 0.0)[0])
+            ctx.sections["compare"] = [t.row() for t in runs]
+        plot(ctx, main, exact, tuple(runs), config)
+        bound = config.max_rms_error_m
+        passed = bound is None or main.rms_error_m <= bound
+        return Outcome(passed, tuple(summary_lines(main, exact, tuple(runs))),
+                       None if bound is None else f"Cartesian RMS error <= {bound * 1e3:g} mm")
+
+    return work
 
 
-def _write_csv(path: Path, robot: Robot, t: Tracking) -> Path:
-    log = t.log
-    cols: dict[str, np.ndarray] = {"time_s": t.t_s}
-    joints = list(robot.joints)
-    for i, j in enumerate(joints):
-        if log.reference.shape[1] == len(joints) and t.controller != "task_ct":
-            cols[f"q_ref_{j}_rad"] = log.reference[:, i]
-        cols[f"q_{j}_rad"] = log.q[:, i]
-        cols[f"v_{j}_rad_s"] = log.v[:, i]
-    for i, a in enumerate(robot.actuators):
-        cols[f"tau_{a}_N_m"] = log.command[:, i]
-    cols["p_ref_x_m"], cols["p_ref_y_m"] = t.p_ref[:, 0], t.p_ref[:, 1]
-    cols["p_x_m"], cols["p_y_m"] = t.p[:, 0], t.p[:, 1]
-    cols["error_m"] = np.linalg.norm(t.p_ref - t.p, axis=1)
-    return write_columns_csv(path, cols)
+#: The ``mbctl demo`` job.
+DEMO = Job("demo", prepare)
 
 
-def _plot(path: Path, main: Tracking, exact: Tracking | None, runs: tuple[Tracking, ...]) -> Path:
-    fig, axes = new_figure(1, 2, (12.0, 5.0))
+def plot(ctx: RunContext, main: Tracking, exact: Tracking | None, runs: tuple[Tracking, ...],
+         config: DemoConfig) -> None:
+    """The path on the plane and the error over time, in mm; reference dashed, plant solid."""
+    fig, axes = new_figure(1, 2, (12.0, 5.2))
     ax_path, ax_err = axes[0]
     ax_path.plot(main.p_ref[:, 0], main.p_ref[:, 1], "k--", lw=1.2, label="reference")
-    shown = runs or ((main, exact) if exact else (main,))
+    shown = runs or tuple(t for t in (main, exact) if t is not None)
     for t in shown:
-        if t is None:
-            continue
-        label = t.controller + (f" (mass {t.model_error_pct:+g} %)" if t.model_error_pct else "")
+        label = LABELS[t.controller] + (f" (masses {t.model_error_pct:+g} %)" if t.model_error_pct
+                                        else ("" if t is not exact else " (exact model)"))
         ax_path.plot(t.p[:, 0], t.p[:, 1], lw=1.0, label=label)
         ax_err.semilogy(t.t_s, np.maximum(np.linalg.norm(t.p_ref - t.p, axis=1), 1e-9) * 1e3,
-                        lw=1.0, label=label)
+                        lw=1.0, label=f"{label}: RMS {t.rms_error_m * 1e3:.3g} mm")
     ax_path.set_aspect("equal")
-    ax_path.set_xlabel("x [m]")
-    ax_path.set_ylabel("y [m]")
-    ax_path.set_title("end-effector path (plant)")
-    ax_path.legend(fontsize=8)
-    ax_err.set_xlabel("time [s]")
-    ax_err.set_ylabel("Cartesian error [mm]")
-    ax_err.set_title("tracking error |p_ref - p|")
+    ax_path.set_xlabel("x (m)")
+    ax_path.set_ylabel("y (m)")
+    ax_path.set_title("end-effector path, measured in MuJoCo")
+    ax_path.legend(fontsize=8, loc="center")
+    ax_err.set_xlabel("time (s)")
+    ax_err.set_ylabel("Cartesian error |p_ref - p| (mm)")
+    ax_err.set_title("tracking error")
     ax_err.grid(True, which="both", alpha=0.3)
     ax_err.legend(fontsize=8)
+    gravity = "gravity on" if config.gravity else "gravity off"
+    fig.suptitle(
+        f"2-link arm, {config.side_m * 1e3:g} mm square: {LABELS[main.controller]}, "
+        f"omega {config.omega_rad_s:g} rad/s, zeta {config.zeta:g}, {gravity}; "
+        f"RMS {main.rms_error_m * 1e3:.3g} mm, max {main.max_error_m * 1e3:.3g} mm"
+    )
     fig.tight_layout()
-    return save_figure(fig, path)
+    ctx.save_figure(fig, "demo.png")

@@ -9,15 +9,20 @@ import json
 import os
 import tempfile
 from pathlib import Path
+from collections.abc import Callable
 from typing import IO, Any
+
+#: Mode of every published file (mkstemp creates 0600): owner rw, group and others read.
+FILE_MODE = 0o644
 
 
 class AtomicFile:
     """A text file that appears at ``path`` only when closed (``os.replace``).
 
-    Use as a context manager. Whatever was written is published on exit, also when the block
-    raised (so a recording keeps every complete row written before the error); call
-    ``discard()`` to publish nothing.
+    Use as a context manager: the file is published when the block completes and discarded when
+    it raises (KeyboardInterrupt included), so a half-written file never appears under the final
+    name. The temporary name is unique per process (``mkstemp``). Streams that must keep their
+    rows across an interruption use :class:`mbctl.sim.recorder.CsvStream` instead.
     """
 
     def __init__(self, path: str | os.PathLike):
@@ -34,6 +39,7 @@ class AtomicFile:
             self.file.flush()
             os.fsync(self.file.fileno())
             self.file.close()
+            os.chmod(self._tmp, FILE_MODE)
             os.replace(self._tmp, self.path)
             self.closed = True
         return self.path
@@ -48,8 +54,11 @@ class AtomicFile:
     def __enter__(self) -> AtomicFile:
         return self
 
-    def __exit__(self, *exc: object) -> None:
-        self.close()
+    def __exit__(self, exc_type: type[BaseException] | None, *exc: object) -> None:
+        if exc_type is None:
+            self.close()
+        else:
+            self.discard()
 
 
 def write_text_atomic(path: str | os.PathLike, text: str) -> Path:
@@ -57,6 +66,27 @@ def write_text_atomic(path: str | os.PathLike, text: str) -> Path:
     with AtomicFile(path) as f:
         f.file.write(text)
     return Path(path)
+
+
+def write_bytes_atomic(path: str | os.PathLike, write: Callable[[IO[bytes]], None]) -> Path:
+    """Publish what ``write(binary_file)`` writes at ``path`` atomically (figures, archives).
+
+    The temporary file is unique per process and removed if ``write`` raises.
+    """
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
+    try:
+        with os.fdopen(fd, "wb") as f:
+            write(f)
+            f.flush()
+            os.fsync(f.fileno())
+        os.chmod(tmp, FILE_MODE)
+        os.replace(tmp, path)
+    except BaseException:
+        Path(tmp).unlink(missing_ok=True)
+        raise
+    return path
 
 
 def write_json_atomic(path: str | os.PathLike, data: Any) -> Path:

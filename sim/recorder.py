@@ -1,8 +1,9 @@
-"""Per-step CSV recording with named columns, written atomically.
+"""Per-step CSV recording with named columns, streamed row by row.
 
 Columns are named with units where they are ambiguous (``time_s``, ``base_z_m``,
-``q_<joint>_rad``, ``target_<actuator>``, ``<sensor>[i]``). The file appears only when the
-recorder closes — also after an error, with every complete row taken so far — never torn.
+``q_<joint>_rad``, ``target_<actuator>``, ``<sensor>[i]``). Every row is written whole and
+flushed as it is produced, so an error, a divergence or Ctrl-C leaves every completed row on
+disk, never a torn one (the job's report says whether the run completed).
 """
 
 from __future__ import annotations
@@ -16,7 +17,7 @@ from pathlib import Path
 
 import numpy as np
 
-from mbctl.sim.atomic import AtomicFile
+from mbctl.sim.atomic import FILE_MODE
 from mbctl.sim.simulator import Simulator
 
 
@@ -81,34 +82,95 @@ def sensor_columns(sim: Simulator, sensors: Iterable[str]) -> list[Column]:
     return cols
 
 
-class Recorder:
-    """Writes one CSV row per ``record()`` call; use as a context manager.
+class CsvStream:
+    """A CSV file written one whole row at a time, each row flushed to the OS as it is written.
+
+    The header is written on open. A row is one ``write`` of a complete line followed by a flush:
+    an interruption (an exception, Ctrl-C, SIGTERM handled as an exception) between rows leaves
+    only complete rows. Use as a context manager or call ``close()``.
 
     Args:
-        path: CSV file to create (replaced atomically on close).
+        path: CSV file to create (replaces an existing file).
+        header: Column names (with units, e.g. ``time_s``).
+    """
+
+    def __init__(self, path: str | os.PathLike, header: Sequence[str]):
+        self.path = Path(path)
+        self.header = tuple(header)
+        if len(set(self.header)) != len(self.header):
+            dup = sorted({h for h in self.header if self.header.count(h) > 1})
+            raise ValueError(f"CSV columns must be unique; repeated: {dup}")
+        self.path.parent.mkdir(parents=True, exist_ok=True)
+        self._file = open(self.path, "w", newline="")  # noqa: SIM115 - closed by close()
+        os.chmod(self.path, FILE_MODE)
+        self._file.write(",".join(self.header) + "\n")
+        self._file.flush()
+        self.rows = 0
+        self.last: tuple[float, ...] = ()
+
+    @property
+    def closed(self) -> bool:
+        """True once ``close()`` ran."""
+        return self._file.closed
+
+    def write(self, values: Sequence[float]) -> None:
+        """Append one row (as many values as columns; floats written exactly with ``repr``).
+
+        Raises:
+            ValueError: The row has another length than the header.
+        """
+        if len(values) != len(self.header):
+            raise ValueError(f"a row of {self.path.name} has {len(self.header)} values; got {len(values)}")
+        self._file.write(",".join([repr(float(x)) for x in values]) + "\n")
+        self._file.flush()
+        self.rows += 1
+        self.last = tuple(values)
+
+    def close(self) -> Path:
+        """Flush and close (idempotent); returns the path."""
+        if not self._file.closed:
+            self._file.flush()
+            os.fsync(self._file.fileno())
+            self._file.close()
+        return self.path
+
+    def __enter__(self) -> CsvStream:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+
+class Recorder:
+    """Streams one CSV row per ``record()`` call, read from the simulator by ``columns``.
+
+    Args:
+        path: CSV file to create.
         columns: The columns, in order.
     """
 
     def __init__(self, path: str | os.PathLike, columns: Sequence[Column]):
         self.columns = list(columns)
-        self._file = AtomicFile(path)
-        self._writer = csv.writer(self._file.file)
-        self._writer.writerow([c.name for c in self.columns])
-        self.rows = 0
+        self._reads = [c.read for c in self.columns]
+        self.stream = CsvStream(path, [c.name for c in self.columns])
 
     @property
     def path(self) -> Path:
-        """Final path of the CSV."""
-        return self._file.path
+        """Path of the CSV."""
+        return self.stream.path
+
+    @property
+    def rows(self) -> int:
+        """Rows written so far."""
+        return self.stream.rows
 
     def record(self, sim: Simulator) -> None:
         """Append one row read from ``sim``."""
-        self._writer.writerow([repr(float(c.read(sim))) for c in self.columns])
-        self.rows += 1
+        self.stream.write([read(sim) for read in self._reads])
 
     def close(self) -> Path:
-        """Publish the file (idempotent)."""
-        return self._file.close()
+        """Flush and close the file (idempotent)."""
+        return self.stream.close()
 
     def __enter__(self) -> Recorder:
         return self

@@ -1,10 +1,6 @@
-"""Controllers, gains, the control loop and the 2-link square demo (plant = MuJoCo, model = Pinocchio)."""
+"""Controllers, gains and the control loop (plant = MuJoCo, model = Pinocchio)."""
 
 from __future__ import annotations
-
-import json
-import subprocess
-import sys
 
 import mujoco
 import numpy as np
@@ -32,7 +28,6 @@ from mbctl.control.pd_gravity import PDGravity
 from mbctl.control.position_pd import PositionTargetPD
 from mbctl.control.task_space import TaskSpaceComputedTorque
 from mbctl.exceptions import ToolkitError
-from mbctl.jobs.demo import DemoConfig, run_demo, scale_masses, square_reference, track_square
 from mbctl.planners.trajectory import JointTrajectory
 from mbctl.robots.commands import CommandKind
 from mbctl.robots.exceptions import CommandError, UnknownNameError
@@ -210,62 +205,6 @@ def test_loop_validates_and_presamples(two_link_torque):
     log = run(sim, c, traj, 0.1)
     assert log.cycles == 50 and log.command.shape == (50, 2)
     np.testing.assert_allclose(log.t_s[:3], [0.0, 0.002, 0.004])
-
-
-# ------------------------------------------------------------------------------------ demo
-@pytest.fixture(scope="module")
-def square(two_link_torque_gravity):
-    return square_reference(two_link_torque_gravity, DemoConfig(), two_link_torque_gravity.timestep_s)
-
-
-def test_ct_square_is_sub_millimetre_with_gravity(two_link_torque_gravity, square):
-    result, _ = track_square(two_link_torque_gravity, square, DemoConfig(controller="ct"))
-    assert result.rms_error_m < 1e-3
-    assert result.max_error_m < 1e-3
-    assert result.saturated_cycles == 0
-
-
-def test_pd_gravity_beats_pd_and_ct_beats_both(two_link_torque_gravity, square):
-    rms = {
-        name: track_square(two_link_torque_gravity, square, DemoConfig(controller=name))[0].rms_error_m
-        for name in ("pd", "pd_gravity", "ct", "task_ct")
-    }
-    assert rms["pd_gravity"] < 0.5 * rms["pd"]
-    assert rms["ct"] < 0.2 * rms["pd_gravity"]
-    assert rms["task_ct"] < 1e-3
-
-
-def test_model_error_degrades_computed_torque(two_link_torque_gravity, square):
-    exact, _ = track_square(two_link_torque_gravity, square, DemoConfig())
-    wrong, _ = track_square(two_link_torque_gravity, square, DemoConfig(model_error_pct=30.0))
-    assert wrong.rms_error_m > 3.0 * exact.rms_error_m
-    assert wrong.model_error_pct == 30.0
-    scaled = scale_masses(two_link_torque_gravity.pin_model, 1.3)
-    assert scaled.inertias[1].mass == pytest.approx(1.3 * two_link_torque_gravity.pin_model.inertias[1].mass)
-    assert two_link_torque_gravity.pin_model.inertias[1].mass == pytest.approx(1.0)  # original untouched
-
-
-def test_demo_writes_outputs(tmp_path):
-    result = run_demo(DemoConfig(duration_s=0.3, model_error_pct=10.0), tmp_path)
-    for role in ("csv", "plot", "report"):
-        assert result.files[role].is_file()
-    report = json.loads(result.files["report"].read_text())
-    assert report["job"] == "demo" and report["values"]["rms_error_m"] > 0
-    assert report["exact_model"]["model_error_pct"] == 0.0
-    header = result.files["csv"].read_text().splitlines()[0].split(",")
-    assert {"time_s", "p_ref_x_m", "p_x_m", "error_m", "tau_shoulder_N_m"} <= set(header)
-    with pytest.raises(ControllerSetupError, match="choose one of"):
-        DemoConfig(controller="lqr")
-
-
-def test_demo_cli(tmp_path):
-    out = subprocess.run(
-        [sys.executable, "-m", "mbctl.cli", "demo", "--duration", "0.2", "--compare",
-         "--output", str(tmp_path)],
-        capture_output=True, text=True, check=True,
-    ).stdout
-    assert "Cartesian RMS error" in out and "pd_gravity" in out
-    assert (tmp_path / "demo.png").is_file()
 
 
 def test_task_space_ct_at_a_singularity_raises(two_link_torque):

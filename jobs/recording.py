@@ -1,0 +1,124 @@
+"""CSV rows of a control-loop run: named columns with units, the robot's full q for replay.
+
+Every loop job streams one row per control cycle: time, the reference, the full configuration
+(every joint, the floating base as position and quaternion, Pinocchio convention), the velocity,
+the command, and job-specific extras. The full q makes every run replayable later.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Sequence
+from typing import Any
+
+import mujoco
+import numpy as np
+
+from mbctl.robots.commands import Command
+from mbctl.robots.interface import RobotState
+from mbctl.robots.model_pair import Robot
+from mbctl.sim.recorder import CsvStream
+
+_FREE_Q = ("x_m", "y_m", "z_m", "qx", "qy", "qz", "qw")
+_FREE_V = ("vx_m_s", "vy_m_s", "vz_m_s", "wx_rad_s", "wy_rad_s", "wz_rad_s")
+
+
+def q_columns(robot: Robot) -> list[str]:
+    """Column names of the full q (nq), Pinocchio convention.
+
+    ``q_<joint>_rad`` (``_m`` for slides); free joints as ``<joint>_x_m … <joint>_qw``
+    (quaternion x, y, z, w); ball joints as ``<joint>_qx … _qw``.
+    """
+    cols: list[str] = []
+    for j in robot.joints.values():
+        if j.kind == "free":
+            cols += [f"{j.name}_{s}" for s in _FREE_Q]
+        elif j.kind == "ball":
+            cols += [f"{j.name}_{s}" for s in _FREE_Q[3:]]
+        else:
+            cols.append(f"q_{j.name}_{'m' if j.kind == 'slide' else 'rad'}")
+    return cols
+
+
+def v_columns(robot: Robot) -> list[str]:
+    """Column names of v (nv); free joints in the base frame (Pinocchio convention)."""
+    cols: list[str] = []
+    for j in robot.joints.values():
+        if j.kind == "free":
+            cols += [f"{j.name}_{s}" for s in _FREE_V]
+        elif j.kind == "ball":
+            cols += [f"{j.name}_{s}" for s in _FREE_V[3:]]
+        else:
+            cols.append(f"v_{j.name}_{'m_s' if j.kind == 'slide' else 'rad_s'}")
+    return cols
+
+
+Extra = Callable[[RobotState], Sequence[float]]
+
+
+class LoopRows:
+    """Streams control-loop cycles into a CSV: the ``on_step`` callback of ``control.loop.run``.
+
+    Args:
+        stream: The open CSV (created by :meth:`header` columns).
+        reference_width: Entries of the reference position written per row (0: none).
+        extra: Extra values per row from the state (their names are in the header).
+        tick: Called once per row (the progress bar).
+    """
+
+    def __init__(self, stream: CsvStream, reference_width: int, extra: Extra | None = None,
+                 tick: Callable[[], None] | None = None):
+        self.stream = stream
+        self.reference_width = reference_width
+        self.extra = extra
+        self.tick = tick
+
+    @staticmethod
+    def header(robot: Robot, reference_names: Sequence[str], command_names: Sequence[str],
+               extra_names: Sequence[str] = ()) -> list[str]:
+        """time_s, reference columns, full q, v, command columns, extras."""
+        return ["time_s", *reference_names, *q_columns(robot), *v_columns(robot), *command_names,
+                *extra_names]
+
+    def __call__(self, k: int, state: RobotState, reference: Any, command: Command) -> None:
+        """Write cycle ``k``'s row (the loop's ``on_step``)."""
+        row = [state.time_s]
+        if self.reference_width:
+            row += np.asarray(reference[0], dtype=float).ravel().tolist()
+        row += state.q.tolist()
+        row += state.v.tolist()
+        row += command.values.tolist()
+        if self.extra is not None:
+            row += list(self.extra(state))
+        self.stream.write(row)
+        if self.tick is not None:
+            self.tick()
+
+
+def command_columns(names: Sequence[str], unit: str) -> list[str]:
+    """Command column names: ``tau_<name>_N_m`` for torques, ``target_<name>_rad`` for targets."""
+    prefix = {"N_m": "tau", "rad": "target", "rad_s": "target_v"}.get(unit, "command")
+    return [f"{prefix}_{n}_{unit}" for n in names]
+
+
+class PlantSite:
+    """A site's world position p_WS [m] computed by the *plant's* kinematics from a state's q.
+
+    Uses MuJoCo's ``mj_kinematics`` on a scratch ``MjData`` (never the simulator's), so the
+    measurement does not depend on the Pinocchio model a controller used.
+    """
+
+    def __init__(self, robot: Robot, site: str):
+        self.robot = robot
+        self.m = robot.mj_model
+        self.d = mujoco.MjData(self.m)
+        self.sid = robot.site_id(site)
+
+    def __call__(self, q: np.ndarray) -> np.ndarray:
+        """p_WS (3,) [m] at configuration ``q`` (Pinocchio convention)."""
+        self.d.qpos[:] = self.robot.converter.q_pin_to_mj(q)
+        mujoco.mj_kinematics(self.m, self.d)
+        return self.d.site_xpos[self.sid].copy()
+
+    def many(self, q_log: np.ndarray) -> np.ndarray:
+        """p_WS (N, 3) [m] at each logged configuration (N, nq)."""
+        return np.array([self(q) for q in q_log]).reshape(-1, 3)

@@ -1,0 +1,464 @@
+"""The one job runner: output folder, streamed CSV, report with a status, plots, exit codes.
+
+A job is a frozen parameter dataclass (validated in ``__post_init__``) and a ``prepare``
+function. ``prepare(params)`` loads the robot and checks every name and value; it writes
+nothing, so bad input fails before any work or file (exit 2). It returns the work: a function of
+a :class:`RunContext` that streams rows, saves plots, fills ``ctx.values`` as results become
+known and returns an :class:`Outcome`.
+
+The runner owns the output folder (one run per folder):
+
+- The folder is created and checked writable before ``prepare`` runs; an unusable path is an
+  :class:`OutputError` (exit 2) naming it.
+- A lock file ``.mbctl.lock`` (holding the pid) makes a second concurrent run into the same folder
+  refuse with a message naming the other process; a lock left by a dead process is taken over.
+- The files of an earlier run in the folder (those its ``report.json`` lists, the report itself and
+  temporary files of dead processes) are removed before the new run writes anything, so no file
+  of an earlier run survives beside a new one.
+- ``report.json`` is written when the work starts (status ``running``) and again at the end in
+  every case: ``completed``, ``interrupted`` (Ctrl-C or SIGTERM), ``diverged`` (the plant
+  diverged) or ``failed`` (with the message), with the values known so far, the row count, the
+  outputs and the plant's model and run sections.
+
+Exit codes: 0 completed within bounds; 1 completed outside a bound, diverged or failed; 2 bad
+input, usage or IO; 130 interrupted.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import os
+import signal
+import sys
+import time
+from collections.abc import Callable, Iterator, Sequence
+from dataclasses import asdict, dataclass, field, is_dataclass
+from pathlib import Path
+from types import FrameType
+from typing import Any, Generic, TypeVar
+
+from mbctl.exceptions import ToolkitError
+from mbctl.sim.atomic import FILE_MODE, write_bytes_atomic, write_json_atomic
+from mbctl.sim.exceptions import SimulationDiverged
+from mbctl.sim.recorder import CsvStream
+from mbctl.sim.report import environment, model_section, run_section
+from mbctl.sim.simulator import Simulator
+
+P = TypeVar("P")
+
+EXIT_OK = 0
+EXIT_OUT_OF_BOUND = 1
+EXIT_BAD_INPUT = 2
+EXIT_INTERRUPTED = 130
+
+REPORT_NAME = "report.json"
+LOCK_NAME = ".mbctl.lock"
+
+
+class JobError(ToolkitError):
+    """Base class of the job runner's errors."""
+
+
+class OutputError(JobError):
+    """The output folder cannot be created or written, or another run holds it."""
+
+
+class Interrupted(BaseException):  # noqa: N818 - an interruption, like KeyboardInterrupt
+    """Raised in the main thread when the process receives SIGTERM."""
+
+
+@dataclass(frozen=True)
+class Outcome:
+    """What a job's work returns.
+
+    Attributes:
+        passed: The result is within its bound (robot stood, tracking bound met, check passed).
+        summary: Human-readable lines with units, printed by the CLI.
+        bound: What ``passed`` was judged against, for the report (e.g. "pelvis within 20 mm").
+    """
+
+    passed: bool = True
+    summary: tuple[str, ...] = ()
+    bound: str | None = None
+
+
+@dataclass
+class Progress:
+    """A progress bar over a known amount of work; silent unless enabled (a terminal, not quiet).
+
+    ``advance()`` is cheap enough for a control loop: the bar is redrawn at most every 1 % of the
+    total.
+    """
+
+    enabled: bool = False
+    _bar: Any = None
+    _task: Any = None
+    _done: int = 0
+    _next: int = 0
+    _step: int = 1
+
+    def start(self, total: int, description: str) -> None:
+        """Show a bar of ``total`` units labelled ``description`` (no-op when disabled)."""
+        self.stop()
+        self._done, self._step = 0, max(1, total // 100)
+        self._next = self._step
+        if not self.enabled or total <= 0:
+            return
+        from rich.progress import BarColumn, TimeRemainingColumn
+        from rich.progress import Progress as RichProgress
+
+        self._bar = RichProgress("[progress.description]{task.description}", BarColumn(),
+                                 "{task.completed}/{task.total}", TimeRemainingColumn(),
+                                 transient=True)
+        self._bar.start()
+        self._task = self._bar.add_task(description, total=total)
+
+    def advance(self, n: int = 1) -> None:
+        """Count ``n`` units done."""
+        self._done += n
+        if self._bar is not None and self._done >= self._next:
+            self._bar.update(self._task, completed=self._done)
+            self._next = self._done + self._step
+
+    def set(self, done: int, total: int | None = None) -> None:
+        """Set the count to ``done`` (for callbacks that report absolute progress)."""
+        self.advance(done - self._done)
+
+    def stop(self) -> None:
+        """Remove the bar."""
+        if self._bar is not None:
+            self._bar.stop()
+            self._bar = None
+
+
+@dataclass
+class RunContext:
+    """What a job's work writes through: the folder, the CSV, figures, values, report sections.
+
+    Attributes:
+        output_dir: The run folder.
+        values: The job's results (units in the key names); filled as they become known, so an
+            interrupted run still reports what it had.
+        sections: Extra report sections (inputs, gains, reference …), JSON-serialisable.
+        progress: The progress bar.
+    """
+
+    output_dir: Path
+    job: str
+    values: dict[str, Any] = field(default_factory=dict)
+    sections: dict[str, Any] = field(default_factory=dict)
+    progress: Progress = field(default_factory=Progress)
+    files: dict[str, Path] = field(default_factory=dict)
+    sim: Simulator | None = None
+    csv: CsvStream | None = None
+    _streams: list[CsvStream] = field(default_factory=list)
+
+    def path(self, name: str, role: str | None = None) -> Path:
+        """The path of output ``name`` in the run folder, registered under ``role`` (default name)."""
+        path = self.output_dir / name
+        self.files[role or name] = path
+        return path
+
+    def open_csv(self, header: Sequence[str], name: str | None = None) -> CsvStream:
+        """Open the run's streamed CSV (``<job>.csv`` by default); the runner closes it.
+
+        The first CSV opened is the run's main one: its row count and last ``time_s`` go in the
+        report and the interruption message.
+        """
+        stream = CsvStream(self.path(name or f"{self.job.replace('-', '_')}.csv", "csv" if not
+                                     self._streams else name), header)
+        self._streams.append(stream)
+        if self.csv is None:
+            self.csv = stream
+        return stream
+
+    def attach(self, sim: Simulator) -> Simulator:
+        """Record ``sim``'s model and run sections in the report (read at the end, in every case)."""
+        self.sim = sim
+        return sim
+
+    def save_figure(self, fig: Any, name: str) -> Path:
+        """Save a matplotlib figure as PNG (atomically, 110 dpi) and close it."""
+        path = self.path(name, name if self.files.get("plot") else "plot")
+        write_bytes_atomic(path, lambda f: fig.savefig(f, format="png", dpi=110))
+        from matplotlib import pyplot as plt
+
+        plt.close(fig)
+        return path
+
+    def close_streams(self) -> None:
+        """Close every CSV (idempotent)."""
+        for stream in self._streams:
+            stream.close()
+
+    @property
+    def rows(self) -> int:
+        """Rows in the main CSV so far."""
+        return self.csv.rows if self.csv is not None else 0
+
+    @property
+    def last_time_s(self) -> float | None:
+        """``time_s`` of the main CSV's last row, if it has that column and a row."""
+        if self.csv is None or not self.csv.rows or "time_s" not in self.csv.header:
+            return None
+        return float(self.csv.last[self.csv.header.index("time_s")])
+
+
+Work = Callable[[RunContext], Outcome]
+
+
+@dataclass(frozen=True)
+class Job(Generic[P]):
+    """A job: its command name and how to prepare its work from its parameters.
+
+    Attributes:
+        name: The command name (``g1-stand``); files are named after it, the default folder is
+            ``out/<name>``.
+        prepare: Validates and loads from the parameters (writes nothing) and returns the work.
+    """
+
+    name: str
+    prepare: Callable[[P], Work]
+
+
+@dataclass(frozen=True)
+class RunRecord:
+    """The result of ``run_job``.
+
+    Attributes:
+        status: completed | interrupted | diverged | failed.
+        exit_code: 0, 1 or 130 (see the module docstring).
+        values: The job's values (partial unless completed).
+        files: Written files by role (the report included).
+        rows: Rows in the main CSV.
+        last_time_s: ``time_s`` of the last row, or None.
+        message: The error message for interrupted, diverged or failed runs.
+        outcome: The work's Outcome when it completed.
+    """
+
+    status: str
+    exit_code: int
+    values: dict[str, Any]
+    files: dict[str, Path]
+    rows: int
+    last_time_s: float | None
+    message: str | None
+    outcome: Outcome | None
+
+    @property
+    def report_path(self) -> Path:
+        """The report JSON."""
+        return self.files["report"]
+
+    def summary(self) -> str:
+        """What the CLI prints: the outcome's lines or the status, then the files."""
+        lines = list(self.outcome.summary) if self.outcome else []
+        if self.status == "interrupted":
+            t = f"t={self.last_time_s:.3f} s" if self.last_time_s is not None else "the start"
+            where = self.files.get("csv", self.report_path)
+            lines.append(f"interrupted at {t}; wrote {self.rows} rows to {where}")
+        elif self.status != "completed":
+            lines.append(f"{self.status}: {self.message}")
+            lines.append(f"kept {self.rows} rows; report {self.report_path}")
+        else:
+            lines.append("wrote " + ", ".join(str(p) for p in self.files.values()))
+        return "\n".join(lines)
+
+
+def default_output(job: str) -> Path:
+    """``out/<job>`` (relative to the working directory)."""
+    return Path("out") / job
+
+
+def check_output_dir(path: Path) -> Path:
+    """Create ``path`` and prove it writable; OutputError naming it otherwise (nothing else written)."""
+    path = Path(path)
+    try:
+        if path.exists() and not path.is_dir():
+            raise OutputError(f"output {path} exists and is not a directory; choose a folder")
+        path.mkdir(parents=True, exist_ok=True)
+        probe = path / f".mbctl-write-test.{os.getpid()}"
+        probe.write_text("")
+        probe.unlink()
+    except OutputError:
+        raise
+    except OSError as exc:
+        reason = exc.strerror or type(exc).__name__
+        raise OutputError(f"cannot write to output folder {path}: {reason}; choose another "
+                          "--output") from None
+    return path
+
+
+def check_output_file(path: Path) -> Path:
+    """Check that file ``path`` can be created (its folder made and writable) before any work."""
+    check_output_dir(Path(path).parent)
+    if Path(path).is_dir():
+        raise OutputError(f"{path} is a directory; give a file name")
+    return Path(path)
+
+
+def _pid_alive(pid: int) -> bool:
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except PermissionError:
+        return True
+    return True
+
+
+@contextlib.contextmanager
+def folder_lock(path: Path) -> Iterator[None]:
+    """Hold ``path/.mbctl.lock`` for the block; OutputError if a live process holds it."""
+    lock = path / LOCK_NAME
+    for _ in range(2):
+        try:
+            fd = os.open(lock, os.O_CREAT | os.O_EXCL | os.O_WRONLY, FILE_MODE)
+        except FileExistsError:
+            try:
+                pid = int(lock.read_text().strip() or "0")
+            except (OSError, ValueError):
+                pid = 0
+            if pid and pid != os.getpid() and _pid_alive(pid):
+                raise OutputError(
+                    f"another mbctl run (pid {pid}) is writing to {path}; wait for it or choose "
+                    "another --output"
+                ) from None
+            lock.unlink(missing_ok=True)  # left by a process that is gone
+            continue
+        with os.fdopen(fd, "w") as f:
+            f.write(str(os.getpid()))
+        break
+    try:
+        yield
+    finally:
+        lock.unlink(missing_ok=True)
+
+
+def _clear_previous_run(path: Path) -> None:
+    """Remove the previous run's outputs (from its report), the report and dead temp files."""
+    import json
+
+    report = path / REPORT_NAME
+    if report.exists():
+        try:
+            listed = json.loads(report.read_text()).get("outputs", {})
+        except (OSError, ValueError):
+            listed = {}
+        for name in listed.values() if isinstance(listed, dict) else ():
+            target = path / Path(str(name)).name  # only files inside this folder
+            if target.is_file():
+                target.unlink()
+        report.unlink()
+    for tmp in path.glob(".*.tmp"):
+        tmp.unlink(missing_ok=True)  # under the lock, every temp file is a dead process's
+
+
+@contextlib.contextmanager
+def _sigterm_as_interrupt() -> Iterator[None]:
+    """Turn SIGTERM into :class:`Interrupted` for the block (main thread only)."""
+    import threading
+
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+
+    def handler(signum: int, frame: FrameType | None) -> None:
+        raise Interrupted(f"signal {signum}")
+
+    previous = signal.signal(signal.SIGTERM, handler)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGTERM, previous)
+
+
+def _jsonable(x: Any) -> Any:
+    if is_dataclass(x) and not isinstance(x, type):
+        return {k: _jsonable(v) for k, v in asdict(x).items()}
+    if isinstance(x, Path):
+        return str(x)
+    if isinstance(x, dict):
+        return {str(k): _jsonable(v) for k, v in x.items()}
+    if isinstance(x, (list, tuple)):
+        return [_jsonable(v) for v in x]
+    return x
+
+
+def _report(ctx: RunContext, params: Any, status: str, message: str | None, outcome: Outcome | None,
+            wall_s: float) -> dict[str, Any]:
+    report: dict[str, Any] = {
+        "job": ctx.job,
+        "status": status,
+        "message": message,
+        "pid": os.getpid(),
+        "command": sys.argv,
+        "parameters": _jsonable(params),
+        "environment": environment(),
+    }
+    if ctx.sim is not None:
+        report["model"] = model_section(ctx.sim)
+        report["run"] = run_section(ctx.sim)
+    report["rows"] = ctx.rows
+    report["last_time_s"] = ctx.last_time_s
+    report["wall_time_s"] = wall_s
+    if outcome is not None:
+        report["passed"] = outcome.passed
+        report["bound"] = outcome.bound
+    report["values"] = _jsonable(ctx.values)
+    report.update(_jsonable(ctx.sections))
+    report["outputs"] = {role: p.name for role, p in ctx.files.items() if role != "report"}
+    return report
+
+
+def run_job(job: Job[P], params: P, output_dir: Path | None = None, *, quiet: bool = True) -> RunRecord:
+    """Run ``job`` with ``params`` into ``output_dir`` (default ``out/<job>``).
+
+    Args:
+        job: The job.
+        params: Its parameters (a frozen dataclass, validated on construction).
+        output_dir: The run folder.
+        quiet: No progress bar (the bar also needs stdout to be a terminal).
+
+    Returns:
+        The RunRecord (status, exit code, values, files).
+
+    Raises:
+        OutputError: The folder is not usable or another run holds it (nothing written).
+        ToolkitError: ``prepare`` found bad input (nothing written).
+        BaseException: A programming error in the work is re-raised after the report is written
+            (status ``failed``).
+    """
+    folder = check_output_dir(Path(output_dir) if output_dir is not None else default_output(job.name))
+    work = job.prepare(params)
+    progress = Progress(enabled=not quiet and sys.stdout.isatty())
+    ctx = RunContext(folder, job.name, progress=progress)
+    report_path = folder / REPORT_NAME
+    with folder_lock(folder):
+        _clear_previous_run(folder)
+        write_json_atomic(report_path, _report(ctx, params, "running", None, None, 0.0))
+        wall0 = time.perf_counter()
+        status, message, outcome, code = "failed", None, None, EXIT_OUT_OF_BOUND
+        bug: BaseException | None = None
+        try:
+            with _sigterm_as_interrupt():
+                outcome = work(ctx)
+            status = "completed"
+            code = EXIT_OK if outcome.passed else EXIT_OUT_OF_BOUND
+        except (KeyboardInterrupt, Interrupted):
+            status, message, code = "interrupted", "interrupted by the user (Ctrl-C or SIGTERM)", 130
+        except SimulationDiverged as exc:
+            status, message = "diverged", str(exc)
+        except ToolkitError as exc:
+            status, message = "failed", str(exc)
+        except BaseException as exc:  # a bug: report it, then let the traceback show
+            status, message, bug = "failed", f"{type(exc).__name__}: {exc}", exc
+        finally:
+            progress.stop()
+            ctx.close_streams()
+            ctx.files["report"] = write_json_atomic(
+                report_path, _report(ctx, params, status, message, outcome, time.perf_counter() - wall0))
+    if bug is not None:
+        raise bug
+    return RunRecord(status, code, ctx.values, dict(ctx.files), ctx.rows, ctx.last_time_s, message,
+                     outcome)

@@ -1,0 +1,89 @@
+"""The 2-link square demo job: tracking on the plant, outputs through the runner."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+
+from mbctl.control.exceptions import ControllerSetupError
+from mbctl.jobs.demo import DEMO, DemoConfig, scale_masses, square_reference, track_square
+from mbctl.jobs.runner import run_job
+from mbctl.sim.recorder import read_csv
+
+
+@pytest.fixture(scope="module")
+def square(two_link_torque_gravity):
+    return square_reference(two_link_torque_gravity, DemoConfig(), two_link_torque_gravity.timestep_s)
+
+
+def test_ct_square_is_sub_millimetre_with_gravity(two_link_torque_gravity, square):
+    result, _ = track_square(two_link_torque_gravity, square, DemoConfig(controller="ct"))
+    assert result.rms_error_m < 1e-3
+    assert result.max_error_m < 1e-3
+    assert result.saturated_cycles == 0
+
+
+def test_pd_gravity_beats_pd_and_ct_beats_both(two_link_torque_gravity, square):
+    rms = {
+        name: track_square(two_link_torque_gravity, square, DemoConfig(controller=name))[0].rms_error_m
+        for name in ("pd", "pd_gravity", "ct", "task_ct")
+    }
+    assert rms["pd_gravity"] < 0.5 * rms["pd"]
+    assert rms["ct"] < 0.2 * rms["pd_gravity"]
+    assert rms["task_ct"] < 1e-3
+
+
+def test_model_error_degrades_computed_torque(two_link_torque_gravity, square):
+    exact, _ = track_square(two_link_torque_gravity, square, DemoConfig())
+    wrong, _ = track_square(two_link_torque_gravity, square, DemoConfig(model_error_pct=30.0))
+    assert wrong.rms_error_m > 3.0 * exact.rms_error_m
+    assert wrong.model_error_pct == 30.0
+    scaled = scale_masses(two_link_torque_gravity.pin_model, 1.3)
+    assert scaled.inertias[1].mass == pytest.approx(1.3 * two_link_torque_gravity.pin_model.inertias[1].mass)
+    assert two_link_torque_gravity.pin_model.inertias[1].mass == pytest.approx(1.0)  # original untouched
+
+
+def test_demo_writes_outputs(tmp_path):
+    record = run_job(DEMO, DemoConfig(duration_s=0.3, model_error_pct=10.0), tmp_path)
+    assert record.status == "completed" and record.exit_code == 0
+    for role in ("csv", "plot", "report"):
+        assert record.files[role].is_file()
+    report = json.loads(record.files["report"].read_text())
+    assert report["job"] == "demo" and report["status"] == "completed"
+    # 0.3 s at 500 Hz: 150 cycles, every one a row; the RMS is that of those rows
+    assert report["rows"] == 150
+    table = read_csv(record.files["csv"])
+    assert table["time_s"].size == 150
+    rms = float(np.sqrt(np.mean(table["error_m"] ** 2)))
+    assert report["values"]["rms_error_m"] == pytest.approx(rms, rel=1e-12)
+    assert 1e-6 < rms < 5e-3  # 10 % mass error: small but not exact
+    assert report["exact_model"]["model_error_pct"] == 0.0
+    assert report["exact_model"]["rms_error_m"] < report["values"]["rms_error_m"]
+    assert {"time_s", "p_ref_x_m", "p_x_m", "error_m", "tau_shoulder_N_m"} <= set(table)
+    with pytest.raises(ControllerSetupError, match="choose one of"):
+        DemoConfig(controller="lqr")
+
+
+def test_demo_cli(tmp_path):
+    out = subprocess.run(
+        [sys.executable, "-m", "mbctl.cli", "demo", "--duration", "0.2", "--compare",
+         "--output", str(tmp_path)],
+        capture_output=True, text=True, check=True,
+    ).stdout
+    assert "Cartesian RMS error" in out and "PD + gravity" in out and "computed torque" in out
+    assert (tmp_path / "demo.png").is_file()
+
+
+def test_demo_bound_exits_1(tmp_path):
+    out = subprocess.run(
+        [sys.executable, "-m", "mbctl.cli", "demo", "--duration", "0.2", "--controller", "pd",
+         "--max-rms-mm", "0.001", "--output", str(tmp_path), "--quiet"],
+        capture_output=True, text=True,
+    )
+    assert out.returncode == 1, out.stderr
+    report = json.loads((tmp_path / "report.json").read_text())
+    assert report["status"] == "completed" and report["passed"] is False
