@@ -28,7 +28,7 @@ def demo(
         bool, typer.Option("--gravity/--no-gravity", help="In-plane gravity (-y) on or off.")
     ] = True,
     max_rms_mm: Annotated[
-        float | None, typer.Option("--max-rms-mm", help="Exit 1 if the Cartesian RMS error exceeds this (mm).")
+        float | None, typer.Option("--max-rms-mm", help="Exit 1 above this Cartesian RMS error (mm).")
     ] = None,
     output: OutputOpt = None,
     quiet: QuietOpt = False,

@@ -2,24 +2,25 @@
 
 from __future__ import annotations
 
-from pathlib import Path
 from typing import Annotated
 
 import typer
 
-from mbctl.jobs.joint_step import joint_step as run_joint_step
-from mbctl.jobs.verify import verify_two_link
-from mbctl.robots import load_robot
+from mbctl.cli._run import OutputOpt, QuietOpt, execute
+from mbctl.jobs.joint_step import JOINT_STEP, JointStepParams
+from mbctl.jobs.verify import SUPPORTED, verify_robot
+
+ModelDirOpt = Annotated[
+    str | None,
+    typer.Option("--model-dir", help="Explicit Menagerie model directory (e.g. .../unitree_g1)."),
+]
 
 
 def verify(
-    robot: Annotated[str, typer.Argument(help="two_link")] = "two_link",
+    robot: Annotated[str, typer.Argument(help=f"Robot to check: {' or '.join(SUPPORTED)}.")] = "two_link",
 ) -> None:
-    """Run the 2-link setup checks; exit 1 if any fails."""
-    if robot != "two_link":
-        typer.echo(f"error: verify runs the 2-link setup checks; got {robot!r} (use two_link)", err=True)
-        raise typer.Exit(2)
-    checks = verify_two_link(load_robot(robot))
+    """Run the 2-link arm's setup checks (two_link or two_link_torque); exit 1 if any fails."""
+    checks = verify_robot(robot)
     for c in checks:
         typer.echo(f"[{'PASS' if c.passed else 'FAIL'}] {c.name}: {c.detail}")
     failed = [c for c in checks if not c.passed]
@@ -31,19 +32,18 @@ def verify(
 def joint_step(
     robot: Annotated[str, typer.Argument(help="Known robot name or MJCF path.")],
     joint: Annotated[str, typer.Option(help="Joint whose position target is raised.")],
-    delta: Annotated[float, typer.Option(help="Target increase [rad].")],
+    delta: Annotated[float, typer.Option(help="Target increase (rad, or m for a slide joint).")],
     steps: Annotated[int, typer.Option(help="Physics steps to take.")] = 250,
     keyframe: Annotated[str | None, typer.Option(help="Keyframe to reset to (e.g. stand).")] = None,
-    output: Annotated[Path, typer.Option(help="Output directory for CSV and JSON.")] = Path("out"),
     sensor: Annotated[list[str] | None, typer.Option(help="Sensor to record (repeatable).")] = None,
     scene: Annotated[str | None, typer.Option(help="Scene MJCF when ROBOT is a path.")] = None,
+    model_dir: ModelDirOpt = None,
+    output: OutputOpt = None,
+    quiet: QuietOpt = False,
 ) -> None:
     """Reset, raise one joint's position target by DELTA, step N times, record, summarize."""
-    result = run_joint_step(
-        load_robot(robot, scene), joint, delta, steps, output, keyframe=keyframe,
-        sensors=tuple(sensor or ()),
-    )
-    typer.echo(result.summary())
+    params = JointStepParams(robot, joint, delta, steps, keyframe, tuple(sensor or ()), scene, model_dir)
+    execute(JOINT_STEP, params, output, quiet)
 
 
 def register(app: typer.Typer) -> None:

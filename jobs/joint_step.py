@@ -2,16 +2,15 @@
 
 from __future__ import annotations
 
-import os
 from dataclasses import dataclass
-from pathlib import Path
 
 import numpy as np
 
+from mbctl.jobs.runner import Job, Outcome, RunContext, Work
 from mbctl.robots.commands import position_target
 from mbctl.robots.exceptions import CommandError
 from mbctl.robots.model_pair import Robot
-from mbctl.sim.atomic import write_json_atomic
+from mbctl.robots.registry import load_robot
 from mbctl.sim.recorder import (
     Recorder,
     base_z_column,
@@ -20,80 +19,52 @@ from mbctl.sim.recorder import (
     target_columns,
     time_column,
 )
-from mbctl.sim.report import execution_report
 from mbctl.sim.simulator import Simulator
 
 
 @dataclass(frozen=True)
-class JointStepResult:
-    """Outcome of a joint step.
+class JointStepParams:
+    """What ``mbctl joint-step`` runs.
 
     Attributes:
-        joint: Joint name.
-        before_rad: Joint angle before the step [rad].
-        target_rad: Commanded target [rad].
-        final_rad: Joint angle after the last step [rad].
-        base_z_before_m: Base height at the start [m] (NaN for a fixed base).
-        base_z_final_m: Base height at the end [m] (NaN for a fixed base).
-        steps: Physics steps taken.
-        simulated_time_s: Simulated time [s].
-        warnings: MuJoCo warning counters.
-        csv_path: Recording.
-        report_path: JSON report.
+        robot: Known robot name or MJCF robot file.
+        joint: Joint whose position target is raised.
+        delta_rad: Target increase [rad] (or [m] for a slide joint).
+        steps: Physics steps to take (>= 1).
+        keyframe: Keyframe to reset to, or None (hold the current joint angles).
+        sensors: Sensors to record, every channel.
+        scene: Scene MJCF for MuJoCo when ``robot`` is a path.
+        model_dir: Explicit Menagerie model directory for a known robot (the G1).
     """
 
+    robot: str
     joint: str
-    before_rad: float
-    target_rad: float
-    final_rad: float
-    base_z_before_m: float
-    base_z_final_m: float
-    steps: int
-    simulated_time_s: float
-    warnings: dict[str, int]
-    csv_path: Path
-    report_path: Path
+    delta_rad: float
+    steps: int = 250
+    keyframe: str | None = None
+    sensors: tuple[str, ...] = ()
+    scene: str | None = None
+    model_dir: str | None = None
 
-    def summary(self) -> str:
-        """A human-readable summary with units."""
-        lines = [
-            f"joint {self.joint}: before {self.before_rad:+.5f} rad, target {self.target_rad:+.5f} rad, "
-            f"final {self.final_rad:+.5f} rad (error {self.final_rad - self.target_rad:+.2e} rad)",
-            f"steps {self.steps}, simulated time {self.simulated_time_s:.3f} s",
-        ]
-        if np.isfinite(self.base_z_final_m):
-            lines.append(
-                f"base height: before {self.base_z_before_m:.4f} m, final {self.base_z_final_m:.4f} m"
-            )
-        lines.append(f"MuJoCo warnings: {self.warnings or 'none'}")
-        lines.append(f"wrote {self.csv_path} and {self.report_path}")
-        return "\n".join(lines)
+    def __post_init__(self) -> None:
+        if self.steps < 1:
+            raise CommandError(f"steps must be >= 1; got {self.steps}")
+        if not np.isfinite(self.delta_rad):
+            raise CommandError(f"delta must be finite; got {self.delta_rad}")
 
 
-def joint_step(
-    robot: Robot,
-    joint: str,
-    delta_rad: float,
-    steps: int,
-    output_dir: str | os.PathLike,
-    *,
-    keyframe: str | None = None,
-    sensors: tuple[str, ...] = (),
-) -> JointStepResult:
-    """Reset (to ``keyframe``), raise ``joint``'s position target by ``delta_rad``, step, record.
+def prepare(params: JointStepParams, robot: Robot | None = None) -> Work:
+    """Load and check every name (joint, its position actuator, keyframe, sensors); no output yet.
 
     Other position actuators hold the keyframe's ctrl (or, without a keyframe, the current joint
-    angles). Every step is one CSV row; the JSON report carries before/target/final values.
+    angles). Every step is one CSV row; the report carries before/target/final values.
 
     Raises:
         UnknownNameError: Unknown joint, keyframe or sensor.
-        CommandError: The joint has no position actuator, or a non-position actuator exists
-            among those the full target vector would drive.
+        CommandError: The joint has no position actuator.
     """
-    if steps < 1:
-        raise CommandError(f"steps must be >= 1; got {steps}")
-    if not np.isfinite(delta_rad):
-        raise CommandError(f"delta must be finite; got {delta_rad}")
+    robot = robot or load_robot(params.robot, params.scene, model_dir=params.model_dir)
+    joint, keyframe, sensors = params.joint, params.keyframe, params.sensors
     info = robot.actuator_for_joint(joint)
     if info.kind != "position":
         raise CommandError(
@@ -102,43 +73,56 @@ def joint_step(
         )
     for name in sensors:
         robot.sensor(name)
-    sim = Simulator(robot)
-    sim.reset(keyframe)
-    q0 = sim.q
-    position_actuators = [a for a in robot.actuators.values() if a.kind == "position"]
     if keyframe is not None:
-        base_targets = {a.name: float(robot.keyframe_ctrl(keyframe)[a.index]) for a in position_actuators}
-    else:
-        base_targets = {a.name: float(q0[robot.joint(a.joint).idx_q]) for a in position_actuators}
-    targets = dict(base_targets)
-    targets[info.name] += delta_rad
-    command = position_target(targets)
-    idx_q = robot.joint(joint).idx_q
-    before = float(q0[idx_q])
-    z0 = sim.base_z_m
-    out = Path(output_dir)
-    columns = [time_column(), *joint_columns(sim, [joint]), *target_columns(sim, [info.name])]
-    if robot.has_floating_base:
-        columns.append(base_z_column())
-    columns += sensor_columns(sim, sensors)
-    with Recorder(out / "joint_step.csv", columns) as rec:
+        robot.keyframe_q(keyframe)
+
+    def work(ctx: RunContext) -> Outcome:
+        sim = ctx.attach(Simulator(robot))
+        sim.reset(keyframe)
+        q0 = sim.q
+        position_actuators = [a for a in robot.actuators.values() if a.kind == "position"]
+        if keyframe is not None:
+            ctrl = robot.keyframe_ctrl(keyframe)
+            base_targets = {a.name: float(ctrl[a.index]) for a in position_actuators}
+        else:
+            base_targets = {a.name: float(q0[robot.joint(a.joint).idx_q]) for a in position_actuators}
+        targets = dict(base_targets)
+        targets[info.name] += params.delta_rad
+        command = position_target(targets)
+        idx_q = robot.joint(joint).idx_q
+        before = float(q0[idx_q])
+        z0 = sim.base_z_m
+        ctx.values.update({"joint": joint, "actuator": info.name, "before_rad": before,
+                           "target_rad": targets[info.name], "base_z_before_m": z0})
+        columns = [time_column(), *joint_columns(sim, [joint]), *target_columns(sim, [info.name])]
+        if robot.has_floating_base:
+            columns.append(base_z_column())
+        columns += sensor_columns(sim, sensors)
+        rec = Recorder(ctx.open_csv([c.name for c in columns]), columns)
+        ctx.progress.start(params.steps, f"joint-step {joint}")
         sim.send(command)
         rec.record(sim)
-        for _ in range(steps):
+        for _ in range(params.steps):
             sim.step()
             rec.record(sim)
-    sim.forward()
-    final = float(sim.q[idx_q])
-    report = execution_report(
-        sim,
-        "joint-step",
-        inputs={"joint": joint, "actuator": info.name, "delta_rad": delta_rad, "steps": steps,
-                "keyframe": keyframe, "sensors": list(sensors)},
-        values={"before_rad": before, "target_rad": targets[info.name], "final_rad": final,
-                "error_rad": final - targets[info.name], "base_z_before_m": z0,
-                "base_z_final_m": sim.base_z_m},
-        outputs={"csv": str(rec.path), "csv_rows": rec.rows},
-    )
-    report_path = write_json_atomic(out / "joint_step_report.json", report)
-    return JointStepResult(joint, before, targets[info.name], final, z0, sim.base_z_m, sim.n_steps,
-                           sim.time_s, sim.warnings, rec.path, report_path)
+            ctx.progress.advance()
+        sim.forward()
+        final = float(sim.q[idx_q])
+        error = final - targets[info.name]
+        ctx.values.update({"final_rad": final, "error_rad": error, "base_z_final_m": sim.base_z_m,
+                           "steps": sim.n_steps, "simulated_time_s": sim.time_s})
+        lines = [
+            f"joint {joint}: before {before:+.5f} rad, target {targets[info.name]:+.5f} rad, "
+            f"final {final:+.5f} rad (error {error:+.2e} rad)",
+            f"steps {sim.n_steps}, simulated time {sim.time_s:.3f} s",
+        ]
+        if robot.has_floating_base:
+            lines.append(f"base height: before {z0:.4f} m, final {sim.base_z_m:.4f} m")
+        lines.append(f"MuJoCo warnings: {sim.warnings or 'none'}")
+        return Outcome(True, tuple(lines))
+
+    return work
+
+
+#: The ``mbctl joint-step`` job.
+JOINT_STEP = Job("joint-step", prepare)

@@ -6,9 +6,14 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from mbctl.robots.commands import position_target
+from mbctl.robots.commands import position_target, torque
+from mbctl.robots.exceptions import RobotError
 from mbctl.robots.model_pair import Robot
+from mbctl.robots.registry import load_robot
 from mbctl.sim.simulator import Simulator
+
+#: The robots these checks are written for (the 2-link arm, either actuation).
+SUPPORTED = ("two_link", "two_link_torque")
 
 #: A joint angle change [rad] below this counts as "no measurable motion".
 MIN_MOTION_RAD = 1e-3
@@ -33,7 +38,9 @@ def verify_two_link(robot: Robot) -> list[Check]:
     checks = []
     q0 = sim.q
     checks.append(Check("q has 2 elements", q0.shape == (2,), f"q shape {q0.shape}"))
-    sim.step(position_target([5.0, -3.0]), 100)
+    kinds = {a.kind for a in robot.actuators.values()}
+    command = torque if kinds == {"torque"} else position_target
+    sim.step(command([5.0, -3.0]), 100)
     t = sim.time_s
     checks.append(Check("100 steps give 0.2 s", abs(t - 0.2) < 1e-9, f"time {t:.12g} s"))
     dq = sim.q - q0
@@ -52,3 +59,17 @@ def verify_two_link(robot: Robot) -> list[Check]:
     checks.append(Check("end-effector position readable", ok, detail))
     checks.append(Check("no MuJoCo warnings", not sim.warnings, f"warnings {sim.warnings or 'none'}"))
     return checks
+
+
+def verify_robot(name: str) -> list[Check]:
+    """Load robot ``name`` and run its setup checks.
+
+    Raises:
+        RobotError: ``name`` is not one of ``SUPPORTED`` (the checks are the 2-link arm's).
+    """
+    if name not in SUPPORTED:
+        raise RobotError(
+            f"verify runs the 2-link arm's setup checks; {name!r} is not supported (choose "
+            f"{' or '.join(SUPPORTED)}; for any robot, `mbctl xcheck ROBOT` checks its model)"
+        )
+    return verify_two_link(load_robot(name))

@@ -145,14 +145,20 @@ class Recorder:
     """Streams one CSV row per ``record()`` call, read from the simulator by ``columns``.
 
     Args:
-        path: CSV file to create.
+        path: CSV file to create, or an open CsvStream whose header is the columns' names.
         columns: The columns, in order.
+
+    Raises:
+        ValueError: An open stream's header does not match the columns.
     """
 
-    def __init__(self, path: str | os.PathLike, columns: Sequence[Column]):
+    def __init__(self, path: str | os.PathLike | CsvStream, columns: Sequence[Column]):
         self.columns = list(columns)
         self._reads = [c.read for c in self.columns]
-        self.stream = CsvStream(path, [c.name for c in self.columns])
+        names = tuple(c.name for c in self.columns)
+        self.stream = path if isinstance(path, CsvStream) else CsvStream(path, names)
+        if self.stream.header != names:
+            raise ValueError(f"the stream's header {self.stream.header} is not the columns' {names}")
 
     @property
     def path(self) -> Path:

@@ -50,8 +50,8 @@ def test_joint_step_cli_g1(g1, tmp_path):
                 "--keyframe", "stand", "--output", str(tmp_path))
     assert out.returncode == 0, out.stderr
     assert "target +1.38000 rad" in out.stdout
-    report = json.loads((tmp_path / "joint_step_report.json").read_text())
-    assert report["run"]["steps"] == 250
+    report = json.loads((tmp_path / "report.json").read_text())
+    assert report["run"]["steps"] == 250 and report["status"] == "completed"
 
 
 @pytest.mark.parametrize(
