@@ -8,8 +8,8 @@ from __future__ import annotations
 import json
 import os
 import tempfile
-from pathlib import Path
 from collections.abc import Callable
+from pathlib import Path
 from typing import IO, Any
 
 #: Mode of every published file (mkstemp creates 0600): owner rw, group and others read.
