@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import sys
+from typing import Annotated
 
 import typer
 
@@ -10,7 +11,11 @@ from mbctl.exceptions import ToolkitError
 
 app = typer.Typer(
     name="mbctl",
-    help="Model-based robot control: Pinocchio models, MuJoCo plants, cross-checked.",
+    help=(
+        "Model-based robot control: Pinocchio models, MuJoCo plants, cross-checked.\n\n"
+        "Exit codes: 0 success; 1 a result outside its bound (xcheck FAIL, IK not converged, robot "
+        "fell, tracking bound missed, simulation diverged); 2 bad input, usage or IO; 130 interrupted."
+    ),
     no_args_is_help=True,
     add_completion=False,
     pretty_exceptions_enable=False,
@@ -24,6 +29,23 @@ def _register_commands() -> None:
 
     for family in (robots, sim, demo, g1, xcheck, ik):
         family.register(app)
+
+
+def _version(value: bool) -> None:
+    if value:
+        from importlib.metadata import version
+
+        typer.echo(f"mbctl {version('mbctl')}")
+        raise typer.Exit()
+
+
+@app.callback()
+def _root(
+    version: Annotated[
+        bool, typer.Option("--version", callback=_version, is_eager=True, help="Print the version and exit.")
+    ] = False,
+) -> None:
+    """Options that apply before any command (the help text is the app's)."""
 
 
 def fail(message: str, code: int = 2) -> typer.Exit:

@@ -10,6 +10,10 @@ import typer
 
 from mbctl.robots import KNOWN_ROBOTS, Robot, load_robot
 
+ModelDirOpt = Annotated[
+    str | None,
+    typer.Option("--model-dir", help="Explicit Menagerie model directory (e.g. .../unitree_g1)."),
+]
 RobotArg = Annotated[str, typer.Argument(help="Known robot name (see `mbctl robots`) or MJCF path.")]
 SceneOpt = Annotated[
     str | None, typer.Option("--scene", help="Scene MJCF for MuJoCo, when ROBOT is a path.")
@@ -42,8 +46,8 @@ def describe(robot: Robot) -> str:
         f"{'nq':18s}{pm.nq:12d}{m.nq:12d}",
         f"{'nv':18s}{pm.nv:12d}{m.nv:12d}",
         f"{'nu (actuators)':18s}{'-':>12s}{m.nu:12d}",
-        f"{'total mass [kg]':18s}{sum(i.mass for i in pm.inertias):12.4f}{np.sum(m.body_mass):12.4f}",
-        f"{'timestep [s]':18s}{'-':>12s}{m.opt.timestep:12g}",
+        f"{'total mass (kg)':18s}{sum(i.mass for i in pm.inertias):12.4f}{np.sum(m.body_mass):12.4f}",
+        f"{'timestep (s)':18s}{'-':>12s}{m.opt.timestep:12g}",
         f"{'integrator':18s}{'-':>12s}{mujoco.mjtIntegrator(m.opt.integrator).name[6:]:>12s}",
         "joints (name, type, q slice, v slice, Pinocchio joint type, armature):",
     ]
@@ -72,9 +76,9 @@ def describe(robot: Robot) -> str:
     return "\n".join(lines)
 
 
-def inspect(robot: RobotArg, scene: SceneOpt = None) -> None:
+def inspect(robot: RobotArg, scene: SceneOpt = None, model_dir: ModelDirOpt = None) -> None:
     """Show nq, nv, nu, joints, actuators, sensors and keyframes in both engines."""
-    typer.echo(describe(load_robot(robot, scene)))
+    typer.echo(describe(load_robot(robot, scene, model_dir=model_dir)))
 
 
 def register(app: typer.Typer) -> None:

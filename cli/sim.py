@@ -7,13 +7,9 @@ from typing import Annotated
 import typer
 
 from mbctl.cli._run import OutputOpt, QuietOpt, execute
+from mbctl.cli.robots import ModelDirOpt
 from mbctl.jobs.joint_step import JOINT_STEP, JointStepParams
 from mbctl.jobs.verify import SUPPORTED, verify_robot
-
-ModelDirOpt = Annotated[
-    str | None,
-    typer.Option("--model-dir", help="Explicit Menagerie model directory (e.g. .../unitree_g1)."),
-]
 
 
 def verify(

@@ -252,17 +252,15 @@ class RunRecord:
 
     def summary(self) -> str:
         """What the CLI prints: the outcome's lines or the status, then the files."""
-        lines = list(self.outcome.summary) if self.outcome else []
         if self.status == "interrupted":
             t = f"t={self.last_time_s:.3f} s" if self.last_time_s is not None else "the start"
             where = self.files.get("csv", self.report_path)
-            lines.append(f"interrupted at {t}; wrote {self.rows} rows to {where}")
-        elif self.status != "completed":
-            lines.append(f"{self.status}: {self.message}")
-            lines.append(f"kept {self.rows} rows; report {self.report_path}")
-        else:
-            lines.append("wrote " + ", ".join(str(p) for p in self.files.values()))
-        return "\n".join(lines)
+            return f"interrupted at {t}; wrote {self.rows} rows to {where}"
+        if self.status != "completed":
+            return f"{self.status}: {self.message}\nkept {self.rows} rows; report {self.report_path}"
+        # the files first, the results (and the verdict) last, where a reader looks
+        lines = ["wrote " + ", ".join(str(p) for p in self.files.values())]
+        return "\n".join(lines + list(self.outcome.summary if self.outcome else ()))
 
 
 def default_output(job: str) -> Path:
@@ -373,6 +371,22 @@ def _sigterm_as_interrupt() -> Iterator[None]:
         signal.signal(signal.SIGTERM, previous)
 
 
+@contextlib.contextmanager
+def _signals_held() -> Iterator[None]:
+    """Ignore SIGINT and SIGTERM for the block (main thread only): the final writes complete."""
+    import threading
+
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    previous = {sig: signal.signal(sig, signal.SIG_IGN) for sig in (signal.SIGINT, signal.SIGTERM)}
+    try:
+        yield
+    finally:
+        for sig, handler in previous.items():
+            signal.signal(sig, handler)
+
+
 def _jsonable(x: Any) -> Any:
     if is_dataclass(x) and not isinstance(x, type):
         return {k: _jsonable(v) for k, v in asdict(x).items()}
@@ -454,10 +468,11 @@ def run_job(job: Job[P], params: P, output_dir: Path | None = None, *, quiet: bo
         except BaseException as exc:  # a bug: report it, then let the traceback show
             status, message, bug = "failed", f"{type(exc).__name__}: {exc}", exc
         finally:
-            progress.stop()
-            ctx.close_streams()
-            ctx.files["report"] = write_json_atomic(
-                report_path, _report(ctx, params, status, message, outcome, time.perf_counter() - wall0))
+            with _signals_held():  # a second Ctrl-C must not cut the report short
+                progress.stop()
+                ctx.close_streams()
+                ctx.files["report"] = write_json_atomic(
+                    report_path, _report(ctx, params, status, message, outcome, time.perf_counter() - wall0))
     if bug is not None:
         raise bug
     return RunRecord(status, code, ctx.values, dict(ctx.files), ctx.rows, ctx.last_time_s, message,

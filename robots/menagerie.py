@@ -46,7 +46,10 @@ def resolve_menagerie_dir(name: str, path: str | os.PathLike | None = None) -> P
     if path is not None:
         directory = Path(path).expanduser().resolve()
         if not directory.is_dir():
-            raise ModelNotFoundError(f"Model directory {str(directory)!r} does not exist.")
+            raise ModelNotFoundError(
+                f"Model directory {str(directory)!r} does not exist; give the folder that holds "
+                f"the model's XML files (e.g. /path/to/mujoco_menagerie/{name})."
+            )
     elif os.environ.get(MENAGERIE_ENV):
         root = Path(os.environ[MENAGERIE_ENV]).expanduser().resolve()
         directory = root / name
@@ -61,24 +64,42 @@ def resolve_menagerie_dir(name: str, path: str | os.PathLike | None = None) -> P
     return directory
 
 
+def how_to_provide(name: str) -> str:
+    """The forms that give a Menagerie model without a download (for error messages)."""
+    return (
+        f"set {MENAGERIE_ENV} to a folder that contains {name}/ (export {MENAGERIE_ENV}=/path/to/"
+        f"mujoco_menagerie), or pass the model directory explicitly (`--model-dir /path/to/{name}` "
+        f"on the command line, `load_robot(..., model_dir=\"/path/to/{name}\")` in Python)"
+    )
+
+
 def _from_package(name: str) -> Path:
+    """The model from the mujoco-menagerie package: its cache first, a download only if absent."""
+    import sys
+
     try:
         import mujoco_menagerie
-    except ImportError as exc:  # pragma: no cover - it is a hard dependency
+    except ImportError:  # pragma: no cover - it is a hard dependency
         raise ModelNotFoundError(
-            f"mujoco-menagerie is not installed; `pip install mujoco-menagerie` or set "
-            f"{MENAGERIE_ENV} to a folder containing {name}/."
-        ) from exc
+            f"mujoco-menagerie is not installed and {MENAGERIE_ENV} is unset; "
+            f"`pip install mujoco-menagerie` or {how_to_provide(name)}."
+        ) from None
     try:
-        return Path(mujoco_menagerie.get(name).path(progress=None))
+        entry = mujoco_menagerie.get(name)
+        cache = mujoco_menagerie.Cache()
+        if not cache.is_cached(entry):
+            size_mb = entry.download_size / 1e6 if entry.download_size else float("nan")
+            print(f"mbctl: {name} is not cached; downloading {size_mb:.0f} MB "
+                  f"(to skip: {how_to_provide(name)})", file=sys.stderr)
+        return Path(entry.path(cache, progress=None))
     except mujoco_menagerie.ChecksumError as exc:
-        raise ModelFileError(f"Downloaded archive for {name!r} failed its hash check: {exc}") from exc
+        raise ModelFileError(f"Downloaded archive for {name!r} failed its hash check: {exc}") from None
     except (mujoco_menagerie.MenagerieError, OSError) as exc:
         raise ModelNotFoundError(
-            f"Could not obtain Menagerie model {name!r} ({exc}). Offline? Set {MENAGERIE_ENV} to a "
-            f"folder containing {name}/ (e.g. export {MENAGERIE_ENV}=/path/to/mujoco_menagerie), "
-            f"or pass an explicit path."
-        ) from exc
+            f"Menagerie model {name!r} is not on this machine and could not be downloaded "
+            f"({type(exc).__name__}: {exc}). Offline? {how_to_provide(name)[0].upper()}"
+            f"{how_to_provide(name)[1:]}."
+        ) from None
 
 
 def verify_manifest(directory: Path) -> None:

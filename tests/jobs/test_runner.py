@@ -1,0 +1,162 @@
+"""The job runner: run folder, lock, streamed rows, report status in every case, exit codes."""
+
+from __future__ import annotations
+
+import json
+import os
+import subprocess
+import sys
+from dataclasses import dataclass
+
+import pytest
+
+from mbctl.exceptions import ToolkitError
+from mbctl.jobs.runner import (
+    LOCK_NAME,
+    Job,
+    Outcome,
+    OutputError,
+    RunContext,
+    check_output_dir,
+    run_job,
+)
+from mbctl.sim.exceptions import SimulationDiverged
+from mbctl.sim.recorder import read_csv
+
+
+@dataclass(frozen=True)
+class Params:
+    rows: int = 5
+    fail_at: int | None = None
+    error: str = "toolkit"
+    plot: bool = False
+
+
+def _prepare(params: Params):
+    def work(ctx: RunContext) -> Outcome:
+        csv = ctx.open_csv(["time_s", "x_m"])
+        for k in range(params.rows):
+            if k == params.fail_at:
+                raise {
+                    "toolkit": lambda: ToolkitError("the QP is infeasible at k=3"),
+                    "diverged": lambda: SimulationDiverged({"BADQACC": 1}, 0.006),
+                    "interrupt": KeyboardInterrupt,
+                    "bug": lambda: ZeroDivisionError("division by zero"),
+                }[params.error]()
+            csv.write([0.002 * k, float(k)])
+            ctx.values["last_k"] = k
+        if params.plot:
+            from mbctl.jobs.plots import new_figure
+
+            fig, _ = new_figure()
+            ctx.save_figure(fig, "toy.png")
+        return Outcome(passed=params.rows < 10, summary=(f"{params.rows} rows",), bound="rows < 10")
+
+    return work
+
+
+TOY = Job("toy", _prepare)
+
+
+def _report(folder):
+    return json.loads((folder / "report.json").read_text())
+
+
+def test_completed_run_writes_rows_report_and_exit_0(tmp_path):
+    record = run_job(TOY, Params(rows=5, plot=True), tmp_path)
+    assert (record.status, record.exit_code, record.rows) == ("completed", 0, 5)
+    assert sorted(os.listdir(tmp_path)) == ["report.json", "toy.csv", "toy.png"]
+    report = _report(tmp_path)
+    assert report["status"] == "completed" and report["passed"] is True
+    assert report["rows"] == 5 and report["last_time_s"] == pytest.approx(0.008)
+    assert report["outputs"] == {"csv": "toy.csv", "plot": "toy.png"}
+    assert report["parameters"]["rows"] == 5
+    for name in os.listdir(tmp_path):
+        assert os.stat(tmp_path / name).st_mode & 0o777 == 0o644, name
+
+
+def test_result_outside_its_bound_exits_1(tmp_path):
+    record = run_job(TOY, Params(rows=12), tmp_path)
+    assert (record.status, record.exit_code) == ("completed", 1)
+    assert _report(tmp_path)["passed"] is False
+
+
+@pytest.mark.parametrize(
+    "error, status, code, message",
+    [
+        ("toolkit", "failed", 1, "the QP is infeasible at k=3"),
+        ("diverged", "diverged", 1, "diverged near t=0.0060 s: MuJoCo raised BADQACC (x1)"),
+        ("interrupt", "interrupted", 130, "interrupted"),
+    ],
+)
+def test_a_run_that_stops_keeps_every_row_and_says_why(tmp_path, error, status, code, message):
+    record = run_job(TOY, Params(rows=10, fail_at=3, error=error), tmp_path)
+    assert (record.status, record.exit_code, record.rows) == (status, code, 3)
+    report = _report(tmp_path)
+    assert report["status"] == status and message in report["message"]
+    assert report["values"] == {"last_k": 2}  # what was known before the stop
+    data = read_csv(tmp_path / "toy.csv")
+    assert list(data["x_m"]) == [0.0, 1.0, 2.0]
+    assert not [n for n in os.listdir(tmp_path) if n.startswith(".")]  # no temp or lock files
+    if error == "interrupt":
+        assert record.summary() == f"interrupted at t=0.004 s; wrote 3 rows to {tmp_path / 'toy.csv'}"
+
+
+def test_a_bug_is_reported_then_raised(tmp_path):
+    with pytest.raises(ZeroDivisionError):
+        run_job(TOY, Params(rows=10, fail_at=2, error="bug"), tmp_path)
+    report = _report(tmp_path)
+    assert report["status"] == "failed" and "ZeroDivisionError" in report["message"]
+    assert report["rows"] == 2
+
+
+def test_no_file_of_an_earlier_run_survives(tmp_path):
+    run_job(TOY, Params(rows=3, plot=True), tmp_path)
+    (tmp_path / ".toy.csv.123.tmp").write_text("a dead process's temp file")
+    run_job(TOY, Params(rows=2, plot=False), tmp_path)
+    assert sorted(os.listdir(tmp_path)) == ["report.json", "toy.csv"]  # the old plot is gone
+    assert read_csv(tmp_path / "toy.csv")["x_m"].size == 2
+
+
+def test_a_second_run_into_a_held_folder_refuses(tmp_path):
+    holder = subprocess.Popen([sys.executable, "-c", "import time; time.sleep(30)"])
+    try:
+        (tmp_path / LOCK_NAME).write_text(str(holder.pid))
+        with pytest.raises(OutputError, match=f"another mbctl run \\(pid {holder.pid}\\) is writing to"):
+            run_job(TOY, Params(), tmp_path)
+        assert sorted(os.listdir(tmp_path)) == [LOCK_NAME]  # nothing touched
+    finally:
+        holder.kill()
+        holder.wait()
+    # the holder is gone: its lock is stale and the next run takes it over
+    assert run_job(TOY, Params(), tmp_path).status == "completed"
+    assert not (tmp_path / LOCK_NAME).exists()
+
+
+def test_unusable_output_is_refused_before_prepare(tmp_path):
+    calls = []
+    job = Job("toy", lambda p: calls.append(p))
+    (tmp_path / "file").write_text("")
+    with pytest.raises(OutputError, match="exists and is not a directory"):
+        run_job(job, Params(), tmp_path / "file")
+    with pytest.raises(OutputError, match="cannot write to output folder /proc/nonexistent"):
+        run_job(job, Params(), "/proc/nonexistent/out")
+    assert calls == []
+    assert check_output_dir(tmp_path / "a" / "b").is_dir()
+
+
+def _cli(*args: str) -> subprocess.CompletedProcess:
+    return subprocess.run([sys.executable, "-m", "mbctl.cli", *args], capture_output=True, text=True,
+                          timeout=120)
+
+
+def test_cli_bad_output_exits_2_with_one_line_before_any_work():
+    out = _cli("xcheck", "two_link", "--json", "/proc/nonexistent/x.json")
+    assert out.returncode == 2
+    assert out.stderr.strip().count("\n") == 0 and "/proc/nonexistent" in out.stderr
+    assert "Traceback" not in out.stderr and out.stdout == ""
+
+
+def test_cli_version():
+    out = _cli("--version")
+    assert out.returncode == 0 and out.stdout.startswith("mbctl 0.")
