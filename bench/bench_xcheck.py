@@ -19,7 +19,7 @@ import statistics  # noqa: E402
 import time  # noqa: E402
 
 from mbctl.robots import load_robot  # noqa: E402
-from mbctl.robots.crosscheck.evaluate import crosscheck  # noqa: E402
+from mbctl.robots.crosscheck import crosscheck  # noqa: E402
 
 GOAL_STATES_PER_S = 2000.0
 

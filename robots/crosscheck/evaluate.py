@@ -16,7 +16,7 @@ compared in one convention, Pinocchio's (free-flyer quaternion (x, y, z, w), bas
 * kinetic and potential energy; centroidal momentum against MuJoCo's subtree momentum.
 
 MuJoCo runs on a private copy of the plant with everything outside rigid-body dynamics switched
-off (see ``crosscheck_plant``); the report says what that was and what could not be compared.
+off (see ``plant.comparison_model``); the report says what that was and what could not be compared.
 
 Errors: for a quantity with Pinocchio values ``a_s`` and MuJoCo values ``b_s`` over states s,
 ``abs = max_s max_i |a_si - b_si|`` and ``rel = abs / max(max_s max_i |b_si|, floor)``. The
@@ -28,15 +28,15 @@ floor only binds when the quantity is (nearly) zero in every state (gravity with
 from __future__ import annotations
 
 import time
-from collections.abc import Mapping
-from dataclasses import dataclass
-from types import MappingProxyType
+from collections.abc import Callable, Mapping
 from typing import NamedTuple
 
 import mujoco
 import numpy as np
 import pinocchio as pin
 
+from mbctl.robots.crosscheck.exceptions import CrossCheckError
+from mbctl.robots.crosscheck.locate import describe_entry, dof_labels
 from mbctl.robots.crosscheck.plant import comparison_model, static_bodies, top_moving_bodies
 from mbctl.robots.crosscheck.report import (
     FAIL,
@@ -46,172 +46,10 @@ from mbctl.robots.crosscheck.report import (
     QuantityResult,
     Report,
 )
-from mbctl.robots.exceptions import ModelMismatchError, RobotError
+from mbctl.robots.crosscheck.sampling import Sampling, States, sample_states
+from mbctl.robots.crosscheck.tolerances import TOLERANCES, Tolerance
+from mbctl.robots.exceptions import ModelMismatchError
 from mbctl.robots.model_pair import Robot, check_agreement
-
-
-class CrossCheckError(RobotError):
-    """Invalid cross-check arguments (number of states, seed, tolerances)."""
-
-
-@dataclass(frozen=True)
-class Tolerance:
-    """Pass criterion of one quantity: ``rel = abs / max(scale, floor) <= rtol``.
-
-    Attributes:
-        rtol: Largest passing relative error [-].
-        floor: Magnitude [unit] below which the quantity counts as zero.
-        unit: SI unit of the quantity.
-        description: What is compared, with the frame.
-    """
-
-    rtol: float
-    floor: float
-    unit: str
-    description: str
-
-    def __post_init__(self) -> None:
-        """Reject non-positive or non-finite tolerances."""
-        for name in ("rtol", "floor"):
-            value = getattr(self, name)
-            if not (np.isfinite(value) and value > 0):
-                raise CrossCheckError(f"Tolerance.{name} must be a positive finite number; got {value!r}")
-
-
-#: Relative tolerance of every quantity [-]. Both engines evaluate the same closed-form rigid-body
-#: expressions in double precision; measured agreement is 1e-16 .. 1e-13 relative (the G1 and
-#: the 2-link arm, see the tests). 1e-9 leaves a margin of 1e4 for round-off growth (forward
-#: dynamics loses ~cond(M) * eps; a mass matrix with cond(M) = 1e6 still passes), while any
-#: physical modelling difference worth having (a 1e-6 relative change of a mass, a 1 um shift
-#: of an inertial frame) still fails.
-RTOL = 1e-9
-
-#: The floors are magnitudes below which a quantity is "zero" for a robot of any size we support
-#: (a 0.1 kg finger to a 100 kg humanoid). They matter only when a quantity vanishes in every
-#: state (gravity and potential energy with gravity off, the Jacobians of a body welded to the
-#: world); then ``rel = abs / floor`` and the absolute error must stay below ``RTOL * floor``,
-#: e.g. 1e-12 N m for gravity torques, still 1e3 above round-off of a zero quantity.
-TOLERANCES: Mapping[str, Tolerance] = MappingProxyType(
-    {
-        # Rotation matrices have entries of magnitude 1 (every row has unit norm): floor 1.
-        "fk_position": Tolerance(RTOL, 1e-3, "m", "p_WF of every body and site, world frame"),
-        "fk_rotation": Tolerance(RTOL, 1.0, "-", "R_WF of every body and site"),
-        "jacobian_linear": Tolerance(
-            RTOL, 1e-3, "m/rad", "J_WF linear rows, LOCAL_WORLD_ALIGNED, every body and site"
-        ),
-        "jacobian_angular": Tolerance(
-            RTOL, 1.0, "-", "J_WF angular rows, LOCAL_WORLD_ALIGNED, every body and site"
-        ),
-        "com": Tolerance(RTOL, 1e-3, "m", "p_WC, centre of mass of the moving bodies, world frame"),
-        "com_jacobian": Tolerance(RTOL, 1e-3, "m/rad", "J_WC, world frame"),
-        # 1e-6 kg m^2: inertia of a 10 g, 1 cm body; armatures are larger.
-        "mass_matrix": Tolerance(RTOL, 1e-6, "kg m^2", "M(q) with armature"),
-        "gravity": Tolerance(RTOL, 1e-3, "N m", "g(q), generalized gravity force"),
-        "bias": Tolerance(RTOL, 1e-3, "N m", "b(q, v) = C(q, v) v + g(q)"),
-        "forward_dynamics": Tolerance(RTOL, 1e-3, "rad/s^2", "a = FD(q, v, tau): ABA vs qacc"),
-        "inverse_dynamics": Tolerance(RTOL, 1e-3, "N m", "tau = ID(q, v, a): RNEA vs mj_inverse"),
-        "kinetic_energy": Tolerance(RTOL, 1e-6, "J", "kinetic energy 0.5 v^T M v (armature included)"),
-        "potential_energy": Tolerance(RTOL, 1e-6, "J", "gravitational energy of the moving bodies"),
-        "momentum_linear": Tolerance(RTOL, 1e-6, "kg m/s", "centroidal linear momentum, world axes"),
-        "momentum_angular": Tolerance(
-            RTOL, 1e-6, "kg m^2/s", "centroidal angular momentum about the CoM, world axes"
-        ),
-    }
-)
-
-
-@dataclass(frozen=True)
-class Sampling:
-    """How random states are drawn.
-
-    Limited hinge and slide joints are uniform within their MuJoCo ``range``; unlimited hinges
-    uniform in [-pi, pi]; free and ball joints get a uniform random unit quaternion.
-
-    Attributes:
-        position_range_m: Free-joint positions uniform in [-r, r]^3 [m]; unlimited slides too.
-        velocity_std: Standard deviation of each velocity coordinate [rad/s] or [m/s].
-        torque_std: Standard deviation of each generalized force [N m] or [N].
-        acceleration_std: Standard deviation of each acceleration for inverse dynamics
-            [rad/s^2] or [m/s^2].
-    """
-
-    position_range_m: float = 1.0
-    velocity_std: float = 1.0
-    torque_std: float = 10.0
-    acceleration_std: float = 10.0
-
-
-class States(NamedTuple):
-    """States of a cross-check, in Pinocchio's convention.
-
-    Attributes:
-        q: Configurations (n, nq).
-        v: Velocities (n, nv).
-        tau: Generalized forces for forward dynamics (n, nv) [N m] or [N].
-        a: Accelerations for inverse dynamics (n, nv) [rad/s^2] or [m/s^2].
-        kinds: Kind of each state ("random", "zero velocity", ...), length n.
-    """
-
-    q: np.ndarray
-    v: np.ndarray
-    tau: np.ndarray
-    a: np.ndarray
-    kinds: tuple[str, ...]
-
-
-def sample_states(robot: Robot, n_states: int, seed: int, sampling: Sampling = Sampling()) -> States:
-    """``n_states`` random states plus edge states, reproducible from ``seed``.
-
-    Edge states (placed first): neutral configuration at zero velocity; a random configuration
-    at zero velocity; and, if the robot has limited joints, all limited hinges and slides at their
-    lower limits, then at their upper limits (other joints random, velocity random).
-
-    Args:
-        robot: The model pair; limits come from the MuJoCo model (the plant).
-        n_states: Number of random states (>= 0).
-        seed: Seed of ``numpy.random.default_rng``.
-        sampling: Ranges and scales of the random draws.
-
-    Returns:
-        The states, in Pinocchio's convention.
-    """
-    m = robot.mj_model
-    rng = np.random.default_rng(seed)
-    jids = {name: i for i, name in enumerate(robot.joints)}
-    limited = [
-        (j.idx_q, jids[j.name])
-        for j in robot.joints.values()
-        if j.kind in ("hinge", "slide") and m.jnt_limited[jids[j.name]]
-    ]
-    kinds = ["neutral, v = 0", "zero velocity"]
-    if limited:
-        kinds += ["lower limits", "upper limits"]
-    kinds += ["random"] * n_states
-    n, r = len(kinds), sampling.position_range_m
-    q = np.tile(robot.neutral_q(), (n, 1))
-    for j in robot.joints.values():  # one draw per joint for all states at once
-        at = j.idx_q
-        if j.kind in ("free", "ball"):
-            if j.kind == "free":
-                q[:, at : at + 3] = rng.uniform(-r, r, (n, 3))
-                at += 3
-            quat_xyzw = rng.normal(size=(n, 4))  # isotropic Gaussian -> uniform on S^3
-            q[:, at : at + 4] = quat_xyzw / np.linalg.norm(quat_xyzw, axis=1, keepdims=True)
-        elif m.jnt_limited[jids[j.name]]:
-            lo, hi = m.jnt_range[jids[j.name]]
-            q[:, at] = rng.uniform(lo, hi, n)
-        elif j.kind == "hinge":
-            q[:, at] = rng.uniform(-np.pi, np.pi, n)
-        else:
-            q[:, at] = rng.uniform(-r, r, n)
-    q[0] = robot.neutral_q()
-    for iq, jid in limited:
-        q[2, iq], q[3, iq] = m.jnt_range[jid]
-    v = rng.normal(0, sampling.velocity_std, (n, robot.nv))
-    v[:2] = 0.0
-    tau = rng.normal(0, sampling.torque_std, (n, robot.nv))
-    a = rng.normal(0, sampling.acceleration_std, (n, robot.nv))
-    return States(q, v, tau, a, tuple(kinds))
 
 
 def _structure_problems(robot: Robot) -> list[str]:
@@ -220,7 +58,14 @@ def _structure_problems(robot: Robot) -> list[str]:
     if (pm.nq, pm.nv) != (m.nq, m.nv):
         problems.append(f"sizes differ: Pinocchio nq={pm.nq}, nv={pm.nv}; MuJoCo nq={m.nq}, nv={m.nv}")
     if pm.njoints - 1 != len(robot.joints):
-        problems.append(f"joint count differs: Pinocchio {pm.njoints - 1}, MuJoCo {len(robot.joints)}")
+        pin_names, mj_names = list(pm.names)[1:], list(robot.joints)
+        only_mj = [n for n in mj_names if n not in set(pin_names)]
+        only_pin = [n for n in pin_names if n not in set(mj_names)]
+        problems.append(
+            f"joint count differs: Pinocchio {len(pin_names)}, MuJoCo {len(mj_names)}"
+            + (f"; only in MuJoCo: {_first(only_mj)}" if only_mj else "")
+            + (f"; only in Pinocchio: {_first(only_pin)}" if only_pin else "")
+        )
         top_level = int(np.count_nonzero(m.body_parentid[1:] == 0))
         if pm.njoints - 1 < len(robot.joints) and top_level > 1:
             problems.append(
@@ -239,6 +84,12 @@ def _structure_problems(robot: Robot) -> list[str]:
                 )
                 break
     return problems
+
+
+def _first(names: list[str], limit: int = 8) -> str:
+    """``names`` joined with commas, the first ``limit`` of them and how many more."""
+    more = f" and {len(names) - limit} more" if len(names) > limit else ""
+    return ", ".join(names[:limit]) + more
 
 
 def _cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
@@ -337,6 +188,13 @@ class _Evaluator:
         self._J_pin = np.zeros((chunk, nf, 6, nv))
         self._J_mj = np.zeros((chunk, nf, 6, nv))
         self._T = np.zeros((chunk, nv, nv))
+        # Where Pinocchio's matrices with nv columns are written. With nv = 1, eigenpy returns
+        # them as vectors ((6,) for a frame Jacobian, (3,) for Jcom), so they go through views
+        # without the column axis.
+        self._J_pin_out = self._J_pin[..., 0] if nv == 1 else self._J_pin
+        self._Jcom_pin_out = self.pin_out["com_jacobian"]
+        if nv == 1:
+            self._Jcom_pin_out = self._Jcom_pin_out[..., 0]
         # Output views made once: (function, jacp (3, nv), jacr (3, nv), body or site id).
         self._jac_calls = [
             [(mujoco.mj_jacBody, J[k, :3], J[k, 3:], int(b)) for k, b in enumerate(frames.mj_body_ids)]
@@ -355,7 +213,7 @@ class _Evaluator:
         pm, pd, out = self.pm, self.pd, self.pin_out
         pin.computeAllTerms(pm, pd, q, v)
         pin.updateFramePlacements(pm, pd)
-        oMf, H, J = pd.oMf, self._H[i], self._J_pin[i]
+        oMf, H, J = pd.oMf, self._H[i], self._J_pin_out[i]
         lwa = pin.ReferenceFrame.LOCAL_WORLD_ALIGNED
         for k, f in enumerate(self.frames.pin_ids):
             H[k] = oMf[f].homogeneous
@@ -364,7 +222,7 @@ class _Evaluator:
         out["bias"][i] = pd.nle
         out["gravity"][i] = pd.g
         out["com"][i] = pd.com[0]
-        out["com_jacobian"][i] = pd.Jcom
+        self._Jcom_pin_out[i] = pd.Jcom
         out["kinetic_energy"][i] = pd.kinetic_energy
         out["potential_energy"][i] = pd.potential_energy
         hg = pd.hg
@@ -428,26 +286,45 @@ class _Evaluator:
         mujoco.mj_rne(m, d, 0, self._g_mj)
         out["gravity"][i] = T.T @ self._g_mj
 
-    def run(self, states: States) -> dict[str, tuple[np.ndarray, np.ndarray]]:
-        """Per quantity: (abs error per state (n,), MuJoCo magnitude per state (n,))."""
+    def _evaluate(self, states: States, start: int, stop: int) -> None:
+        """Evaluate states ``start:stop`` (at most ``chunk``) into buffer slots 0 .. stop - start."""
+        for i, s in enumerate(range(start, stop)):
+            args = (i, states.q[s], states.v[s], states.tau[s], states.a[s])
+            self._pin_state(*args)
+            self._mj_state(*args)
+
+    def _aligned(self, c: int) -> tuple[dict[str, np.ndarray], dict[str, np.ndarray]]:
+        """Pinocchio's and MuJoCo's values of the first ``c`` slots, in the same convention.
+
+        The frame Jacobians are under "jacobian", all 6 rows (c, nf, 6, nv); every other
+        quantity under its name in ``TOLERANCES``.
+        """
+        P, Q = {k: v[:c] for k, v in self.pin_out.items()}, {k: v[:c] for k, v in self.mj_out.items()}
+        H, Jp = self._H[:c], self._J_pin[:c]
+        P["fk_position"], P["fk_rotation"] = H[:, :, :3, 3], H[:, :, :3, :3]
+        M = np.triu(P["mass_matrix"])  # crba fills the upper triangle
+        P["mass_matrix"] = M + np.triu(M, 1).swapaxes(-1, -2)
+        # J_mj v_mj = J_mj T v_pin, so J_pin = J_mj T (one batched product per chunk).
+        Jm = self._J_mj[:c]
+        Jm = np.matmul(Jm.reshape(c, -1, self.m.nv), self._T[:c]).reshape(Jm.shape)
+        P["jacobian"], Q["jacobian"] = Jp, Jm
+        return P, Q
+
+    def run(
+        self, states: States, progress: Callable[[int, int], None] | None = None
+    ) -> dict[str, tuple[np.ndarray, np.ndarray]]:
+        """Per quantity: (abs error per state (n,), MuJoCo magnitude per state (n,)).
+
+        ``progress(done, n)`` is called after each chunk, if given.
+        """
         n = len(states.kinds)
         errors = {k: (np.zeros(n), np.zeros(n)) for k in TOLERANCES}
         for start in range(0, n, self.chunk):
             stop = min(start + self.chunk, n)
-            for i, s in enumerate(range(start, stop)):
-                args = (i, states.q[s], states.v[s], states.tau[s], states.a[s])
-                self._pin_state(*args)
-                self._mj_state(*args)
-            c = stop - start
-            P, Q = {k: v[:c] for k, v in self.pin_out.items()}, {k: v[:c] for k, v in self.mj_out.items()}
-            H, Jp = self._H[:c], self._J_pin[:c]
-            P["fk_position"], P["fk_rotation"] = H[:, :, :3, 3], H[:, :, :3, :3]
-            M = np.triu(P["mass_matrix"])  # crba fills the upper triangle
-            P["mass_matrix"] = M + np.triu(M, 1).swapaxes(-1, -2)
-            # J_mj v_mj = J_mj T v_pin, so J_pin = J_mj T (one batched product per chunk).
-            Jm = self._J_mj[:c]
-            Jm = np.matmul(Jm.reshape(c, -1, self.m.nv), self._T[:c]).reshape(Jm.shape)
+            self._evaluate(states, start, stop)
+            P, Q = self._aligned(stop - start)
             # Full 6-row differences once; linear and angular rows are reduced from them.
+            Jp, Jm = P["jacobian"], Q["jacobian"]
             J_diff, J_mag = np.abs(Jp - Jm), np.abs(Jm)
             reduced = {
                 "jacobian_linear": (J_diff[:, :, :3], J_mag[:, :, :3]),
@@ -464,7 +341,30 @@ class _Evaluator:
                 worst = diff.max(axis=axes) if axes else diff  # NaN propagates through max
                 err[start:stop] = np.where(np.isnan(worst), np.inf, worst)
                 scale[start:stop] = mag.max(axis=axes) if axes else mag
+            if progress is not None:
+                progress(stop, n)
         return errors
+
+    def worst_entry(self, states: States, s: int, quantity: str) -> tuple[int, ...]:
+        """Index of the largest error of ``quantity`` within state ``s`` (first NaN if any).
+
+        Evaluates state ``s`` again (into slot 0), so it costs one state; called for failing
+        quantities only.
+        """
+        self._evaluate(states, s, s + 1)
+        P, Q = self._aligned(1)
+        rows = {"jacobian_linear": slice(0, 3), "jacobian_angular": slice(3, 6)}
+        if quantity in rows:
+            diff = np.abs(P["jacobian"][0] - Q["jacobian"][0])[:, rows[quantity]]
+        else:
+            diff = np.abs(P[quantity][0] - Q[quantity][0])
+        if diff.ndim == 0:
+            return ()
+        flat = int(np.argmax(diff))  # NaN counts as the maximum
+        return tuple(int(i) for i in np.unravel_index(flat, diff.shape))
+
+
+_DEFAULT_SAMPLING = Sampling()
 
 
 def _validate(n_states: object, seed: object) -> None:
@@ -480,8 +380,9 @@ def crosscheck(
     seed: int = 0,
     *,
     tolerances: Mapping[str, Tolerance] = TOLERANCES,
-    sampling: Sampling = Sampling(),
+    sampling: Sampling = _DEFAULT_SAMPLING,
     chunk_size: int = 16,
+    progress: Callable[[int, int], None] | None = None,
 ) -> Report:
     """Compare the dynamics of ``robot.pin_model`` with ``robot.mj_model`` over many states.
 
@@ -494,18 +395,28 @@ def crosscheck(
         sampling: Ranges and scales of the random states.
         chunk_size: States evaluated between two vectorized error reductions; 16 keeps the
             buffers of a G1-sized robot (~85 kB of Jacobians per state and engine) in cache.
+        progress: Called as ``progress(done_states, total_states)`` after each chunk of
+            ``chunk_size`` states, with ``done_states`` increasing up to ``total_states``
+            (random plus edge states, ``Report.n_states``); for progress bars. It runs inside the
+            timed evaluation, so keep it cheap. None: no calls. Not called when no state is
+            evaluated (the joint layouts differ or the robot has no degrees of freedom).
 
     Returns:
-        The report: per quantity max abs and relative error, tolerance, worst state and status;
-        the model features left out and why; notes (load-time agreement check, unmatched frames).
+        The report: per quantity max abs and relative error, tolerance, worst state and status
+        (for a failing quantity also the entry where it fails worst: frame, joint, axis); the
+        model features left out and why; notes (load-time agreement check, unmatched frames).
 
     Raises:
         CrossCheckError: ``n_states`` or ``seed`` not a non-negative integer, ``chunk_size`` < 1,
-            or ``tolerances`` missing a quantity.
+            ``tolerances`` missing a quantity, or ``progress`` neither callable nor None.
     """
     _validate(n_states, seed)
     if isinstance(chunk_size, bool) or not isinstance(chunk_size, (int, np.integer)) or chunk_size < 1:
         raise CrossCheckError(f"chunk_size must be an integer >= 1; got {chunk_size!r}")
+    if progress is not None and not callable(progress):
+        raise CrossCheckError(
+            f"progress must be a callable progress(done_states, total_states) or None; got {progress!r}"
+        )
     missing_tol = [k for k in TOLERANCES if k not in tolerances]
     if missing_tol:
         raise CrossCheckError(
@@ -526,17 +437,17 @@ def crosscheck(
     notes += _known_pinocchio_discrepancies(robot)
     frames = _match_frames(robot)
     if frames.missing:
-        shown = ", ".join(frames.missing[:8]) + (
-            f" and {len(frames.missing) - 8} more" if len(frames.missing) > 8 else ""
-        )
         notes.append(
             f"not compared: {len(frames.missing)} MuJoCo frames have no Pinocchio frame of the "
-            f"same name ({shown})"
+            f"same name ({_first(frames.missing)})"
         )
     states = sample_states(robot, n_states, seed, sampling)
     t0 = time.perf_counter()
-    errors = _Evaluator(robot, m, frames, chunk_size).run(states)
+    evaluator = _Evaluator(robot, m, frames, chunk_size)
+    errors = evaluator.run(states, progress)
     elapsed = time.perf_counter() - t0
+    nb = frames.mj_body_ids.size
+    frame_labels = [f"body {n!r}" for n in frames.names[:nb]] + [f"site {n!r}" for n in frames.names[nb:]]
     results = [
         QuantityResult(
             "structure",
@@ -575,6 +486,10 @@ def crosscheck(
         abs_err = float(err[worst])
         rel = abs_err / max(float(np.max(scale)), tol.floor)
         status = PASS if rel <= tol.rtol else FAIL
+        where = ""
+        if status == FAIL:
+            index = evaluator.worst_entry(states, worst, name)
+            where = describe_entry(name, index, frame_labels, dof_labels(robot))
         results.append(
             QuantityResult(
                 name,
@@ -587,6 +502,7 @@ def crosscheck(
                 worst,
                 states.kinds[worst],
                 status,
+                worst_entry=where,
             )
         )
     kinds: dict[str, int] = {}

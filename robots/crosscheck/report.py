@@ -33,7 +33,11 @@ class QuantityResult(NamedTuple):
         worst_state: Index of the state with the largest absolute error (-1 if not compared).
         worst_state_kind: What kind of state that is ("random", "zero velocity", ...).
         status: "pass", "fail" or "not compared".
-        note: Why a quantity was not compared, or what it covers; "" otherwise.
+        note: Why a quantity was not compared or failed structurally, or what it covers; ""
+            otherwise.
+        worst_entry: For a failing quantity, where in the worst state the largest error is
+            (frame, joint of the velocity coordinate, axis), e.g. "body 'link2', axis z";
+            "" when it passed, is a scalar, or the place is unknown.
     """
 
     name: str
@@ -47,11 +51,32 @@ class QuantityResult(NamedTuple):
     worst_state_kind: str
     status: str
     note: str = ""
+    worst_entry: str = ""
 
     @property
     def passed(self) -> bool:
         """Whether the quantity was compared and is within tolerance."""
         return self.status == PASS
+
+    @property
+    def reason(self) -> str:
+        """Why the quantity failed: its errors, the tolerance and where; "" unless it failed."""
+        if self.status != FAIL:
+            return ""
+        if self.worst_state < 0:  # not evaluated state by state (the structure check)
+            return f"{self.name} failed: {self.note}"
+        where = f"state {self.worst_state} ({self.worst_state_kind})"
+        if self.worst_entry:
+            where += f", {self.worst_entry}"
+        if not math.isfinite(self.max_abs_error):
+            return (
+                f"{self.name} failed: a value is not finite (NaN or inf) at {where}; "
+                f"tolerance {self.tolerance:.1e}"
+            )
+        return (
+            f"{self.name} failed: max rel error {self.max_rel_error:.3e} > tolerance "
+            f"{self.tolerance:.1e}; max abs error {self.max_abs_error:.3e} {self.unit} at {where}"
+        )
 
 
 class FeatureNote(NamedTuple):
@@ -175,6 +200,8 @@ class Report:
                     "worst_state_kind": q.worst_state_kind,
                     "status": q.status,
                     "note": q.note,
+                    "worst_entry": q.worst_entry,
+                    "reason": q.reason,
                 }
                 for q in self.quantities
             ],
@@ -185,7 +212,10 @@ class Report:
         }
 
     def to_text(self) -> str:
-        """A plain-text table of the quantities followed by the feature handling and notes."""
+        """A plain-text table of the quantities followed by the feature handling and notes.
+
+        Under each failing row, a line says why it failed (``QuantityResult.reason``).
+        """
         kinds = ", ".join(f"{n} {k}" for k, n in self.state_kinds.items())
         lines = [
             f"cross-check of {self.robot}: Pinocchio ({self.pin_model_file}) vs MuJoCo "
@@ -211,6 +241,8 @@ class Report:
                 f"{q.tolerance:10.1e} {q.worst_state:6d}  {q.worst_state_kind:16s} "
                 f"{q.status.upper()}"
             )
+            if q.status == FAIL:
+                lines.append(f"    -> {q.reason}")
         if self.features:
             lines += ["", "model features outside the rigid-body comparison:"]
             lines += [f"  {f.feature:22s} {f.handling.upper():13s} {f.detail}" for f in self.features]

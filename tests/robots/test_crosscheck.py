@@ -13,14 +13,10 @@ import numpy as np
 import pytest
 
 from mbctl.robots import load_robot
-from mbctl.robots.crosscheck.evaluate import (
-    TOLERANCES,
-    CrossCheckError,
-    Tolerance,
-    crosscheck,
-    sample_states,
-)
+from mbctl.robots.crosscheck import TOLERANCES, CrossCheckError, Tolerance, crosscheck
+from mbctl.robots.crosscheck.locate import ROLES
 from mbctl.robots.crosscheck.report import ACCOUNTED, EXCLUDED, NOT_COMPARED
+from mbctl.robots.crosscheck.sampling import sample_states
 from mbctl.robots.registry import ASSETS
 
 ALL_QUANTITIES = ("structure", *TOLERANCES)
@@ -93,6 +89,43 @@ COUPLED_XML = """
   <equality>
     <joint name="mimic" joint1="j2" joint2="j1" polycoef="0 1 0 0 0"/>
   </equality>
+</mujoco>
+"""
+
+# A single hinge (nv = 1: Pinocchio returns its (6, 1) Jacobians as vectors), limited, with
+# armature, an offset inertial frame and a site.
+ONE_HINGE_XML = """
+<mujoco model="one_hinge">
+  <compiler angle="radian" inertiafromgeom="false" autolimits="true"/>
+  <option gravity="0 0 -9.81"/>
+  <worldbody>
+    <body name="link" pos="0 0 0.1">
+      <joint name="hinge" axis="0 1 0" range="-1.5 1.5" armature="0.01"/>
+      <inertial pos="0.1 0 0.01" mass="1" diaginertia="0.001 0.01 0.01"/>
+      <site name="tip" pos="0.2 0 0"/>
+    </body>
+  </worldbody>
+</mujoco>
+"""
+
+# A three-hinge chain; the Pinocchio side of the structure test drops j2 (b welded to a).
+CHAIN_XML = """
+<mujoco model="chain">
+  <compiler angle="radian" inertiafromgeom="false"/>
+  <worldbody>
+    <body name="a">
+      <joint name="j1" axis="0 0 1"/>
+      <inertial pos="0.1 0 0" mass="1" diaginertia="0.001 0.01 0.01"/>
+      <body name="b" pos="0.2 0 0">
+        <joint name="j2" axis="0 0 1"/>
+        <inertial pos="0.1 0 0" mass="1" diaginertia="0.001 0.01 0.01"/>
+        <body name="c" pos="0.2 0 0">
+          <joint name="j3" axis="0 0 1"/>
+          <inertial pos="0.1 0 0" mass="1" diaginertia="0.001 0.01 0.01"/>
+        </body>
+      </body>
+    </body>
+  </worldbody>
 </mujoco>
 """
 
@@ -222,6 +255,26 @@ def test_free_and_ball_joints_agree(tmp_path):
     assert any("total mass differs" in n for n in report.notes)
 
 
+def test_one_hinge_robot_agrees(tmp_path):
+    robot = load_robot(_write(tmp_path, "one_hinge.xml", ONE_HINGE_XML), check=False)
+    assert robot.nv == 1
+    for chunk_size in (1, 16):
+        report = crosscheck(robot, n_states=40, seed=0, chunk_size=chunk_size)
+        _assert_clean_pass(report)
+        assert report.n_states == 44  # 40 random + rest + rest + lower and upper limits
+    assert report.quantity("gravity").max_abs_error > 0.0  # compared, not vanishing
+
+
+def test_one_hinge_failure_names_the_joint(tmp_path):
+    robot_file = _write(tmp_path, "one_hinge.xml", ONE_HINGE_XML)
+    heavier = _write(tmp_path, "heavier.xml", ONE_HINGE_XML.replace('mass="1"', 'mass="1.01"'))
+    robot = load_robot(robot_file, pin_model_file=heavier, check=False)
+    report = crosscheck(robot, n_states=10, seed=0)
+    assert "gravity" in report.failed
+    assert report.quantity("gravity").worst_entry == "v[0] (hinge)"
+    assert report.quantity("mass_matrix").worst_entry == "row v[0] (hinge), column v[0] (hinge)"
+
+
 def test_tendon_equality_gravcomp_are_not_compared(tmp_path):
     robot = load_robot(_write(tmp_path, "coupled.xml", COUPLED_XML), check=False)
     report = crosscheck(robot, n_states=50, seed=0)
@@ -264,8 +317,24 @@ def test_robot_after_another_top_level_body_fails_structure(tmp_path):
     assert report.failed == ("structure",)
     assert report.quantity("structure").note.startswith("sizes differ: Pinocchio nq=0, nv=0; MuJoCo nq=18")
     assert "builds only the first body tree" in report.quantity("structure").note
+    assert "only in MuJoCo: root, hip, knee, ankle, shoulder, elbow;" in report.quantity("structure").note
+    assert "    -> structure failed: sizes differ" in report.to_text()
     assert set(report.not_compared) == set(TOLERANCES)
     json.dumps(report.to_dict(), allow_nan=False)  # NaN errors become null
+
+
+def test_structure_mismatch_names_the_joints_that_differ(tmp_path):
+    chain = _write(tmp_path, "chain.xml", CHAIN_XML)
+    lhs, rhs = CHAIN_XML.split('        <joint name="j2" axis="0 0 1"/>\n')
+    two = _write(tmp_path, "two.xml", lhs + rhs)
+    robot = load_robot(chain, pin_model_file=two, check=False)
+    report = crosscheck(robot, n_states=5, seed=0)
+    assert report.failed == ("structure",)
+    why = report.quantity("structure").note
+    assert "sizes differ: Pinocchio nq=2, nv=2; MuJoCo nq=3, nv=3" in why
+    assert "joint count differs: Pinocchio 2, MuJoCo 3; only in MuJoCo: j2" in why
+    assert "only in Pinocchio" not in why
+    assert f"    -> structure failed: {why}" in report.to_text().splitlines()
 
 
 def test_plant_without_gravity_fails_gravity_terms_springs_and_fluid_excluded(tmp_path):
@@ -330,7 +399,45 @@ def test_flipped_axis_fails_kinematics(tmp_path):
 def test_missing_armature_fails_mass_matrix_only_where_armature_enters(tmp_path):
     report = _mutated_arm(tmp_path, ' armature="0.002"', "")
     assert report.failed == ("mass_matrix", "forward_dynamics", "inverse_dynamics", "kinetic_energy")
-    assert report.quantity("mass_matrix").max_abs_error == pytest.approx(0.002, rel=1e-9)
+    mass_matrix = report.quantity("mass_matrix")
+    assert mass_matrix.max_abs_error == pytest.approx(0.002, rel=1e-9)
+    # The armature sits on the diagonal: the worst entry is M[i, i] of one of the two joints.
+    assert mass_matrix.worst_entry in (
+        "row v[0] (shoulder), column v[0] (shoulder)",
+        "row v[1] (elbow), column v[1] (elbow)",
+    )
+
+
+def test_failing_rows_say_why_in_the_text_report(tmp_path):
+    report = _mutated_arm(tmp_path, '<joint name="elbow"/>', '<joint name="elbow" axis="0 0 -1"/>')
+    lines = report.to_text().splitlines()
+    for name in report.failed:
+        q = report.quantity(name)
+        row = next(i for i, line in enumerate(lines) if line.startswith(f"{name} "))
+        why = lines[row + 1]
+        assert why == f"    -> {q.reason}"
+        assert why.startswith(
+            f"    -> {name} failed: max rel error {q.max_rel_error:.3e} > tolerance 1.0e-09"
+        )
+        assert (
+            f"max abs error {q.max_abs_error:.3e} {q.unit} at state {q.worst_state} ({q.worst_state_kind})"
+            in why
+        )
+    # Frame quantities name the frame, the axis and (for Jacobians) the joint of the column.
+    jac = report.quantity("jacobian_angular")
+    assert jac.worst_entry.startswith(
+        ("body 'link2', axis", "body 'ee_body', axis", "site 'end_effector', axis")
+    )
+    assert jac.worst_entry.endswith("column v[1] (elbow)")
+    assert report.quantity("fk_position").worst_entry.endswith(("axis x", "axis y", "axis z"))
+    # Passing rows carry no reason; JSON has both fields.
+    assert report.quantity("structure").reason == "" and report.quantity("structure").worst_entry == ""
+    data = report.to_dict()["quantities"]
+    assert data[1]["name"] == "fk_position" and data[1]["reason"] == report.quantity("fk_position").reason
+
+
+def test_every_quantity_has_named_axes():
+    assert list(ROLES) == list(TOLERANCES)
 
 
 def test_shifted_inertial_frame_fails_com_and_mass_matrix(tmp_path):
@@ -381,6 +488,10 @@ def test_same_seed_same_states(two_link_torque):
         ({"seed": "x"}, "seed must be an integer >= 0; got 'x'"),
         ({"chunk_size": 0}, "chunk_size must be an integer >= 1; got 0"),
         ({"tolerances": {}}, "tolerances has no entry for fk_position"),
+        (
+            {"progress": 3},
+            r"progress must be a callable progress\(done_states, total_states\) or None; got 3",
+        ),
     ],
 )
 def test_bad_arguments_raise(two_link, kwargs, match):
@@ -391,6 +502,30 @@ def test_bad_arguments_raise(two_link, kwargs, match):
 def test_bad_tolerance_raises():
     with pytest.raises(CrossCheckError, match="Tolerance.rtol must be a positive finite number; got 0.0"):
         Tolerance(0.0, 1.0, "m", "x")
+
+
+def test_progress_counts_states_up_to_the_total(two_link_torque):
+    calls: list[tuple[int, int]] = []
+    report = crosscheck(
+        two_link_torque,
+        n_states=37,
+        seed=0,
+        chunk_size=8,
+        progress=lambda done, total: calls.append((done, total)),
+    )
+    done = [d for d, _ in calls]
+    assert done == [8, 16, 24, 32, 39]  # one call per chunk of 8, the last one partial
+    assert all(a < b for a, b in zip(done, done[1:], strict=False))
+    assert {total for _, total in calls} == {report.n_states} == {39}
+
+
+def test_progress_is_not_called_without_states_to_evaluate(tmp_path):
+    chain = _write(tmp_path, "chain.xml", CHAIN_XML)
+    lhs, rhs = CHAIN_XML.split('        <joint name="j2" axis="0 0 1"/>\n')
+    robot = load_robot(chain, pin_model_file=_write(tmp_path, "two.xml", lhs + rhs), check=False)
+    calls: list[tuple[int, int]] = []
+    crosscheck(robot, n_states=5, progress=lambda done, total: calls.append((done, total)))
+    assert calls == []
 
 
 def test_chunking_does_not_change_results(g1):
