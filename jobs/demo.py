@@ -269,7 +269,7 @@ def track_square(
         width = 2 if name == "task_ct" else len(controller.joints)
         ref_names = ([f"p_ref_{a}_m" for a in "xy"] if name == "task_ct" else
                      [f"q_ref_{j}_rad" for j in controller.joints])
-        header = LoopRows.header(robot, ref_names, command_columns(robot.actuators, "N_m"),
+        header = LoopRows.header(robot, ref_names, command_columns(list(robot.actuators), "N_m"),
                                  ["p_ref_x_m", "p_ref_y_m", "p_x_m", "p_y_m", "error_m"])
         if name == "task_ct":  # the reference *is* p_ref: do not write it twice
             header = header[:1] + header[3:]

@@ -21,7 +21,8 @@ def joint_colors(names: tuple[str, ...] | list[str]) -> dict[str, Any]:
     """One colour per joint name, the same in every panel of a figure (tab20, then tab20b)."""
     from matplotlib import colormaps
 
-    cmap = [*colormaps["tab20"].colors, *colormaps["tab20b"].colors]
+    # tab20 and tab20b are ListedColormaps: 20 discrete colours each
+    cmap = [colormaps[name](i) for name in ("tab20", "tab20b") for i in range(20)]
     return {n: cmap[i % len(cmap)] for i, n in enumerate(names)}
 
 
