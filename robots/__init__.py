@@ -37,25 +37,6 @@ __all__ = [
     "quat_xyzw_to_wxyz",
 ]
 
-# Cross-validation of the Pinocchio model against the MuJoCo plant.
-from mbctl.robots.crosscheck import (  # noqa: E402
-    TOLERANCES,
-    CrossCheckError,
-    FeatureNote,
-    QuantityResult,
-    Report,
-    Sampling,
-    Tolerance,
-    crosscheck,
-)
+# The cross-check is the subpackage mbctl.robots.crosscheck (``from mbctl.robots.crosscheck
+# import crosscheck``): re-exporting its function here would shadow the subpackage's name.
 
-__all__ += [
-    "TOLERANCES",
-    "CrossCheckError",
-    "FeatureNote",
-    "QuantityResult",
-    "Report",
-    "Sampling",
-    "Tolerance",
-    "crosscheck",
-]
