@@ -121,7 +121,9 @@ class Progress:
             self._next = self._done + self._step
 
     def set(self, done: int, total: int | None = None) -> None:
-        """Set the count to ``done`` (for callbacks that report absolute progress)."""
+        """Set the count to ``done`` of ``total`` (callbacks that report absolute progress)."""
+        if total is not None and self._bar is not None:
+            self._bar.update(self._task, total=total)
         self.advance(done - self._done)
 
     def stop(self) -> None:

@@ -69,7 +69,7 @@ def prepare(params: XcheckParams) -> Work:
 
     def work(ctx: RunContext) -> Outcome:
         ctx.progress.start(params.states, f"xcheck {robot.name}")
-        report = crosscheck(robot, n_states=params.states, seed=params.seed)
+        report = crosscheck(robot, n_states=params.states, seed=params.seed, progress=ctx.progress.set)
         ctx.progress.stop()
         data = report.to_dict()
         write_json_atomic(ctx.path("crosscheck.json", "crosscheck"), data)

@@ -90,7 +90,7 @@ def _from_package(name: str) -> Path:
         if not cache.is_cached(entry):
             size_mb = entry.download_size / 1e6 if entry.download_size else float("nan")
             print(f"mbctl: {name} is not cached; downloading {size_mb:.0f} MB "
-                  f"(to skip: {how_to_provide(name)})", file=sys.stderr)
+                  f"(offline? set {MENAGERIE_ENV} or pass --model-dir)", file=sys.stderr)
         return Path(entry.path(cache, progress=None))
     except mujoco_menagerie.ChecksumError as exc:
         raise ModelFileError(f"Downloaded archive for {name!r} failed its hash check: {exc}") from None
