@@ -2,56 +2,64 @@
 
 from __future__ import annotations
 
-from pathlib import Path
 from typing import Annotated
 
 import typer
 
-from mbctl.jobs.g1 import g1_arm_pd, g1_stand, g1_track
+from mbctl.cli._run import OutputOpt, QuietOpt, execute
+from mbctl.cli.robots import ModelDirOpt
+from mbctl.jobs.g1 import G1_ARM_PD, G1_STAND, G1_TRACK, ArmPDParams, StandParams, TrackParams
 
-Output = Annotated[Path | None, typer.Option(help="Output directory (default out/<command>).")]
+Omega = Annotated[float, typer.Option("--omega", help="Closed-loop natural frequency (rad/s).")]
+Zeta = Annotated[float, typer.Option("--zeta", help="Damping ratio (-).")]
+MaxRms = Annotated[
+    float | None, typer.Option("--max-rms-rad", help="Exit 1 above this joint RMS error (rad).")
+]
+TrajectoryDuration = Annotated[
+    float | None, typer.Option("--duration", help="Simulated time (s) (default: the whole trajectory).")
+]
 
 
 def stand(
-    duration: Annotated[float, typer.Option(help="Simulated time (s).")] = 10.0,
-    omega: Annotated[float, typer.Option(help="Closed-loop natural frequency (rad/s).")] = 10.0,
-    zeta: Annotated[float, typer.Option(help="Damping ratio.")] = 1.0,
-    output: Output = None,
+    duration: Annotated[float, typer.Option("--duration", help="Simulated time (s).")] = 10.0,
+    omega: Omega = 10.0,
+    zeta: Zeta = 1.0,
+    model_dir: ModelDirOpt = None,
+    output: OutputOpt = None,
+    quiet: QuietOpt = False,
 ) -> None:
-    """Stand on the floor under PD + gravity compensation in torque mode; report pelvis drift."""
-    result = g1_stand(duration, output or Path("out/g1_stand"), omega_rad_s=omega, zeta=zeta)
-    typer.echo(result.summary())
-    if result.values["fell"]:
-        raise typer.Exit(1)
+    """Stand on the floor under PD + gravity compensation in torque mode; exit 1 if it fell."""
+    execute(G1_STAND, StandParams(duration, omega, zeta, model_dir), output, quiet)
 
 
 def track(
-    duration: Annotated[
-        float | None, typer.Option(help="Simulated time (s) (default: whole trajectory).")
-    ] = None,
-    omega: Annotated[float, typer.Option(help="Closed-loop natural frequency (rad/s).")] = 40.0,
-    zeta: Annotated[float, typer.Option(help="Damping ratio.")] = 1.0,
-    output: Output = None,
+    duration: TrajectoryDuration = None,
+    omega: Omega = 40.0,
+    zeta: Zeta = 1.0,
+    max_rms_rad: MaxRms = None,
+    model_dir: ModelDirOpt = None,
+    output: OutputOpt = None,
+    quiet: QuietOpt = False,
 ) -> None:
     """Computed torque on the welded-base G1 along ruckig trajectories (arms, legs, waist)."""
-    result = g1_track(duration, output or Path("out/g1_track"), omega_rad_s=omega, zeta=zeta)
-    typer.echo(result.summary())
+    execute(G1_TRACK, TrackParams(duration, omega, zeta, max_rms_rad, model_dir), output, quiet)
 
 
 def arm_pd(
-    duration: Annotated[
-        float | None, typer.Option(help="Simulated time (s) (default: whole trajectory).")
-    ] = None,
-    side: Annotated[str, typer.Option(help="left or right arm.")] = "left",
-    no_gravity_feedforward: Annotated[
-        bool, typer.Option("--no-gravity-feedforward", help="Targets without the g(q)/kp offset.")
-    ] = False,
-    output: Output = None,
+    duration: TrajectoryDuration = None,
+    side: Annotated[str, typer.Option("--side", help="left or right arm.")] = "left",
+    gravity_feedforward: Annotated[
+        bool,
+        typer.Option("--gravity-feedforward/--no-gravity-feedforward", help="Offset targets by g(q)/kp."),
+    ] = True,
+    max_rms_rad: MaxRms = None,
+    model_dir: ModelDirOpt = None,
+    output: OutputOpt = None,
+    quiet: QuietOpt = False,
 ) -> None:
     """One arm follows a ruckig trajectory through the Menagerie position actuators."""
-    result = g1_arm_pd(duration, output or Path("out/g1_arm_pd"), side=side,
-                       gravity_feedforward=not no_gravity_feedforward)
-    typer.echo(result.summary())
+    execute(G1_ARM_PD, ArmPDParams(duration, side, gravity_feedforward, max_rms_rad, model_dir), output,
+            quiet)
 
 
 def register(app: typer.Typer) -> None:

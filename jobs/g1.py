@@ -16,35 +16,33 @@
     trajectory through position targets (``PositionTargetPD``: the actuators' PD plus a gravity
     feed-forward offset); every other actuator keeps the keyframe's targets.
 
-Every job writes a CSV (one row per control cycle), a JSON execution report and a PNG, and
-returns a result with ``summary()``.
+Every job runs on the job runner: a CSV streamed one row per control cycle (reference, full q,
+v, command), ``report.json`` with the status and values, and a PNG.
 """
 
 from __future__ import annotations
 
-import os
-from dataclasses import dataclass, field
-from pathlib import Path
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 import pinocchio as pin
 
 from mbctl.control.computed_torque import ComputedTorque
-from mbctl.control.controller import joint_reference
-from mbctl.control.exceptions import ControlError
+from mbctl.control.controller import ControllerBase, joint_reference
+from mbctl.control.exceptions import ControlError, ControllerSetupError
 from mbctl.control.gains import PDGains, gains_from_frequency
 from mbctl.control.loop import RunLog, run
 from mbctl.control.pd_gravity import PDGravity
 from mbctl.control.position_pd import PositionTargetPD
-from mbctl.jobs.output import new_figure, save_figure, write_columns_csv
+from mbctl.jobs.plots import joint_colors, most_moved, new_figure
+from mbctl.jobs.recording import LoopRows, command_columns
+from mbctl.jobs.runner import Job, Outcome, RunContext, Work
 from mbctl.planners.ruckig_planner import JointLimits, plan_ruckig, plan_waypoints
 from mbctl.planners.trajectory import JointTrajectory
 from mbctl.robots.edits import position_to_motor, weld_base
 from mbctl.robots.model_pair import Robot
 from mbctl.robots.registry import load_robot
-from mbctl.sim.atomic import write_json_atomic
-from mbctl.sim.report import execution_report
 from mbctl.sim.simulator import Simulator
 
 KEYFRAME = "stand"
@@ -54,34 +52,6 @@ LEG_WORDS = ("hip", "knee", "ankle")
 #: jerk [rad/s^3] (well inside the G1's actuator capabilities).
 TRACK_LIMITS = (2.0, 10.0, 80.0)
 ARM_LIMITS = (1.5, 6.0, 40.0)
-
-
-@dataclass(frozen=True, eq=False)
-class G1Result:
-    """Outcome of a G1 job.
-
-    Attributes:
-        job: Job name.
-        values: Scalar results (errors [rad], heights [m], counts) for the summary and report.
-        files: Written files by role.
-        log: The control loop's log.
-    """
-
-    job: str
-    values: dict[str, Any]
-    files: dict[str, Path]
-    log: RunLog = field(repr=False)
-
-    def summary(self) -> str:
-        """Human-readable results with units (unit suffixes in the keys)."""
-        lines = [f"{self.job}:"]
-        for k, v in self.values.items():
-            if isinstance(v, float):
-                lines.append(f"  {k}: {v:.6g}")
-            elif not isinstance(v, (dict, list)):
-                lines.append(f"  {k}: {v}")
-        lines.append("wrote " + ", ".join(str(p) for p in self.files.values()))
-        return "\n".join(lines)
 
 
 def stance_inertia(robot: Robot, q: np.ndarray, joints: tuple[str, ...]) -> np.ndarray:
@@ -105,98 +75,6 @@ def stance_inertia(robot: Robot, q: np.ndarray, joints: tuple[str, ...]) -> np.n
             d = float(np.linalg.norm(com - data.oMi[model.getJointId(name)].translation))
             out[i] = max(out[i], 0.5 * mass * d * d)
     return out
-
-
-def _joint_columns(robot: Robot, log: RunLog, joints: tuple[str, ...], idx_q: np.ndarray,
-                   command_label: str) -> dict[str, np.ndarray]:
-    cols: dict[str, np.ndarray] = {"time_s": log.t_s}
-    for i, j in enumerate(joints):
-        if log.reference.shape[1] == len(joints):
-            cols[f"q_ref_{j}_rad"] = log.reference[:, i]
-        cols[f"q_{j}_rad"] = log.q[:, idx_q[i]]
-    for i, j in enumerate(joints[: log.command.shape[1]]):
-        cols[f"{command_label}_{j}"] = log.command[:, i]
-    return cols
-
-
-def g1_stand(
-    duration_s: float = 10.0,
-    output_dir: str | os.PathLike = "out/g1_stand",
-    *,
-    omega_rad_s: float = 10.0,
-    zeta: float = 1.0,
-    robot: Robot | None = None,
-) -> G1Result:
-    """Stand on the floor for ``duration_s`` under PD + gravity in torque mode.
-
-    Args:
-        duration_s: Simulated time [s].
-        output_dir: Directory for ``g1_stand.csv``, ``g1_stand_report.json``, ``g1_stand.png``.
-        omega_rad_s: Closed-loop natural frequency [rad/s].
-        zeta: Damping ratio [-].
-        robot: The G1 (default: ``load_robot("g1")``); converted to torque motors here.
-
-    Raises:
-        ModelNotFoundError: No G1 on this machine.
-        SimulationDiverged: The plant diverged.
-    """
-    robot = position_to_motor(robot or load_robot("g1"))
-    sim = Simulator(robot)
-    sim.reset(KEYFRAME)
-    q0 = robot.keyframe_q(KEYFRAME)
-    probe = PDGravity(robot, PDGains(np.ones(1), np.ones(1)))
-    inertia = stance_inertia(robot, q0, probe.joints)
-    controller = PDGravity(robot, gains_from_frequency(omega_rad_s, zeta, inertia))
-    reference = joint_reference(q0[controller.joint_map.idx_q])
-    z0 = sim.base_z_m
-    log = run(sim, controller, reference, duration_s)
-    z = log.q[:, 2]
-    z_end = sim.base_z_m
-    dev = np.abs(np.append(z, z_end) - z0)
-    joint_err = log.reference - log.q[:, controller.joint_map.idx_q]
-    values = {
-        "pelvis_z_keyframe_m": float(z0),
-        "pelvis_z_min_m": float(min(z.min(), z_end)),
-        "pelvis_z_max_m": float(max(z.max(), z_end)),
-        "pelvis_z_final_m": float(z_end),
-        "pelvis_max_deviation_m": float(dev.max()),
-        "fell": bool(dev.max() > 0.02),
-        "joint_rms_error_rad": float(np.sqrt(np.mean(joint_err**2))),
-        "joint_max_error_rad": float(np.abs(joint_err).max()),
-        "saturated_cycles": controller.saturation.saturated_cycles,
-        "simulated_time_s": sim.time_s,
-        "wall_time_s": log.wall_time_s,
-    }
-    out = Path(output_dir)
-    cols = _joint_columns(robot, log, controller.joints, controller.joint_map.idx_q, "tau_N_m")
-    cols["base_z_m"] = z
-    files = {"csv": write_columns_csv(out / "g1_stand.csv", cols)}
-    fig, axes = new_figure(1, 2, (12.0, 4.5))
-    ax, ax2 = axes[0]
-    ax.plot(log.t_s, (z - z0) * 1e3)
-    ax.axhline(20, color="r", ls="--", lw=0.8)
-    ax.axhline(-20, color="r", ls="--", lw=0.8, label="2 cm bound")
-    ax.set_xlabel("time [s]")
-    ax.set_ylabel("pelvis height - keyframe [mm]")
-    ax.legend()
-    ax2.plot(log.t_s, log.command, lw=0.6)
-    ax2.set_xlabel("time [s]")
-    ax2.set_ylabel("joint torques [N m]")
-    fig.tight_layout()
-    files["plot"] = save_figure(fig, out / "g1_stand.png")
-    report = execution_report(
-        sim, "g1-stand",
-        inputs={"duration_s": duration_s, "omega_rad_s": omega_rad_s, "zeta": zeta,
-                "keyframe": KEYFRAME, "controller": "pd_gravity"},
-        gains={"kp_N_m_rad": dict(zip(controller.joints, controller.gains.kp.tolist(), strict=True)),
-               "kd_N_m_s_rad": dict(zip(controller.joints, controller.gains.kd.tolist(), strict=True)),
-               "inertia_kg_m2": dict(zip(controller.joints, inertia.tolist(), strict=True))},
-        values=values,
-        controller_saturation=controller.saturation.summary(),
-        outputs={k: str(v) for k, v in files.items()},
-    )
-    files["report"] = write_json_atomic(out / "g1_stand_report.json", report)
-    return G1Result("g1-stand", values, files, log)
 
 
 def _set(q: np.ndarray, names: list[str], values: dict[str, float]) -> np.ndarray:
@@ -230,72 +108,6 @@ def track_waypoints(robot: Robot) -> np.ndarray:
     return np.vstack([start, a, b, start])
 
 
-def g1_track(
-    duration_s: float | None = None,
-    output_dir: str | os.PathLike = "out/g1_track",
-    *,
-    omega_rad_s: float = 40.0,
-    zeta: float = 1.0,
-    robot: Robot | None = None,
-) -> G1Result:
-    """Computed torque on the welded-base G1 along ruckig trajectories (arms, legs, waist).
-
-    Args:
-        duration_s: Simulated time [s]; None runs the whole trajectory plus 0.2 s.
-        output_dir: Directory for ``g1_track.csv``, ``g1_track_report.json``, ``g1_track.png``.
-        omega_rad_s: Closed-loop natural frequency [rad/s] (per unit inertia).
-        zeta: Damping ratio [-].
-        robot: The floating-base G1 (default: ``load_robot("g1")``); welded and converted here.
-
-    Raises:
-        ModelNotFoundError: No G1 on this machine.
-        SimulationDiverged: The plant diverged.
-    """
-    robot = position_to_motor(weld_base(robot or load_robot("g1"), KEYFRAME))
-    sim = Simulator(robot)
-    names = tuple(robot.joints)
-    waypoints = track_waypoints(robot)
-    limits = JointLimits.uniform(len(names), *TRACK_LIMITS)
-    traj = plan_waypoints(waypoints, limits, sim.control_period_s, names)
-    sim.reset(q=waypoints[0])
-    controller = ComputedTorque(robot, gains_from_frequency(omega_rad_s, zeta))
-    duration = duration_s or traj.duration_s + 0.2
-    log = run(sim, controller, traj, duration)
-    idx_q = controller.joint_map.idx_q
-    err = log.reference - log.q[:, idx_q]
-    rms_by_joint = np.sqrt(np.mean(err**2, axis=0))
-    values = {
-        "joint_rms_error_rad": float(np.sqrt(np.mean(err**2))),
-        "joint_max_error_rad": float(np.abs(err).max()),
-        "worst_joint": controller.joints[int(np.argmax(rms_by_joint))],
-        "worst_joint_rms_error_rad": float(rms_by_joint.max()),
-        "trajectory_duration_s": traj.duration_s,
-        "saturated_cycles": controller.saturation.saturated_cycles,
-        "contacts_at_end": sim.contact_count,
-        "simulated_time_s": sim.time_s,
-        "wall_time_s": log.wall_time_s,
-        "rms_error_by_joint_rad": dict(zip(controller.joints, rms_by_joint.tolist(), strict=True)),
-    }
-    out = Path(output_dir)
-    files = {"csv": write_columns_csv(
-        out / "g1_track.csv", _joint_columns(robot, log, controller.joints, idx_q, "tau_N_m"))}
-    files["plot"] = _plot_tracking(out / "g1_track.png", log, err, controller.joints,
-                                   "G1 welded base, computed torque")
-    report = execution_report(
-        sim, "g1-track",
-        inputs={"duration_s": duration, "omega_rad_s": omega_rad_s, "zeta": zeta,
-                "limits": {"max_velocity_rad_s": TRACK_LIMITS[0],
-                           "max_acceleration_rad_s2": TRACK_LIMITS[1],
-                           "max_jerk_rad_s3": TRACK_LIMITS[2]},
-                "waypoints_rad": waypoints.tolist(), "controller": "computed_torque"},
-        values=values,
-        controller_saturation=controller.saturation.summary(),
-        outputs={k: str(v) for k, v in files.items()},
-    )
-    files["report"] = write_json_atomic(out / "g1_track_report.json", report)
-    return G1Result("g1-track", values, files, log)
-
-
 def arm_trajectory(robot: Robot, side: str, dt_s: float) -> JointTrajectory:
     """A ruckig trajectory of one arm: keyframe -> raised and bent -> keyframe (7 joints)."""
     names = tuple(f"{side}_{j}_joint" for j in ("shoulder_pitch", "shoulder_roll", "shoulder_yaw",
@@ -310,90 +122,274 @@ def arm_trajectory(robot: Robot, side: str, dt_s: float) -> JointTrajectory:
     return there.then(back)
 
 
-def g1_arm_pd(
-    duration_s: float | None = None,
-    output_dir: str | os.PathLike = "out/g1_arm_pd",
-    *,
-    side: str = "left",
-    gravity_feedforward: bool = True,
-    robot: Robot | None = None,
-) -> G1Result:
-    """One arm follows a ruckig trajectory through the Menagerie position actuators.
 
-    Args:
-        duration_s: Simulated time [s]; None runs the whole trajectory plus 0.3 s.
-        output_dir: Directory for ``g1_arm_pd.csv``, ``g1_arm_pd_report.json``, ``g1_arm_pd.png``.
-        side: "left" or "right" arm.
-        gravity_feedforward: Offset the targets by ``g(q) / kp``.
-        robot: The G1 with position actuators (default: ``load_robot("g1")``).
+#: Pelvis height change [m] beyond which the standing robot counts as fallen.
+FALL_DEVIATION_M = 0.02
 
-    Raises:
-        ControlError: An unknown side.
-        ModelNotFoundError: No G1 on this machine.
-        SimulationDiverged: The plant diverged.
-    """
-    if side not in ("left", "right"):
-        raise ControlError(f"side must be 'left' or 'right'; got {side!r}")
-    robot = robot or load_robot("g1")
-    sim = Simulator(robot)
-    sim.reset(KEYFRAME)  # every actuator holds the keyframe's target; the arm's are overwritten
-    traj = arm_trajectory(robot, side, sim.control_period_s)
-    controller = PositionTargetPD(robot, traj.names, gravity_feedforward=gravity_feedforward)
-    z0 = sim.base_z_m
-    duration = duration_s or traj.duration_s + 0.3
-    log = run(sim, controller, traj, duration)
-    idx_q = controller.joint_map.idx_q
-    err = log.reference - log.q[:, idx_q]
-    z = log.q[:, 2]
-    values = {
-        "arm": side,
-        "joint_rms_error_rad": float(np.sqrt(np.mean(err**2))),
+
+def _positive(name: str, value: float | None, allow_none: bool = True) -> None:
+    if value is None and allow_none:
+        return
+    if value is None or not (np.isfinite(value) and value > 0):
+        raise ControllerSetupError(f"{name} must be finite and > 0; got {value}")
+
+
+@dataclass(frozen=True)
+class StandParams:
+    """``mbctl g1-stand``: duration [s], closed-loop omega [rad/s], zeta [-], model directory."""
+
+    duration_s: float = 10.0
+    omega_rad_s: float = 10.0
+    zeta: float = 1.0
+    model_dir: str | None = None
+
+    def __post_init__(self) -> None:
+        for name in ("duration_s", "omega_rad_s", "zeta"):
+            _positive(name, getattr(self, name), allow_none=False)
+
+
+@dataclass(frozen=True)
+class TrackParams:
+    """``mbctl g1-track``: duration [s] (None: whole trajectory), omega [rad/s], zeta, RMS bound [rad]."""
+
+    duration_s: float | None = None
+    omega_rad_s: float = 40.0
+    zeta: float = 1.0
+    max_rms_error_rad: float | None = None
+    model_dir: str | None = None
+
+    def __post_init__(self) -> None:
+        _positive("duration_s", self.duration_s)
+        _positive("omega_rad_s", self.omega_rad_s, allow_none=False)
+        _positive("zeta", self.zeta, allow_none=False)
+        _positive("max_rms_error_rad", self.max_rms_error_rad)
+
+
+@dataclass(frozen=True)
+class ArmPDParams:
+    """``mbctl g1-arm-pd``: duration [s] (None: whole trajectory), arm side, feed-forward, bound [rad]."""
+
+    duration_s: float | None = None
+    side: str = "left"
+    gravity_feedforward: bool = True
+    max_rms_error_rad: float | None = None
+    model_dir: str | None = None
+
+    def __post_init__(self) -> None:
+        if self.side not in ("left", "right"):
+            raise ControlError(f"side must be 'left' or 'right'; got {self.side!r}")
+        _positive("duration_s", self.duration_s)
+        _positive("max_rms_error_rad", self.max_rms_error_rad)
+
+
+def _loop(ctx: RunContext, sim: Simulator, controller: ControllerBase, reference: Any,
+          duration_s: float, unit: str, label: str) -> RunLog:
+    """Run the control loop with every cycle streamed to the run's CSV and the progress bar."""
+    ctx.attach(sim)
+    joints = controller.joints
+    header = LoopRows.header(sim.robot, [f"q_ref_{j}_rad" for j in joints], command_columns(joints, unit))
+    ctx.progress.start(max(1, int(round(duration_s / sim.control_period_s))), label)
+    rows = LoopRows(ctx.open_csv(header), len(joints), tick=ctx.progress.advance)
+    return run(sim, controller, reference, duration_s, rows)
+
+
+def _tracking_plot(ctx: RunContext, name: str, log: RunLog, joints: tuple[str, ...], err: np.ndarray,
+                   title: str, extra: tuple[str, np.ndarray] | None = None) -> None:
+    """Reference (dashed) and plant (solid) of the joints that moved most; their errors in mrad."""
+    shown = most_moved(log.reference, 8)
+    colors = joint_colors(list(joints))
+    panels = 3 if extra is not None else 2
+    fig, axes = new_figure(1, panels, (6.0 * panels, 5.0))
+    ax, ax_err = axes[0][0], axes[0][1]
+    for i in shown:
+        c = colors[joints[i]]
+        ax.plot(log.t_s, log.reference[:, i], ls="--", lw=1.0, color=c)
+        ax.plot(log.t_s, log.reference[:, i] - err[:, i], lw=1.0, color=c, label=joints[i])
+        ax_err.plot(log.t_s, err[:, i] * 1e3, lw=0.9, color=c, label=joints[i])
+    ax.set_xlabel("time (s)")
+    ax.set_ylabel("joint angle (rad)")
+    ax.set_title(f"the {len(shown)} joints that moved most (dashed: reference, solid: plant)", fontsize=9)
+    ax.legend(fontsize=7, loc="best")
+    ax_err.set_xlabel("time (s)")
+    ax_err.set_ylabel("joint error q_ref - q (mrad)")
+    ax_err.set_title("tracking error, same joints and colours", fontsize=9)
+    ax_err.grid(True, alpha=0.3)
+    if extra is not None:
+        ax3 = axes[0][2]
+        ax3.plot(log.t_s, extra[1], color="k", lw=1.0)
+        ax3.set_xlabel("time (s)")
+        ax3.set_ylabel(extra[0])
+        ax3.grid(True, alpha=0.3)
+        ax3.set_title("pelvis height change", fontsize=9)
+    fig.suptitle(title)
+    fig.tight_layout()
+    ctx.save_figure(fig, f"{name}.png")
+
+
+def prepare_stand(params: StandParams, robot: Robot | None = None) -> Work:
+    """Load the G1, convert its actuators to motors and derive the standing gains (no output yet)."""
+    robot = position_to_motor(robot or load_robot("g1", model_dir=params.model_dir))
+    q0 = robot.keyframe_q(KEYFRAME)
+    probe = PDGravity(robot, PDGains(np.ones(1), np.ones(1)))
+    inertia = stance_inertia(robot, q0, probe.joints)
+    gains = gains_from_frequency(params.omega_rad_s, params.zeta, inertia)
+
+    def work(ctx: RunContext) -> Outcome:
+        sim = Simulator(robot)
+        sim.reset(KEYFRAME)
+        controller = PDGravity(robot, gains)
+        ctx.sections["inputs"] = {"keyframe": KEYFRAME, "controller": "pd_gravity"}
+        ctx.sections["gains"] = {
+            "kp_N_m_rad": dict(zip(controller.joints, controller.gains.kp.tolist(), strict=True)),
+            "kd_N_m_s_rad": dict(zip(controller.joints, controller.gains.kd.tolist(), strict=True)),
+            "inertia_kg_m2": dict(zip(controller.joints, inertia.tolist(), strict=True)),
+        }
+        z0 = sim.base_z_m
+        ctx.values["pelvis_z_keyframe_m"] = float(z0)
+        reference = joint_reference(q0[controller.joint_map.idx_q])
+        log = _loop(ctx, sim, controller, reference, params.duration_s, "N_m", "g1-stand")
+        z = np.append(log.q[:, 2], sim.base_z_m)
+        dev = z - z0
+        joint_err = log.reference - log.q[:, controller.joint_map.idx_q]
+        fell = bool(np.abs(dev).max() > FALL_DEVIATION_M)
+        ctx.values.update({
+            "pelvis_z_min_m": float(z.min()),
+            "pelvis_z_max_m": float(z.max()),
+            "pelvis_z_final_m": float(z[-1]),
+            "pelvis_max_deviation_m": float(np.abs(dev).max()),
+            "fell": fell,
+            "joint_rms_error_rad": float(np.sqrt(np.mean(joint_err**2))),
+            "joint_max_error_rad": float(np.abs(joint_err).max()),
+            "saturated_cycles": controller.saturation.saturated_cycles,
+            "simulated_time_s": sim.time_s,
+            "wall_time_s": log.wall_time_s,
+        })
+        ctx.sections["controller_saturation"] = controller.saturation.summary()
+        _stand_plot(ctx, log, dev[:-1], controller.joints, params)
+        v = ctx.values
+        return Outcome(not fell, (
+            f"g1-stand {params.duration_s:g} s, PD + gravity (omega {params.omega_rad_s:g} rad/s, zeta "
+            f"{params.zeta:g}): pelvis max deviation {v['pelvis_max_deviation_m'] * 1e3:.2f} mm "
+            f"({'FELL' if fell else 'stood'}), joint RMS error {v['joint_rms_error_rad']:.3e} rad, "
+            f"saturated cycles {v['saturated_cycles']}",
+        ), f"pelvis within {FALL_DEVIATION_M * 1e3:g} mm of the keyframe height")
+
+    return work
+
+
+def _stand_plot(ctx: RunContext, log: RunLog, dev: np.ndarray, joints: tuple[str, ...],
+                params: StandParams) -> None:
+    fig, axes = new_figure(1, 2, (13.0, 5.0))
+    ax, ax2 = axes[0]
+    ax.plot(log.t_s, dev * 1e3, color="k", lw=1.0, label="pelvis height - keyframe")
+    ax.set_xlabel("time (s)")
+    ax.set_ylabel("pelvis height change (mm)")
+    ax.set_title(f"pelvis height (fall bound: {FALL_DEVIATION_M * 1e3:g} mm)", fontsize=9)
+    ax.grid(True, alpha=0.3)
+    ax.legend(fontsize=8)
+    shown = most_moved(log.command, 8)
+    colors = joint_colors(list(joints))
+    for i in shown:
+        ax2.plot(log.t_s, log.command[:, i], lw=0.9, color=colors[joints[i]], label=joints[i])
+    ax2.set_xlabel("time (s)")
+    ax2.set_ylabel("joint torque (N m)")
+    ax2.set_title(f"torques of the {len(shown)} joints whose torque varied most", fontsize=9)
+    ax2.legend(fontsize=7)
+    ax2.grid(True, alpha=0.3)
+    fig.suptitle(f"G1 standing, PD + gravity in torque mode (omega {params.omega_rad_s:g} rad/s, "
+                 f"zeta {params.zeta:g}): max pelvis deviation {np.abs(dev).max() * 1e3:.2f} mm")
+    fig.tight_layout()
+    ctx.save_figure(fig, "g1_stand.png")
+
+
+def prepare_track(params: TrackParams, robot: Robot | None = None) -> Work:
+    """Load and weld the G1, convert to motors, plan the ruckig trajectory (no output yet)."""
+    robot = position_to_motor(weld_base(robot or load_robot("g1", model_dir=params.model_dir), KEYFRAME))
+    names = tuple(robot.joints)
+    waypoints = track_waypoints(robot)
+    limits = JointLimits.uniform(len(names), *TRACK_LIMITS)
+    traj = plan_waypoints(waypoints, limits, robot.timestep_s, names)
+
+    def work(ctx: RunContext) -> Outcome:
+        sim = Simulator(robot)
+        sim.reset(q=waypoints[0])
+        controller = ComputedTorque(robot, gains_from_frequency(params.omega_rad_s, params.zeta))
+        duration = params.duration_s or traj.duration_s + 0.2
+        ctx.sections["inputs"] = {
+            "duration_s": duration, "controller": "computed_torque",
+            "limits": {"max_velocity_rad_s": TRACK_LIMITS[0], "max_acceleration_rad_s2": TRACK_LIMITS[1],
+                       "max_jerk_rad_s3": TRACK_LIMITS[2]},
+            "waypoints_rad": waypoints.tolist()}
+        log = _loop(ctx, sim, controller, traj, duration, "N_m", "g1-track")
+        err = log.reference - log.q[:, controller.joint_map.idx_q]
+        return _tracking_outcome(ctx, "g1_track", log, err, controller, sim, params.max_rms_error_rad, {
+            "trajectory_duration_s": traj.duration_s,
+            "contacts_at_end": sim.contact_count,
+        }, f"G1 welded base, computed torque (omega {params.omega_rad_s:g} rad/s, zeta {params.zeta:g})")
+
+    return work
+
+
+def _tracking_outcome(ctx: RunContext, name: str, log: RunLog, err: np.ndarray, controller: ControllerBase,
+                      sim: Simulator, bound: float | None, extra: dict[str, Any], title: str,
+                      plot_extra: tuple[str, np.ndarray] | None = None) -> Outcome:
+    rms_by_joint = np.sqrt(np.mean(err**2, axis=0))
+    rms = float(np.sqrt(np.mean(err**2)))
+    ctx.values.update({
+        "joint_rms_error_rad": rms,
         "joint_max_error_rad": float(np.abs(err).max()),
         "final_max_error_rad": float(np.abs(err[-1]).max()),
-        "pelvis_max_deviation_m": float(np.abs(z - z0).max()),
-        "targets_clipped_cycles": controller.saturation.saturated_cycles,
-        "trajectory_duration_s": traj.duration_s,
+        "worst_joint": controller.joints[int(np.argmax(rms_by_joint))],
+        "worst_joint_rms_error_rad": float(rms_by_joint.max()),
+        **extra,
+        "saturated_cycles": controller.saturation.saturated_cycles,
         "simulated_time_s": sim.time_s,
         "wall_time_s": log.wall_time_s,
-    }
-    out = Path(output_dir)
-    cols = _joint_columns(robot, log, controller.joints, idx_q, "target_rad")
-    cols["base_z_m"] = z
-    files = {"csv": write_columns_csv(out / "g1_arm_pd.csv", cols)}
-    files["plot"] = _plot_tracking(out / "g1_arm_pd.png", log, err, controller.joints,
-                                   f"G1 {side} arm, PD through position actuators")
-    report = execution_report(
-        sim, "g1-arm-pd",
-        inputs={"duration_s": duration, "side": side, "gravity_feedforward": gravity_feedforward,
-                "limits": {"max_velocity_rad_s": ARM_LIMITS[0],
-                           "max_acceleration_rad_s2": ARM_LIMITS[1],
-                           "max_jerk_rad_s3": ARM_LIMITS[2]},
-                "actuator_kp_N_m_rad": controller.kp.tolist(),
-                "actuator_kv_N_m_s_rad": controller.kv.tolist(),
-                "controller": "position_pd"},
-        values=values,
-        controller_saturation=controller.saturation.summary(),
-        outputs={k: str(v) for k, v in files.items()},
-    )
-    files["report"] = write_json_atomic(out / "g1_arm_pd_report.json", report)
-    return G1Result("g1-arm-pd", values, files, log)
+        "rms_error_by_joint_rad": dict(zip(controller.joints, rms_by_joint.tolist(), strict=True)),
+    })
+    ctx.sections["controller_saturation"] = controller.saturation.summary()
+    _tracking_plot(ctx, name, log, controller.joints, err, f"{title}: joint RMS {rms:.3g} rad",
+                   plot_extra)
+    passed = bound is None or rms <= bound
+    v = ctx.values
+    return Outcome(passed, (
+        f"{name.replace('_', '-')}: joint RMS error {rms:.3e} rad, max {v['joint_max_error_rad']:.3e} rad, "
+        f"worst joint {v['worst_joint']} ({v['worst_joint_rms_error_rad']:.3e} rad RMS), "
+        f"saturated cycles {v['saturated_cycles']}",
+    ), None if bound is None else f"joint RMS error <= {bound:g} rad")
 
 
-def _plot_tracking(path: Path, log: RunLog, err: np.ndarray, joints: tuple[str, ...],
-                   title: str) -> Path:
-    fig, axes = new_figure(1, 2, (13.0, 4.8))
-    ax, ax2 = axes[0]
-    ax.plot(log.t_s, log.reference, lw=0.8)
-    ax.set_prop_cycle(None)
-    ax.plot(log.t_s, log.reference - err, lw=0.8, ls="--")
-    ax.set_xlabel("time [s]")
-    ax.set_ylabel("joint angle [rad] (solid: reference, dashed: measured)")
-    ax.set_title(title)
-    rms = np.sqrt(np.mean(err**2, axis=0))
-    for i in np.argsort(rms)[::-1][:6]:
-        ax2.plot(log.t_s, err[:, i] * 1e3, lw=0.8, label=joints[i])
-    ax2.set_xlabel("time [s]")
-    ax2.set_ylabel("joint error [mrad] (6 worst joints)")
-    ax2.legend(fontsize=7)
-    fig.tight_layout()
-    return save_figure(fig, path)
+def prepare_arm_pd(params: ArmPDParams, robot: Robot | None = None) -> Work:
+    """Load the G1 (position actuators) and plan the arm's trajectory (no output yet)."""
+    robot = robot or load_robot("g1", model_dir=params.model_dir)
+    traj = arm_trajectory(robot, params.side, robot.timestep_s)
+    controller = PositionTargetPD(robot, traj.names, gravity_feedforward=params.gravity_feedforward)
+
+    def work(ctx: RunContext) -> Outcome:
+        sim = Simulator(robot)
+        sim.reset(KEYFRAME)  # every actuator holds the keyframe's target; the arm's are overwritten
+        z0 = sim.base_z_m
+        duration = params.duration_s or traj.duration_s + 0.3
+        ctx.sections["inputs"] = {
+            "duration_s": duration, "controller": "position_pd",
+            "limits": {"max_velocity_rad_s": ARM_LIMITS[0], "max_acceleration_rad_s2": ARM_LIMITS[1],
+                       "max_jerk_rad_s3": ARM_LIMITS[2]},
+            "actuator_kp_N_m_rad": controller.kp.tolist(), "actuator_kv_N_m_s_rad": controller.kv.tolist()}
+        log = _loop(ctx, sim, controller, traj, duration, "rad", f"g1-arm-pd ({params.side} arm)")
+        err = log.reference - log.q[:, controller.joint_map.idx_q]
+        dz = log.q[:, 2] - z0
+        return _tracking_outcome(ctx, "g1_arm_pd", log, err, controller, sim, params.max_rms_error_rad, {
+            "arm": params.side,
+            "pelvis_max_deviation_m": float(np.abs(dz).max()),
+            "trajectory_duration_s": traj.duration_s,
+        }, f"G1 {params.side} arm through the position actuators"
+           + (" + gravity feed-forward" if params.gravity_feedforward else ""),
+           ("pelvis height change (mm)", dz * 1e3))
+
+    return work
+
+
+#: The G1 jobs.
+G1_STAND = Job("g1-stand", prepare_stand)
+G1_TRACK = Job("g1-track", prepare_track)
+G1_ARM_PD = Job("g1-arm-pd", prepare_arm_pd)

@@ -101,12 +101,25 @@ class CsvStream:
             dup = sorted({h for h in self.header if self.header.count(h) > 1})
             raise ValueError(f"CSV columns must be unique; repeated: {dup}")
         self.path.parent.mkdir(parents=True, exist_ok=True)
-        self._file = open(self.path, "w", newline="")  # noqa: SIM115 - closed by close()
+        self._file = open(self.path, "w", newline="", encoding="utf-8")  # noqa: SIM115 - close()
         os.chmod(self.path, FILE_MODE)
-        self._file.write(",".join(self.header) + "\n")
+        head = ",".join(self.header) + "\n"
+        self._file.write(head)
         self._file.flush()
-        self.rows = 0
-        self.last: tuple[float, ...] = ()
+        # (rows, bytes on disk, last row), replaced in one assignment after each row is on disk,
+        # so an interruption anywhere leaves it either before or after that row (see close()).
+        self._state: tuple[int, int, Sequence[float]] = (0, len(head.encode()), ())
+        self._pending: Sequence[float] = ()
+
+    @property
+    def rows(self) -> int:
+        """Complete rows on disk."""
+        return self._state[0]
+
+    @property
+    def last(self) -> Sequence[float]:
+        """The last row written (empty before the first)."""
+        return self._state[2]
 
     @property
     def closed(self) -> bool:
@@ -121,16 +134,21 @@ class CsvStream:
         """
         if len(values) != len(self.header):
             raise ValueError(f"a row of {self.path.name} has {len(self.header)} values; got {len(values)}")
-        self._file.write(",".join([repr(float(x)) for x in values]) + "\n")
+        line = ",".join([repr(float(x)) for x in values]) + "\n"  # ASCII: len is the byte count
+        rows, size, _ = self._state
+        self._pending = values
+        self._file.write(line)
         self._file.flush()
-        self.rows += 1
-        self.last = tuple(values)
+        self._state = (rows + 1, size + len(line), values)
 
     def close(self) -> Path:
         """Flush and close (idempotent); returns the path."""
         if not self._file.closed:
             self._file.flush()
             os.fsync(self._file.fileno())
+            rows, size, _ = self._state
+            if os.fstat(self._file.fileno()).st_size > size:  # interrupted after the row's write
+                self._state = (rows + 1, os.fstat(self._file.fileno()).st_size, self._pending)
             self._file.close()
         return self.path
 

@@ -1,4 +1,8 @@
-"""JSON execution reports: what ran, on what, with which settings, and what came out."""
+"""Report sections of a run: the environment, the plant's model and settings, the run's counters.
+
+The job runner (``mbctl.jobs.runner``) assembles them with the status and values into
+``report.json``.
+"""
 
 from __future__ import annotations
 
@@ -74,15 +78,4 @@ def run_section(sim: Simulator) -> dict[str, Any]:
         "warnings": sim.warnings,
         "contact_count": sim.contact_count,
         "saturations": sim.saturations(),
-    }
-
-
-def execution_report(sim: Simulator, job: str, **sections: Any) -> dict[str, Any]:
-    """The full report of a job: environment, model, run, plus caller sections (values, etc.)."""
-    return {
-        "job": job,
-        "environment": environment(),
-        "model": model_section(sim),
-        "run": run_section(sim),
-        **sections,
     }

@@ -18,7 +18,7 @@ from mbctl.robots.menagerie import sha256_file
 from mbctl.sim import Simulator, torque
 from mbctl.sim.atomic import write_json_atomic
 from mbctl.sim.recorder import Recorder, joint_columns, read_csv, sensor_columns, time_column
-from mbctl.sim.report import execution_report
+from mbctl.sim.report import environment, model_section, run_section
 
 
 def test_recording_survives_an_error_mid_run(two_link_torque, tmp_path):
@@ -65,7 +65,8 @@ def test_atomic_file_is_not_published_when_the_block_raises(tmp_path):
 def test_report_contents(two_link_torque, tmp_path):
     sim = Simulator(two_link_torque)
     sim.step(torque([50.0, 0.0]), 10)
-    report = execution_report(sim, "test", values={"x": float("nan")})
+    report = {"environment": environment(), "model": model_section(sim), "run": run_section(sim),
+              "values": {"x": float("nan")}}
     path = write_json_atomic(tmp_path / "r.json", report)
     loaded = json.loads(path.read_text())
     assert loaded["model"]["timestep_s"] == 0.002
