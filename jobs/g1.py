@@ -37,6 +37,7 @@ from mbctl.control.pd_gravity import PDGravity
 from mbctl.control.position_pd import PositionTargetPD
 from mbctl.jobs.plots import joint_colors, most_moved, new_figure
 from mbctl.jobs.recording import LoopRows, command_columns
+from mbctl.jobs.robot_constants import KEYFRAME
 from mbctl.jobs.runner import Job, Outcome, RunContext, Work
 from mbctl.planners.ruckig_planner import JointLimits, plan_ruckig, plan_waypoints
 from mbctl.planners.trajectory import JointTrajectory
@@ -45,7 +46,6 @@ from mbctl.robots.model_pair import Robot
 from mbctl.robots.registry import load_robot
 from mbctl.sim.simulator import Simulator
 
-KEYFRAME = "stand"
 LEG_WORDS = ("hip", "knee", "ankle")
 
 #: Joint limits of the tracking trajectories: velocity [rad/s], acceleration [rad/s^2],
