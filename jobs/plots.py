@@ -18,11 +18,11 @@ def new_figure(rows: int = 1, cols: int = 1, size: tuple[float, float] = (10.0, 
 
 
 def joint_colors(names: tuple[str, ...] | list[str]) -> dict[str, Any]:
-    """One colour per joint name, the same in every panel of a figure (tab20, then tab20b)."""
+    """One colour per joint name, the same in every panel of a figure (tab10, then tab20b)."""
     from matplotlib import colormaps
 
-    # tab20 and tab20b are ListedColormaps: 20 discrete colours each
-    cmap = [colormaps[name](i) for name in ("tab20", "tab20b") for i in range(20)]
+    # tab10's ten distinct hues first (tab20 pairs near-identical shades), then tab20b's twenty
+    cmap = [colormaps["tab10"](i) for i in range(10)] + [colormaps["tab20b"](i) for i in range(20)]
     return {n: cmap[i % len(cmap)] for i, n in enumerate(names)}
 
 
