@@ -7,6 +7,15 @@ from mbctl.control.exceptions import (
     KinematicsError,
     UnreachableTarget,
 )
+from mbctl.control.ik.backends import (
+    BACKENDS,
+    MinkWholeBodyIK,
+    QPWholeBodyIK,
+    WholeBodyIK,
+    WholeBodyIKConfig,
+    WholeBodyIKResult,
+    make_whole_body_ik,
+)
 from mbctl.control.ik.limits import (
     BoxLimit,
     Constraint,
@@ -33,16 +42,10 @@ from mbctl.control.ik.two_link import (
     Workspace,
     dls_ik,
     pinv_ik,
-    plot_workspace,
-)
-from mbctl.control.ik.whole_body import (
-    MinkWholeBodyIK,
-    PinocchioWholeBodyIK,
-    WholeBodyIKConfig,
-    with_palm_sites,
 )
 
 __all__ = [
+    "BACKENDS",
     "BoxLimit",
     "ComTask",
     "Constraint",
@@ -65,18 +68,19 @@ __all__ = [
     "KinematicsError",
     "Limit",
     "MinkWholeBodyIK",
-    "PinocchioWholeBodyIK",
     "PostureTask",
+    "QPWholeBodyIK",
     "Task",
     "TwoLinkArm",
     "UnreachableTarget",
+    "WholeBodyIK",
     "WholeBodyIKConfig",
+    "WholeBodyIKResult",
     "Workspace",
     "dls_ik",
     "pinv_ik",
-    "plot_workspace",
+    "make_whole_body_ik",
     "solve_ik",
-    "with_palm_sites",
 ]
 
 # Controllers, gains and the control loop (appended; the IK names above are another module family).

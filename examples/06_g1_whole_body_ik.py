@@ -3,8 +3,10 @@
 The differential-IK QP (Pinocchio model) weighs one task per goal: both feet keep their pose,
 both palms move 10 cm forward (+x in the world), the centre of mass stays over the midpoint of
 the feet (x, y), the pelvis keeps its orientation, and a small posture task regularises the
-rest, under joint position and velocity limits. The G1 has no palm sites, so
-``with_palm_sites`` adds them to both engines at load time (recorded in ``robot.source.edits``).
+rest, under joint position and velocity limits. The task set is generic
+(``WholeBodyIKConfig`` names the frames); the G1's names come from ``mbctl.jobs.robot_constants``.
+The G1 has no palm sites, so ``with_palm_sites`` adds them to both engines at load time
+(``mbctl.robots.edits.add_site``, recorded in ``robot.source.edits``).
 
 The solution is checked independently in MuJoCo: the configuration is converted to MuJoCo's
 convention (``robot.converter.q_pin_to_mj``), ``mj_kinematics`` and ``mj_comPos`` run on a
@@ -32,13 +34,12 @@ import sys
 import mujoco
 import numpy as np
 
-from mbctl.control import PinocchioWholeBodyIK, with_palm_sites
+from mbctl.control import QPWholeBodyIK
+from mbctl.jobs.robot_constants import FEET, KEYFRAME, PALM_SITES, g1_whole_body_config, with_palm_sites
 from mbctl.robots import ModelFileError, ModelNotFoundError, load_robot
 from mbctl.sim import Simulator, position_target
 
-KEYFRAME = "stand"
-PALMS = ("left_palm", "right_palm")
-FEET = ("left_foot", "right_foot")
+PALMS = tuple(PALM_SITES)
 PALM_OFFSET_M = np.array([0.1, 0.0, 0.0])  # in the world frame
 IK_TOLERANCE_M = 1e-4
 MAX_IK_ITERATIONS = 20
@@ -79,9 +80,9 @@ def main() -> int:
     targets.update({foot: start[foot] for foot in FEET})
     com_xy = 0.5 * (start["left_foot"][:2] + start["right_foot"][:2])
 
-    ik = PinocchioWholeBodyIK(robot, q0)
+    ik = QPWholeBodyIK(robot, g1_whole_body_config(), q0)
     for palm in PALMS:
-        ik.set_palm_target(palm, targets[palm])
+        ik.set_target_position(palm, targets[palm])
     ik.set_com_target(com_xy)
     result = ik.solve(q0, tol=IK_TOLERANCE_M, max_iters=MAX_IK_ITERATIONS)
     print(f"IK: converged {result.converged} in {result.iterations} iterations, "

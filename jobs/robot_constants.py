@@ -14,6 +14,8 @@ x = 0.0708 m, so 0.08 m is about mid-palm along the hand's long axis.
 
 from __future__ import annotations
 
+from mbctl.control.ik.backends import WholeBodyIKConfig
+from mbctl.robots.edits import add_site
 from mbctl.robots.model_pair import Robot
 
 #: Registry name of the Menagerie G1 (``mbctl.robots.registry.KNOWN_ROBOTS``).
@@ -45,3 +47,25 @@ def is_menagerie_g1(robot: Robot) -> bool:
         robot: Any loaded model pair (edits such as palm sites keep the identity).
     """
     return robot.source.name == G1_NAME and robot.source.origin.startswith(G1_ORIGIN_PREFIX)
+
+
+def g1_whole_body_config(**weights: float) -> WholeBodyIKConfig:
+    """The G1 whole-body task set (mink's humanoid example): feet held, palm targets, CoM, pelvis.
+
+    Args:
+        **weights: Overrides of ``WholeBodyIKConfig``'s weights and limits.
+    """
+    return WholeBodyIKConfig(held_frames=FEET, target_frames=tuple(PALM_SITES), base_frame=PELVIS,
+                             com=True, **weights)  # type: ignore[arg-type]
+
+
+def with_palm_sites(robot: Robot) -> Robot:
+    """A copy of the G1 with the ``left_palm``/``right_palm`` sites in both engines (idempotent).
+
+    Raises:
+        UnknownNameError: The robot lacks a wrist-yaw body (not a G1).
+    """
+    for site, body in PALM_SITES.items():
+        if site not in robot.sites:
+            robot = add_site(robot, site, body, PALM_OFFSET_IN_WRIST_YAW_M)
+    return robot

@@ -119,3 +119,56 @@ def weld_base(robot: Robot, keyframe: str | None = None) -> Robot:
                  f"quat_wxyz={np.round(quat_wxyz, 6).tolist()}")
     return robot.with_edits(f"base welded to the world ({free.name} removed) {where}",
                             mj_edit=edit, pin_edit=pin_edit)
+
+
+def add_site(robot: Robot, site: str, body: str, position_in_body_m: Iterable[float] = (0.0, 0.0, 0.0),
+             size_m: float = 0.01) -> Robot:
+    """Add a site to a body in both engines (identity orientation in the body frame).
+
+    MuJoCo: ``MjSpec`` ``add_site`` on ``body`` at ``position_in_body_m``. Pinocchio: an
+    ``OP_FRAME`` called ``site`` on the body's parent joint, placed at (body frame placement) *
+    (offset), so both engines put it at the same point.
+
+    Args:
+        robot: The robot to extend (unchanged).
+        site: New site name (must not exist yet in either engine).
+        body: Name of the body that carries the site.
+        position_in_body_m: Site position (3,) [m] in the body frame.
+        size_m: Site size [m] (visual only).
+
+    Returns:
+        A new Robot whose ``source.edits`` records the site.
+
+    Raises:
+        UnknownNameError: ``body`` is not a body of the robot (the message lists close names).
+        RobotError: ``site`` already names a site or a Pinocchio frame, or the offset is not 3
+            finite numbers.
+    """
+    import pinocchio as pin
+
+    from mbctl.robots.exceptions import RobotError
+
+    robot.body_id(body)  # UnknownNameError with close matches
+    if site in robot.sites or robot.pin_model.existFrame(site):
+        raise RobotError(f"{robot.name!r} already has a site or frame called {site!r}; choose another name")
+    offset = np.asarray(list(position_in_body_m), dtype=float)
+    if offset.shape != (3,) or not np.all(np.isfinite(offset)):
+        raise RobotError(f"position_in_body_m must be 3 finite numbers [m]; got {position_in_body_m!r}")
+
+    def mj_edit(spec: mujoco.MjSpec) -> None:
+        spec.body(body).add_site(name=site, pos=offset, size=[size_m, size_m, size_m])
+
+    def pin_edit(model: pin.Model) -> pin.Model:
+        body_frame_id = model.getFrameId(body, pin.FrameType.BODY)
+        body_frame = model.frames[body_frame_id]
+        placement = body_frame.placement * pin.SE3(np.eye(3), offset)
+        model.addFrame(pin.Frame(site, body_frame.parentJoint, body_frame_id, placement,
+                                 pin.FrameType.OP_FRAME))
+        return model
+
+    return robot.with_edits(
+        f"site {site} on body {body} at {np.round(offset, 6).tolist()} m in the body frame "
+        "(MjSpec add_site; Pinocchio OP_FRAME)",
+        mj_edit,
+        pin_edit,
+    )

@@ -25,7 +25,6 @@ from __future__ import annotations
 import enum
 import math
 from dataclasses import dataclass
-from pathlib import Path
 from typing import NamedTuple
 
 import numpy as np
@@ -365,75 +364,6 @@ def _iterate(
         error_history=np.array(errors),
         step_norms=np.array(steps),
     )
-
-
-# ---------------------------------------------------------------------- workspace plot
-def sample_workspace(arm: TwoLinkArm, robot: Robot | None = None, n: int = 121) -> np.ndarray:
-    """Site positions (n*n, 2) [m] over an ``n x n`` grid of joint angles.
-
-    Args:
-        arm: Arm geometry.
-        robot: If given, finite Pinocchio joint limits bound the grid; otherwise (-pi, pi].
-        n: Samples per joint (>= 2).
-
-    Raises:
-        IKSetupError: ``n`` < 2.
-    """
-    if int(n) < 2:
-        raise IKSetupError(f"n must be >= 2 samples per joint; got {n!r}")
-    lo = np.full(2, -math.pi)
-    hi = np.full(2, math.pi)
-    if robot is not None:
-        lo = np.maximum(lo, robot.pin_model.lowerPositionLimit)
-        hi = np.minimum(hi, robot.pin_model.upperPositionLimit)
-    g1, g2 = np.meshgrid(np.linspace(lo[0], hi[0], n), np.linspace(lo[1], hi[1], n))
-    q1, q2 = g1.ravel(), g2.ravel()
-    l1, l2 = arm.link1_length, arm.link2_length
-    x = arm.base_x + l1 * np.cos(q1) + l2 * np.cos(q1 + q2)
-    y = arm.base_y + l1 * np.sin(q1) + l2 * np.sin(q1 + q2)
-    return np.column_stack([x, y])
-
-
-def plot_workspace(
-    arm: TwoLinkArm, path: str | Path, robot: Robot | None = None, n: int = 121
-) -> Path:
-    """Write a PNG of the sampled workspace with the r_min and r_max circles (Agg backend).
-
-    Args:
-        arm: Arm geometry.
-        path: Output PNG file.
-        robot: Optional robot whose joint limits bound the sampling.
-        n: Samples per joint.
-
-    Returns:
-        The written path.
-    """
-    from matplotlib.backends.backend_agg import FigureCanvasAgg
-    from matplotlib.figure import Figure
-
-    points = sample_workspace(arm, robot, n)
-    fig = Figure(figsize=(5.0, 5.0))
-    FigureCanvasAgg(fig)
-    ax = fig.add_subplot(1, 1, 1)
-    ax.scatter(points[:, 0], points[:, 1], s=1.0, alpha=0.4, label="sampled site positions")
-    t = np.linspace(0.0, 2.0 * math.pi, 361)
-    for radius, style, label in ((arm.r_max, "-", "r_max"), (arm.r_min, "--", "r_min")):
-        ax.plot(
-            arm.base_x + radius * np.cos(t),
-            arm.base_y + radius * np.sin(t),
-            style,
-            color="k",
-            label=f"{label} = {radius:.4g} m",
-        )
-    ax.set_aspect("equal")
-    ax.set_xlabel("x [m]")
-    ax.set_ylabel("y [m]")
-    ax.set_title(f"2-link workspace (l1={arm.link1_length:.4g} m, l2={arm.link2_length:.4g} m)")
-    ax.legend(loc="upper right", fontsize="small")
-    out = Path(path)
-    out.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(out, dpi=100, bbox_inches="tight")
-    return out
 
 
 # ---------------------------------------------------------------------- helpers

@@ -1,0 +1,291 @@
+"""The ``mbctl ik`` job: solve whole-body IK to convergence, check it on the MuJoCo plant.
+
+Task set. The robot that IS the Menagerie G1 (``robot_constants.is_menagerie_g1``: loaded by the
+registry name "g1", told apart by its recorded origin, never by the file stem) gets the G1 set:
+palm sites added at load time, feet held, palm position targets, CoM (x, y), pelvis orientation,
+posture. Any other robot (a user file named g1.xml included) gets the generic set: position
+targets on any of its MuJoCo sites or bodies, optional CoM (x, y), posture, joint limits.
+Both sets run on either backend, ``qp`` (our Pinocchio QP) or ``mink``
+(``mbctl.control.ik.backends``).
+
+Plant check (never a silent wrong answer). After solving, the pose is converted to MuJoCo's
+convention (``robot.converter.q_pin_to_mj``), ``mj_kinematics`` and ``mj_comPos`` run on a scratch
+``MjData`` of ``robot.mj_model``, and every position target (held and target frames, CoM x-y) is
+measured there: ``plant_residual_m``. The run is ``converged`` only when the IK's own residuals
+AND the plant residuals are within tolerance; otherwise the pose is still written and the run
+exits 1.
+
+Outputs: ``ik_pose.json`` (pose by joint, residuals, plant residuals) and the runner's
+``report.json``.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Any
+
+import mujoco
+import numpy as np
+
+from mbctl.control.exceptions import IKSetupError
+from mbctl.control.ik.backends import (
+    BACKENDS,
+    REGULARISERS,
+    WholeBodyIK,
+    WholeBodyIKConfig,
+    WholeBodyIKResult,
+    joint_positions_by_name,
+    make_whole_body_ik,
+    mujoco_frame_type,
+)
+from mbctl.exceptions import unknown_name_message
+from mbctl.jobs.robot_constants import (
+    KEYFRAME,
+    PALM_SITES,
+    g1_whole_body_config,
+    is_menagerie_g1,
+    with_palm_sites,
+)
+from mbctl.jobs.runner import Job, Outcome, RunContext, Work
+from mbctl.robots.exceptions import UnknownNameError
+from mbctl.robots.model_pair import Robot
+from mbctl.robots.registry import load_robot
+from mbctl.sim.atomic import write_json_atomic
+
+#: QP backends of qpsolvers that ``mbctl ik`` offers.
+SOLVERS = ("daqp", "osqp")
+
+
+@dataclass(frozen=True)
+class IKParams:
+    """What ``mbctl ik`` solves.
+
+    Attributes:
+        robot: Known robot name or MJCF robot file.
+        targets: (frame, (x, y, z) (m)) pairs, world frame (offsets from the start if ``relative``).
+        com_xy: CoM target (x, y) (m) in the world, or None.
+        relative: Targets are offsets from the start pose (m).
+        tol_m: Position tolerance (m); orientations get ``10 * tol_m`` (rad).
+        max_iters: Iteration cap.
+        solver: qpsolvers backend (``SOLVERS``).
+        backend: IK backend (``BACKENDS``: "qp" or "mink").
+        keyframe: Start keyframe (None: "stand" for the G1, else the neutral pose).
+        scene: Scene MJCF for MuJoCo when ``robot`` is a path.
+        model_dir: Explicit Menagerie model directory for a known robot.
+    """
+
+    robot: str
+    targets: tuple[tuple[str, tuple[float, float, float]], ...] = ()
+    com_xy: tuple[float, float] | None = None
+    relative: bool = False
+    tol_m: float = 1e-3
+    max_iters: int = 50
+    solver: str = "daqp"
+    backend: str = "qp"
+    keyframe: str | None = None
+    scene: str | None = None
+    model_dir: str | None = None
+
+    def __post_init__(self) -> None:
+        if not self.targets and self.com_xy is None:
+            raise IKSetupError("Give at least one --target FRAME=X,Y,Z (or --com X,Y).")
+        if self.solver not in SOLVERS:
+            raise IKSetupError(f"solver must be one of {', '.join(SOLVERS)}; got {self.solver!r}")
+        if self.backend not in BACKENDS:
+            raise IKSetupError(f"backend must be one of {', '.join(BACKENDS)}; got {self.backend!r}")
+        if not (math.isfinite(self.tol_m) and self.tol_m > 0):
+            raise IKSetupError(f"tol must be a positive length (m); got {self.tol_m!r}")
+        if int(self.max_iters) < 1:
+            raise IKSetupError(f"max_iters must be >= 1; got {self.max_iters!r}")
+        names = [name for name, _ in self.targets]
+        repeated = sorted({n for n in names if names.count(n) > 1})
+        if repeated:
+            raise IKSetupError(f"frames {repeated} have more than one --target; give one each")
+        for name, xyz in self.targets:
+            if len(xyz) != 3 or not all(math.isfinite(v) for v in xyz):
+                raise IKSetupError(f"target of {name!r} must be 3 finite numbers (m); got {xyz!r}")
+        if self.com_xy is not None and (len(self.com_xy) != 2 or
+                                        not all(math.isfinite(v) for v in self.com_xy)):
+            raise IKSetupError(f"com must be 2 finite numbers (m); got {self.com_xy!r}")
+
+
+def generic_config(targets: tuple[str, ...], com: bool) -> WholeBodyIKConfig:
+    """The generic task set: position targets on ``targets``, optional CoM, posture, limits."""
+    return WholeBodyIKConfig(target_frames=targets, com=com, target_position_cost=1.0,
+                             posture_cost=1e-2, damping=1e-6, joint_max_velocity=None)
+
+
+def task_set_for(robot: Robot, params: IKParams) -> tuple[Robot, WholeBodyIKConfig, str]:
+    """The robot (palm sites added for the G1), its task set and the set's name ("g1" or "generic").
+
+    Raises:
+        IKSetupError: A target frame the task set does not have (the message lists them).
+    """
+    names = tuple(name for name, _ in params.targets)
+    if is_menagerie_g1(robot):
+        robot = with_palm_sites(robot)
+        for name in names:
+            if name not in PALM_SITES:
+                raise IKSetupError(unknown_name_message("G1 IK target frame", name, PALM_SITES)
+                                   + " (the feet are held at their start pose)")
+        return robot, g1_whole_body_config(), "g1"
+    for name in names:
+        mujoco_frame_type(robot, name)
+    return robot, generic_config(names, params.com_xy is not None), "generic"
+
+
+def start_q(robot: Robot, keyframe: str | None, task_set: str) -> np.ndarray:
+    """Start configuration (nq,): ``keyframe``, else the G1's "stand", else the neutral pose."""
+    if keyframe is not None:
+        return robot.keyframe_q(keyframe)
+    if task_set == "g1":
+        return robot.keyframe_q(KEYFRAME)
+    return robot.neutral_q()
+
+
+def plant_positions(robot: Robot, q: np.ndarray, frames: tuple[str, ...]) -> tuple[dict[str, np.ndarray],
+                                                                                   np.ndarray]:
+    """Positions p_WF (3,) (m) of ``frames`` and the CoM p_WC (3,) (m) from MuJoCo's kinematics.
+
+    Args:
+        robot: The model pair (its ``mj_model`` is read, never stepped).
+        q: Configuration (nq,), Pinocchio convention.
+        frames: MuJoCo sites or bodies.
+    """
+    m = robot.mj_model
+    data = mujoco.MjData(m)
+    data.qpos[:] = robot.converter.q_pin_to_mj(q)
+    mujoco.mj_kinematics(m, data)
+    mujoco.mj_comPos(m, data)
+    out = {}
+    for frame in frames:
+        if mujoco_frame_type(robot, frame) == "site":
+            out[frame] = data.site_xpos[robot.site_id(frame)].copy()
+        else:
+            out[frame] = data.xpos[robot.body_id(frame)].copy()
+    return out, data.subtree_com[0].copy()
+
+
+def plant_residuals(robot: Robot, ik: WholeBodyIK, q: np.ndarray) -> dict[str, float]:
+    """Distance (m) from each position target (frames, CoM x-y as "com") measured in MuJoCo."""
+    targets = ik.target_positions()
+    positions, com = plant_positions(robot, q, tuple(targets))
+    out = {f: float(np.linalg.norm(positions[f] - p)) for f, p in targets.items()}
+    com_target = ik.com_target
+    if com_target is not None:
+        out["com"] = float(np.linalg.norm(com[:2] - com_target[:2]))
+    return out
+
+
+def prepare(params: IKParams, robot: Robot | None = None) -> Work:
+    """Load the robot, choose the task set, build the backend and set the targets (no output yet).
+
+    Args:
+        params: The job's parameters.
+        robot: An already loaded model pair to use instead of loading ``params.robot`` (tests).
+
+    Raises:
+        IKSetupError: Unknown target frame, backend setup failure.
+        ToolkitError: The robot cannot be found or loaded.
+    """
+    if robot is None:
+        robot = load_robot(params.robot, params.scene, model_dir=params.model_dir)
+    try:
+        robot, config, task_set = task_set_for(robot, params)
+        q0 = start_q(robot, params.keyframe, task_set)
+    except UnknownNameError as exc:
+        raise IKSetupError(str(exc)) from None
+    ik = make_whole_body_ik(params.backend, robot, config, q0, params.solver)
+    for name, xyz in params.targets:
+        p = np.array(xyz, dtype=float)
+        ik.set_target_position(name, p + ik.frame_position(name) if params.relative else p)
+    if params.com_xy is not None:
+        xy = np.array(params.com_xy, dtype=float)
+        ik.set_com_target(xy + ik.com()[:2] if params.relative else xy)
+
+    def work(ctx: RunContext) -> Outcome:
+        res = ik.solve(q0, tol=params.tol_m, max_iters=params.max_iters)
+        plant = plant_residuals(robot, ik, res.q)
+        plant_ok = max(plant.values(), default=0.0) <= params.tol_m
+        converged = bool(res.converged and plant_ok)
+        margins = ik.position_limit.margins(res.q)
+        min_margin = min(min(v) for v in margins.values()) if margins else None
+        per_iteration_s = float(np.median(res.iteration_times_s)) if res.iterations else None
+        ctx.sections["inputs"] = {"task_set": task_set, "backend": params.backend,
+                                  "model_edits": list(robot.source.edits)}
+        ctx.values.update({
+            "converged": converged,
+            "ik_converged": bool(res.converged),
+            "iterations": res.iterations,
+            "wall_time_s": res.wall_time_s,
+            "median_iteration_time_s": per_iteration_s,
+            "max_plant_residual_m": max(plant.values(), default=0.0),
+            "min_joint_limit_margin": min_margin,
+        })
+        payload: dict[str, Any] = {
+            "robot": robot.name,
+            "origin": robot.source.origin,
+            "task_set": task_set,
+            "backend": params.backend,
+            "solver": params.solver,
+            "convention": "Pinocchio (free joint: x, y, z, qx, qy, qz, qw)",
+            "converged": converged,
+            "ik_converged": bool(res.converged),
+            "stalled": bool(res.stalled),
+            "iterations": res.iterations,
+            "wall_time_s": res.wall_time_s,
+            "median_iteration_time_s": per_iteration_s,
+            "tolerance_m": params.tol_m,
+            "targets": {name: list(xyz) for name, xyz in params.targets},
+            "targets_relative": params.relative,
+            "com_xy": list(params.com_xy) if params.com_xy is not None else None,
+            "residuals": res.residuals,
+            "plant_residual_m": plant,
+            "min_joint_limit_margin": min_margin,
+            "q": joint_positions_by_name(robot, res.q),
+            "model_edits": list(robot.source.edits),
+        }
+        write_json_atomic(ctx.path("ik_pose.json", "pose"), payload)
+        return Outcome(converged, tuple(_summary(robot.name, task_set, params, res, plant, margins,
+                                                  converged)),
+                       f"every IK and plant (MuJoCo) position residual within {params.tol_m:g} m")
+
+    return work
+
+
+def _summary(name: str, task_set: str, params: IKParams, res: WholeBodyIKResult,
+             plant: dict[str, float], margins: dict[str, tuple[float, float]],
+             converged: bool) -> list[str]:
+    if converged:
+        status = "converged"
+    elif res.converged:
+        status = "NOT converged (the MuJoCo plant disagrees with the IK's model)"
+    else:
+        status = "stalled (closest pose)" if res.stalled else "NOT converged (iteration cap)"
+    per_it = float(np.median(res.iteration_times_s)) if res.iterations else 0.0
+    lines = [f"robot {name} ({task_set} task set, backend {params.backend}): {status} in "
+             f"{res.iterations} iterations, {res.wall_time_s * 1e3:.1f} ms ({per_it * 1e6:.0f} "
+             f"us/iteration median), solver {params.solver}, tol {params.tol_m:g} m",
+             "task residuals (IK's own; plant = measured in MuJoCo):"]
+    for task, values in res.residuals.items():
+        text = ", ".join(f"{k.split(' ')[0]} {v:.3e} {k.split(' ')[1].replace('[', '(').replace(']', ')')}"
+                         for k, v in values.items())
+        if task in plant:
+            text += f", plant {plant[task]:.3e} (m)"
+        note = "  (regulariser, not a target)" if task in REGULARISERS else ""
+        lines.append(f"  {task:20s} {text}{note}")
+    closest = sorted(margins.items(), key=lambda kv: min(kv[1]))[:5]
+    if closest:
+        lines.append("joint-limit margins (closest 5; to lower, to upper) (rad or m):")
+        lines += [f"  {joint:28s} {lo:+.4f} {hi:+.4f}" for joint, (lo, hi) in closest]
+    else:
+        lines.append("joint-limit margins: no joint has finite position limits")
+    worst = max(plant.values(), default=0.0)
+    lines.append(f"plant check: largest residual in MuJoCo {worst:.3e} m "
+                 f"({'within' if worst <= params.tol_m else 'OUTSIDE'} tol {params.tol_m:g} m)")
+    return lines
+
+
+#: The ``mbctl ik`` job.
+IK = Job("ik", prepare)

@@ -1,0 +1,109 @@
+"""The ``mbctl workspace`` job: the 2-link arm's reachable annulus and a sampled workspace plot.
+
+Only the planar 2-link arm is supported (``SUPPORTED_ROBOTS``): the annulus
+``|l1 - l2| <= |p_WS - p_WO| <= l1 + l2`` is its analytic geometry
+(``mbctl.control.ik.two_link.TwoLinkArm``). The run folder gets ``workspace.png`` (site positions
+over an ``n x n`` grid of joint angles inside the joint limits, with the r_min and r_max circles)
+and the runner's ``report.json`` (``r_min_m``, ``r_max_m``, link lengths).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from mbctl.control.exceptions import IKSetupError
+from mbctl.control.ik.two_link import TwoLinkArm
+from mbctl.jobs.plots import new_figure
+from mbctl.jobs.runner import Job, Outcome, RunContext, Work
+from mbctl.robots.model_pair import Robot
+from mbctl.robots.registry import load_robot
+
+#: Robots ``mbctl workspace`` knows the workspace of (registry names of the 2-link arm).
+SUPPORTED_ROBOTS = ("two_link", "two_link_torque")
+
+
+@dataclass(frozen=True)
+class WorkspaceParams:
+    """What ``mbctl workspace`` runs.
+
+    Attributes:
+        robot: A registry name in ``SUPPORTED_ROBOTS``.
+        samples: Samples per joint of the joint-angle grid (>= 2).
+    """
+
+    robot: str = "two_link"
+    samples: int = 121
+
+    def __post_init__(self) -> None:
+        if self.robot not in SUPPORTED_ROBOTS:
+            raise IKSetupError(
+                f"mbctl workspace supports only the planar 2-link arm ({', '.join(SUPPORTED_ROBOTS)}); "
+                f"got {self.robot!r}. For other robots use `mbctl ik` to test reachability of a target."
+            )
+        if int(self.samples) < 2:
+            raise IKSetupError(f"samples must be >= 2 per joint; got {self.samples!r}")
+
+
+def sample_workspace(arm: TwoLinkArm, robot: Robot | None = None, n: int = 121) -> np.ndarray:
+    """Site positions (n*n, 2) [m], world x-y, over an ``n x n`` grid of joint angles.
+
+    Args:
+        arm: Arm geometry.
+        robot: If given, finite Pinocchio joint limits bound the grid; otherwise (-pi, pi].
+        n: Samples per joint (>= 2).
+
+    Raises:
+        IKSetupError: ``n`` < 2.
+    """
+    if int(n) < 2:
+        raise IKSetupError(f"n must be >= 2 samples per joint; got {n!r}")
+    lo = np.full(2, -math.pi)
+    hi = np.full(2, math.pi)
+    if robot is not None:
+        lo = np.maximum(lo, robot.pin_model.lowerPositionLimit)
+        hi = np.minimum(hi, robot.pin_model.upperPositionLimit)
+    g1, g2 = np.meshgrid(np.linspace(lo[0], hi[0], n), np.linspace(lo[1], hi[1], n))
+    q = np.column_stack([g1.ravel(), g2.ravel()])
+    return np.array([arm.forward_kinematics(qi) for qi in q])
+
+
+def plot_workspace(arm: TwoLinkArm, points: np.ndarray) -> object:
+    """A figure of the sampled site positions (k, 2) [m] with the r_min and r_max circles."""
+    fig, axes = new_figure(1, 1, (5.0, 5.0))
+    ax = axes[0, 0]
+    ax.scatter(points[:, 0], points[:, 1], s=1.0, alpha=0.4, label="sampled site positions")
+    t = np.linspace(0.0, 2.0 * math.pi, 361)
+    for radius, style, label in ((arm.r_max, "-", "r_max"), (arm.r_min, "--", "r_min")):
+        ax.plot(arm.base_x + radius * np.cos(t), arm.base_y + radius * np.sin(t), style, color="k",
+                label=f"{label} = {radius:.4g} m")
+    ax.set_aspect("equal")
+    ax.set_xlabel("x (m)")
+    ax.set_ylabel("y (m)")
+    ax.set_title(f"2-link workspace (l1={arm.link1_length:.4g} m, l2={arm.link2_length:.4g} m)")
+    ax.legend(loc="upper right", fontsize="small")
+    return fig
+
+
+def prepare(params: WorkspaceParams) -> Work:
+    """Load the arm and read its geometry (no output yet)."""
+    robot = load_robot(params.robot)
+    arm = TwoLinkArm.from_robot(robot)
+
+    def work(ctx: RunContext) -> Outcome:
+        points = sample_workspace(arm, robot, params.samples)
+        ctx.values.update({"link1_length_m": arm.link1_length, "link2_length_m": arm.link2_length,
+                           "r_min_m": arm.r_min, "r_max_m": arm.r_max, "samples": len(points)})
+        ctx.save_figure(plot_workspace(arm, points), "workspace.png")
+        return Outcome(True, (
+            f"links {arm.link1_length:.4f} m and {arm.link2_length:.4f} m (to the site); reachable "
+            f"annulus r_min = {arm.r_min:.4f} m, r_max = {arm.r_max:.4f} m around the shoulder",
+        ))
+
+    return work
+
+
+#: The ``mbctl workspace`` job.
+WORKSPACE = Job("workspace", prepare)
