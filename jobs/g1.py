@@ -182,7 +182,8 @@ class ArmPDParams:
         _positive("max_rms_error_rad", self.max_rms_error_rad)
 
 
-def _loop(ctx: RunContext, sim: Simulator, controller: ControllerBase, reference: Any,
+def _loop(ctx: RunContext, sim: Simulator, controller: PDGravity | ComputedTorque | PositionTargetPD,
+          reference: Any,
           duration_s: float, unit: str, label: str) -> RunLog:
     """Run the control loop with every cycle streamed to the run's CSV and the progress bar."""
     ctx.attach(sim)
