@@ -103,7 +103,10 @@ def workspace(
     output: OutputOpt = None,
     quiet: QuietOpt = False,
 ) -> None:
-    """The 2-link arm's reachable annulus r_min, r_max (m) and a sampled workspace plot (PNG)."""
+    """The 2-link arm's reachable annulus r_min, r_max (m) and a sampled workspace plot (PNG).
+
+    Supports only the planar 2-link arm (two_link, two_link_torque); other robots are refused.
+    """
     execute(WORKSPACE, WorkspaceParams(robot, samples), output, quiet)
 
 

@@ -84,10 +84,3 @@ def test_tampered_model_names_the_file(g1, tmp_path):
     out = mbctl("inspect", "g1", env={"MENAGERIE_ROOT": str(root)})
     assert out.returncode == 2
     assert "scene.xml fails its SHA-256 check" in out.stderr
-
-
-def test_workspace_annulus_and_plot(tmp_path):
-    out = mbctl("workspace", "two_link", "--output", str(tmp_path))
-    assert out.returncode == 0, out.stderr
-    assert "r_min = 0.0150 m, r_max = 0.6150 m" in out.stdout
-    assert (tmp_path / "workspace.png").stat().st_size > 10_000

@@ -18,7 +18,6 @@ from mbctl.control import (
     UnreachableTarget,
     dls_ik,
     pinv_ik,
-    plot_workspace,
 )
 
 angles = st.floats(-math.pi, math.pi, allow_nan=False)
@@ -194,12 +193,3 @@ def test_dls_unreachable_converges_to_closest_point(arm):
     p = arm.forward_kinematics(res.q)
     assert abs(math.atan2(p[1], p[0])) < 1e-3
     assert res.error_history[-1] <= res.error_history[-50]
-
-
-def test_workspace_plot_png(arm, tmp_path, two_link):
-    out = plot_workspace(arm, tmp_path / "ws.png", robot=two_link, n=41)
-    assert out.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
-    from mbctl.control.ik.two_link import sample_workspace
-
-    r = np.hypot(*sample_workspace(arm, n=41).T)
-    assert r.min() >= arm.r_min - 1e-12 and r.max() <= arm.r_max + 1e-12
