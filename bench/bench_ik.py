@@ -17,22 +17,18 @@ import time
 import numpy as np
 import pinocchio as pin
 
-from mbctl.control.ik.whole_body import (
-    PALM_SITES,
-    MinkWholeBodyIK,
-    PinocchioWholeBodyIK,
-    with_palm_sites,
-)
+from mbctl.control.ik import MinkWholeBodyIK, QPWholeBodyIK
+from mbctl.jobs.robot_constants import KEYFRAME, PALM_SITES, g1_whole_body_config, with_palm_sites
 from mbctl.robots import load_robot
 
 
 def _setup(robot, q0, solver, offset):
-    ours = PinocchioWholeBodyIK(robot, q0, solver=solver)
-    theirs = MinkWholeBodyIK(robot, q0, solver=solver)
+    ours = QPWholeBodyIK(robot, g1_whole_body_config(), q0, solver=solver)
+    theirs = MinkWholeBodyIK(robot, g1_whole_body_config(), q0, solver=solver)
     for palm in PALM_SITES:
-        target = ours.frame_pose(palm).translation + offset
-        ours.set_palm_target(palm, target)
-        theirs.set_palm_target(palm, target)
+        target = ours.frame_position(palm) + offset
+        ours.set_target_position(palm, target)
+        theirs.set_target_position(palm, target)
     return ours, theirs
 
 
@@ -75,7 +71,7 @@ def main() -> None:
     args = parser.parse_args()
 
     robot = with_palm_sites(load_robot("g1"))
-    q0 = robot.keyframe_q("stand")
+    q0 = robot.keyframe_q(KEYFRAME)
     offset = np.array([0.10, 0.0, 0.0])  # [m] both palms forward
     ours, theirs = _setup(robot, q0, args.solver, offset)
     q0_mj = robot.converter.q_pin_to_mj(q0)
@@ -94,8 +90,9 @@ def main() -> None:
     med_mink = statistics.median(t_mink)
 
     res = ours.solve(q0, tol=1e-3, max_iters=20)
-    _, mink_iters, mink_err = theirs.solve(q0, tol=1e-3, max_iters=20)
+    mink_res = theirs.solve(q0, tol=1e-3, max_iters=20)
     palm_err = max(res.residuals[p]["position [m]"] for p in PALM_SITES)
+    mink_err = max(mink_res.residuals[p]["position [m]"] for p in PALM_SITES)
 
     print(f"G1 whole-body IK, solver={args.solver}, {len(t_ours)} iterations timed per solver")
     print(
@@ -110,8 +107,8 @@ def main() -> None:
         f"iterations, max palm error {palm_err * 1e3:.3f} mm"
     )
     print(
-        f"  mink: {mink_iters} iterations, max palm error "
-        f"{max(mink_err[p] for p in PALM_SITES) * 1e3:.3f} mm"
+        f"  mink: {'converged' if mink_res.converged else 'NOT converged'} in "
+        f"{mink_res.iterations} iterations, max palm error {mink_err * 1e3:.3f} mm"
     )
 
 
