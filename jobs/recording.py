@@ -22,34 +22,28 @@ _FREE_Q = ("x_m", "y_m", "z_m", "qx", "qy", "qz", "qw")
 _FREE_V = ("vx_m_s", "vy_m_s", "vz_m_s", "wx_rad_s", "wy_rad_s", "wz_rad_s")
 
 
+def _columns(robot: Robot, prefix: str, free: tuple[str, ...], slide: str, hinge: str) -> list[str]:
+    cols: list[str] = []
+    for j in robot.joints.values():
+        if j.kind in ("free", "ball"):  # a ball joint has the rotational half of a free joint's
+            cols += [f"{j.name}_{s}" for s in (free if j.kind == "free" else free[len(free) // 2:])]
+        else:
+            cols.append(f"{prefix}_{j.name}_{slide if j.kind == 'slide' else hinge}")
+    return cols
+
+
 def q_columns(robot: Robot) -> list[str]:
     """Column names of the full q (nq), Pinocchio convention.
 
     ``q_<joint>_rad`` (``_m`` for slides); free joints as ``<joint>_x_m … <joint>_qw``
     (quaternion x, y, z, w); ball joints as ``<joint>_qx … _qw``.
     """
-    cols: list[str] = []
-    for j in robot.joints.values():
-        if j.kind == "free":
-            cols += [f"{j.name}_{s}" for s in _FREE_Q]
-        elif j.kind == "ball":
-            cols += [f"{j.name}_{s}" for s in _FREE_Q[3:]]
-        else:
-            cols.append(f"q_{j.name}_{'m' if j.kind == 'slide' else 'rad'}")
-    return cols
+    return _columns(robot, "q", _FREE_Q, "m", "rad")
 
 
 def v_columns(robot: Robot) -> list[str]:
     """Column names of v (nv); free joints in the base frame (Pinocchio convention)."""
-    cols: list[str] = []
-    for j in robot.joints.values():
-        if j.kind == "free":
-            cols += [f"{j.name}_{s}" for s in _FREE_V]
-        elif j.kind == "ball":
-            cols += [f"{j.name}_{s}" for s in _FREE_V[3:]]
-        else:
-            cols.append(f"v_{j.name}_{'m_s' if j.kind == 'slide' else 'rad_s'}")
-    return cols
+    return _columns(robot, "v", _FREE_V, "m_s", "rad_s")
 
 
 Extra = Callable[[RobotState], Sequence[float]]
