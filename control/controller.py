@@ -29,6 +29,7 @@ import pinocchio as pin
 from mbctl.control.exceptions import ControllerSetupError, ReferenceMismatch
 from mbctl.control.gains import PDGains
 from mbctl.robots.commands import Command
+from mbctl.robots.fastmath import SMALL_VECTOR_MAX, any_outside
 from mbctl.robots.interface import RobotState
 from mbctl.robots.model_pair import Robot
 
@@ -239,10 +240,6 @@ def _selector(index: np.ndarray) -> slice | np.ndarray:
     return np.asarray(index)
 
 
-#: Up to this many joints the saturation check runs in plain Python (faster than numpy there).
-_SMALL = 16
-
-
 class TorqueSaturation:
     """Clips torques to the actuators' limits and counts how often each one saturates.
 
@@ -277,9 +274,8 @@ class TorqueSaturation:
         """Clip ``tau`` (n,) in place to [low, high]; count the clipped joints. Returns ``tau``."""
         self.cycles += 1
         if self.enabled:
-            if len(tau) <= _SMALL and not any(
-                t < lo or t > hi
-                for t, lo, hi in zip(tau.tolist(), self._low_list, self._high_list)  # noqa: B905
+            if len(tau) <= SMALL_VECTOR_MAX and not any_outside(
+                tau.tolist(), self._low_list, self._high_list
             ):
                 return tau  # few joints, none out of range: plain Python is the cheap check
             # two comparisons into preallocated masks and two counts (cheaper than

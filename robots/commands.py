@@ -11,7 +11,6 @@ finiteness; the simulator checks names, shape and actuator kind when it first se
 
 from __future__ import annotations
 
-import math
 from collections.abc import Mapping
 from dataclasses import dataclass
 from enum import Enum
@@ -20,6 +19,7 @@ import numpy as np
 import numpy.typing as npt
 
 from mbctl.robots.exceptions import CommandError
+from mbctl.robots.fastmath import all_finite
 
 
 class CommandKind(str, Enum):
@@ -60,16 +60,12 @@ class Command:
             raise CommandError(
                 f"{kind.value} command names {len(names)} actuators but has {arr.size} values"
             )
-        # sum() of the Python floats is NaN/inf iff some entry is (or the sum overflows, in
-        # which case the exact check below passes): ~5x cheaper than np.isfinite on small
-        # vectors.
-        if not math.isfinite(sum(arr.tolist())):
+        if not all_finite(arr.tolist()):  # ~5x cheaper than np.isfinite on small vectors
             bad = np.flatnonzero(~np.isfinite(arr))
-            if len(bad):
-                where = [names[i] for i in bad] if names else bad.tolist()
-                raise CommandError(
-                    f"{kind.value} command must be finite; got {arr[bad].tolist()} at {where}"
-                )
+            where = [names[i] for i in bad] if names else bad.tolist()
+            raise CommandError(
+                f"{kind.value} command must be finite; got {arr[bad].tolist()} at {where}"
+            )
         arr.flags.writeable = False
         setattr_ = object.__setattr__
         setattr_(self, "kind", kind)

@@ -30,32 +30,37 @@ import numpy as np
 import numpy.typing as npt
 
 from mbctl.robots.exceptions import StateError
+from mbctl.robots.fastmath import (
+    SMALL_VECTOR_MAX,
+    WXYZ_FROM_XYZW,
+    XYZW_FROM_WXYZ,
+    all_finite,
+    cross3,
+    quat_xyzw_rotate,
+    quat_xyzw_rotate_inverse,
+    quat_xyzw_to_matrix,
+)
 
 
 def quat_wxyz_to_xyzw(quat_wxyz: npt.ArrayLike) -> np.ndarray:
-    """Reorder a quaternion (w, x, y, z) -> (x, y, z, w)."""
+    """Reorder quaternions (..., 4) from (w, x, y, z) to (x, y, z, w) (a new array)."""
     q = np.asarray(quat_wxyz, dtype=float)
-    return q[..., [1, 2, 3, 0]]
+    return q[..., list(XYZW_FROM_WXYZ)]
 
 
 def quat_xyzw_to_wxyz(quat_xyzw: npt.ArrayLike) -> np.ndarray:
-    """Reorder a quaternion (x, y, z, w) -> (w, x, y, z)."""
+    """Reorder quaternions (..., 4) from (x, y, z, w) to (w, x, y, z) (a new array)."""
     q = np.asarray(quat_xyzw, dtype=float)
-    return q[..., [3, 0, 1, 2]]
+    return q[..., list(WXYZ_FROM_XYZW)]
 
 
-def rotation_from_quat_xyzw(quat_xyzw: np.ndarray) -> np.ndarray:
-    """Rotation matrix ``R`` (3, 3) of a quaternion (x, y, z, w); normalizes first."""
-    x, y, z, w = quat_xyzw / np.linalg.norm(quat_xyzw)
-    # Written out (not pin.Quaternion) because it runs on every state conversion of a
-    # floating-base robot, where the Eigen round trip costs more than these 9 products.
-    return np.array(
-        [
-            [1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
-            [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
-            [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)],
-        ]
-    )
+def rotation_from_quat_xyzw(quat_xyzw: npt.ArrayLike) -> np.ndarray:
+    """Rotation matrix ``R`` (3, 3) of a non-zero quaternion (x, y, z, w), normalized first.
+
+    Raises:
+        StateError: A zero quaternion.
+    """
+    return quat_xyzw_to_matrix(np.asarray(quat_xyzw, dtype=float).tolist())
 
 
 @dataclass(frozen=True)
@@ -105,7 +110,7 @@ class StateConverter:
             quat_at = j.idx_q + 3 if j.kind == "free" else j.idx_q if j.kind == "ball" else None
             if quat_at is not None:
                 # pin (x, y, z, w) <- mj (w, x, y, z)
-                perm_pin_from_mj[quat_at : quat_at + 4] = quat_at + np.array([1, 2, 3, 0])
+                perm_pin_from_mj[quat_at : quat_at + 4] = quat_at + np.array(XYZW_FROM_WXYZ)
         self._perm_pin_from_mj = perm_pin_from_mj
         self._perm_mj_from_pin = np.argsort(perm_pin_from_mj)
         self.has_quaternions = bool(np.any(perm_pin_from_mj != np.arange(nq)))
@@ -130,7 +135,7 @@ class StateConverter:
 
     # ------------------------------------------------------------------ velocity map T(q)
     def _rotations(self, q_pin: np.ndarray) -> list[np.ndarray]:
-        return [rotation_from_quat_xyzw(q_pin[iq + 3 : iq + 7]) for iq, _ in self._free]
+        return [quat_xyzw_to_matrix(q_pin[iq + 3 : iq + 7].tolist()) for iq, _ in self._free]
 
     def v_pin_to_mj(self, q_pin: npt.ArrayLike, v_pin: npt.ArrayLike) -> np.ndarray:
         """``v_mj = T(q) v_pin``: free-joint linear velocity from base frame to world frame."""
@@ -150,18 +155,23 @@ class StateConverter:
         """MuJoCo (qpos, qvel) -> Pinocchio (q, v), new arrays; the per-cycle state read.
 
         Equivalent to ``q_mj_to_pin`` then ``v_mj_to_pin`` but rotates each free joint's linear
-        velocity with scalar arithmetic (a 3x3 numpy rotation costs ~10x more at this size).
+        velocity with scalar arithmetic (``fastmath.quat_xyzw_rotate_inverse``; building and
+        applying a 3x3 numpy rotation costs ~8x more at this size).
+
+        Args:
+            q_mj: MuJoCo qpos (nq,) (free-joint quaternion (w, x, y, z), any non-zero norm).
+            v_mj: MuJoCo qvel (nv,) (free-joint linear velocity ``v_WB_W`` [m/s] in W).
+
+        Returns:
+            Pinocchio ``q`` (nq,) and ``v`` (nv,) (free-joint linear velocity ``v_WB_B`` in B).
+
+        Raises:
+            StateError: A zero free-joint quaternion.
         """
         q = q_mj[self._perm_pin_from_mj] if self.has_quaternions else q_mj.copy()
         v = v_mj.copy()
         for iq, iv in self._free:
-            x, y, z, w = q[iq + 3 : iq + 7].tolist()
-            vx, vy, vz = v[iv : iv + 3].tolist()
-            s = 2.0 / (x * x + y * y + z * z + w * w)  # exact for non-unit quaternions too
-            # v_B = R_WB^T v_W, with R_WB written out from the quaternion.
-            v[iv] = (1 - s * (y * y + z * z)) * vx + s * (x * y + z * w) * vy + s * (x * z - y * w) * vz
-            v[iv + 1] = s * (x * y - z * w) * vx + (1 - s * (x * x + z * z)) * vy + s * (y * z + x * w) * vz
-            v[iv + 2] = s * (x * z + y * w) * vx + s * (y * z - x * w) * vy + (1 - s * (x * x + y * y)) * vz
+            v[iv : iv + 3] = quat_xyzw_rotate_inverse(q[iq + 3 : iq + 7].tolist(), v[iv : iv + 3].tolist())
         return q, v
 
     # generalized forces transform like velocities because T is orthogonal.
@@ -178,9 +188,11 @@ class StateConverter:
     def velocity_map_dot_v(self, q_pin: npt.ArrayLike, v_pin: npt.ArrayLike) -> np.ndarray:
         """``Tdot(q, v) v`` (nv,): ``R_WB (w_B x v_B)`` on each free joint's linear part."""
         out = np.zeros(self.nv)
+        q = np.asarray(q_pin, dtype=float)
         v = np.asarray(v_pin, dtype=float)
-        for (_, iv), R_WB in zip(self._free, self._rotations(np.asarray(q_pin)), strict=True):
-            out[iv : iv + 3] = R_WB @ _cross3(v[iv + 3 : iv + 6], v[iv : iv + 3])
+        for iq, iv in self._free:
+            w_x_v = cross3(v[iv + 3 : iv + 6].tolist(), v[iv : iv + 3].tolist())
+            out[iv : iv + 3] = quat_xyzw_rotate(q[iq + 3 : iq + 7].tolist(), w_x_v)
         return out
 
     # ------------------------------------------------------------------ accelerations
@@ -205,13 +217,6 @@ class StateConverter:
         return self.force_mj_to_pin(q_pin, np.asarray(b_mj) + extra)
 
 
-def _cross3(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """``a x b`` for two (3,) vectors; np.cross costs ~20 us per call, this ~1 us."""
-    a0, a1, a2 = a.tolist()
-    b0, b1, b2 = b.tolist()
-    return np.array([a1 * b2 - a2 * b1, a2 * b0 - a0 * b2, a0 * b1 - a1 * b0])
-
-
 def _check_vector(x: npt.ArrayLike, n: int, what: str) -> np.ndarray:
     try:
         arr = np.asarray(x, dtype=float)
@@ -219,6 +224,8 @@ def _check_vector(x: npt.ArrayLike, n: int, what: str) -> np.ndarray:
         raise StateError(f"{what} must be a numeric vector of shape ({n},); got {x!r}") from exc
     if arr.shape != (n,):
         raise StateError(f"{what} must have shape ({n},); got shape {arr.shape}")
+    if n <= SMALL_VECTOR_MAX and all_finite(arr.tolist()):
+        return arr  # the common case, without numpy's per-call cost
     bad = np.flatnonzero(~np.isfinite(arr))
     if bad.size:
         raise StateError(

@@ -12,6 +12,7 @@ import numpy as np
 
 from mbctl.robots.commands import Command
 from mbctl.robots.exceptions import CommandError, UnknownNameError
+from mbctl.robots.fastmath import SMALL_VECTOR_MAX, any_outside
 from mbctl.robots.model_pair import Robot
 
 
@@ -39,17 +40,9 @@ class Binding:
 
     def out_of_range(self, values: np.ndarray) -> bool:
         """Whether any value lies outside its ctrl range."""
-        if len(values) <= _SMALL:
-            # Plain Python beats four numpy ufunc calls on the few-actuator arms we run at 500 Hz+.
-            for v, lo, hi in zip(values.tolist(), self.low_list, self.high_list):  # noqa: B905
-                if v < lo or v > hi:
-                    return True
-            return False
+        if len(values) <= SMALL_VECTOR_MAX:  # plain Python beats four numpy calls there
+            return any_outside(values.tolist(), self.low_list, self.high_list)
         return bool((values < self.ctrl_low).any() or (values > self.ctrl_high).any())
-
-
-#: Up to this many values, range checks run in plain Python (faster than numpy there).
-_SMALL = 16
 
 
 class CommandBinder:
