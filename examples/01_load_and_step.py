@@ -19,7 +19,6 @@ import argparse
 import sys
 
 import numpy as np
-import pinocchio as pin
 
 from mbctl.robots import load_robot
 from mbctl.sim import Simulator, position_target
@@ -59,9 +58,7 @@ def main() -> int:
     print(f"  sensor ee_pos: {(np.round(sim.sensor('ee_pos'), 5) + 0.0).tolist()} m")
 
     p_mujoco, _ = sim.site_pose(SITE)
-    data = robot.pin_model.createData()
-    pin.framesForwardKinematics(robot.pin_model, data, q)
-    p_pinocchio = data.oMf[robot.frame_id(SITE)].translation
+    p_pinocchio, _ = robot.frame_pose(SITE, q)
     difference = float(np.linalg.norm(p_mujoco - p_pinocchio))
     print(f"site {SITE!r}: MuJoCo {(np.round(p_mujoco, 6) + 0.0).tolist()} m, "
           f"Pinocchio {(np.round(p_pinocchio, 6) + 0.0).tolist()} m")

@@ -7,8 +7,9 @@ hardware driver later, unchanged). The law, per joint::
 
     tau = kp (q_ref - q) + kd (v_ref - v) + g(q)        [N m]
 
-with ``g(q)`` the generalized gravity of the Pinocchio model and gains from a natural frequency,
-a damping ratio and the joint inertia: ``kp = I omega^2``, ``kd = 2 zeta I omega``. The arm
+with ``g(q) = robot.gravity(q)`` the generalized gravity of the Pinocchio model and gains from
+a natural frequency, a damping ratio and the joint inertia (the diagonal of
+``robot.mass_matrix(q)``): ``kp = I omega^2``, ``kd = 2 zeta I omega``. The arm
 starts at rest 0.2 rad away from the pose, under gravity (-y, in the arm's plane). The same law
 ships as ``mbctl.control.PDGravity``; both are run and compared, and the library's plain
 ``JointPD`` shows the sag that the gravity term removes.
@@ -28,7 +29,6 @@ import argparse
 import sys
 
 import numpy as np
-import pinocchio as pin
 
 from mbctl.control import (
     Controller,
@@ -63,8 +63,7 @@ class MyPDGravity:
     """
 
     def __init__(self, robot: Robot, kp: np.ndarray, kd: np.ndarray):
-        self.model = robot.pin_model
-        self.data = self.model.createData()
+        self.robot = robot
         self.kp, self.kd = kp, kd
         # Actuator k drives the joint at v-index idx_v[k]: commands are in actuator order.
         self.idx_v = [robot.joint(a.joint).idx_v for a in robot.actuators.values()]
@@ -74,7 +73,7 @@ class MyPDGravity:
 
     def compute(self, state: RobotState, reference: JointReference) -> Command:
         """Torque command (nu,) [N m] for ``state`` holding ``reference``."""
-        g = pin.computeGeneralizedGravity(self.model, self.data, state.q)
+        g = self.robot.gravity(state.q)  # (nv,) [N m]
         tau = self.kp * (reference.q - state.q) + self.kd * (reference.v - state.v) + g
         return torque(tau[self.idx_v])
 
@@ -96,7 +95,7 @@ def main() -> int:
         parser.error(f"--duration must be > 0 s; got {args.duration}")
 
     robot = load_robot("two_link_torque", gravity=True)
-    inertia = np.diag(pin.crba(robot.pin_model, robot.pin_model.createData(), HOLD_Q_RAD))
+    inertia = np.diag(robot.mass_matrix(HOLD_Q_RAD))  # joint inertias [kg m^2]
     gains = gains_from_frequency(OMEGA_RAD_S, ZETA, inertia)
     print(f"{robot.name}, gravity {robot.mj_model.opt.gravity.tolist()} m/s^2; hold "
           f"{HOLD_Q_RAD.tolist()} rad from {START_OFFSET_RAD:+g} rad away, {args.duration:g} s")

@@ -30,7 +30,6 @@ import tempfile
 from pathlib import Path
 
 import numpy as np
-import pinocchio as pin
 
 from mbctl.robots import Robot, RobotError, load_robot
 from mbctl.robots.crosscheck import crosscheck
@@ -81,12 +80,12 @@ def final_pose_difference(robot: Robot, duration_s: float) -> float:
     sim.step(n=max(1, round(duration_s / robot.timestep_s)))
     names = list(robot.sites) or list(robot.bodies)
     pose = sim.site_pose if robot.sites else sim.body_pose
-    data = robot.pin_model.createData()
-    pin.framesForwardKinematics(robot.pin_model, data, sim.q)
+    q = sim.q
     worst, worst_name = 0.0, ""
     for name in names:
         p_mujoco, _ = pose(name)
-        difference = float(np.linalg.norm(p_mujoco - data.oMf[robot.frame_id(name)].translation))
+        p_pinocchio, _ = robot.frame_pose(name, q)
+        difference = float(np.linalg.norm(p_mujoco - p_pinocchio))
         if difference >= worst:
             worst, worst_name = difference, name
     kind = "site(s)" if robot.sites else "bodies"

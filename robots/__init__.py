@@ -1,11 +1,13 @@
 """Robot descriptions and the model pair (Pinocchio model + MuJoCo model) with conventions."""
 
+from mbctl.robots.commands import Command, CommandKind, position_target, torque, velocity_target
 from mbctl.robots.conventions import (
     JointLayout,
     StateConverter,
     quat_wxyz_to_xyzw,
     quat_xyzw_to_wxyz,
 )
+from mbctl.robots.edits import position_to_motor, weld_base
 from mbctl.robots.exceptions import (
     ModelFileError,
     ModelMismatchError,
@@ -14,6 +16,7 @@ from mbctl.robots.exceptions import (
     StateError,
     UnknownNameError,
 )
+from mbctl.robots.interface import RobotInterface, RobotState
 from mbctl.robots.model_pair import ModelSource, Robot
 from mbctl.robots.names import ActuatorInfo, SensorInfo
 from mbctl.robots.registry import KNOWN_ROBOTS, load_robot
@@ -21,6 +24,8 @@ from mbctl.robots.registry import KNOWN_ROBOTS, load_robot
 __all__ = [
     "KNOWN_ROBOTS",
     "ActuatorInfo",
+    "Command",
+    "CommandKind",
     "JointLayout",
     "ModelFileError",
     "ModelMismatchError",
@@ -28,13 +33,20 @@ __all__ = [
     "ModelSource",
     "Robot",
     "RobotError",
+    "RobotInterface",
+    "RobotState",
     "SensorInfo",
     "StateConverter",
     "StateError",
     "UnknownNameError",
     "load_robot",
+    "position_target",
+    "position_to_motor",
     "quat_wxyz_to_xyzw",
     "quat_xyzw_to_wxyz",
+    "torque",
+    "velocity_target",
+    "weld_base",
 ]
 
 # The cross-check is the subpackage mbctl.robots.crosscheck (``from mbctl.robots.crosscheck

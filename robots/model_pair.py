@@ -32,6 +32,15 @@ _MJ_JOINT_KIND = {
     mujoco.mjtJoint.mjJNT_SLIDE: "slide",
 }
 
+#: Jacobian reference frames by name (see ``Robot.jacobian``).
+JACOBIAN_REFERENCES: Mapping[str, pin.ReferenceFrame] = MappingProxyType(
+    {
+        "world_aligned": pin.ReferenceFrame.LOCAL_WORLD_ALIGNED,
+        "local": pin.ReferenceFrame.LOCAL,
+        "world": pin.ReferenceFrame.WORLD,
+    }
+)
+
 #: Relative tolerance on total mass and absolute tolerance on armature [kg m^2] in the
 #: load-time agreement check: both engines parse the same decimal strings, so anything beyond
 #: floating-point round-off is a real difference.
@@ -160,6 +169,7 @@ class Robot:
         self.sites = names_of(m, mujoco.mjtObj.mjOBJ_SITE, m.nsite)
         self.bodies = names_of(m, mujoco.mjtObj.mjOBJ_BODY, m.nbody)[1:]
         self.keyframes = names_of(m, mujoco.mjtObj.mjOBJ_KEY, m.nkey)
+        self._pin_data: pin.Data | None = None  # created on first use by the dynamics helpers
         if check:
             check_agreement(self)
 
@@ -256,6 +266,120 @@ class Robot:
     def neutral_q(self) -> np.ndarray:
         """Neutral configuration (nq,) (identity quaternions, zero angles), Pinocchio convention."""
         return pin.neutral(self.pin_model)
+
+    # ------------------------------------------------------------------ analytic model (Pinocchio)
+    @property
+    def _data(self) -> pin.Data:
+        """Scratch Pinocchio data of the helpers below, created on first use (they return copies)."""
+        if self._pin_data is None:
+            self._pin_data = self.pin_model.createData()
+        return self._pin_data
+
+    def _q(self, q: npt.ArrayLike) -> np.ndarray:
+        return self.converter.check_q(q, "q")
+
+    def mass_matrix(self, q: npt.ArrayLike) -> np.ndarray:
+        """Joint-space mass matrix ``M(q)`` (Pinocchio's CRBA, symmetrized).
+
+        Args:
+            q: Configuration (nq,), Pinocchio convention (free-flyer ``p_WB`` [m], then
+                ``quat_xyzw``; joint angles [rad] or positions [m]).
+
+        Returns:
+            ``M`` (nv, nv), a new symmetric array [kg m^2] (rotational), [kg] (translational),
+            in Pinocchio's velocity convention (free-flyer velocity in the base frame B).
+
+        Raises:
+            StateError: ``q`` has the wrong shape or non-finite entries.
+        """
+        M = pin.crba(self.pin_model, self._data, self._q(q))
+        return np.triu(M) + np.triu(M, 1).T
+
+    def gravity(self, q: npt.ArrayLike) -> np.ndarray:
+        """Generalized gravity ``g(q)``: the force that holds the robot still (``tau = g``).
+
+        Args:
+            q: Configuration (nq,), Pinocchio convention.
+
+        Returns:
+            ``g`` (nv,) [N m] on rotational, [N] on translational coordinates (a new array),
+            free-flyer rows in the base frame B; gravity is MuJoCo's ``opt.gravity``.
+
+        Raises:
+            StateError: ``q`` has the wrong shape or non-finite entries.
+        """
+        return np.array(pin.computeGeneralizedGravity(self.pin_model, self._data, self._q(q)))
+
+    def bias(self, q: npt.ArrayLike, v: npt.ArrayLike) -> np.ndarray:
+        """Bias forces ``b(q, v) = C(q, v) v + g(q)`` (Coriolis, centrifugal and gravity).
+
+        ``M(q) a + b(q, v) = tau`` is the equation of motion (``pin.nonLinearEffects``).
+
+        Args:
+            q: Configuration (nq,), Pinocchio convention.
+            v: Velocity (nv,), Pinocchio convention (free-flyer ``v_WB_B`` [m/s] and
+                ``w_WB_B`` [rad/s] in the base frame B; joint rates [rad/s] or [m/s]).
+
+        Returns:
+            ``b`` (nv,) [N m] or [N] (a new array), free-flyer rows in the base frame B.
+
+        Raises:
+            StateError: ``q`` or ``v`` has the wrong shape or non-finite entries.
+        """
+        q_ = self._q(q)
+        v_ = self.converter.check_v(v, "v")
+        return np.array(pin.nonLinearEffects(self.pin_model, self._data, q_, v_))
+
+    def jacobian(self, frame: str, q: npt.ArrayLike, reference: str = "world_aligned") -> np.ndarray:
+        """Geometric Jacobian ``J`` of a site, body or frame: ``[v_F; w_F] = J(q) v``.
+
+        Args:
+            frame: Site, body or Pinocchio frame name (see ``frame_id``).
+            q: Configuration (nq,), Pinocchio convention.
+            reference: Frame the twist is expressed in: ``"world_aligned"`` (velocity of the
+                frame origin, in world axes: Pinocchio's LOCAL_WORLD_ALIGNED), ``"local"``
+                (in the frame's own axes F) or ``"world"`` (spatial velocity at the world
+                origin, in world axes).
+
+        Returns:
+            ``J`` (6, nv), a new array: rows 0-2 linear velocity [m/s per unit of v], rows 3-5
+            angular velocity [rad/s per unit of v], columns in Pinocchio's velocity convention.
+
+        Raises:
+            UnknownNameError: An unknown ``frame`` or ``reference`` (lists close matches).
+            StateError: ``q`` has the wrong shape or non-finite entries.
+        """
+        if reference not in JACOBIAN_REFERENCES:
+            raise UnknownNameError("Jacobian reference", reference, JACOBIAN_REFERENCES)
+        frame_id = self.frame_id(frame)
+        q_ = self._q(q)
+        return np.array(
+            pin.computeFrameJacobian(
+                self.pin_model, self._data, q_, frame_id, JACOBIAN_REFERENCES[reference]
+            )
+        )
+
+    def frame_pose(self, frame: str, q: npt.ArrayLike) -> tuple[np.ndarray, np.ndarray]:
+        """Pose of a site, body or frame F in the world frame W (Pinocchio's kinematics).
+
+        Args:
+            frame: Site, body or Pinocchio frame name (see ``frame_id``).
+            q: Configuration (nq,), Pinocchio convention.
+
+        Returns:
+            ``p_WF`` (3,) [m], the frame origin in W, and ``R_WF`` (3, 3), which rotates
+            F-frame vectors into W (new arrays).
+
+        Raises:
+            UnknownNameError: An unknown ``frame`` (lists close matches).
+            StateError: ``q`` has the wrong shape or non-finite entries.
+        """
+        frame_id = self.frame_id(frame)
+        q_ = self._q(q)
+        data = self._data
+        pin.forwardKinematics(self.pin_model, data, q_)
+        X_WF = pin.updateFramePlacement(self.pin_model, data, frame_id)
+        return np.array(X_WF.translation), np.array(X_WF.rotation)
 
     # ------------------------------------------------------------------ derived models
     def with_edits(
