@@ -7,9 +7,9 @@ import numpy as np
 import pinocchio as pin
 import pytest
 
+from mbctl.control import JointPD, gains_from_frequency, joint_reference, run
 from mbctl.robots import StateError, UnknownNameError, load_robot
 from mbctl.robots.exceptions import CommandError, CommandOutOfRange
-from mbctl.robots.interface import RobotInterface
 from mbctl.sim import (
     SimError,
     SimulationDiverged,
@@ -22,12 +22,71 @@ from mbctl.sim import (
 
 def test_two_link_setup_figures(two_link):
     sim = Simulator(two_link)
-    assert isinstance(sim, RobotInterface)
     q0 = sim.q
     sim.step(position_target([5.0, -3.0]), 100)
     assert sim.time_s == pytest.approx(0.2, abs=1e-12)
     assert sim.n_steps == 100
     assert np.all(np.abs(sim.q - q0) > 0.5)
+
+
+def test_simulator_runs_the_control_loop_as_a_robot_interface(two_link_torque):
+    """control.loop.run drives the simulator through read_state / send / sync only."""
+    sim = Simulator(two_link_torque, control_period_s=0.004)
+    q_ref = np.array([0.4, -0.3])
+    controller = JointPD(two_link_torque, gains_from_frequency(20.0, 1.0, 0.05))
+    log = run(sim, controller, joint_reference(q_ref), 0.2)
+    assert log.cycles == 50
+    # one sync per cycle, each two physics steps; the log holds the state read before each command
+    assert sim.n_steps == 100 and sim.time_s == pytest.approx(0.2, abs=1e-12)
+    np.testing.assert_allclose(log.t_s, 0.004 * np.arange(50), atol=1e-12)
+    np.testing.assert_array_equal(log.q[0], [0.0, 0.0])
+    # the commands the loop sent are the PD law on the state it read, and they reached ctrl
+    np.testing.assert_allclose(
+        log.command, controller.gains.kp * (q_ref - log.q) - controller.gains.kd * log.v, atol=1e-12
+    )
+    np.testing.assert_allclose(sim.ctrl, log.command[-1], atol=0)
+    # the state advances toward the reference: the joints move and the error shrinks
+    assert np.all(np.abs(np.diff(log.q[:, 0])) > 0)
+    assert np.abs(sim.q - q_ref).max() < 0.2 * np.abs(q_ref).max()
+
+
+def test_state_read_fast_path_equals_the_reference_conversion_g1(g1):
+    """read_state / q / v (scalar free-flyer rotation) against StateConverter.q_mj_to_pin and
+    v_mj_to_pin (3x3 matrix) and against Pinocchio's own quaternion, at random raw states.
+
+    The quaternions are random and not normalized (read_state reads qpos as MuJoCo holds it),
+    the velocities up to ~10 m/s; agreement is to a few ulp of |v| (Pinocchio's rounding
+    differs by up to ~4.5 ulp over 2000 states, so it gets twice the tolerance).
+    """
+    sim = Simulator(g1)
+    conv = g1.converter
+    rng = np.random.default_rng(11)
+    for _ in range(50):
+        qpos = rng.uniform(-1.0, 1.0, g1.nq)
+        qpos[3:7] = rng.normal(size=4) * rng.uniform(0.5, 2.0)  # (w, x, y, z), any norm
+        qvel = rng.normal(scale=3.0, size=g1.nv)
+        sim.data.qpos[:], sim.data.qvel[:] = qpos, qvel
+        state = sim.read_state()
+        q_ref = conv.q_mj_to_pin(qpos)
+        v_ref = conv.v_mj_to_pin(q_ref, qvel)
+        tol = 1e-15 * np.abs(qvel[:3]).max()  # ~4 ulp
+        np.testing.assert_array_equal(state.q, q_ref)  # a permutation: exact
+        np.testing.assert_allclose(state.v, v_ref, rtol=0, atol=tol)
+        np.testing.assert_array_equal(state.v[3:], qvel[3:])  # only the base linear part turns
+        w, x, y, z = qpos[3:7]
+        R_WB = pin.Quaternion(w, x, y, z).normalized().toRotationMatrix()
+        np.testing.assert_allclose(state.v[:3], R_WB.T @ qvel[:3], rtol=0, atol=2 * tol)  # Eigen
+        np.testing.assert_array_equal(state.q[3:7], [x, y, z, w])
+        # the properties read the same fast path; reading does not step or write the state
+        np.testing.assert_array_equal(sim.q, state.q)
+        np.testing.assert_array_equal(sim.v, state.v)
+        np.testing.assert_array_equal(sim.data.qpos, qpos)
+        np.testing.assert_array_equal(sim.data.qvel, qvel)
+        assert state.time_s == sim.time_s
+    # at a zero quaternion the rotation is undefined: a StateError, not a ZeroDivisionError
+    sim.data.qpos[3:7] = 0.0
+    with pytest.raises(StateError, match="zero norm"):
+        sim.read_state()
 
 
 def test_derived_quantities_follow_the_new_state(two_link_torque):
