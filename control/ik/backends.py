@@ -42,6 +42,7 @@ from mbctl.control.ik.limits import (
     Limit,
 )
 from mbctl.control.ik.solve import DiffIK
+from mbctl.control.ik.state import IKState
 from mbctl.control.ik.tasks import (
     ComTask,
     FrameOrientationTask,
@@ -149,7 +150,8 @@ class WholeBodyIKResult(NamedTuple):
     Attributes:
         q: Final configuration (nq,), Pinocchio convention.
         converged: Every non-regularising residual within its tolerance.
-        stalled: Iteration stopped because the step became negligible (closest pose).
+        stalled: Iteration stopped because the step became negligible before convergence (a
+            local minimum: the target is out of reach, or the pose is singular for it).
         iterations: Steps taken.
         residuals: Per task, residual norms by quantity (``"position [m]"``,
             ``"orientation [rad]"``, ``"deviation [rad]"`` for the posture regulariser), at ``q``.
@@ -332,6 +334,11 @@ class WholeBodyIK(abc.ABC):
         return {f: self._targets[f][1].copy() for f in (*self.config.held_frames,
                                                         *self.config.target_frames)}
 
+    def target_rotations(self) -> dict[str, np.ndarray]:
+        """Orientation targets R_WT (3, 3) of every held frame and the base frame (copies)."""
+        base = (self.config.base_frame,) if self.config.base_frame is not None else ()
+        return {f: self._targets[f][0].copy() for f in (*self.config.held_frames, *base)}
+
     @property
     def com_target(self) -> np.ndarray | None:
         """CoM target (3,) [m] (z unused), or None without a CoM task."""
@@ -449,8 +456,8 @@ class QPWholeBodyIK(WholeBodyIK):
         self.ik = DiffIK(m, list(self.tasks.values()), limits, self.solver, cfg.damping)
 
     @property
-    def state(self):  # noqa: ANN201 - IKState
-        """Kinematic state (``IKState``) at the last update."""
+    def state(self) -> IKState:
+        """Kinematic state at the last update."""
         return self.ik.state
 
     def update(self, q: npt.ArrayLike) -> None:
@@ -532,6 +539,7 @@ class MinkWholeBodyIK(WholeBodyIK):
             self.tasks[cfg.base_frame] = mink.FrameTask(cfg.base_frame, self._types[cfg.base_frame], 0.0,
                                                         cfg.base_orientation_cost)
         if cfg.com:
+            _check_mink_com(self.robot)
             self.tasks["com"] = mink.ComTask(cost=[cfg.com_cost, cfg.com_cost, 0.0])
         self.tasks["posture"] = mink.PostureTask(m, cost=cfg.posture_cost)
         self._task_list = list(self.tasks.values())
@@ -586,6 +594,24 @@ class MinkWholeBodyIK(WholeBodyIK):
         v = self.step_mj()
         self.configuration.integrate_inplace(v, self.config.dt)
         return float(np.max(np.abs(v))) * self.config.dt
+
+
+def _check_mink_com(robot: Robot) -> None:
+    """Refuse a CoM task mink would get wrong: its ComTask is the subtree CoM of MuJoCo body 1.
+
+    Raises:
+        IKSetupError: Body 1's subtree does not hold the whole model's mass (a scene that puts
+            another body before the robot); the message names the body, the masses and ``"qp"``.
+    """
+    m = robot.mj_model
+    total, first = float(m.body_subtreemass[0]), float(m.body_subtreemass[1])
+    if not np.isclose(first, total, rtol=1e-9, atol=0.0):
+        raise IKSetupError(
+            f"backend 'mink' cannot hold the CoM of {robot.name!r}: mink's ComTask uses the subtree "
+            f"of MuJoCo body 1 ({robot.bodies[0]!r}, {first:.6g} kg), but the model's mass is "
+            f"{total:.6g} kg (the scene puts another body before the robot); use backend 'qp', or "
+            "put the robot first in the scene"
+        )
 
 
 #: Backend name -> class.
