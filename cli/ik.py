@@ -4,9 +4,9 @@
 :data:`mbctl.jobs.ik.IK`; ``mbctl workspace [two_link|two_link_torque]`` runs
 :data:`mbctl.jobs.workspace.WORKSPACE`.
 
-Exit codes: 0 converged; 1 solved but not converged (unreachable target, or the MuJoCo plant
-disagrees with the IK's model: the closest pose is still written and the residuals say how far);
-2 bad input.
+Exit codes: 0 converged; 1 solved but not converged (unreachable target, a singular start, or
+the MuJoCo plant disagrees with the IK's model: the last pose is still written and the residuals
+say how far); 2 bad input.
 """
 
 from __future__ import annotations
@@ -17,7 +17,7 @@ from typing import Annotated
 import typer
 
 from mbctl.cli._run import OutputOpt, QuietOpt, execute
-from mbctl.cli.robots import ModelDirOpt
+from mbctl.cli.robots import ModelDirOpt, SceneOpt
 from mbctl.control.exceptions import IKSetupError
 from mbctl.jobs.ik import IK, IKParams
 from mbctl.jobs.workspace import SUPPORTED_ROBOTS, WORKSPACE, WorkspaceParams
@@ -58,7 +58,9 @@ def ik(
         typer.Option("--target", help="FRAME=X,Y,Z world position (m) of a site or body (repeatable)."),
     ] = None,
     com: Annotated[str | None, typer.Option("--com", help="CoM target X,Y (m), world frame.")] = None,
-    backend: Annotated[str, typer.Option("--backend", help="IK backend: qp (ours) or mink.")] = "qp",
+    backend: Annotated[
+        str, typer.Option("--backend", help="IK backend: qp (ours, on Pinocchio) or mink (on MuJoCo).")
+    ] = "qp",
     tol: Annotated[
         float, typer.Option("--tol", help="Position tolerance (m), checked in MuJoCo too.")
     ] = 1e-3,
@@ -71,9 +73,7 @@ def ik(
         str | None,
         typer.Option("--keyframe", help="Start keyframe (default: stand for the G1, else neutral)."),
     ] = None,
-    scene: Annotated[
-        str | None, typer.Option("--scene", help="Scene MJCF for MuJoCo, when ROBOT is a path.")
-    ] = None,
+    scene: SceneOpt = None,
     model_dir: ModelDirOpt = None,
     output: OutputOpt = None,
     quiet: QuietOpt = False,

@@ -11,8 +11,9 @@ import pytest
 
 import mbctl
 from mbctl.control import IKSetupError
-from mbctl.jobs.ik import IK, IKParams, plant_positions, prepare
-from mbctl.jobs.robot_constants import FEET, PALM_SITES, is_menagerie_g1
+from mbctl.control.ik import QPWholeBodyIK, WholeBodyIKConfig
+from mbctl.jobs.ik import IK, IKParams, plant_frames, plant_residuals, prepare
+from mbctl.jobs.robot_constants import FEET, PALM_SITES, PELVIS, is_menagerie_g1
 from mbctl.jobs.runner import Job, run_job
 from mbctl.robots import load_robot
 
@@ -45,17 +46,18 @@ def test_mink_and_qp_give_the_same_g1_pose(g1, tmp_path):
         poses[backend] = _pose(tmp_path / backend)
         assert poses[backend]["task_set"] == "g1" and poses[backend]["backend"] == backend
         assert max(poses[backend]["plant_residual_m"].values()) < 1e-4
+        assert max(poses[backend]["plant_residual_rad"].values()) < 1e-3
     assert set(poses["qp"]["plant_residual_m"]) == {*FEET, *PALM_SITES, "com"}
+    assert set(poses["qp"]["plant_residual_rad"]) == {*FEET, PELVIS}
     q_qp, q_mink = _q(g1, poses["qp"]), _q(g1, poses["mink"])
     frames = (*FEET, *PALM_SITES)
     from mbctl.jobs.robot_constants import with_palm_sites
 
     g1p = with_palm_sites(g1)
-    p_qp, com_qp = plant_positions(g1p, q_qp, frames)
-    p_mink, com_mink = plant_positions(g1p, q_mink, frames)
+    qp, mink = plant_frames(g1p, q_qp, frames), plant_frames(g1p, q_mink, frames)
     for frame in frames:
-        np.testing.assert_allclose(p_qp[frame], p_mink[frame], atol=2e-4)
-    np.testing.assert_allclose(com_qp[:2], com_mink[:2], atol=2e-4)
+        np.testing.assert_allclose(qp.positions[frame], mink.positions[frame], atol=2e-4)
+    np.testing.assert_allclose(qp.com[:2], mink.com[:2], atol=2e-4)
     assert np.max(np.abs(q_qp - q_mink)) < POSE_ATOL_RAD
 
 
@@ -107,6 +109,51 @@ def test_plant_check_catches_a_wrong_answer(tmp_path):
     assert "plant check: largest residual in MuJoCo" in record.summary()
 
 
+def test_plant_check_catches_a_wrong_orientation(tmp_path):
+    """Pinocchio's end-effector site is turned 0.2 rad about z, MuJoCo's is not: a held frame's
+    orientation agrees with the IK's own target and misses on the plant by the 0.2 rad."""
+    turned = tmp_path / "turned_site.xml"
+    turned.write_text((ASSETS / "two_link_arm.xml").read_text().replace(
+        '<site name="end_effector" pos="0.015 0 0"',
+        '<site name="end_effector" pos="0.015 0 0" quat="0.99500417 0 0 0.09983342"'))
+    robot = load_robot("two_link", pin_model_file=turned, check=False)
+    q = np.array([0.3, 0.5])
+    ik = QPWholeBodyIK(robot, WholeBodyIKConfig(held_frames=("end_effector",)), q)
+    assert ik.residuals()["end_effector"]["orientation [rad]"] < 1e-12
+    plant = plant_residuals(robot, ik, q)
+    assert plant.position_m["end_effector"] < 1e-12
+    assert plant.orientation_rad["end_effector"] == pytest.approx(0.2, abs=1e-6)
+    assert not plant.within(1e-3, 1e-2) and plant.within(1e-3, 0.21)
+
+
+def test_generic_com_on_a_scene_qp_converges_and_mink_says_why_it_cannot(tmp_path):
+    """A scene that puts a (massless) body before the robot: mink's ComTask would hold that
+    body's subtree CoM, so the mink backend refuses, naming the body; qp holds the robot's CoM."""
+    shutil.copy(ASSETS / "two_link_arm.xml", tmp_path / "arm.xml")
+    (tmp_path / "scene.xml").write_text(
+        '<mujoco model="arm_scene"><worldbody><body name="marker" pos="1 0 0"/></worldbody>'
+        '<include file="arm.xml"/></mujoco>')
+    params = {"robot": str(tmp_path / "arm.xml"), "scene": str(tmp_path / "scene.xml"),
+              "com_xy": (0.1, 0.2), "tol_m": 1e-4}
+    with pytest.raises(IKSetupError, match="mink's ComTask uses the subtree of MuJoCo body 1 "
+                                           r"\('marker', 0 kg\).* use backend 'qp'"):
+        prepare(IKParams(**params, backend="mink"))
+    # (without the per-joint trust region, the first step from the straight arm spun the
+    # unlimited joints by ~150 rad and the posture regulariser left the CoM 2 mm off)
+    record = run_job(IK, IKParams(**params, backend="qp"), tmp_path / "qp")
+    assert record.exit_code == 0, record.summary()
+    pose = _pose(tmp_path / "qp")
+    assert pose["plant_residual_m"]["com"] < 1e-4 and pose["iterations"] <= 10
+
+
+def test_scene_and_model_dir_only_where_they_apply(tmp_path):
+    with pytest.raises(IKSetupError, match="--scene applies only when ROBOT is an MJCF path"):
+        IKParams("g1", targets=(("left_palm", (0.1, 0.0, 0.0)),), scene=str(tmp_path / "scene.xml"))
+    with pytest.raises(IKSetupError, match="--model-dir applies only to a known robot"):
+        IKParams(str(tmp_path / "arm.xml"), targets=(("end_effector", (0.3, 0.3, 0.0)),),
+                 model_dir=str(tmp_path))
+
+
 def test_unreachable_target_exits_1_with_the_closest_pose(two_link, tmp_path):
     params = IKParams("two_link", targets=(("end_effector", (1.0, 0.0, 0.0)),), max_iters=30)
     record = run_job(IK, params, tmp_path)
@@ -114,6 +161,15 @@ def test_unreachable_target_exits_1_with_the_closest_pose(two_link, tmp_path):
     pose = _pose(tmp_path)
     assert pose["converged"] is False
     assert pose["plant_residual_m"]["end_effector"] == pytest.approx(1.0 - 0.615, abs=5e-3)
+
+
+def test_singular_start_is_not_passed_off_as_the_closest_pose(two_link, tmp_path):
+    """(0.05, 0, 0) is reachable (r_min = 0.015 m), but from the straight arm the error lies in
+    the Jacobian's null space: the step vanishes, the run exits 1 and says the start may be singular."""
+    record = run_job(IK, IKParams("two_link", targets=(("end_effector", (0.05, 0.0, 0.0)),)), tmp_path)
+    assert record.exit_code == 1
+    assert "start pose is singular" in record.summary() and "closest" not in record.summary()
+    assert _pose(tmp_path)["stalled"] is True
 
 
 @pytest.mark.parametrize(("kwargs", "message"), [
