@@ -98,11 +98,65 @@ def test_joint_map_and_setup_errors(two_link_torque):
         joint_reference([0.0, 1.0], v=[0.0])
 
 
-def test_controllers_satisfy_the_protocol(two_link_torque):
-    g = gains_from_frequency(10.0)
-    for c in (JointPD(two_link_torque, g), PDGravity(two_link_torque, g),
-              ComputedTorque(two_link_torque, g), TaskSpaceComputedTorque(two_link_torque, g)):
-        assert isinstance(c, Controller)
+def test_controllers_compute_their_law_as_a_command_from_a_robot_state(
+    two_link_torque_gravity, two_link_gravity_pos
+):
+    """What the Controller protocol promises, by behaviour: from a RobotState and a reference,
+    ``compute`` returns a Command of the actuators' kind, one value per actuator, equal to the
+    controller's law (recomputed here from Robot's M, b, g and J); ``reset`` clears the clip
+    counters. The 2-link arm with gravity on, so g(q) and the velocity terms are not zero."""
+    from mbctl.robots.interface import RobotState
+
+    robot = two_link_torque_gravity
+    gains = gains_from_frequency(10.0)  # kp = 100 [1/s^2], kd = 20 [1/s]
+    kp, kd = gains.kp, gains.kd
+    state = RobotState(np.array([0.3, -0.5]), np.array([0.2, 0.1]), 0.0)
+    ref = JointReference(np.array([0.35, -0.45]), np.array([0.0, 0.3]), np.array([1.0, -1.0]))
+    q, v = state.q, state.v
+    fb = kp * (ref.q - q) + kd * (ref.v - v)
+    M, b, g = robot.mass_matrix(q), robot.bias(q, v), robot.gravity(q)
+    assert np.abs(g).min() > 0.1 and np.abs(b - g).min() > 1e-4  # the terms are really there
+
+    # task space on the end effector's x-y: J a = a_task - dJ v, with dJ v by central differences
+    p_ref, pv_ref, pa_ref = np.array([0.5, 0.2]), np.array([0.1, 0.0]), np.array([0.0, 0.5])
+    J = robot.jacobian("end_effector", q)[:2]
+    h = 1e-6
+    dJv = (robot.jacobian("end_effector", q + h * v)[:2]
+           - robot.jacobian("end_effector", q - h * v)[:2]) @ v / (2 * h)
+    p = robot.frame_pose("end_effector", q)[0][:2]
+    a_task = pa_ref + kp * (p_ref - p) + kd * (pv_ref - J @ v)
+    cases: list[tuple[Controller, object, np.ndarray]] = [
+        (JointPD(robot, gains), ref, fb),
+        (PDGravity(robot, gains), ref, fb + g),
+        (ComputedTorque(robot, gains), ref, M @ (ref.a + fb) + b),
+        (TaskSpaceComputedTorque(robot, gains), task_reference(p_ref, pv_ref, pa_ref),
+         M @ np.linalg.solve(J, a_task - dJv) + b),
+    ]
+    for controller, reference, tau in cases:
+        cmd = controller.compute(state, reference)
+        name = type(controller).__name__
+        assert cmd.kind is CommandKind.TORQUE and cmd.names is None, name  # every actuator, in order
+        assert cmd.values.shape == (robot.nu,), name
+        assert np.abs(tau).max() < 20.0, name  # inside the torque limits: nothing clipped
+        np.testing.assert_allclose(cmd.values, tau, rtol=1e-7, atol=1e-9, err_msg=name)
+
+    # position actuators: target u = q_ref + (kv v_ref + g) / kp, kp and kv the actuators' own
+    pos_robot = two_link_gravity_pos
+    kp_act = np.array([pos_robot.actuator(n).kp for n in ("shoulder", "elbow")])
+    kv_act = np.array([pos_robot.actuator(n).kv for n in ("shoulder", "elbow")])
+    cmd = PositionTargetPD(pos_robot).compute(state, ref)
+    assert cmd.kind is CommandKind.POSITION and cmd.values.shape == (pos_robot.nu,)
+    np.testing.assert_allclose(cmd.values, ref.q + (kv_act * ref.v + pos_robot.gravity(q)) / kp_act,
+                               rtol=1e-12, atol=1e-12)
+
+    # reset() clears the clip counters a saturated command left behind
+    pd = JointPD(robot, gains)
+    cmd = pd.compute(state, JointReference(np.array([3.0, -3.0]), np.zeros(2), np.zeros(2)))
+    np.testing.assert_array_equal(cmd.values, [30.0, -20.0])  # clipped to the motors' ctrlrange
+    assert pd.saturation.saturated_cycles == 1 and pd.saturation.by_joint() == {"shoulder": 1,
+                                                                                "elbow": 1}
+    pd.reset()
+    assert pd.saturation.saturated_cycles == 0 and pd.saturation.by_joint() == {}
 
 
 # ------------------------------------------------------------------------------------ laws
