@@ -80,9 +80,24 @@ def test_torque_controller_on_menagerie_position_actuators_is_an_error(g1):
 
 def test_position_target_pd_commands_position_actuators(g1):
     sim = Simulator(g1)
+    sim.reset("stand")  # ctrl holds the keyframe's targets
     from mbctl.control.position_pd import PositionTargetPD
 
     c = PositionTargetPD(g1, ["left_elbow_joint"])
-    cmd = c.compute(sim.read_state(), joint_reference([0.5]))
+    reference = joint_reference([0.5])
+    cmd = c.compute(sim.read_state(), reference)
     assert cmd.kind is CommandKind.POSITION and cmd.names == ("left_elbow_joint",)
-    sim.send(cmd)  # accepted by the position actuator
+    # target = q_ref + g(q)/kp: a gravity offset of under 1 mrad at kp = 500 N m/rad
+    assert cmd.values[0] == pytest.approx(0.5, abs=1e-3) and cmd.values[0] != 0.5
+    ctrl_before = sim.ctrl.copy()
+    sim.send(cmd)
+    elbow = g1.actuator_for_joint("left_elbow_joint").index
+    assert np.flatnonzero(sim.ctrl != ctrl_before).tolist() == [elbow]  # only the elbow's target
+    assert sim.ctrl[elbow] == cmd.values[0]
+    # and the position actuator takes the elbow there (from 1.28 rad in the keyframe)
+    assert abs(sim.joint_q("left_elbow_joint")[0] - 0.5) > 0.5
+    for _ in range(round(1.0 / sim.control_period_s)):
+        sim.send(c.compute(sim.read_state(), reference))
+        sim.sync()
+    assert abs(sim.joint_q("left_elbow_joint")[0] - 0.5) < 1e-4
+    assert sim.warnings == {}
