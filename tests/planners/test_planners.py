@@ -13,6 +13,14 @@ import numpy as np
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
+from ruckig import (
+    DurationDiscretization,
+    InputParameter,
+    Result,
+    Ruckig,
+    Synchronization,
+    Trajectory,
+)
 
 from mbctl.control.ik.two_link import ElbowBranch, TwoLinkArm
 from mbctl.planners import (
@@ -75,6 +83,24 @@ def _check_consistent(traj: JointTrajectory) -> float:
     return err
 
 
+def _ruckig_alone(q0, q1, limits: JointLimits, dt: float) -> float:
+    """Duration [s] ruckig itself finds for a rest-to-rest move (time-synchronized, discrete
+    durations), without the planner; NaN where ruckig returns an error."""
+    n = len(q0)
+    inp = InputParameter(n)
+    inp.current_position, inp.target_position = list(q0), list(q1)
+    inp.current_velocity = inp.current_acceleration = [0.0] * n
+    inp.target_velocity = inp.target_acceleration = [0.0] * n
+    inp.max_velocity = limits.max_velocity.tolist()
+    inp.max_acceleration = limits.max_acceleration.tolist()
+    inp.max_jerk = limits.max_jerk.tolist()
+    inp.synchronization = Synchronization.Time
+    inp.duration_discretization = DurationDiscretization.Discrete
+    out = Trajectory(n)
+    result = Ruckig(n, dt).calculate(inp, out)
+    return float(out.duration) if result in (Result.Working, Result.Finished) else math.nan
+
+
 # ------------------------------------------------------------------------------ ruckig
 def test_ruckig_reaches_target_exactly_within_limits_and_synchronized():
     q0, q1 = np.array([0.0, 0.5, -1.0]), np.array([1.2, -0.3, 0.4])
@@ -84,9 +110,12 @@ def test_ruckig_reaches_target_exactly_within_limits_and_synchronized():
     np.testing.assert_array_equal(traj.q[-1], q1)
     np.testing.assert_array_equal(traj.v[[0, -1]], 0.0)
     np.testing.assert_array_equal(traj.a[[0, -1]], 0.0)
-    # Uniform grid, last sample exactly at the end.
+    # Uniform grid ending at ruckig's own time-optimal duration, a whole number of periods
+    # (not the planner's rounding of its own duration, which would be equal by construction).
     np.testing.assert_allclose(np.diff(traj.t_s), DT, rtol=1e-9)
-    assert traj.duration_s == pytest.approx(round(traj.duration_s / DT) * DT, abs=1e-12)
+    expected_s = _ruckig_alone(q0, q1, LIMITS3, DT)
+    assert expected_s == pytest.approx(1248 * DT, abs=1e-12)
+    assert traj.duration_s == pytest.approx(expected_s, abs=1e-12) and len(traj.t_s) == 1249
     ratios = _check_limits(traj, LIMITS3)
     assert max(ratios.values()) > 0.9  # the limiting DoF actually uses its limits
     _check_consistent(traj)
