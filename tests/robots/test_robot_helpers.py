@@ -246,3 +246,34 @@ def test_unknown_jacobian_reference_lists_the_choices(two_link):
     with pytest.raises(UnknownNameError, match="Available: world_aligned, local, world") as info:
         two_link.jacobian("end_effector", [0.0, 0.0], reference="world_algned")
     assert info.value.suggestions[0] == "world_aligned"
+
+
+# ---------------------------------------------------------------------------------- finite differences
+@pytest.mark.parametrize("name", ["two_link_torque_gravity", "g1"])
+def test_mass_matrix_bias_and_gravity_against_finite_differences(name, request):
+    """Along a motion with velocity v, ``v^T (b - g) = 1/2 v^T (dM/dt) v`` (the power balance:
+    the velocity terms do no net work beyond the change of M), and ``g = dV/dq``; dM/dt and dV/dq
+    by central differences on the manifold (``pin.integrate``), so the G1's base rows count too."""
+    robot: Robot = request.getfixturevalue(name)
+    model = robot.pin_model
+    data = model.createData()
+    rng = np.random.default_rng(8)
+
+    def step(q: np.ndarray, dv: np.ndarray) -> np.ndarray:
+        return pin.integrate(model, q, dv)
+
+    for _ in range(3):
+        q, v = random_state(robot, rng)
+        dM = (robot.mass_matrix(step(q, FD_STEP * v)) - robot.mass_matrix(step(q, -FD_STEP * v))) / (
+            2 * FD_STEP
+        )
+        power = float(v @ (robot.bias(q, v) - robot.gravity(q)))
+        half_rate = 0.5 * float(v @ dM @ v)
+        assert abs(half_rate) > 1e-5  # the check has something to see (2-link: ~1e-4 W)
+        assert power == pytest.approx(half_rate, rel=1e-6)
+        grad = np.array([
+            (pin.computePotentialEnergy(model, data, step(q, FD_STEP * e))
+             - pin.computePotentialEnergy(model, data, step(q, -FD_STEP * e))) / (2 * FD_STEP)
+            for e in np.eye(robot.nv)
+        ])
+        np.testing.assert_allclose(robot.gravity(q), grad, rtol=0, atol=1e-5 * max(1.0, np.abs(grad).max()))
