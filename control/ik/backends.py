@@ -18,6 +18,10 @@ speed limits. Two backends build that same set:
   bodies. States are converted with the model pair's ``StateConverter`` (MuJoCo's free-joint
   linear velocity is in the world frame, Pinocchio's in the base frame).
 
+The two build the same QP, step for step (round-off), with one deliberate difference: on a ball
+joint our posture Jacobian is the exact ``pin.dDifference`` block while mink's is the identity,
+so with a ball joint away from its posture reference the steps differ by O(cost^2 |e|^2).
+
 Public states (``q`` (nq,), ``v`` (nv,)) are in Pinocchio's convention for both backends.
 Residuals are computed the same way for both (world positions, rotation angles from each
 backend's own kinematics), so the two are comparable entry by entry.
