@@ -37,9 +37,11 @@ def describe(robot: Robot) -> str:
     pm, m = robot.pin_model, robot.mj_model
     lines = [
         f"robot: {robot.name}  ({robot.source.origin})",
-        f"  Pinocchio file: {robot.source.robot_file}",
+        f"  robot file:     {robot.source.robot_file}",
         f"  MuJoCo file:    {robot.source.scene_file}",
     ]
+    built = "built from the compiled MuJoCo model" if robot.source.analytic == "mujoco" else "parser"
+    lines.append(f"  Pinocchio model: {built}")
     lines += [f"  load-time edit: {e}" for e in robot.source.edits]
     lines += [
         f"{'':18s}{'Pinocchio':>12s}{'MuJoCo':>12s}",

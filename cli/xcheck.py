@@ -30,11 +30,15 @@ def xcheck(
         bool, typer.Option("--gravity/--no-gravity", help="Gravity on (2-link arm: -y) or as loaded.")
     ] = False,
     model_dir: ModelDirOpt = None,
+    analytic: Annotated[
+        str, typer.Option("--analytic", help="Pinocchio model: mujoco (from the compiled plant) or parser.")
+    ] = "mujoco",
     output: OutputOpt = None,
     quiet: QuietOpt = False,
 ) -> None:
     """Compare kinematics and dynamics of Pinocchio and MuJoCo; exit 1 if any quantity fails."""
-    execute(XCHECK, XcheckParams(robot, scene, states, seed, json_path, pin_model, gravity, model_dir),
+    execute(XCHECK, XcheckParams(robot, scene, states, seed, json_path, pin_model, gravity, model_dir,
+                                     analytic),
             output, quiet)
 
 

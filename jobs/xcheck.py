@@ -31,6 +31,8 @@ class XcheckParams:
         pin_model: Alternative file (MJCF or URDF) for the Pinocchio side, or None.
         gravity: Switch on the robot's gravity (the 2-link arm's is off by default).
         model_dir: Explicit Menagerie model directory for a known robot.
+        analytic: "mujoco" (the Pinocchio model built from MuJoCo's compiled model) or "parser"
+            (Pinocchio's own parser on the robot file: the independent path).
     """
 
     robot: str
@@ -41,6 +43,7 @@ class XcheckParams:
     pin_model: Path | None = None
     gravity: bool = False
     model_dir: str | None = None
+    analytic: str = "mujoco"
 
     def __post_init__(self) -> None:
         if self.states < 0:
@@ -65,6 +68,7 @@ def prepare(params: XcheckParams) -> Work:
         model_dir=params.model_dir,
         pin_model_file=params.pin_model,
         check=False,
+        analytic=params.analytic,
     )
 
     def work(ctx: RunContext) -> Outcome:
@@ -76,6 +80,7 @@ def prepare(params: XcheckParams) -> Work:
         if params.json_path is not None:
             write_json_atomic(params.json_path, data)
         ctx.values.update({
+            "analytic_model": robot.source.analytic,
             "passed": report.passed,
             "failed": list(report.failed),
             "not_compared": list(report.not_compared),

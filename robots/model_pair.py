@@ -22,6 +22,7 @@ import pinocchio as pin
 from mbctl.robots.conventions import JointLayout, StateConverter
 from mbctl.robots.exceptions import ModelFileError, ModelMismatchError, UnknownNameError
 from mbctl.robots.names import ActuatorInfo, SensorInfo, actuator_infos, names_of, sensor_infos
+from mbctl.robots.pin_from_mj import pin_model_from_mj
 
 _T = TypeVar("_T")
 
@@ -54,10 +55,14 @@ class ModelSource:
 
     Attributes:
         name: Robot name (a known robot) or the robot file's stem.
-        robot_file: MJCF file Pinocchio reads.
+        robot_file: The robot's file (MJCF or URDF); Pinocchio's parser reads it when
+            ``analytic`` is "parser".
         scene_file: MJCF file MuJoCo reads (may include ``robot_file``).
         origin: Human-readable provenance (e.g. "embedded", "menagerie unitree_g1 @ <dir>").
         edits: Load-time edits applied on top of the files (MjSpec or Pinocchio), in order.
+        analytic: How the Pinocchio model was built: "mujoco" (from MuJoCo's compiled model,
+            ``robots.pin_from_mj``; the default) or "parser" (Pinocchio's own parser reading
+            ``robot_file``: the independent path, e.g. a URDF checked against its MJCF).
     """
 
     name: str
@@ -65,6 +70,7 @@ class ModelSource:
     scene_file: Path
     origin: str
     edits: tuple[str, ...] = field(default=())
+    analytic: str = "parser"
 
     def files(self) -> dict[str, Path]:
         """The model files by role (deduplicated)."""
@@ -140,19 +146,21 @@ class Robot:
     def __init__(
         self,
         source: ModelSource,
-        pin_model: pin.Model,
+        pin_model: pin.Model | None,
         mj_spec: mujoco.MjSpec,
         check: bool = True,
     ):
         """Build the pair.
 
-        ``check=False`` skips the agreement check (for cross-checking a deliberately different
-        Pinocchio model against the plant).
+        ``pin_model=None`` builds the analytic model from the compiled MjModel. ``check=False``
+        skips the agreement check (for cross-checking a deliberately different Pinocchio model
+        against the plant).
         """
         self.source = source
         self.mj_spec = mj_spec
         self.mj_model = compile_spec(mj_spec, source.scene_file)
-        self.pin_model = pin_model
+        # None: the analytic model is built from the compiled plant (see robots/pin_from_mj.py)
+        self.pin_model = pin_model_from_mj(self.mj_model) if pin_model is None else pin_model
         self.pin_model.gravity = pin.Motion(np.array(self.mj_model.opt.gravity), np.zeros(3))
         m = self.mj_model
         layouts = []
@@ -398,15 +406,18 @@ class Robot:
         spec = self.mj_spec.copy()
         if mj_edit is not None:
             mj_edit(spec)
-        pin_model = self.pin_model.copy()
-        if pin_edit is not None:
-            pin_model = pin_edit(pin_model)
+        pin_model: pin.Model | None = None  # built again from the edited plant
+        if self.source.analytic != "mujoco":
+            pin_model = self.pin_model.copy()
+            if pin_edit is not None:
+                pin_model = pin_edit(pin_model)
         source = ModelSource(
             self.source.name,
             self.source.robot_file,
             self.source.scene_file,
             self.source.origin,
             (*self.source.edits, description),
+            self.source.analytic,
         )
         return Robot(source, pin_model, spec)
 

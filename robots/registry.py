@@ -8,6 +8,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
+import pinocchio as pin
 
 from mbctl.robots.exceptions import ModelNotFoundError, UnknownNameError
 from mbctl.robots.menagerie import resolve_menagerie_dir
@@ -75,6 +76,10 @@ KNOWN_ROBOTS: dict[str, KnownRobot] = {
 }
 
 
+#: The ways to build the analytic model (see ``load_robot``).
+ANALYTIC = ("mujoco", "parser")
+
+
 def load_robot(
     name_or_path: str | os.PathLike,
     scene: str | os.PathLike | None = None,
@@ -83,6 +88,7 @@ def load_robot(
     model_dir: str | os.PathLike | None = None,
     pin_model_file: str | os.PathLike | None = None,
     check: bool = True,
+    analytic: str = "mujoco",
 ) -> Robot:
     """Load a known robot by name, or any MJCF robot by path, as a checked model pair.
 
@@ -94,6 +100,10 @@ def load_robot(
         model_dir: Explicit model directory for Menagerie robots (overrides $MENAGERIE_ROOT).
         pin_model_file: Build the Pinocchio side from this file instead (MJCF or URDF).
         check: Run the load-time agreement check (disable only to cross-check a different model).
+        analytic: "mujoco" (default) builds the Pinocchio model from MuJoCo's compiled model, which
+            has resolved defaults, frames, includes, several joints per body, several trees and
+            mesh inertia; "parser" uses Pinocchio's MJCF parser on the robot file (the independent
+            path; ``pin_model_file`` implies it).
 
     Raises:
         UnknownNameError: Not a known robot and not an existing file.
@@ -120,9 +130,15 @@ def load_robot(
         origin = f"user file {robot_file}"
         name = robot_file.stem
         gravity_on = None
+    if analytic not in ANALYTIC:
+        raise UnknownNameError("analytic model path", analytic, ANALYTIC)
     spec = load_mj_spec(scene_file)
     pin_file = Path(pin_model_file).expanduser().resolve() if pin_model_file else robot_file
-    pin_model = load_pin_model(pin_file)
+    if pin_model_file or analytic == "parser":
+        analytic = "parser"
+        pin_model: pin.Model | None = load_pin_model(pin_file)
+    else:
+        pin_model = None  # built by Robot from the compiled MjModel (robots/pin_from_mj.py)
     edits: tuple[str, ...] = ()
     if gravity is True and gravity_on is not None:
         spec.option.gravity = np.array(gravity_on)
@@ -132,5 +148,5 @@ def load_robot(
         edits = ("gravity set to zero",)
     if pin_model_file:
         edits = (*edits, f"Pinocchio model from {pin_file}")
-    source = ModelSource(name, pin_file, scene_file, origin, edits)
+    source = ModelSource(name, pin_file, scene_file, origin, edits, analytic)
     return Robot(source, pin_model, spec, check=check)

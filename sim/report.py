@@ -53,6 +53,7 @@ def model_section(sim: Simulator) -> dict[str, Any]:
             for role, path in robot.source.files().items()
         },
         "load_time_edits": list(robot.source.edits),
+        "analytic_model": robot.source.analytic,
         "nq": robot.nq,
         "nv": robot.nv,
         "nu": robot.nu,
