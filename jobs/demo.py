@@ -380,7 +380,7 @@ def plot(ctx: RunContext, main: Tracking, exact: Tracking | None, runs: tuple[Tr
     """The path on the plane and the error over time, in mm; reference dashed, plant solid."""
     fig, axes = new_figure(1, 2, (12.0, 5.2))
     ax_path, ax_err = axes[0]
-    ax_path.plot(main.p_ref[:, 0], main.p_ref[:, 1], "k--", lw=1.2, label="reference")
+    ax_path.plot(main.p_ref[:, 0], main.p_ref[:, 1], "k--", lw=1.2, label="reference", zorder=5)
     shown = runs or tuple(t for t in (main, exact) if t is not None)
     for t in shown:
         label = LABELS[t.controller] + (f" (masses {t.model_error_pct:+g} %)" if t.model_error_pct
