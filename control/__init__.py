@@ -7,80 +7,18 @@ from mbctl.control.exceptions import (
     KinematicsError,
     UnreachableTarget,
 )
-from mbctl.control.ik.backends import (
-    BACKENDS,
-    MinkWholeBodyIK,
-    QPWholeBodyIK,
-    WholeBodyIK,
-    WholeBodyIKConfig,
-    WholeBodyIKResult,
-    make_whole_body_ik,
-)
-from mbctl.control.ik.limits import (
-    BoxLimit,
-    Constraint,
-    FloatingBaseVelocityLimit,
-    JointPositionLimit,
-    JointVelocityLimit,
-    Limit,
-)
-from mbctl.control.ik.solve import DiffIK, IKResult, IKStep, solve_ik
-from mbctl.control.ik.state import IKState
-from mbctl.control.ik.tasks import (
-    ComTask,
-    DampingTask,
-    FrameOrientationTask,
-    FramePoseTask,
-    FramePositionTask,
-    PostureTask,
-    Task,
-)
-from mbctl.control.ik.two_link import (
-    ElbowBranch,
-    IterativeIKResult,
-    TwoLinkArm,
-    Workspace,
-    dls_ik,
-    pinv_ik,
-)
+
+# The IK names are mbctl.control.ik's; re-exported here as one list (no second copy).
+from mbctl.control.ik import *  # noqa: E402, F403
+from mbctl.control.ik import __all__ as _IK_ALL  # noqa: E402
 
 __all__ = [
-    "BACKENDS",
-    "BoxLimit",
-    "ComTask",
-    "Constraint",
     "ControlError",
-    "DampingTask",
-    "DiffIK",
-    "ElbowBranch",
-    "FloatingBaseVelocityLimit",
-    "FrameOrientationTask",
-    "FramePoseTask",
-    "FramePositionTask",
     "IKInfeasible",
-    "IKResult",
     "IKSetupError",
-    "IKState",
-    "IKStep",
-    "IterativeIKResult",
-    "JointPositionLimit",
-    "JointVelocityLimit",
     "KinematicsError",
-    "Limit",
-    "MinkWholeBodyIK",
-    "PostureTask",
-    "QPWholeBodyIK",
-    "Task",
-    "TwoLinkArm",
     "UnreachableTarget",
-    "WholeBodyIK",
-    "WholeBodyIKConfig",
-    "WholeBodyIKResult",
-    "Workspace",
-    "dls_ik",
-    "pinv_ik",
-    "make_whole_body_ik",
-    "solve_ik",
+    *_IK_ALL,
 ]
 
 # Controllers, gains and the control loop (appended; the IK names above are another module family).
