@@ -461,11 +461,51 @@ def check_agreement(robot: Robot) -> None:
                 f"armature differs at dofs {bad[:8].tolist()}: Pinocchio "
                 f"{np.asarray(pm.armature)[bad[:8]].tolist()}, MuJoCo {m.dof_armature[bad[:8]].tolist()}"
             )
+    if not problems:
+        problems += _kinematics_problems(robot)
     if problems:
         raise ModelMismatchError(
             f"Pinocchio model ({robot.source.robot_file}) and MuJoCo model "
             f"({robot.source.scene_file}) of {robot.name!r} disagree: " + "; ".join(problems)
         )
+
+
+#: Largest FK difference [m, or rotation-matrix entry] the load-time check accepts.
+FK_ATOL = 1e-9
+
+
+def _kinematics_problems(robot: Robot, n_random: int = 2, seed: int = 0) -> list[str]:
+    """FK of every body and site, both engines, at the neutral pose and random configurations."""
+    pm, m = robot.pin_model, robot.mj_model
+    data, d = pm.createData(), mujoco.MjData(m)
+    lower = np.where(np.isfinite(pm.lowerPositionLimit), pm.lowerPositionLimit, -1.0).clip(-1e3, 1e3)
+    upper = np.where(np.isfinite(pm.upperPositionLimit), pm.upperPositionLimit, 1.0).clip(-1e3, 1e3)
+    np.random.seed(seed)  # pin.randomConfiguration draws from numpy's global generator
+    configurations = [pin.neutral(pm)] + [pin.randomConfiguration(pm, lower, upper) for _ in range(n_random)]
+    frames = [(kind, name, i, pm.getFrameId(name, ftype))
+              for kind, names, ftype in (("body", robot.bodies, pin.FrameType.BODY),
+                                         ("site", robot.sites, pin.FrameType.OP_FRAME))
+              for i, name in enumerate(names)]
+    missing = [f"{kind} {name!r}" for kind, name, _, fid in frames if fid >= pm.nframes]
+    if missing:
+        return [f"missing in Pinocchio: {', '.join(missing[:8])}"
+                + (f" and {len(missing) - 8} more" if len(missing) > 8 else "")]
+    worst: tuple[float, str] = (0.0, "")
+    for q in configurations:
+        pin.framesForwardKinematics(pm, data, q)
+        d.qpos[:] = robot.converter.q_pin_to_mj(q)
+        mujoco.mj_kinematics(m, d)
+        for kind, name, i, fid in frames:
+            pos, rot = (d.xpos[i + 1], d.xmat[i + 1]) if kind == "body" else (d.site_xpos[i], d.site_xmat[i])
+            oMf = data.oMf[fid]
+            err = max(float(np.abs(oMf.translation - pos).max()),
+                      float(np.abs(oMf.rotation.ravel() - rot).max()))
+            if err > worst[0]:
+                worst = (err, f"{kind} {name!r}")
+    if worst[0] > FK_ATOL:
+        return [f"forward kinematics differ by {worst[0]:.3g} (m or rotation entry) at {worst[1]} "
+                f"(tolerance {FK_ATOL:g})"]
+    return []
 
 
 def q_array(robot: Robot, q: npt.ArrayLike, what: str = "q") -> np.ndarray:

@@ -14,7 +14,7 @@ import sys
 import mujoco
 import pytest
 
-from mbctl.robots import load_robot
+from mbctl.robots import ModelMismatchError, load_robot
 from mbctl.robots.crosscheck import crosscheck
 
 ARM = """
@@ -84,3 +84,19 @@ def test_ik_solution_lands_in_mujoco(robot_file, tmp_path):
     assert result.returncode == 0, result.stdout + result.stderr
     values = json.loads((out / "report.json").read_text())["values"]
     assert values["max_plant_residual_m"] < 1e-3  # measured with MuJoCo's kinematics
+
+
+def test_parser_model_that_drops_the_root_pose_never_loads_silently(tmp_path):
+    path = tmp_path / "rotated_root.xml"
+    path.write_text(ROBOTS["rotated_root"])
+    # Pinocchio's MJCF parser drops the jointless root body's pose: the load-time check measures it
+    # ... and the site inside a <frame>, which it drops too
+    with pytest.raises(ModelMismatchError, match="disagree: missing in Pinocchio: site 'framed'"):
+        load_robot(path, analytic="parser")
+    frame = '    <frame pos="0.1 0 0.05" euler="0 45 0"><site name="framed" pos="0.05 0 0"/></frame>\n'
+    assert frame in ROBOTS["rotated_root"]
+    path.write_text(ROBOTS["rotated_root"].replace(frame, ""))
+    fk = r"disagree: forward kinematics differ by [\d.]+ \(m or rotation entry\) at "
+    with pytest.raises(ModelMismatchError, match=fk):
+        load_robot(path, analytic="parser")
+    assert load_robot(path).source.analytic == "mujoco"  # the default path loads it
