@@ -38,6 +38,7 @@ from mbctl.control.loop import presample, run  # noqa: E402
 from mbctl.control.pd_gravity import PDGravity  # noqa: E402
 from mbctl.jobs.demo import DemoConfig, square_reference  # noqa: E402
 from mbctl.jobs.g1 import stance_inertia  # noqa: E402
+from mbctl.jobs.robot_constants import KEYFRAME  # noqa: E402
 from mbctl.robots import load_robot  # noqa: E402
 from mbctl.robots.commands import Command, CommandKind  # noqa: E402
 from mbctl.robots.edits import position_to_motor  # noqa: E402
@@ -46,10 +47,10 @@ from mbctl.sim.simulator import Simulator  # noqa: E402
 GOALS = {"G1 PD + gravity": 1.15, "2-link computed torque": 1.5}
 
 
-def g1_case(steps: int) -> tuple[float, float]:
-    """Median seconds per step (api, hand) for the G1 standing under PD + gravity."""
+def g1_case(steps: int) -> tuple[float, float, float]:
+    """Median seconds per step (api, hand, floor) for the G1 standing under PD + gravity."""
     robot = position_to_motor(load_robot("g1"))
-    q0 = robot.keyframe_q("stand")
+    q0 = robot.keyframe_q(KEYFRAME)
     probe = PDGravity(robot, PDGains([1.0], [1.0]))
     gains = gains_from_frequency(10.0, 1.0, stance_inertia(robot, q0, probe.joints))
     controller = PDGravity(robot, gains)
@@ -69,10 +70,10 @@ def g1_case(steps: int) -> tuple[float, float]:
     log_q = np.empty((steps, robot.nq))
     log_v = np.empty((steps, robot.nv))
     log_tau = np.empty((steps, robot.nu))
-    key = robot.keyframe_id("stand")
+    key = robot.keyframe_id(KEYFRAME)
 
     def api() -> None:
-        sim.reset("stand")
+        sim.reset(KEYFRAME)
         run(sim, controller, reference, steps * period)
 
     def hand() -> None:
@@ -94,7 +95,7 @@ def g1_case(steps: int) -> tuple[float, float]:
 
     def hand_via_robot_api() -> None:
         """The hand-written law, but state, command and stepping through the robot API."""
-        sim.reset("stand")
+        sim.reset(KEYFRAME)
         for k in range(steps):
             state = sim.read_state()
             q, v = state.q, state.v
@@ -109,8 +110,8 @@ def g1_case(steps: int) -> tuple[float, float]:
     return t["api"] / steps, t["hand"] / steps, t["floor"] / steps
 
 
-def two_link_case() -> tuple[float, float, int]:
-    """Median seconds per step (api, hand, steps) for computed torque on the square."""
+def two_link_case() -> tuple[float, float, float, int]:
+    """Median seconds per step (api, hand, floor) and the steps, for computed torque on the square."""
     robot = load_robot("two_link_torque", gravity=True)
     sim = Simulator(robot)
     traj = square_reference(robot, DemoConfig(), robot.timestep_s).joints

@@ -17,7 +17,14 @@
     feed-forward offset); every other actuator keeps the keyframe's targets.
 
 Every job runs on the job runner: a CSV streamed one row per control cycle (reference, full q,
-v, command), ``report.json`` with the status and values, and a PNG.
+v, command; ``base_z_m`` for the robots on the floor), ``report.json`` with the status and values,
+and a PNG. The verdict (exit 1 when missed): the robot on the floor did not fall (pelvis within
+``FALL_DEVIATION_M`` of the keyframe height) and, when given, the joint RMS error bound.
+
+Plots: reference dashed, plant solid; at most eight labelled traces per panel. The tracking jobs
+draw one row per limb that moves, coloured by the joint's role in the limb (the knee has one
+colour in both legs); the standing job draws the pelvis height change [mm] on its own panel and
+the joints that moved most, with mirror pairs that move identically drawn once.
 """
 
 from __future__ import annotations
@@ -35,18 +42,24 @@ from mbctl.control.gains import PDGains, gains_from_frequency
 from mbctl.control.loop import RunLog, run
 from mbctl.control.pd_gravity import PDGravity
 from mbctl.control.position_pd import PositionTargetPD
-from mbctl.jobs.plots import joint_colors, most_moved, new_figure
+from mbctl.jobs.plots import coincident_groups, joint_colors, most_moved, new_figure, tracking_panels
 from mbctl.jobs.recording import LoopRows, command_columns
 from mbctl.jobs.robot_constants import KEYFRAME
 from mbctl.jobs.runner import Job, Outcome, RunContext, Work
 from mbctl.planners.ruckig_planner import JointLimits, plan_ruckig, plan_waypoints
 from mbctl.planners.trajectory import JointTrajectory
 from mbctl.robots.edits import position_to_motor, weld_base
+from mbctl.robots.interface import RobotState
 from mbctl.robots.model_pair import Robot
 from mbctl.robots.registry import load_robot
 from mbctl.sim.simulator import Simulator
 
+#: Words that put a G1 joint in a leg (leg joints carry the body: stance inertia) or an arm (plots).
 LEG_WORDS = ("hip", "knee", "ankle")
+ARM_WORDS = ("shoulder", "elbow", "wrist")
+
+#: A limb whose reference moves less than this [rad] is left out of the tracking plots.
+MOVED_RAD = 1e-6
 
 #: Joint limits of the tracking trajectories: velocity [rad/s], acceleration [rad/s^2],
 #: jerk [rad/s^3] (well inside the G1's actuator capabilities).
@@ -182,48 +195,152 @@ class ArmPDParams:
         _positive("max_rms_error_rad", self.max_rms_error_rad)
 
 
+def _base_z_index(robot: Robot) -> int:
+    """Index in q of the floating base's height z (Pinocchio convention)."""
+    base = next(j for j in robot.joints.values() if j.kind == "free")
+    return base.idx_q + 2
+
+
 def _loop(ctx: RunContext, sim: Simulator, controller: PDGravity | ComputedTorque | PositionTargetPD,
-          reference: Any,
-          duration_s: float, unit: str, label: str) -> RunLog:
-    """Run the control loop with every cycle streamed to the run's CSV and the progress bar."""
+          reference: Any, duration_s: float, unit: str, label: str, base_z: bool = False) -> RunLog:
+    """Run the control loop with every cycle streamed to the run's CSV and the progress bar.
+
+    Args:
+        ctx: The run.
+        sim: The plant.
+        controller: The control law.
+        reference: What ``control.loop.run`` takes as the reference.
+        duration_s: Simulated time [s].
+        unit: The command's unit ("N_m" torques, "rad" position targets).
+        label: Progress bar label.
+        base_z: Add a ``base_z_m`` column (floating-base height [m]).
+    """
     ctx.attach(sim)
     joints = controller.joints
-    header = LoopRows.header(sim.robot, [f"q_ref_{j}_rad" for j in joints], command_columns(joints, unit))
+    extra_names = ["base_z_m"] if base_z else []
+    header = LoopRows.header(sim.robot, [f"q_ref_{j}_rad" for j in joints], command_columns(joints, unit),
+                             extra_names)
+    extra = None
+    if base_z:
+        zi = _base_z_index(sim.robot)
+
+        def extra(state: RobotState) -> list[float]:
+            return [float(state.q[zi])]
+
     ctx.progress.start(max(1, int(round(duration_s / sim.control_period_s))), label)
-    rows = LoopRows(ctx.open_csv(header), len(joints), tick=ctx.progress.advance)
+    rows = LoopRows(ctx.open_csv(header), len(joints), extra, ctx.progress.advance)
     return run(sim, controller, reference, duration_s, rows)
 
 
-def _tracking_plot(ctx: RunContext, name: str, log: RunLog, joints: tuple[str, ...], err: np.ndarray,
-                   title: str, extra: tuple[str, np.ndarray] | None = None) -> None:
-    """Reference (dashed) and plant (solid) of the joints that moved most; their errors in mrad."""
-    shown = most_moved(log.reference, 8)
-    colors = joint_colors(list(joints))
-    panels = 3 if extra is not None else 2
-    fig, axes = new_figure(1, panels, (6.0 * panels, 5.0))
-    ax, ax_err = axes[0][0], axes[0][1]
-    for i in shown:
-        c = colors[joints[i]]
-        ax.plot(log.t_s, log.reference[:, i], ls="--", lw=1.0, color=c)
-        ax.plot(log.t_s, log.reference[:, i] - err[:, i], lw=1.0, color=c, label=joints[i])
-        ax_err.plot(log.t_s, err[:, i] * 1e3, lw=0.9, color=c, label=joints[i])
+def limb_of(joint: str) -> str:
+    """The limb of a G1 joint, for plots: "left leg", "right arm", "waist" (else its first word)."""
+    side = next((s for s in ("left", "right") if joint.startswith(f"{s}_")), None)
+    if any(w in joint for w in LEG_WORDS):
+        part = "leg"
+    elif any(w in joint for w in ARM_WORDS):
+        part = "arm"
+    else:
+        part = joint.removeprefix(f"{side}_").split("_")[0] if side else joint.split("_")[0]
+    return f"{side} {part}" if side else part
+
+
+def joint_role(joint: str) -> str:
+    """A joint's name within its limb: ``left_knee_joint`` -> ``knee``, ``waist_yaw_joint`` -> ``waist_yaw``.
+
+    Args:
+        joint: The joint name.
+    """
+    for side in ("left_", "right_"):
+        joint = joint.removeprefix(side)
+    return joint.removesuffix("_joint")
+
+
+def limb_rows(joints: tuple[str, ...], reference: np.ndarray,
+              per_row: int = 8) -> list[tuple[str, list[int]]]:
+    """Columns of ``reference`` (N, n) grouped by limb, limbs whose reference moves only.
+
+    Args:
+        joints: Names of the columns (n).
+        reference: Reference angles (N, n) [rad].
+        per_row: At most this many joints per limb (the ones that moved most).
+
+    Returns:
+        (limb, column indices) in the order the limbs first appear in ``joints``; every limb when
+        no reference moves (a run shorter than the first motion).
+    """
+    limbs: dict[str, list[int]] = {}
+    for i, name in enumerate(joints):
+        limbs.setdefault(limb_of(name), []).append(i)
+    rows = []
+    for limb, idx in limbs.items():
+        if len(idx) > per_row:
+            idx = sorted(idx[k] for k in most_moved(reference[:, idx], per_row))
+        rows.append((limb, idx))
+    moved = [(limb, idx) for limb, idx in rows if np.ptp(reference[:, idx]) > MOVED_RAD]
+    return moved or rows
+
+
+def _held_joints_panel(ax: Any, t_s: np.ndarray, deviation: np.ndarray, joints: tuple[str, ...],
+                       also_coincide: tuple[np.ndarray, ...] = (),
+                       k: int = 8) -> tuple[list[list[int]], list[Any]]:
+    """Draw the ``k`` joints that moved most from a held pose, q - q_held [mrad].
+
+    Mirror pairs that move identically (in ``deviation`` and every ``also_coincide`` signal)
+    share one trace and one label, so every label names a line the reader can see.
+
+    Returns:
+        The groups of columns drawn and their colours.
+    """
+    candidates = most_moved(deviation, 2 * k)
+    groups = coincident_groups((deviation, *also_coincide), candidates)[:k]
+    labels = [" = ".join(joints[i].removesuffix("_joint") for i in g[:2])
+              + (f" (+ {len(g) - 2} more)" if len(g) > 2 else "") for g in groups]
+    colors = list(joint_colors(labels).values())
+    ax.axhline(0.0, ls="--", lw=0.8, color="k", label="held pose (reference)")
+    for g, label, color in zip(groups, labels, colors, strict=True):
+        ax.plot(t_s, deviation[:, g[0]] * 1e3, lw=1.2, color=color, label=label)
     ax.set_xlabel("time (s)")
-    ax.set_ylabel("joint angle (rad)")
-    ax.set_title(f"the {len(shown)} joints that moved most (dashed: reference, solid: plant)", fontsize=9)
-    ax.legend(fontsize=7, loc="best")
-    ax_err.set_xlabel("time (s)")
-    ax_err.set_ylabel("joint error q_ref - q (mrad)")
-    ax_err.set_title("tracking error, same joints and colours", fontsize=9)
-    ax_err.grid(True, alpha=0.3)
-    if extra is not None:
-        ax3 = axes[0][2]
-        ax3.plot(log.t_s, extra[1], color="k", lw=1.0)
-        ax3.set_xlabel("time (s)")
-        ax3.set_ylabel(extra[0])
-        ax3.grid(True, alpha=0.3)
-        ax3.set_title("pelvis height change", fontsize=9)
+    ax.set_ylabel("q - q_held (mrad)")
+    ax.grid(True, alpha=0.3)
+    return groups, colors
+
+
+def _pelvis_panel(ax: Any, t_s: np.ndarray, dz_m: np.ndarray, max_m: float) -> None:
+    """Pelvis height change [mm] over time; ``max_m`` [m] is the run's value (final state included)."""
+    ax.plot(t_s, dz_m * 1e3, color="k", lw=1.2)
+    ax.axhline(0.0, ls="--", lw=0.8, color="0.4")
+    ax.set_xlabel("time (s)")
+    ax.set_ylabel("pelvis height - keyframe (mm)")
+    ax.set_title(f"pelvis height change (max |change| {max_m * 1e3:.2f} mm; "
+                 f"fall bound {FALL_DEVIATION_M * 1e3:g} mm)", fontsize=9)
+    ax.grid(True, alpha=0.3)
+
+
+def _tracking_plot(ctx: RunContext, name: str, log: RunLog, joints: tuple[str, ...], err: np.ndarray,
+                   title: str, body: tuple[np.ndarray, np.ndarray, tuple[str, ...]] | None = None) -> None:
+    """One row per limb that moves: angles (plant solid, reference dashed) and errors in mrad.
+
+    Colours follow the joint's role in its limb (the knee has one colour in both legs). With
+    ``body`` = (pelvis height change (N,) [m], deviation of the other joints from their held
+    targets (N, m) [rad], their names), a last row shows how the rest of the robot held still.
+    """
+    q = log.reference - err
+    limbs = limb_rows(joints, log.reference)
+    n_rows = len(limbs) + (body is not None)
+    fig, axes = new_figure(n_rows, 2, (13.0, 2.9 * n_rows + 0.7), layout="constrained")
+    for r, (limb, idx) in enumerate(limbs):
+        roles = [joint_role(joints[i]) for i in idx]
+        colors = joint_colors(roles)
+        tracking_panels(axes[r][0], axes[r][1], log.t_s, log.reference[:, idx], q[:, idx], roles,
+                        [colors[x] for x in roles], limb)
+    if body is not None:
+        dz, deviation, others = body
+        _pelvis_panel(axes[-1][0], log.t_s, dz, ctx.values["pelvis_max_deviation_m"])
+        groups, _ = _held_joints_panel(axes[-1][1], log.t_s, deviation, others)
+        axes[-1][1].set_title(f"the {len(groups)} other joints that moved most from the keyframe",
+                              fontsize=9)
+        axes[-1][1].legend(fontsize=8, loc="upper left", bbox_to_anchor=(1.01, 1.0))
     fig.suptitle(title)
-    fig.tight_layout()
     ctx.save_figure(fig, f"{name}.png")
 
 
@@ -248,8 +365,8 @@ def prepare_stand(params: StandParams, robot: Robot | None = None) -> Work:
         z0 = sim.base_z_m
         ctx.values["pelvis_z_keyframe_m"] = float(z0)
         reference = joint_reference(q0[controller.joint_map.idx_q])
-        log = _loop(ctx, sim, controller, reference, params.duration_s, "N_m", "g1-stand")
-        z = np.append(log.q[:, 2], sim.base_z_m)
+        log = _loop(ctx, sim, controller, reference, params.duration_s, "N_m", "g1-stand", base_z=True)
+        z = np.append(log.q[:, _base_z_index(robot)], sim.base_z_m)
         dev = z - z0
         joint_err = log.reference - log.q[:, controller.joint_map.idx_q]
         fell = bool(np.abs(dev).max() > FALL_DEVIATION_M)
@@ -266,7 +383,7 @@ def prepare_stand(params: StandParams, robot: Robot | None = None) -> Work:
             "wall_time_s": log.wall_time_s,
         })
         ctx.sections["controller_saturation"] = controller.saturation.summary()
-        _stand_plot(ctx, log, dev[:-1], controller.joints, params)
+        _stand_plot(ctx, log, dev[:-1], -joint_err, controller.joints, params)
         v = ctx.values
         return Outcome(not fell, (
             f"g1-stand {params.duration_s:g} s, PD + gravity (omega {params.omega_rad_s:g} rad/s, zeta "
@@ -278,28 +395,29 @@ def prepare_stand(params: StandParams, robot: Robot | None = None) -> Work:
     return work
 
 
-def _stand_plot(ctx: RunContext, log: RunLog, dev: np.ndarray, joints: tuple[str, ...],
-                params: StandParams) -> None:
-    fig, axes = new_figure(1, 2, (13.0, 5.0))
-    ax, ax2 = axes[0]
-    ax.plot(log.t_s, dev * 1e3, color="k", lw=1.0, label="pelvis height - keyframe")
-    ax.set_xlabel("time (s)")
-    ax.set_ylabel("pelvis height change (mm)")
-    ax.set_title(f"pelvis height (fall bound: {FALL_DEVIATION_M * 1e3:g} mm)", fontsize=9)
-    ax.grid(True, alpha=0.3)
-    ax.legend(fontsize=8)
-    shown = most_moved(log.command, 8)
-    colors = joint_colors(list(joints))
-    for i in shown:
-        ax2.plot(log.t_s, log.command[:, i], lw=0.9, color=colors[joints[i]], label=joints[i])
-    ax2.set_xlabel("time (s)")
-    ax2.set_ylabel("joint torque (N m)")
-    ax2.set_title(f"torques of the {len(shown)} joints whose torque varied most", fontsize=9)
-    ax2.legend(fontsize=7)
-    ax2.grid(True, alpha=0.3)
+def _stand_plot(ctx: RunContext, log: RunLog, dz_m: np.ndarray, deviation: np.ndarray,
+                joints: tuple[str, ...], params: StandParams) -> None:
+    """Pelvis height change [mm] on its own panel, then the joints that moved most.
+
+    The joints' deviation from the keyframe [mrad] and their torques [N m] share one colour per
+    joint.
+    """
+    fig, axes = new_figure(1, 3, (17.0, 5.0), layout="constrained")
+    ax_z, ax_q, ax_tau = axes[0]
+    max_m = ctx.values["pelvis_max_deviation_m"]
+    _pelvis_panel(ax_z, log.t_s, dz_m, max_m)
+    groups, colors = _held_joints_panel(ax_q, log.t_s, deviation, joints, (log.command,))
+    ax_q.set_title(f"the {len(groups)} joints that moved most from the keyframe", fontsize=9)
+    for g, color in zip(groups, colors, strict=True):
+        ax_tau.plot(log.t_s, log.command[:, g[0]], lw=1.2, color=color)
+    ax_tau.set_xlabel("time (s)")
+    ax_tau.set_ylabel("joint torque (N m)")
+    ax_tau.set_title("their torques (PD + gravity), same colours", fontsize=9)
+    ax_tau.grid(True, alpha=0.3)
+    handles, labels = ax_q.get_legend_handles_labels()
+    ax_tau.legend(handles, labels, fontsize=8, loc="upper left", bbox_to_anchor=(1.01, 1.0))
     fig.suptitle(f"G1 standing, PD + gravity in torque mode (omega {params.omega_rad_s:g} rad/s, "
-                 f"zeta {params.zeta:g}): max pelvis deviation {np.abs(dev).max() * 1e3:.2f} mm")
-    fig.tight_layout()
+                 f"zeta {params.zeta:g}): max pelvis height change {max_m * 1e3:.2f} mm")
     ctx.save_figure(fig, "g1_stand.png")
 
 
@@ -333,7 +451,13 @@ def prepare_track(params: TrackParams, robot: Robot | None = None) -> Work:
 
 def _tracking_outcome(ctx: RunContext, name: str, log: RunLog, err: np.ndarray, controller: ControllerBase,
                       sim: Simulator, bound: float | None, extra: dict[str, Any], title: str,
-                      plot_extra: tuple[str, np.ndarray] | None = None) -> Outcome:
+                      body: tuple[np.ndarray, np.ndarray, tuple[str, ...]] | None = None) -> Outcome:
+    """Tracking values, the plot and the verdict: the RMS bound (if any) met and the robot standing.
+
+    With ``body`` (pelvis height change (N,) [m], the other joints' deviation (N, m) [rad], their
+    names), the robot stands on the floor: it fell when the pelvis moved more than
+    ``FALL_DEVIATION_M``, and that fails the run too.
+    """
     rms_by_joint = np.sqrt(np.mean(err**2, axis=0))
     rms = float(np.sqrt(np.mean(err**2)))
     ctx.values.update({
@@ -349,15 +473,21 @@ def _tracking_outcome(ctx: RunContext, name: str, log: RunLog, err: np.ndarray, 
         "rms_error_by_joint_rad": dict(zip(controller.joints, rms_by_joint.tolist(), strict=True)),
     })
     ctx.sections["controller_saturation"] = controller.saturation.summary()
-    _tracking_plot(ctx, name, log, controller.joints, err, f"{title}: joint RMS {rms:.3g} rad",
-                   plot_extra)
-    passed = bound is None or rms <= bound
-    v = ctx.values
-    return Outcome(passed, (
-        f"{name.replace('_', '-')}: joint RMS error {rms:.3e} rad, max {v['joint_max_error_rad']:.3e} rad, "
-        f"worst joint {v['worst_joint']} ({v['worst_joint_rms_error_rad']:.3e} rad RMS), "
-        f"saturated cycles {v['saturated_cycles']}",
-    ), None if bound is None else f"joint RMS error <= {bound:g} rad")
+    fell = False
+    bounds = [] if bound is None else [f"joint RMS error <= {bound:g} rad"]
+    lines = [f"{name.replace('_', '-')}: joint RMS error {rms:.3e} rad, "
+             f"max {ctx.values['joint_max_error_rad']:.3e} rad, worst joint {ctx.values['worst_joint']} "
+             f"({ctx.values['worst_joint_rms_error_rad']:.3e} rad RMS), "
+             f"saturated cycles {ctx.values['saturated_cycles']}"]
+    if body is not None:
+        dz = float(np.abs(body[0]).max())
+        fell = dz > FALL_DEVIATION_M
+        ctx.values.update({"pelvis_max_deviation_m": dz, "fell": fell})
+        bounds.append(f"pelvis within {FALL_DEVIATION_M * 1e3:g} mm of the keyframe height")
+        lines.append(f"pelvis max deviation {dz * 1e3:.2f} mm ({'FELL' if fell else 'stood'})")
+    _tracking_plot(ctx, name, log, controller.joints, err, f"{title}: joint RMS {rms:.3g} rad", body)
+    passed = (bound is None or rms <= bound) and not fell
+    return Outcome(passed, tuple(lines), "; ".join(bounds) or None)
 
 
 def prepare_arm_pd(params: ArmPDParams, robot: Robot | None = None) -> Work:
@@ -365,6 +495,8 @@ def prepare_arm_pd(params: ArmPDParams, robot: Robot | None = None) -> Work:
     robot = robot or load_robot("g1", model_dir=params.model_dir)
     traj = arm_trajectory(robot, params.side, robot.timestep_s)
     controller = PositionTargetPD(robot, traj.names, gravity_feedforward=params.gravity_feedforward)
+    q0 = robot.keyframe_q(KEYFRAME)
+    others = tuple(a.joint for a in robot.actuators.values() if a.joint not in traj.names)
 
     def work(ctx: RunContext) -> Outcome:
         sim = Simulator(robot)
@@ -376,16 +508,19 @@ def prepare_arm_pd(params: ArmPDParams, robot: Robot | None = None) -> Work:
             "limits": {"max_velocity_rad_s": ARM_LIMITS[0], "max_acceleration_rad_s2": ARM_LIMITS[1],
                        "max_jerk_rad_s3": ARM_LIMITS[2]},
             "actuator_kp_N_m_rad": controller.kp.tolist(), "actuator_kv_N_m_s_rad": controller.kv.tolist()}
-        log = _loop(ctx, sim, controller, traj, duration, "rad", f"g1-arm-pd ({params.side} arm)")
+        log = _loop(ctx, sim, controller, traj, duration, "rad", f"g1-arm-pd ({params.side} arm)",
+                    base_z=True)
         err = log.reference - log.q[:, controller.joint_map.idx_q]
-        dz = log.q[:, 2] - z0
+        dz = log.q[:, _base_z_index(robot)] - z0
+        idx_others = [robot.joint(j).idx_q for j in others]
+        deviation = log.q[:, idx_others] - q0[idx_others]
         return _tracking_outcome(ctx, "g1_arm_pd", log, err, controller, sim, params.max_rms_error_rad, {
             "arm": params.side,
-            "pelvis_max_deviation_m": float(np.abs(dz).max()),
             "trajectory_duration_s": traj.duration_s,
+            "other_joints_max_deviation_rad": float(np.abs(deviation).max()),
         }, f"G1 {params.side} arm through the position actuators"
            + (" + gravity feed-forward" if params.gravity_feedforward else ""),
-           ("pelvis height change (mm)", dz * 1e3))
+           (dz, deviation, others))
 
     return work
 
