@@ -50,7 +50,7 @@ def describe(robot: Robot) -> str:
         f"{'nu (actuators)':18s}{'-':>12s}{m.nu:12d}",
         f"{'total mass (kg)':18s}{sum(i.mass for i in pm.inertias):12.4f}{np.sum(m.body_mass):12.4f}",
         f"{'timestep (s)':18s}{'-':>12s}{m.opt.timestep:12g}",
-        f"{'integrator':18s}{'-':>12s}{mujoco.mjtIntegrator(m.opt.integrator).name[6:]:>12s}",
+        f"{'integrator':18s}{'-':>12s} {mujoco.mjtIntegrator(m.opt.integrator).name[6:]:>11s}",
         "joints (name, type, q slice, v slice, Pinocchio joint type, armature):",
     ]
     for j in robot.joints.values():
