@@ -152,8 +152,14 @@ def quat_xyzw_rotate(quat_xyzw: Sequence[float], vec_B: Sequence[float]) -> tupl
         StateError: A zero quaternion.
     """
     x, y, z, w = quat_xyzw
-    vx, vy, vz = vec_B
-    s = _scale(x, y, z, w)
+    return _rotate(x, y, z, w, _scale(x, y, z, w), vec_B)
+
+
+def _rotate(
+    x: float, y: float, z: float, w: float, s: float, v: Sequence[float]
+) -> tuple[float, float, float]:
+    """R(q) v with s = 2 / |q|^2 (the conjugate q* = (-x, -y, -z, w) has the same s)."""
+    vx, vy, vz = v
     return (
         (1.0 - s * (y * y + z * z)) * vx + s * (x * y - z * w) * vy + s * (x * z + y * w) * vz,
         s * (x * y + z * w) * vx + (1.0 - s * (x * x + z * z)) * vy + s * (y * z - x * w) * vz,
@@ -177,10 +183,4 @@ def quat_xyzw_rotate_inverse(
         StateError: A zero quaternion.
     """
     x, y, z, w = quat_xyzw
-    vx, vy, vz = vec_W
-    s = _scale(x, y, z, w)
-    return (
-        (1.0 - s * (y * y + z * z)) * vx + s * (x * y + z * w) * vy + s * (x * z - y * w) * vz,
-        s * (x * y - z * w) * vx + (1.0 - s * (x * x + z * z)) * vy + s * (y * z + x * w) * vz,
-        s * (x * z + y * w) * vx + s * (y * z - x * w) * vy + (1.0 - s * (x * x + y * y)) * vz,
-    )
+    return _rotate(-x, -y, -z, w, _scale(x, y, z, w), vec_W)  # the conjugate rotates by R_WB^T

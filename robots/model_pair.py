@@ -506,8 +506,3 @@ def _kinematics_problems(robot: Robot, n_random: int = 2, seed: int = 0) -> list
         return [f"forward kinematics differ by {worst[0]:.3g} (m or rotation entry) at {worst[1]} "
                 f"(tolerance {FK_ATOL:g})"]
     return []
-
-
-def q_array(robot: Robot, q: npt.ArrayLike, what: str = "q") -> np.ndarray:
-    """Validated configuration (nq,) for ``robot``."""
-    return robot.converter.check_q(q, what)
