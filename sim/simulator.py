@@ -8,6 +8,7 @@ a forward pass on every step.
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from typing import Literal
 
 import mujoco
@@ -86,7 +87,20 @@ class Simulator:
         self._ctrl = self.data.ctrl  # views into MjData, bound once for the hot path
         self._warn_numbers = self.data.warning.number
         self._warn_seen = self._warn_numbers.tolist()
+        self._observers: tuple[Callable[[Simulator], None], ...] = ()
         self.reset()
+
+    def add_observer(self, observer: Callable[[Simulator], None]) -> None:
+        """Call ``observer(sim)`` after every ``step()`` (video frames, viewers, loggers).
+
+        Observers read the plant; they must not change its state. With none (the default) a step
+        costs nothing extra.
+        """
+        self._observers = (*self._observers, observer)
+
+    def remove_observer(self, observer: Callable[[Simulator], None]) -> None:
+        """Stop calling ``observer`` (no-op if it is not registered)."""
+        self._observers = tuple(o for o in self._observers if o is not observer)
 
     # ------------------------------------------------------------------ RobotInterface
     @property
@@ -174,6 +188,8 @@ class Simulator:
         self.n_steps += n
         self._stale = True
         self._check_divergence()
+        for observer in self._observers:
+            observer(self)
 
     def _check_divergence(self) -> None:
         counts = self._warn_numbers.tolist()  # one call; cheaper than per-warning struct access

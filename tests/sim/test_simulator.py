@@ -223,3 +223,22 @@ def test_g1_holds_stand_with_position_actuators(g1):
     p, _ = sim.body_pose("pelvis")
     np.testing.assert_allclose(p, sim.q[:3], atol=1e-12)
     assert mujoco.mj_name2id(g1.mj_model, mujoco.mjtObj.mjOBJ_BODY, "pelvis") == g1.body_id("pelvis")
+
+
+def test_observers_run_after_each_step_and_can_be_removed():
+    from mbctl.robots import load_robot
+    from mbctl.sim.simulator import Simulator
+
+    sim = Simulator(load_robot("two_link_torque"))
+    seen: list[float] = []
+
+    def obs(s: Simulator) -> None:
+        seen.append(s.time_s)
+
+    sim.add_observer(obs)
+    sim.step(n=3)
+    sim.step()
+    assert len(seen) == 2 and seen[-1] == pytest.approx(4 * sim.model.opt.timestep)
+    sim.remove_observer(obs)
+    sim.step()
+    assert len(seen) == 2
