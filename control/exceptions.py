@@ -80,3 +80,25 @@ class SingularJacobian(ControlError):
     def __init__(self, message: str, q: Any):
         self.q = q
         super().__init__(message)
+
+
+class WBCSetupError(ControlError, ValueError):
+    """A whole-body controller option, task or contact with an invalid value (named in the message)."""
+
+
+class WBCInfeasible(ControlError):
+    """The whole-body inverse-dynamics QP has no solution (e.g. torque limits below gravity load).
+
+    Attributes:
+        problem: The ``qpsolvers.Problem`` that failed, for inspection or re-solving.
+        result: The solver's ``qpsolvers.Solution`` (``found`` is False).
+        solver: Name of the QP backend.
+        time_s: The state's time [s] when it failed, if known.
+    """
+
+    def __init__(self, message: str, problem: Any, result: Any, solver: str, time_s: float | None = None):
+        self.problem = problem
+        self.result = result
+        self.solver = solver
+        self.time_s = time_s
+        super().__init__(message)

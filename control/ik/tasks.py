@@ -407,6 +407,17 @@ class ComTask(Task):
             raise IKSetupError(f"{self.name}: target must be a finite (3,) position [m]; got {p!r}")
         self._target = p
 
+    @property
+    def target(self) -> np.ndarray:
+        """The CoM target (3,) [m] in the world frame (a copy).
+
+        Raises:
+            IKSetupError: No target set yet.
+        """
+        if self._target is None:
+            raise self._no_target()
+        return self._target.copy()
+
     def set_target_from_state(self, state: IKState) -> None:
         """Set the target to the current CoM."""
         self.set_target(state.com())

@@ -1,0 +1,118 @@
+"""Foot contacts for whole-body inverse dynamics, read from the model's collision geoms.
+
+A foot touches the ground through contact *points*: the lowest points of its collision geoms
+(MuJoCo point contacts, condim 3, as the Menagerie G1's four sole spheres). Each point carries a
+force ``f`` (3,) [N] in the world frame W; the foot's wrench, centre of pressure and friction
+follow from them. With the corners of the sole as points and ``f_z >= 0``, the centre of pressure
+stays inside the sole rectangle by construction (it is a convex combination of the points), so
+no separate CoP constraint is needed.
+
+Notation: W world, F the foot frame (a Pinocchio frame: the foot site), P a contact point.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import mujoco
+import numpy as np
+import pinocchio as pin
+
+from mbctl.control.exceptions import WBCSetupError
+from mbctl.robots.model_pair import Robot
+
+
+@dataclass(frozen=True)
+class FootContact:
+    """A foot's contact points in its frame F, and its friction.
+
+    Attributes:
+        name: Label (the frame name by default).
+        frame: Pinocchio frame of the foot (a site or body frame).
+        points_F: Contact points p_FP (n, 3) [m] in F (read-only).
+        mu: Coulomb friction coefficient [-] of the foot geoms.
+        geoms: MuJoCo geom ids of the contact geoms (for measuring the plant's forces).
+    """
+
+    name: str
+    frame: str
+    points_F: np.ndarray
+    mu: float
+    geoms: tuple[int, ...]
+
+    def __post_init__(self) -> None:
+        pts = np.array(self.points_F, dtype=float)
+        if pts.ndim != 2 or pts.shape[1] != 3 or len(pts) < 1 or not np.all(np.isfinite(pts)):
+            raise WBCSetupError(f"contact {self.name!r}: points_F must be a finite (n, 3) array; got "
+                                f"{np.asarray(self.points_F).tolist()!r}")
+        if not (np.isfinite(self.mu) and self.mu > 0):
+            raise WBCSetupError(f"contact {self.name!r}: friction mu must be > 0; got {self.mu}")
+        pts.setflags(write=False)
+        object.__setattr__(self, "points_F", pts)
+
+    @property
+    def n_points(self) -> int:
+        """Number of contact points."""
+        return len(self.points_F)
+
+    @property
+    def sole_x_m(self) -> tuple[float, float]:
+        """(min, max) of the points along F's x [m]."""
+        return float(self.points_F[:, 0].min()), float(self.points_F[:, 0].max())
+
+    @property
+    def sole_y_m(self) -> tuple[float, float]:
+        """(min, max) of the points along F's y [m]."""
+        return float(self.points_F[:, 1].min()), float(self.points_F[:, 1].max())
+
+
+def foot_contact_from_model(robot: Robot, frame: str, body: str | None = None) -> FootContact:
+    """The contact points of a foot: the bottom of each collision sphere (or box corner) of ``body``.
+
+    Args:
+        robot: The robot (its compiled MuJoCo model is read, not changed).
+        frame: The Pinocchio frame the points are expressed in (e.g. the foot site).
+        body: The MuJoCo body whose geoms touch the ground (default: the frame's parent body,
+            read from the Pinocchio model).
+
+    Raises:
+        WBCSetupError: No colliding sphere or box geom on the body, or an unknown frame/body.
+    """
+    pm, m = robot.pin_model, robot.mj_model
+    if not pm.existFrame(frame):
+        raise WBCSetupError(f"unknown foot frame {frame!r}")
+    fid = pm.getFrameId(frame)
+    if body is None:
+        body = pm.frames[pm.frames[fid].parentFrame].name
+    bid = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_BODY, body)
+    if bid < 0 or not pm.existFrame(body):
+        raise WBCSetupError(f"unknown foot body {body!r} for contact frame {frame!r}")
+    # X_FB from Pinocchio's frames (every body and site is a frame); MuJoCo geoms are in B
+    pdata = pm.createData()
+    pin.framesForwardKinematics(pm, pdata, pin.neutral(pm))
+    X_FB = pdata.oMf[fid].inverse() * pdata.oMf[pm.getFrameId(body)]
+    points: list[np.ndarray] = []
+    geoms: list[int] = []
+    mus: list[float] = []
+    for g in range(m.ngeom):
+        if m.geom_bodyid[g] != bid or (m.geom_contype[g] == 0 and m.geom_conaffinity[g] == 0):
+            continue
+        p_Bg, size = m.geom_pos[g], m.geom_size[g]
+        if m.geom_type[g] == mujoco.mjtGeom.mjGEOM_SPHERE:
+            # the sphere's lowest point when the foot is flat (F's -z is down)
+            p_Fg = X_FB.act(p_Bg)
+            points.append(p_Fg - np.array([0.0, 0.0, size[0]]))
+        elif m.geom_type[g] == mujoco.mjtGeom.mjGEOM_BOX:
+            R_Bg = np.empty(9)
+            mujoco.mju_quat2Mat(R_Bg, m.geom_quat[g])
+            for sx in (-1, 1):
+                for sy in (-1, 1):
+                    corner_B = p_Bg + R_Bg.reshape(3, 3) @ (np.array([sx, sy, -1.0]) * size)
+                    points.append(X_FB.act(corner_B))
+        else:
+            continue
+        geoms.append(g)
+        mus.append(float(m.geom_friction[g][0]))
+    if not points:
+        raise WBCSetupError(f"body {body!r} has no colliding sphere or box geom to stand on")
+    return FootContact(frame, frame, np.array(points), min(mus), tuple(geoms))

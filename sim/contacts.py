@@ -1,0 +1,92 @@
+"""Contact forces measured in the plant: what MuJoCo applied to a set of geoms (world frame W).
+
+``mj_contactForce`` gives each contact's force in its contact frame (normal first); the frame's
+rows are its axes in W and its normal points from geom1 to geom2, and the force acts on geom2 (the
+opposite on geom1). These helpers sum, per group of geoms (a foot), the force on the group in W,
+the normal (z) and tangential parts, and the centre of pressure on the ground.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterable, Mapping
+from dataclasses import dataclass
+
+import mujoco
+import numpy as np
+
+
+@dataclass(frozen=True)
+class MeasuredContact:
+    """The plant's contact force on one group of geoms.
+
+    Attributes:
+        force_W: Sum of the contact forces on the group (3,) [N] in W.
+        cop_W: Centre of pressure (3,) [m] in W (force-weighted contact positions; NaN without
+            normal force).
+        n_contacts: Number of active contacts.
+    """
+
+    force_W: np.ndarray
+    cop_W: np.ndarray
+    n_contacts: int
+
+    @property
+    def normal_n(self) -> float:
+        """Normal (world z) force [N]."""
+        return float(self.force_W[2])
+
+    @property
+    def tangential_n(self) -> float:
+        """Tangential (world x-y) force magnitude [N]."""
+        return float(np.hypot(self.force_W[0], self.force_W[1]))
+
+
+def measure_contacts(model: mujoco.MjModel, data: mujoco.MjData,
+                     groups: Mapping[str, Iterable[int]]) -> dict[str, MeasuredContact]:
+    """Force, CoP and contact count on each group of geom ids, from ``data``'s current contacts.
+
+    Read it right after ``mj_step`` for the forces applied during that step (the contacts and
+    their forces are those of the step's forward pass).
+    """
+    owner: dict[int, str] = {}
+    for name, geoms in groups.items():
+        for g in geoms:
+            owner[int(g)] = name
+    force = {name: np.zeros(3) for name in groups}
+    moment_xy = {name: np.zeros(2) for name in groups}
+    count = dict.fromkeys(groups, 0)
+    f6 = np.zeros(6)
+    for i in range(data.ncon):
+        con = data.contact[i]
+        for geom, sign in ((con.geom2, 1.0), (con.geom1, -1.0)):
+            name = owner.get(int(geom))
+            if name is None:
+                continue
+            mujoco.mj_contactForce(model, data, i, f6)
+            f_W = sign * (con.frame.reshape(3, 3).T @ f6[:3])
+            force[name] += f_W
+            moment_xy[name] += f_W[2] * con.pos[:2]
+            count[name] += 1
+    out = {}
+    for name in groups:
+        fz = force[name][2]
+        cop = np.full(3, np.nan)
+        if fz > 1e-9:
+            cop = np.array([*(moment_xy[name] / fz), 0.0])
+        out[name] = MeasuredContact(force[name], cop, count[name])
+    return out
+
+
+def touching(model: mujoco.MjModel, data: mujoco.MjData, body_geoms: Iterable[int],
+             allowed: Iterable[int]) -> list[str]:
+    """Names of bodies (other than ``allowed`` geoms) touching any of ``body_geoms`` (e.g. the floor)."""
+    targets, ok = set(int(g) for g in body_geoms), set(int(g) for g in allowed)
+    names = []
+    for i in range(data.ncon):
+        con = data.contact[i]
+        g1, g2 = int(con.geom1), int(con.geom2)
+        for a, b in ((g1, g2), (g2, g1)):
+            if a in targets and b not in ok and b not in targets:
+                names.append(mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_BODY, model.geom_bodyid[b])
+                             or f"body {model.geom_bodyid[b]}")
+    return sorted(set(names))
