@@ -26,7 +26,6 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from dataclasses import dataclass, field
-from pathlib import Path
 from typing import Any
 
 import mujoco
@@ -89,7 +88,7 @@ class WBCParams:
     duration: float | None = None
     impulse: float = 10.0
     model_error: float = 0.0
-    model_dir: Path | None = None
+    model_dir: str | None = None
 
     def __post_init__(self) -> None:
         if self.scenario not in SCENARIOS:
@@ -273,10 +272,11 @@ def _scenario(params: WBCParams, wb: G1WholeBody, sim: Simulator) -> tuple[Updat
     return update, pushes
 
 
-def prepare(params: WBCParams) -> Work:
-    """Load the G1 in torque mode with palm sites and build the controller (no output yet)."""
-    robot = position_to_motor(with_palm_sites(load_robot("g1", model_dir=params.model_dir)))
-    pin_model = scale_masses(robot.pin_model, 1.0 + params.model_error / 100.0) if params.model_error else None
+def prepare(params: WBCParams, robot: Robot | None = None) -> Work:
+    """Load the G1 (or take ``robot``, a Menagerie G1), in torque mode with palm sites (no output yet)."""
+    robot = position_to_motor(with_palm_sites(robot or load_robot("g1", model_dir=params.model_dir)))
+    factor = 1.0 + params.model_error / 100.0
+    pin_model = scale_masses(robot.pin_model, factor) if params.model_error else None
 
     def work(ctx: RunContext) -> Outcome:
         return _run(ctx, params, robot, pin_model)
@@ -358,7 +358,8 @@ def _run(ctx: RunContext, params: WBCParams, robot: Robot, pin_model: pin.Model 
             fz_mj += mc.normal_n
             log["cop_qp"].append(cop[:2])
             log["cop_mj"].append(mc.cop_W[:2])
-        sat += int(np.any(np.isclose(command.values, ctrl.tau_low) | np.isclose(command.values, ctrl.tau_high)))
+        at_limit = np.isclose(command.values, ctrl.tau_low) | np.isclose(command.values, ctrl.tau_high)
+        sat += int(np.any(at_limit))
         row += list(command.values) + list(state.q)
         csv.write(row)
         log["t"].append(t)
@@ -393,11 +394,12 @@ def _run(ctx: RunContext, params: WBCParams, robot: Robot, pin_model: pin.Model 
         bounds.append("CoM RMS < 5 mm, foot slip < 1 mm")
     bounds.append("did not fall")
     summary = (
-        f"g1-wbc {params.scenario} {sim.time_s:.2f} s: {'FELL (' + fell_reason + ')' if fell else 'stood'}; "
+        f"g1-wbc {params.scenario} {sim.time_s:.2f} s: {f'FELL ({fell_reason})' if fell else 'stood'}; "
         f"CoM RMS {values['com_error_rms_m'] * 1e3:.2f} mm, max foot slip "
         f"{values['max_foot_slip_m'] * 1e3:.3f} mm, contact force error "
         f"{values['contact_force_rel_error'] * 100:.2f} % of m g, controller "
-        f"{values['controller_time_median_us']:.0f} us (QP {values['qp_solve_time_median_us']:.0f} us) median, "
+        f"{values['controller_time_median_us']:.0f} us (QP "
+        f"{values['qp_solve_time_median_us']:.0f} us) median, "
         f"saturated steps {values['torque_saturation_steps']}",)
     return Outcome(ok, summary, "; ".join(bounds))
 

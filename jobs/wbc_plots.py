@@ -12,9 +12,11 @@ from mbctl.jobs.runner import RunContext
 
 
 def wbc_plots(ctx: RunContext, log: dict[str, list[Any]], params: Any, values: dict[str, Any]) -> None:
-    """``g1_wbc.png`` (CoM reference and plant, pelvis height, total normal force) and
-    ``g1_wbc_contacts.png`` (per foot: normal force, tangential force, CoP x and y, QP dashed
-    over MuJoCo solid)."""
+    """Save ``g1_wbc.png`` and ``g1_wbc_contacts.png``.
+
+    The first: CoM reference and plant, the CoM error, the total normal force. The second, per
+    foot: normal force, tangential force, CoP x and y, QP dashed over MuJoCo solid.
+    """
     if not log["t"]:
         return
     t = np.asarray(log["t"])

@@ -59,14 +59,14 @@ def measure_contacts(model: mujoco.MjModel, data: mujoco.MjData,
     for i in range(data.ncon):
         con = data.contact[i]
         for geom, sign in ((con.geom2, 1.0), (con.geom1, -1.0)):
-            name = owner.get(int(geom))
-            if name is None:
+            group = owner.get(int(geom))
+            if group is None:
                 continue
             mujoco.mj_contactForce(model, data, i, f6)
             f_W = sign * (con.frame.reshape(3, 3).T @ f6[:3])
-            force[name] += f_W
-            moment_xy[name] += f_W[2] * con.pos[:2]
-            count[name] += 1
+            force[group] += f_W
+            moment_xy[group] += f_W[2] * con.pos[:2]
+            count[group] += 1
     out = {}
     for name in groups:
         fz = force[name][2]

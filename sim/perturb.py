@@ -49,7 +49,7 @@ class PushSchedule:
         """Set ``xfrc_applied`` for the current time; returns the total applied force (3,) [N]."""
         t = data.time
         total = np.zeros(3)
-        for bid, f, t0, t1 in self._pushes:
+        for bid, *_ in self._pushes:
             data.xfrc_applied[bid, :3] = 0.0
         for bid, f, t0, t1 in self._pushes:
             if t0 <= t < t1:

@@ -65,7 +65,7 @@ class WBCConfig:
     f_min_n: float = 1.0
     f_max_n: float = 400.0
     contact_omega_rad_s: float = 10.0
-    force_weight: float = 1e-3
+    force_weight: float = 1e-4
     acceleration_weight: float = 1e-3
     joint_limit_horizon_s: float = 0.1
     ramp_s: float = 0.3
@@ -155,8 +155,8 @@ class WholeBodyController:
         nv = self.model.nv
         self._act = np.asarray(self.joints.idx_v, dtype=int)
         self._unact = np.setdiff1d(np.arange(nv), self._act)
-        self.tau_low = np.asarray(self.joints.tau_low, dtype=float)
-        self.tau_high = np.asarray(self.joints.tau_high, dtype=float)
+        self.tau_low = np.array(self.joints.tau_low, dtype=float)
+        self.tau_high = np.array(self.joints.tau_high, dtype=float)
         self._command_names = self.joints.command_names
         self.contacts: dict[str, _ContactState] = {}
         col = nv
@@ -193,7 +193,8 @@ class WholeBodyController:
             joint = self.model.joints[j]
             if joint.nv != 1 or joint.nq != 1 or joint.idx_v not in self._act:
                 continue
-            q_lo, q_hi = self.model.lowerPositionLimit[joint.idx_q], self.model.upperPositionLimit[joint.idx_q]
+            q_lo = self.model.lowerPositionLimit[joint.idx_q]
+            q_hi = self.model.upperPositionLimit[joint.idx_q]
             if np.isfinite(q_lo) and np.isfinite(q_hi) and q_hi > q_lo:
                 iv.append(joint.idx_v)
                 iq.append(joint.idx_q)
@@ -344,8 +345,9 @@ class WholeBodyController:
             raise WBCInfeasible(
                 f"whole-body QP infeasible at step {self.steps} (solver {cfg.solver}): contacts "
                 + ", ".join(f"{n} weight {cs.weight:.2f}" for n, cs in self.contacts.items())
-                + f"; torque limits [{self.tau_low.min():.1f}, {self.tau_high.max():.1f}] N m. "
-                "Check the torque limits against the load, the friction and the task targets.",
+                + f"; normal force per point {cfg.f_min_n:g} to {cfg.f_max_n:g} N at full weight; "
+                f"torque limits [{self.tau_low.min():.1f}, {self.tau_high.max():.1f}] N m. Check the "
+                "force bounds and torque limits against the load, the friction and the task targets.",
                 problem, result, cfg.solver)
         x = result.x
         vdot, f = x[:nv], x[nv:]

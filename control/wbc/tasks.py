@@ -13,8 +13,8 @@ normalised by M(q)).
 
 For frame poses and orientations ``J`` is the frame Jacobian J_F (LOCAL frame F, the TSID
 convention) rather than the log-map Jacobian of the IK error: the two agree at the target, and
-``J_F`` has an exact drift (``pin.getFrameClassicalAcceleration`` at zero vdot), which the tests
-check against finite differences.
+``J_F`` has an exact drift (the frame's acceleration at zero vdot: spatial in LOCAL, classical
+in world-aligned axes), which the tests check against finite differences.
 
 Notation (Drake monograms): W world, F a task frame, C the centre of mass.
 """
@@ -104,13 +104,13 @@ class DynamicsState(IKState):
 
     @property
     def M(self) -> np.ndarray:  # noqa: N802 - the mass matrix is M in every text
-        """Joint-space inertia M(q) (nv, nv), both triangles filled."""
+        """Joint-space inertia (nv, nv) at q, both triangles filled."""
         M = self.data.M
         return np.triu(M) + np.triu(M, 1).T
 
     @property
     def b(self) -> np.ndarray:
-        """Bias forces b(q, v) = C(q, v) v + g(q) (nv,) [N m]."""
+        """Bias forces (nv,) [N m]: Coriolis, centrifugal and gravity, C(q, v) v + g(q)."""
         return self.data.nle
 
     def com_drift(self) -> np.ndarray:
@@ -122,7 +122,14 @@ class DynamicsState(IKState):
         return pin.getFrameJacobian(self.model, self.data, frame_id, reference)
 
     def frame_drift(self, frame_id: int, reference: pin.ReferenceFrame) -> np.ndarray:
-        """``Jdot_F v`` (6,): the frame's classical acceleration at zero vdot, in ``reference``."""
+        """``d/dt(J_F) v`` (6,) in ``reference``: the frame's acceleration at zero vdot.
+
+        In LOCAL, the derivative of the body twist is the spatial acceleration; in
+        LOCAL_WORLD_ALIGNED (and WORLD-aligned linear rows) it is the classical acceleration of
+        the frame origin.
+        """
+        if reference == pin.LOCAL:
+            return pin.getFrameAcceleration(self.model, self.data, frame_id, reference).vector
         return pin.getFrameClassicalAcceleration(self.model, self.data, frame_id, reference).vector
 
     def frame_velocity(self, frame_id: int, reference: pin.ReferenceFrame) -> np.ndarray:
@@ -163,7 +170,8 @@ class ComAcceleration(AccelerationTask):
         self.v_ref = np.zeros(3)
         self.a_ref = np.zeros(3)
 
-    def set_reference(self, p: npt.ArrayLike, v: npt.ArrayLike = (0, 0, 0), a: npt.ArrayLike = (0, 0, 0)) -> None:
+    def set_reference(self, p: npt.ArrayLike, v: npt.ArrayLike = (0, 0, 0),
+                      a: npt.ArrayLike = (0, 0, 0)) -> None:
         """Desired CoM position (3,) [m], velocity [m/s] and acceleration [m/s^2] in W."""
         self.ik.set_target(p)
         self.v_ref[:] = v
@@ -260,7 +268,8 @@ class FramePositionAcceleration(AccelerationTask):
         self.v_ref = np.zeros(3)
         self.a_ref = np.zeros(3)
 
-    def set_reference(self, p: npt.ArrayLike, v: npt.ArrayLike = (0, 0, 0), a: npt.ArrayLike = (0, 0, 0)) -> None:
+    def set_reference(self, p: npt.ArrayLike, v: npt.ArrayLike = (0, 0, 0),
+                      a: npt.ArrayLike = (0, 0, 0)) -> None:
         """Desired position (3,) [m], velocity [m/s], acceleration [m/s^2] in W."""
         self.ik.set_target(p)
         self.v_ref[:] = v

@@ -1,0 +1,37 @@
+"""CLI: ``mbctl g1-wbc SCENARIO`` — whole-body inverse dynamics on the floating-base G1."""
+
+from __future__ import annotations
+
+from typing import Annotated
+
+import typer
+
+from mbctl.cli._run import OutputOpt, QuietOpt, execute
+from mbctl.cli.robots import ModelDirOpt
+from mbctl.jobs.g1_wbc import DEFAULT_DURATION_S, G1_WBC, SCENARIOS, WBCParams
+
+
+def g1_wbc(
+    scenario: Annotated[str, typer.Argument(help=f"One of: {', '.join(SCENARIOS)}.")] = "stand",
+    duration: Annotated[
+        float | None,
+        typer.Option("--duration", help="Simulated time (s) (default per scenario: " + ", ".join(
+            f"{k} {v:g}" for k, v in DEFAULT_DURATION_S.items()) + ")."),
+    ] = None,
+    impulse: Annotated[
+        float, typer.Option("--impulse", help="Push impulse (N s): force held 0.1 s (push scenario).")
+    ] = 10.0,
+    model_error: Annotated[
+        float, typer.Option("--model-error", help="Controller model link masses off by PCT (%).")
+    ] = 0.0,
+    model_dir: ModelDirOpt = None,
+    output: OutputOpt = None,
+    quiet: QuietOpt = False,
+) -> None:
+    """Whole-body inverse dynamics (QP) on the G1 in torque mode; exit 1 if it fell or missed a bound."""
+    execute(G1_WBC, WBCParams(scenario, duration, impulse, model_error, model_dir), output, quiet)
+
+
+def register(app: typer.Typer) -> None:
+    """Add this module's commands to ``app``."""
+    app.command("g1-wbc")(g1_wbc)
