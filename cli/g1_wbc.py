@@ -21,6 +21,11 @@ def g1_wbc(
     impulse: Annotated[
         float, typer.Option("--impulse", help="Push impulse (N s): force held 0.1 s (push scenario).")
     ] = 10.0,
+    direction: Annotated[
+        float | None,
+        typer.Option("--direction", help="Push direction (deg): 0 = +x (front), 90 = +y (left); "
+                                         "default: 8 directions 45 deg apart."),
+    ] = None,
     model_error: Annotated[
         float, typer.Option("--model-error", help="Controller model link masses off by PCT (%).")
     ] = 0.0,
@@ -29,7 +34,7 @@ def g1_wbc(
     quiet: QuietOpt = False,
 ) -> None:
     """Whole-body inverse dynamics (QP) on the G1 in torque mode; exit 1 if it fell or missed a bound."""
-    execute(G1_WBC, WBCParams(scenario, duration, impulse, model_error, model_dir), output, quiet)
+    execute(G1_WBC, WBCParams(scenario, duration, impulse, direction, model_error, model_dir), output, quiet)
 
 
 def register(app: typer.Typer) -> None:

@@ -11,7 +11,7 @@ control cycle from the Pinocchio model; MuJoCo executes them. Scenarios:
              put back, CoM back to the middle.
 ``reach``    both palms 0.20 m forward and back (min-jerk) while balancing.
 ``push``     a horizontal force on the pelvis held 0.1 s (``--impulse`` N s) from 8 directions,
-             2 s apart, no stepping.
+             2 s apart (or one, ``--direction DEG``), no stepping.
 
 Checked in the plant (MuJoCo), not in the model: the CoM (``subtree_com``), the feet (site
 positions), the contact forces (``mj_contactForce`` on the foot geoms), and whether anything
@@ -80,6 +80,8 @@ class WBCParams:
         scenario: One of :data:`SCENARIOS`.
         duration: Simulated time [s] (None: the scenario's default).
         impulse: Push impulse [N s] (push scenario).
+        direction: Push direction [deg] in the world x-y plane (0 = +x, the robot's front; 90 =
+            +y, its left); None: eight directions 45 deg apart, 2 s apart.
         model_error: The controller model's link masses and inertias off by this [%].
         model_dir: Explicit G1 folder (else MENAGERIE_ROOT, the package cache).
     """
@@ -87,6 +89,7 @@ class WBCParams:
     scenario: str = "stand"
     duration: float | None = None
     impulse: float = 10.0
+    direction: float | None = None
     model_error: float = 0.0
     model_dir: str | None = None
 
@@ -97,13 +100,19 @@ class WBCParams:
             raise WBCSetupError(f"duration must be a positive number of seconds; got {self.duration}")
         if not (np.isfinite(self.impulse) and self.impulse >= 0):
             raise WBCSetupError(f"impulse must be a finite impulse >= 0 N s; got {self.impulse}")
+        if self.direction is not None and not np.isfinite(self.direction):
+            raise WBCSetupError(f"direction must be a finite angle in degrees; got {self.direction}")
         if not (np.isfinite(self.model_error) and -50 < self.model_error < 100):
             raise WBCSetupError(f"model_error must be a percentage in (-50, 100); got {self.model_error}")
 
     @property
     def duration_s(self) -> float:
         """The simulated time [s]."""
-        return self.duration if self.duration is not None else DEFAULT_DURATION_S[self.scenario]
+        if self.duration is not None:
+            return self.duration
+        if self.scenario == "push" and self.direction is not None:
+            return 1.0 + PUSH_PERIOD_S
+        return DEFAULT_DURATION_S[self.scenario]
 
 
 def _min_jerk(s: float) -> tuple[float, float, float]:
@@ -266,9 +275,10 @@ def _scenario(params: WBCParams, wb: G1WholeBody, sim: Simulator) -> tuple[Updat
                 task.set_reference(p, v, a)
     elif params.scenario == "push":
         force = params.impulse / PUSH_HOLD_S
+        angles = [k * 45.0 for k in range(8)] if params.direction is None else [params.direction]
         pushes = PushSchedule(sim.model, [
-            Push(PELVIS, (force * np.cos(k * np.pi / 4), force * np.sin(k * np.pi / 4), 0.0),
-                 1.0 + PUSH_PERIOD_S * k, PUSH_HOLD_S) for k in range(8)])
+            Push(PELVIS, (force * np.cos(np.radians(a)), force * np.sin(np.radians(a)), 0.0),
+                 1.0 + PUSH_PERIOD_S * k, PUSH_HOLD_S) for k, a in enumerate(angles)])
     return update, pushes
 
 

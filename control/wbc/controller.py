@@ -169,6 +169,21 @@ class WholeBodyController:
             self.contacts[foot.name] = _ContactState(foot, self.model.getFrameId(foot.frame), cols)
             col = cols.stop
         self.n_x = col
+        n_f = col - nv
+        self._n_fric = 4 * n_f // 3
+        self._G = np.zeros((self._n_fric + 2 * len(self._act), col))
+        self._h = np.zeros(self._G.shape[0])
+        self._lb = np.full(col, -np.inf)
+        self._ub = np.full(col, np.inf)
+        row = 0
+        for cs in self.contacts.values():  # friction pyramid rows: |f_x|, |f_y| <= mu / sqrt(2) f_z
+            mu = cs.contact.mu / np.sqrt(2.0)
+            for c0 in range(cs.cols.start, cs.cols.stop, 3):
+                for axis in (0, 1):
+                    for sign in (1.0, -1.0):
+                        self._G[row, c0 + axis] = sign
+                        self._G[row, c0 + 2] = -mu
+                        row += 1
         self.tasks: list[AccelerationTask] = []
         self._limits = self._joint_limits()
         self.last: WBCSolution | None = None
@@ -278,30 +293,25 @@ class WholeBodyController:
         Jc = np.zeros((n_x - nv, nv))
         eq_rows: list[np.ndarray] = []
         eq_rhs: list[np.ndarray] = []
-        lb = np.full(n_x, -np.inf)
-        ub = np.full(n_x, np.inf)
-        n_fric = 4 * (n_x - nv) // 3
-        G = np.zeros((n_fric + 2 * len(self._act), n_x))
-        h = np.zeros(G.shape[0])
-        row = 0
+        lb, ub = self._lb, self._ub
+        G, h = self._G, self._h  # friction rows are constant (built once); torque rows below
+        row = self._n_fric
         kp_c = cfg.contact_omega_rad_s**2
         kd_c = 2.0 * cfg.contact_omega_rad_s
         for cs in self.contacts.values():
             X_WF = s.frame_pose(cs.fid)
             J_lwa = s.frame_jacobian(cs.fid, pin.LOCAL_WORLD_ALIGNED)
-            mu = cs.contact.mu / np.sqrt(2.0)
-            for k, p_FP in enumerate(cs.contact.points_F):
-                r_W = X_WF.rotation @ p_FP
-                Jp = J_lwa[:3] - _skew(r_W) @ J_lwa[3:]
-                c0 = cs.cols.start + 3 * k
-                Jc[c0 - nv:c0 - nv + 3] = Jp
-                for axis in (0, 1):
-                    for sign in (1.0, -1.0):
-                        G[row, c0 + axis] = sign
-                        G[row, c0 + 2] = -mu
-                        row += 1
-                lb[c0 + 2] = cs.weight * cfg.f_min_n
-                ub[c0 + 2] = cs.weight * cfg.f_max_n
+            J_lin, J_ang = J_lwa[:3], J_lwa[3:]
+            r_W = cs.contact.points_F @ X_WF.rotation.T  # (n, 3)
+            block = Jc[cs.cols.start - nv:cs.cols.stop - nv].reshape(-1, 3, nv)
+            block[:] = J_lin
+            # - [r]x J_ang, row by row (no per-point matrix products)
+            block[:, 0] += r_W[:, 2:3] * J_ang[1] - r_W[:, 1:2] * J_ang[2]
+            block[:, 1] += r_W[:, 0:1] * J_ang[2] - r_W[:, 2:3] * J_ang[0]
+            block[:, 2] += r_W[:, 1:2] * J_ang[0] - r_W[:, 0:1] * J_ang[1]
+            fz = np.arange(cs.cols.start + 2, cs.cols.stop, 3)
+            lb[fz] = cs.weight * cfg.f_min_n
+            ub[fz] = cs.weight * cfg.f_max_n
             if cs.active:
                 J_F = s.frame_jacobian(cs.fid, pin.LOCAL)
                 drift = s.frame_drift(cs.fid, pin.LOCAL)
@@ -348,7 +358,8 @@ class WholeBodyController:
                 + f"; normal force per point {cfg.f_min_n:g} to {cfg.f_max_n:g} N at full weight; "
                 f"torque limits [{self.tau_low.min():.1f}, {self.tau_high.max():.1f}] N m. Check the "
                 "force bounds and torque limits against the load, the friction and the task targets.",
-                problem, result, cfg.solver)
+                qpsolvers.Problem(H, c, G.copy(), h.copy(), A_eq, b_eq, lb.copy(), ub.copy()), result,
+                cfg.solver)
         x = result.x
         vdot, f = x[:nv], x[nv:]
         tau = M[a] @ vdot + b[a] - Jc[:, a].T @ f
@@ -364,14 +375,12 @@ class WholeBodyController:
         for name, cs in self.contacts.items():
             F = f[cs.cols.start - nv:cs.cols.stop - nv].reshape(-1, 3)
             X_WF = self.state.frame_pose(cs.fid)
-            r = (X_WF.rotation @ cs.contact.points_F.T).T
+            r = cs.contact.points_F @ X_WF.rotation.T
             forces[name] = F
-            wrenches[name] = np.concatenate([F.sum(0), np.cross(r, F).sum(0)])
+            moment = np.array([r[:, 1] @ F[:, 2] - r[:, 2] @ F[:, 1], r[:, 2] @ F[:, 0] - r[:, 0] @ F[:, 2],
+                               r[:, 0] @ F[:, 1] - r[:, 1] @ F[:, 0]])  # sum of r x F
+            wrenches[name] = np.concatenate([F.sum(0), moment])
             fz = F[:, 2].sum()
             p = r + X_WF.translation
             cops[name] = (F[:, 2] @ p) / fz if fz > 1e-6 else np.full(3, np.nan)
         return WBCSolution(tau, vdot, forces, wrenches, cops, ctrl_time, qp_time)
-
-
-def _skew(r: np.ndarray) -> np.ndarray:
-    return np.array([[0.0, -r[2], r[1]], [r[2], 0.0, -r[0]], [-r[1], r[0], 0.0]])
