@@ -161,21 +161,37 @@ class AccelerationTask:
         raise NotImplementedError
 
 
-class ComAcceleration(AccelerationTask):
-    """Centre of mass (world frame): ``J = J_com``, ``e = p_WC - p_ref`` (from :class:`ComTask`)."""
+class _PointAcceleration(AccelerationTask):
+    """A point in W (CoM, frame origin): ``e = p - p_ref`` from the IK task, world-frame references."""
 
-    def __init__(self, gains: TaskGains, name: str = "com"):
-        super().__init__(name, 3, gains)
-        self.ik = ComTask(name=name)
+    ik: ComTask | FramePositionTask
+
+    def _init_references(self) -> None:
         self.v_ref = np.zeros(3)
         self.a_ref = np.zeros(3)
 
     def set_reference(self, p: npt.ArrayLike, v: npt.ArrayLike = (0, 0, 0),
                       a: npt.ArrayLike = (0, 0, 0)) -> None:
-        """Desired CoM position (3,) [m], velocity [m/s] and acceleration [m/s^2] in W."""
+        """Desired position (3,) [m], velocity [m/s] and acceleration [m/s^2] in W."""
         self.ik.set_target(p)
         self.v_ref[:] = v
         self.a_ref[:] = a
+
+    def rows(self, state: DynamicsState) -> tuple[np.ndarray, np.ndarray]:
+        """``a_des = a_ref - kp e + kd (v_ref - J v)`` rows."""
+        J, drift = self.jacobian_and_drift(state)
+        g = self.gains
+        a_des = self.a_ref - g.kp * self.ik.compute_error(state) + g.kd * (self.v_ref - J @ state.v)
+        return J, a_des - drift
+
+
+class ComAcceleration(_PointAcceleration):
+    """Centre of mass (world frame): ``J = J_com``, ``e = p_WC - p_ref`` (from :class:`ComTask`)."""
+
+    def __init__(self, gains: TaskGains, name: str = "com"):
+        super().__init__(name, 3, gains)
+        self.ik = ComTask(name=name)
+        self._init_references()
 
     @property
     def p_ref(self) -> np.ndarray:
@@ -189,13 +205,6 @@ class ComAcceleration(AccelerationTask):
     def jacobian_and_drift(self, state: DynamicsState) -> tuple[np.ndarray, np.ndarray]:
         """``(J_com, Jdot_com v)``."""
         return state.data.Jcom, state.com_drift()
-
-    def rows(self, state: DynamicsState) -> tuple[np.ndarray, np.ndarray]:
-        """CoM rows."""
-        J, drift = self.jacobian_and_drift(state)
-        g = self.gains
-        a_des = self.a_ref - g.kp * self.ik.compute_error(state) + g.kd * (self.v_ref - J @ state.v)
-        return J, a_des - drift
 
 
 class FrameOrientationAcceleration(AccelerationTask):
@@ -258,34 +267,19 @@ class FramePoseAcceleration(AccelerationTask):
         return J, a_des - drift
 
 
-class FramePositionAcceleration(AccelerationTask):
+class FramePositionAcceleration(_PointAcceleration):
     """Position of a frame origin in W (hands): ``J = J_F[:3]`` (LOCAL_WORLD_ALIGNED)."""
 
     def __init__(self, frame: str, model: pin.Model, gains: TaskGains, name: str | None = None):
         self.ik = FramePositionTask(frame, model, name=name)
         super().__init__(self.ik.name, 3, gains)
         self.fid = self.ik.frame_id
-        self.v_ref = np.zeros(3)
-        self.a_ref = np.zeros(3)
-
-    def set_reference(self, p: npt.ArrayLike, v: npt.ArrayLike = (0, 0, 0),
-                      a: npt.ArrayLike = (0, 0, 0)) -> None:
-        """Desired position (3,) [m], velocity [m/s], acceleration [m/s^2] in W."""
-        self.ik.set_target(p)
-        self.v_ref[:] = v
-        self.a_ref[:] = a
+        self._init_references()
 
     def jacobian_and_drift(self, state: DynamicsState) -> tuple[np.ndarray, np.ndarray]:
         """``(J_F[:3], (Jdot_F v)[:3])`` in W-aligned axes."""
         ref = pin.LOCAL_WORLD_ALIGNED
         return state.frame_jacobian(self.fid, ref)[:3], state.frame_drift(self.fid, ref)[:3]
-
-    def rows(self, state: DynamicsState) -> tuple[np.ndarray, np.ndarray]:
-        """Position rows."""
-        J, drift = self.jacobian_and_drift(state)
-        g = self.gains
-        a_des = self.a_ref - g.kp * self.ik.compute_error(state) + g.kd * (self.v_ref - J @ state.v)
-        return J, a_des - drift
 
 
 class PostureAcceleration(AccelerationTask):
