@@ -190,7 +190,7 @@ class ComAcceleration(_PointAcceleration):
 
     def __init__(self, gains: TaskGains, name: str = "com"):
         super().__init__(name, 3, gains)
-        self.ik = ComTask(name=name)
+        self.ik = self._com = ComTask(name=name)
         self._init_references()
 
     @property
@@ -200,7 +200,7 @@ class ComAcceleration(_PointAcceleration):
         Raises:
             IKSetupError: No reference set yet.
         """
-        return self.ik.target
+        return self._com.target
 
     def jacobian_and_drift(self, state: DynamicsState) -> tuple[np.ndarray, np.ndarray]:
         """``(J_com, Jdot_com v)``."""
