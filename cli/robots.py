@@ -16,7 +16,13 @@ ModelDirOpt = Annotated[
 ]
 RobotArg = Annotated[str, typer.Argument(help="Known robot name (see `mbctl robots`) or MJCF path.")]
 SceneOpt = Annotated[
-    str | None, typer.Option("--scene", help="Scene MJCF for MuJoCo, when ROBOT is a path.")
+    str | None,
+    typer.Option("--scene", help="Scene MJCF for MuJoCo that includes the robot (default: the robot's own)."),
+]
+RootOpt = Annotated[
+    list[str] | None,
+    typer.Option("--root", help="A body of the robot (repeatable): its tree is the robot; the rest of the "
+                                "plant is scene (default: the trees the actuators drive)."),
 ]
 
 
@@ -43,12 +49,16 @@ def describe(robot: Robot) -> str:
     built = "built from the compiled MuJoCo model" if robot.source.analytic == "mujoco" else "parser"
     lines.append(f"  Pinocchio model: {built}")
     lines += [f"  load-time edit: {e}" for e in robot.source.edits]
+    pin_mass = sum(i.mass for i in pm.inertias)
+    mj_mass = float(np.sum(m.body_mass[list(robot.robot_body_ids)]))
+    if np.isclose(pin_mass, mj_mass, rtol=1e-9, atol=0):
+        pin_mass = mj_mass  # equal up to summation order: print one number, not 58.1882 vs 58.1883
     lines += [
-        f"{'':18s}{'Pinocchio':>12s}{'MuJoCo':>12s}",
-        f"{'nq':18s}{pm.nq:12d}{m.nq:12d}",
-        f"{'nv':18s}{pm.nv:12d}{m.nv:12d}",
+        f"{'robot':18s}{'Pinocchio':>12s}{'MuJoCo':>12s}",
+        f"{'nq':18s}{pm.nq:12d}{robot.converter.nq:12d}",
+        f"{'nv':18s}{pm.nv:12d}{robot.converter.nv:12d}",
         f"{'nu (actuators)':18s}{'-':>12s}{m.nu:12d}",
-        f"{'total mass (kg)':18s}{sum(i.mass for i in pm.inertias):12.4f}{np.sum(m.body_mass):12.4f}",
+        f"{'mass (kg)':18s}{pin_mass:12.4f}{mj_mass:12.4f}",
         f"{'timestep (s)':18s}{'-':>12s}{m.opt.timestep:12g}",
         f"{'integrator':18s}{'-':>12s} {mujoco.mjtIntegrator(m.opt.integrator).name[6:]:>11s}",
         "joints (name, type, q slice, v slice, Pinocchio joint type, armature):",
@@ -56,7 +66,7 @@ def describe(robot: Robot) -> str:
     for j in robot.joints.values():
         jid = pm.getJointId(j.name) if pm.existJointName(j.name) else -1
         pin_type = pm.joints[jid].shortname() if jid >= 0 else "missing"
-        arm = float(m.dof_armature[j.idx_v])
+        arm = float(m.dof_armature[j.dofadr])
         lines.append(
             f"  {j.name:28s} {j.kind:6s} q[{j.q_slice.start}:{j.q_slice.stop}] "
             f"v[{j.v_slice.start}:{j.v_slice.stop}]  {pin_type:22s} armature {arm:g}"
@@ -75,12 +85,20 @@ def describe(robot: Robot) -> str:
     lines += [f"  {s.name:36s} {s.type:16s} {s.dim}" for s in robot.sensors.values()]
     lines.append(f"sites: {', '.join(robot.sites) or '-'}")
     lines.append(f"keyframes: {', '.join(robot.keyframes) or '-'}")
+    if robot.scene_body_ids:
+        lines.append(
+            f"scene (in the plant, not the robot; plant nq {m.nq}, nv {m.nv}, "
+            f"{float(np.sum(m.body_mass)):.4f} kg in all):"
+        )
+        lines += [f"  {b}" for b in robot.scene_bodies]
     return "\n".join(lines)
 
 
-def inspect(robot: RobotArg, scene: SceneOpt = None, model_dir: ModelDirOpt = None) -> None:
-    """Show nq, nv, nu, joints, actuators, sensors and keyframes in both engines."""
-    typer.echo(describe(load_robot(robot, scene, model_dir=model_dir)))
+def inspect(
+    robot: RobotArg, scene: SceneOpt = None, model_dir: ModelDirOpt = None, root: RootOpt = None
+) -> None:
+    """Show nq, nv, nu, joints, actuators, sensors, keyframes and the scene in both engines."""
+    typer.echo(describe(load_robot(robot, scene, model_dir=model_dir, roots=root or ())))
 
 
 def register(app: typer.Typer) -> None:

@@ -217,7 +217,7 @@ def plant_frames(robot: Robot, q: np.ndarray, frames: tuple[str, ...]) -> PlantF
     """
     m = robot.mj_model
     data = mujoco.MjData(m)
-    data.qpos[:] = robot.converter.q_pin_to_mj(q)
+    robot.plant_qpos(q, data.qpos)
     mujoco.mj_kinematics(m, data)
     mujoco.mj_comPos(m, data)
     positions, rotations = {}, {}

@@ -109,7 +109,7 @@ class PlantSite:
 
     def __call__(self, q: np.ndarray) -> np.ndarray:
         """p_WS (3,) [m] at configuration ``q`` (Pinocchio convention)."""
-        self.d.qpos[:] = self.robot.converter.q_pin_to_mj(q)
+        self.robot.plant_qpos(q, self.d.qpos)
         mujoco.mj_kinematics(self.m, self.d)
         return self.d.site_xpos[self.sid].copy()
 

@@ -65,7 +65,11 @@ def rotation_from_quat_xyzw(quat_xyzw: npt.ArrayLike) -> np.ndarray:
 
 @dataclass(frozen=True)
 class JointLayout:
-    """Where one joint's coordinates sit; identical in both engines (same order, same sizes).
+    """Where one joint's coordinates sit in the robot's q and v, and in the plant's qpos and qvel.
+
+    The robot's q and v (both conventions) hold the robot's joints only, in MuJoCo's joint
+    order; the plant's qpos and qvel may hold scene coordinates too (a free box), so a joint's
+    plant address can differ from its robot index.
 
     Attributes:
         name: Joint name.
@@ -74,6 +78,8 @@ class JointLayout:
         idx_v: First index in v.
         nq: Number of configuration coordinates.
         nv: Number of velocity coordinates.
+        qposadr: First index in the plant's ``qpos`` (default: ``idx_q``).
+        dofadr: First index in the plant's ``qvel`` (default: ``idx_v``).
     """
 
     name: str
@@ -82,6 +88,14 @@ class JointLayout:
     idx_v: int
     nq: int
     nv: int
+    qposadr: int = -1
+    dofadr: int = -1
+
+    def __post_init__(self) -> None:
+        if self.qposadr < 0:
+            object.__setattr__(self, "qposadr", self.idx_q)
+        if self.dofadr < 0:
+            object.__setattr__(self, "dofadr", self.idx_v)
 
     @property
     def q_slice(self) -> slice:

@@ -87,7 +87,7 @@ def weld_base(robot: Robot, keyframe: str | None = None) -> Robot:
     quat_wxyz: np.ndarray | None = None
     if keyframe is not None:
         qpos = np.array(m.key_qpos[robot.keyframe_id(keyframe)])
-        pos, quat_wxyz = qpos[free.idx_q : free.idx_q + 3], qpos[free.idx_q + 3 : free.idx_q + 7]
+        pos, quat_wxyz = qpos[free.qposadr : free.qposadr + 3], qpos[free.qposadr + 3 : free.qposadr + 7]
     edited: list[mujoco.MjSpec] = []
 
     def edit(spec: mujoco.MjSpec) -> None:
@@ -101,8 +101,8 @@ def weld_base(robot: Robot, keyframe: str | None = None) -> Robot:
         if pos is not None and quat_wxyz is not None:
             body.pos = np.array(pos)
             body.quat = np.array(quat_wxyz)
-        keep_q = np.r_[0 : free.idx_q, free.idx_q + free.nq : m.nq]
-        keep_v = np.r_[0 : free.idx_v, free.idx_v + free.nv : m.nv]
+        keep_q = np.r_[0 : free.qposadr, free.qposadr + free.nq : m.nq]
+        keep_v = np.r_[0 : free.dofadr, free.dofadr + free.nv : m.nv]
         for key in spec.keys:
             if len(key.qpos) == m.nq:
                 key.qpos = np.asarray(key.qpos)[keep_q]

@@ -23,6 +23,7 @@ from mbctl.robots.conventions import JointLayout, StateConverter
 from mbctl.robots.exceptions import ModelFileError, ModelMismatchError, UnknownNameError
 from mbctl.robots.names import ActuatorInfo, SensorInfo, actuator_infos, names_of, sensor_infos
 from mbctl.robots.pin_from_mj import pin_model_from_mj
+from mbctl.robots.scene import describe_body, robot_bodies, scene_bodies
 
 _T = TypeVar("_T")
 
@@ -63,6 +64,8 @@ class ModelSource:
         analytic: How the Pinocchio model was built: "mujoco" (from MuJoCo's compiled model,
             ``robots.pin_from_mj``; the default) or "parser" (Pinocchio's own parser reading
             ``robot_file``: the independent path, e.g. a URDF checked against its MJCF).
+        roots: Bodies whose trees are the robot (empty: the trees the actuators drive; see
+            ``robots/scene.py``).
     """
 
     name: str
@@ -71,6 +74,7 @@ class ModelSource:
     origin: str
     edits: tuple[str, ...] = field(default=())
     analytic: str = "parser"
+    roots: tuple[str, ...] = field(default=())
 
     def files(self) -> dict[str, Path]:
         """The model files by role (deduplicated)."""
@@ -159,23 +163,42 @@ class Robot:
         self.source = source
         self.mj_spec = mj_spec
         self.mj_model = compile_spec(mj_spec, source.scene_file)
-        # None: the analytic model is built from the compiled plant (see robots/pin_from_mj.py)
-        self.pin_model = pin_model_from_mj(self.mj_model) if pin_model is None else pin_model
-        self.pin_model.gravity = pin.Motion(np.array(self.mj_model.opt.gravity), np.zeros(3))
         m = self.mj_model
-        layouts = []
+        # The robot is a set of whole trees; the rest of the plant is scene (robots/scene.py).
+        in_robot = robot_bodies(m, source.roots)
+        #: MuJoCo ids of the robot's bodies and sites, in id order (parallel to bodies, sites).
+        self.robot_body_ids: tuple[int, ...] = tuple(sorted(in_robot))
+        self.robot_site_ids = tuple(s for s in range(m.nsite) if int(m.site_bodyid[s]) in in_robot)
+        # None: the analytic model is built from the compiled plant (see robots/pin_from_mj.py)
+        self.pin_model = pin_model_from_mj(m, in_robot) if pin_model is None else pin_model
+        self.pin_model.gravity = pin.Motion(np.array(m.opt.gravity), np.zeros(3))
+        layouts: list[JointLayout] = []
+        iq, iv = 0, 0
         for j in range(m.njnt):
+            if int(m.jnt_bodyid[j]) not in in_robot:
+                continue
             kind = _MJ_JOINT_KIND[mujoco.mjtJoint(int(m.jnt_type[j]))]
             nq = {"free": 7, "ball": 4}.get(kind, 1)
             nv = {"free": 6, "ball": 3}.get(kind, 1)
-            name = mujoco.mj_id2name(m, mujoco.mjtObj.mjOBJ_JOINT, j) or self._pin_joint_name(j)
-            layouts.append(JointLayout(name, kind, int(m.jnt_qposadr[j]), int(m.jnt_dofadr[j]), nq, nv))
+            name = mujoco.mj_id2name(m, mujoco.mjtObj.mjOBJ_JOINT, j) or self._pin_joint_name(len(layouts))
+            plant_q, plant_v = int(m.jnt_qposadr[j]), int(m.jnt_dofadr[j])
+            layouts.append(JointLayout(name, kind, iq, iv, nq, nv, plant_q, plant_v))
+            iq, iv = iq + nq, iv + nv
         self.joints: Mapping[str, JointLayout] = MappingProxyType({j.name: j for j in layouts})
-        self.converter = StateConverter(layouts, m.nq, m.nv)
+        self.converter = StateConverter(layouts, iq, iv)
+        #: The robot's coordinates in the plant's qpos and qvel: a slice when they are contiguous
+        #: (every robot without interleaved scene joints), else an index array.
+        self.qpos_index = _as_index([k for j in layouts for k in range(j.qposadr, j.qposadr + j.nq)])
+        self.qvel_index = _as_index([k for j in layouts for k in range(j.dofadr, j.dofadr + j.nv)])
         self.actuators: Mapping[str, ActuatorInfo] = MappingProxyType(actuator_infos(m))
         self.sensors: Mapping[str, SensorInfo] = MappingProxyType(sensor_infos(m))
-        self.sites = names_of(m, mujoco.mjtObj.mjOBJ_SITE, m.nsite)
-        self.bodies = names_of(m, mujoco.mjtObj.mjOBJ_BODY, m.nbody)[1:]
+        all_bodies = names_of(m, mujoco.mjtObj.mjOBJ_BODY, m.nbody)
+        all_sites = names_of(m, mujoco.mjtObj.mjOBJ_SITE, m.nsite)
+        self._body_ids = {n: b for b, n in enumerate(all_bodies) if b > 0 and n}
+        self._site_ids = {n: s for s, n in enumerate(all_sites) if n}
+        self.bodies = tuple(all_bodies[b] for b in self.robot_body_ids)
+        self.sites = tuple(all_sites[s] for s in self.robot_site_ids)
+        self.scene_body_ids: tuple[int, ...] = tuple(scene_bodies(m, in_robot))
         self.keyframes = names_of(m, mujoco.mjtObj.mjOBJ_KEY, m.nkey)
         self._pin_data: pin.Data | None = None  # created on first use by the dynamics helpers
         if check:
@@ -212,8 +235,29 @@ class Robot:
         """MuJoCo physics timestep [s]."""
         return float(self.mj_model.opt.timestep)
 
-    def _pin_joint_name(self, mj_joint_id: int) -> str:
-        return self.pin_model.names[mj_joint_id + 1] if mj_joint_id + 1 < self.pin_model.njoints else ""
+    def _pin_joint_name(self, robot_joint: int) -> str:
+        return self.pin_model.names[robot_joint + 1] if robot_joint + 1 < self.pin_model.njoints else ""
+
+    @property
+    def covers_plant(self) -> bool:
+        """Whether the robot's q and v are the plant's whole qpos and qvel (no scene coordinates)."""
+        return (self.nq, self.nv) == (self.mj_model.nq, self.mj_model.nv)
+
+    def plant_qpos(self, q: npt.ArrayLike, qpos: np.ndarray | None = None) -> np.ndarray:
+        """The plant's qpos with the robot at ``q`` (Pinocchio convention).
+
+        Args:
+            q: Robot configuration (nq,).
+            qpos: The plant's qpos to write into (its scene coordinates are kept); default: a
+                copy of the model's ``qpos0``.
+        """
+        out = np.array(self.mj_model.qpos0) if qpos is None else qpos
+        out[self.qpos_index] = self.converter.q_pin_to_mj(q)
+        return out
+
+    def robot_q(self, qpos: npt.ArrayLike) -> np.ndarray:
+        """The robot's configuration (nq,), Pinocchio convention, read from a plant qpos."""
+        return self.converter.q_mj_to_pin(np.asarray(qpos, dtype=float)[self.qpos_index])
 
     # ------------------------------------------------------------------ lookups
     def joint(self, name: str) -> JointLayout:
@@ -239,16 +283,17 @@ class Robot:
         return _lookup("sensor", self.sensors, name)
 
     def site_id(self, name: str) -> int:
-        """MuJoCo id of site ``name``."""
-        if name not in self.sites:
-            raise UnknownNameError("site", name, self.sites)
-        return self.sites.index(name)
+        """MuJoCo id of site ``name`` (a site of the robot or of the scene)."""
+        return _lookup("site", self._site_ids, name)
 
     def body_id(self, name: str) -> int:
-        """MuJoCo id of body ``name`` (world is 0)."""
-        if name not in self.bodies:
-            raise UnknownNameError("body", name, self.bodies)
-        return self.bodies.index(name) + 1
+        """MuJoCo id of body ``name`` (of the robot or of the scene; the world is 0)."""
+        return _lookup("body", self._body_ids, name)
+
+    @property
+    def scene_bodies(self) -> tuple[str, ...]:
+        """The plant's bodies that are not the robot (static, mocap, free objects), described."""
+        return tuple(describe_body(self.mj_model, b) for b in self.scene_body_ids)
 
     def frame_id(self, name: str) -> int:
         """Pinocchio frame id of a site or body called ``name``."""
@@ -265,7 +310,7 @@ class Robot:
 
     def keyframe_q(self, name: str) -> np.ndarray:
         """Configuration (nq,) of keyframe ``name``, Pinocchio convention."""
-        return self.converter.q_mj_to_pin(self.mj_model.key_qpos[self.keyframe_id(name)])
+        return self.robot_q(self.mj_model.key_qpos[self.keyframe_id(name)])
 
     def keyframe_ctrl(self, name: str) -> np.ndarray:
         """Actuator controls (nu,) stored in keyframe ``name``."""
@@ -418,11 +463,20 @@ class Robot:
             self.source.origin,
             (*self.source.edits, description),
             self.source.analytic,
+            self.source.roots,
         )
         return Robot(source, pin_model, spec)
 
     def __repr__(self) -> str:
         return f"Robot({self.name!r}, nq={self.nq}, nv={self.nv}, nu={self.nu})"
+
+
+def _as_index(indices: list[int]) -> slice | np.ndarray:
+    """``indices`` as a slice when they are contiguous (views, no fancy-index cost), else an array."""
+    if not indices or indices == list(range(indices[0], indices[0] + len(indices))):
+        start = indices[0] if indices else 0
+        return slice(start, start + len(indices))
+    return np.array(indices, dtype=int)
 
 
 def _lookup(kind: str, table: Mapping[str, _T], name: str) -> _T:
@@ -436,8 +490,9 @@ def check_agreement(robot: Robot) -> None:
     """Check both engines describe the same mechanism; ModelMismatchError lists what differs."""
     pm, m = robot.pin_model, robot.mj_model
     problems = []
-    if (pm.nq, pm.nv) != (m.nq, m.nv):
-        problems.append(f"sizes differ: Pinocchio nq={pm.nq}, nv={pm.nv}; MuJoCo nq={m.nq}, nv={m.nv}")
+    nq, nv = robot.converter.nq, robot.converter.nv
+    if (pm.nq, pm.nv) != (nq, nv):
+        problems.append(f"sizes differ: Pinocchio nq={pm.nq}, nv={pm.nv}; MuJoCo robot nq={nq}, nv={nv}")
     pin_names = list(pm.names)[1:]
     mj_names = list(robot.joints)
     if pin_names != mj_names:
@@ -451,15 +506,16 @@ def check_agreement(robot: Robot) -> None:
             f"{len(mj_names)} joints; " + ", ".join(diff[:5])
         )
     pin_mass = sum(inertia.mass for inertia in pm.inertias)
-    mj_mass = float(np.sum(m.body_mass))
+    mj_mass = float(np.sum(m.body_mass[list(robot.robot_body_ids)]))  # the robot's, not the scene's
     if not np.isclose(pin_mass, mj_mass, rtol=MASS_RTOL, atol=0):
-        problems.append(f"total mass differs: Pinocchio {pin_mass:.9g} kg, MuJoCo {mj_mass:.9g} kg")
-    if pm.nv == m.nv:
-        bad = np.flatnonzero(np.abs(np.asarray(pm.armature) - m.dof_armature) > ARMATURE_ATOL)
+        problems.append(f"robot mass differs: Pinocchio {pin_mass:.9g} kg, MuJoCo {mj_mass:.9g} kg")
+    if pm.nv == nv:
+        mj_arm = m.dof_armature[robot.qvel_index]
+        bad = np.flatnonzero(np.abs(np.asarray(pm.armature) - mj_arm) > ARMATURE_ATOL)
         if bad.size:
             problems.append(
                 f"armature differs at dofs {bad[:8].tolist()}: Pinocchio "
-                f"{np.asarray(pm.armature)[bad[:8]].tolist()}, MuJoCo {m.dof_armature[bad[:8]].tolist()}"
+                f"{np.asarray(pm.armature)[bad[:8]].tolist()}, MuJoCo {mj_arm[bad[:8]].tolist()}"
             )
     if not problems:
         problems += _kinematics_problems(robot)
@@ -483,9 +539,10 @@ def _kinematics_problems(robot: Robot, n_random: int = 2, seed: int = 0) -> list
     np.random.seed(seed)  # pin.randomConfiguration draws from numpy's global generator
     configurations = [pin.neutral(pm)] + [pin.randomConfiguration(pm, lower, upper) for _ in range(n_random)]
     frames = [(kind, name, i, pm.getFrameId(name, ftype))
-              for kind, names, ftype in (("body", robot.bodies, pin.FrameType.BODY),
-                                         ("site", robot.sites, pin.FrameType.OP_FRAME))
-              for i, name in enumerate(names)]
+              for kind, names, ids, ftype in (
+                  ("body", robot.bodies, robot.robot_body_ids, pin.FrameType.BODY),
+                  ("site", robot.sites, robot.robot_site_ids, pin.FrameType.OP_FRAME))
+              for name, i in zip(names, ids, strict=True)]
     missing = [f"{kind} {name!r}" for kind, name, _, fid in frames if fid >= pm.nframes]
     if missing:
         return [f"missing in Pinocchio: {', '.join(missing[:8])}"
@@ -493,10 +550,10 @@ def _kinematics_problems(robot: Robot, n_random: int = 2, seed: int = 0) -> list
     worst: tuple[float, str] = (0.0, "")
     for q in configurations:
         pin.framesForwardKinematics(pm, data, q)
-        d.qpos[:] = robot.converter.q_pin_to_mj(q)
+        robot.plant_qpos(q, d.qpos)
         mujoco.mj_kinematics(m, d)
         for kind, name, i, fid in frames:
-            pos, rot = (d.xpos[i + 1], d.xmat[i + 1]) if kind == "body" else (d.site_xpos[i], d.site_xmat[i])
+            pos, rot = (d.xpos[i], d.xmat[i]) if kind == "body" else (d.site_xpos[i], d.site_xmat[i])
             oMf = data.oMf[fid]
             err = max(float(np.abs(oMf.translation - pos).max()),
                       float(np.abs(oMf.rotation.ravel() - rot).max()))

@@ -43,6 +43,7 @@ import numpy as np
 import pinocchio as pin
 
 from mbctl.robots.exceptions import ModelMismatchError
+from mbctl.robots.scene import tree_roots
 
 #: Tolerance on a unit joint axis for using Pinocchio's axis-aligned joint types (RX, PY, ...):
 #: MuJoCo normalizes axes at compile time, so an aligned axis is exact up to round-off.
@@ -158,13 +159,9 @@ def articulated_bodies(m: mujoco.MjModel) -> set[int]:
     Returns:
         Body ids (the world, 0, never among them).
     """
-    root = [0] * int(m.nbody)
-    has_joint: dict[int, bool] = {}
-    for b in range(1, int(m.nbody)):
-        p = int(m.body_parentid[b])
-        root[b] = b if p == 0 else root[p]
-        has_joint[root[b]] = has_joint.get(root[b], False) or bool(m.body_jntnum[b] > 0)
-    return {b for b in range(1, int(m.nbody)) if has_joint[root[b]]}
+    root = tree_roots(m)
+    jointed = {int(root[b]) for b in range(1, int(m.nbody)) if m.body_jntnum[b] > 0}
+    return {b for b in range(1, int(m.nbody)) if int(root[b]) in jointed}
 
 
 # ---------------------------------------------------------------------------------- helpers

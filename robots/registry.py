@@ -3,14 +3,14 @@
 from __future__ import annotations
 
 import os
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 import pinocchio as pin
 
-from mbctl.robots.exceptions import ModelNotFoundError, UnknownNameError
+from mbctl.robots.exceptions import ModelFileError, ModelNotFoundError, UnknownNameError
 from mbctl.robots.menagerie import resolve_menagerie_dir
 from mbctl.robots.model_pair import ModelSource, Robot, load_mj_spec, load_pin_model
 
@@ -89,12 +89,15 @@ def load_robot(
     pin_model_file: str | os.PathLike | None = None,
     check: bool = True,
     analytic: str = "mujoco",
+    roots: Sequence[str] = (),
 ) -> Robot:
     """Load a known robot by name, or any MJCF robot by path, as a checked model pair.
 
     Args:
         name_or_path: A known robot name (see ``KNOWN_ROBOTS``) or an MJCF robot file.
-        scene: For a path: a scene file for MuJoCo that includes the robot (default: the robot file).
+        scene: A scene file for MuJoCo that includes the robot (default: the robot file, or the
+            known robot's scene). Bodies the scene adds (a floor, a wall, a mocap target, a free
+            box) are scene, not robot: see ``roots``.
         gravity: None keeps the model's gravity; True switches on the robot's gravity (for the
             2-link arm: -y in its plane); False sets gravity to zero in both engines.
         model_dir: Explicit model directory for Menagerie robots (overrides $MENAGERIE_ROOT).
@@ -104,6 +107,8 @@ def load_robot(
             has resolved defaults, frames, includes, several joints per body, several trees and
             mesh inertia; "parser" uses Pinocchio's MJCF parser on the robot file (the independent
             path; ``pin_model_file`` implies it).
+        roots: Body names whose trees are the robot; default: the trees whose joints the
+            actuators drive (``robots/scene.py``). Everything else in the plant is scene.
 
     Raises:
         UnknownNameError: Not a known robot and not an existing file.
@@ -115,6 +120,9 @@ def load_robot(
     if key in KNOWN_ROBOTS:
         known = KNOWN_ROBOTS[key]
         robot_file, scene_file, origin = known.locate(model_dir)
+        if scene is not None:  # the user's scene (it includes the robot file itself)
+            scene_file = _existing_file(scene, "scene")
+            origin = f"{origin}, scene {scene_file}"
         name = key
         gravity_on = known.gravity_on
     else:
@@ -126,7 +134,7 @@ def load_robot(
                 f"{key!r} is neither a known robot ({', '.join(KNOWN_ROBOTS)}) nor an existing file."
             )
         robot_file = path.resolve()
-        scene_file = Path(scene).expanduser().resolve() if scene is not None else robot_file
+        scene_file = _existing_file(scene, "scene") if scene is not None else robot_file
         origin = f"user file {robot_file}"
         name = robot_file.stem
         gravity_on = None
@@ -148,5 +156,13 @@ def load_robot(
         edits = ("gravity set to zero",)
     if pin_model_file:
         edits = (*edits, f"Pinocchio model from {pin_file}")
-    source = ModelSource(name, pin_file, scene_file, origin, edits, analytic)
+    source = ModelSource(name, pin_file, scene_file, origin, edits, analytic, tuple(roots))
     return Robot(source, pin_model, spec, check=check)
+
+
+def _existing_file(path: str | os.PathLike, role: str) -> Path:
+    """``path`` resolved; ModelFileError naming it when it is not a file."""
+    out = Path(path).expanduser().resolve()
+    if not out.is_file():
+        raise ModelFileError(f"The {role} file {str(path)!r} does not exist.")
+    return out

@@ -53,7 +53,7 @@ def joint_columns(sim: Simulator, joints: Iterable[str]) -> list[Column]:
     for name in joints:
         j = sim.robot.joint(name)
         unit = "m" if j.kind == "slide" else "rad"
-        cols.append(Column(f"q_{name}_{unit}", partial(_qpos, j.idx_q)))
+        cols.append(Column(f"q_{name}_{unit}", partial(_qpos, j.qposadr)))
     return cols
 
 

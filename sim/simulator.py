@@ -80,6 +80,8 @@ class Simulator:
         self._out_of_range = out_of_range
         self._binder = CommandBinder(robot)
         self._conv = robot.converter
+        # The robot's coordinates in qpos and qvel (the plant may hold scene coordinates too).
+        self._qi, self._vi = robot.qpos_index, robot.qvel_index
         self.saturation_counts = np.zeros(self.model.nu, dtype=int)
         self.n_steps = 0
         self._last_command: Command | None = None
@@ -120,7 +122,7 @@ class Simulator:
 
     def read_state(self) -> RobotState:
         """Current state (q, v in Pinocchio's convention, time) as read-only copies."""
-        q, v = self._conv.state_mj_to_pin(self.data.qpos, self.data.qvel)
+        q, v = self._conv.state_mj_to_pin(self.data.qpos[self._qi], self.data.qvel[self._vi])
         q.setflags(write=False)
         v.setflags(write=False)
         return RobotState(q, v, float(self.data.time))
@@ -221,7 +223,7 @@ class Simulator:
         if q is not None or v is not None:
             self.set_state(
                 q if q is not None else self.q,
-                v if v is not None else np.zeros(self.model.nv),
+                v if v is not None else np.zeros(self._robot.nv),
             )
         self.saturation_counts[:] = 0
         self.n_steps = 0
@@ -230,23 +232,26 @@ class Simulator:
         self._forward()
 
     def set_state(self, q: npt.ArrayLike, v: npt.ArrayLike) -> None:
-        """Set q (nq,) and v (nv,) in Pinocchio's convention, keeping time and ctrl."""
+        """Set the robot's q (nq,) and v (nv,) in Pinocchio's convention, keeping time and ctrl.
+
+        The scene's coordinates (a free box) are left as they are.
+        """
         q_pin = self._conv.check_q(q)
         v_pin = self._conv.check_v(v)
-        self.data.qpos[:] = self._conv.q_pin_to_mj(q_pin)
-        self.data.qvel[:] = self._conv.v_pin_to_mj(q_pin, v_pin)
+        self.data.qpos[self._qi] = self._conv.q_pin_to_mj(q_pin)
+        self.data.qvel[self._vi] = self._conv.v_pin_to_mj(q_pin, v_pin)
         self._forward()
 
     # ------------------------------------------------------------------ state
     @property
     def q(self) -> np.ndarray:
         """Configuration (nq,), Pinocchio convention (copy)."""
-        return self._conv.q_mj_to_pin(self.data.qpos)
+        return self._conv.q_mj_to_pin(self.data.qpos[self._qi])
 
     @property
     def v(self) -> np.ndarray:
         """Velocity (nv,), Pinocchio convention (copy)."""
-        return self._conv.state_mj_to_pin(self.data.qpos, self.data.qvel)[1]
+        return self._conv.state_mj_to_pin(self.data.qpos[self._qi], self.data.qvel[self._vi])[1]
 
     @property
     def ctrl(self) -> np.ndarray:
@@ -295,7 +300,7 @@ class Simulator:
         """Height [m] of the floating base (z of the free joint); NaN for a fixed base."""
         if not self._robot.has_floating_base:
             return float("nan")
-        return float(self.data.qpos[next(iter(self._robot.joints.values())).idx_q + 2])
+        return float(self.data.qpos[next(iter(self._robot.joints.values())).qposadr + 2])
 
     @property
     def contact_count(self) -> int:

@@ -34,6 +34,7 @@ import time
 from dataclasses import dataclass
 from typing import Any, ClassVar, NamedTuple
 
+import mujoco
 import numpy as np
 import numpy.typing as npt
 import pinocchio as pin
@@ -530,6 +531,12 @@ class MinkWholeBodyIK(WholeBodyIK):
                                "or use backend 'qp'") from None
         self._mink = mink
         cfg, m = self.config, self.robot.mj_model
+        if not self.robot.covers_plant:  # mink's configuration is the whole plant's qpos
+            raise IKSetupError(
+                f"backend 'mink' cannot solve for {self.robot.name!r}: its plant has {m.nq - self.robot.nq} "
+                "coordinates of scene bodies (free objects) that mink would move with the robot; use "
+                "backend 'qp'"
+            )
         self.configuration = mink.Configuration(m)
         self._types = {f: mujoco_frame_type(self.robot, f) for f in cfg.frames}
         self.tasks: dict[str, Any] = {}  # mink task types differ in their target setters
@@ -612,7 +619,8 @@ def _check_mink_com(robot: Robot) -> None:
     if not np.isclose(first, total, rtol=1e-9, atol=0.0):
         raise IKSetupError(
             f"backend 'mink' cannot hold the CoM of {robot.name!r}: mink's ComTask uses the subtree "
-            f"of MuJoCo body 1 ({robot.bodies[0]!r}, {first:.6g} kg), but the model's mass is "
+            f"of MuJoCo body 1 ({mujoco.mj_id2name(m, mujoco.mjtObj.mjOBJ_BODY, 1)!r}, {first:.6g} kg), "
+            "but the model's mass is "
             f"{total:.6g} kg (the scene puts another body before the robot); use backend 'qp', or "
             "put the robot first in the scene"
         )

@@ -55,8 +55,9 @@ from mbctl.robots.model_pair import Robot, check_agreement
 def _structure_problems(robot: Robot) -> list[str]:
     pm, m = robot.pin_model, robot.mj_model
     problems = []
-    if (pm.nq, pm.nv) != (m.nq, m.nv):
-        problems.append(f"sizes differ: Pinocchio nq={pm.nq}, nv={pm.nv}; MuJoCo nq={m.nq}, nv={m.nv}")
+    nq, nv = robot.converter.nq, robot.converter.nv
+    if (pm.nq, pm.nv) != (nq, nv):
+        problems.append(f"sizes differ: Pinocchio nq={pm.nq}, nv={pm.nv}; MuJoCo robot nq={nq}, nv={nv}")
     if pm.njoints - 1 != len(robot.joints):
         pin_names, mj_names = list(pm.names)[1:], list(robot.joints)
         only_mj = [n for n in mj_names if n not in set(pin_names)]
@@ -66,12 +67,18 @@ def _structure_problems(robot: Robot) -> list[str]:
             + (f"; only in MuJoCo: {_first(only_mj)}" if only_mj else "")
             + (f"; only in Pinocchio: {_first(only_pin)}" if only_pin else "")
         )
-        top_level = int(np.count_nonzero(m.body_parentid[1:] == 0))
-        if pm.njoints - 1 < len(robot.joints) and top_level > 1:
+        # Pinocchio 4.1's MJCF parser builds only the first body tree: say so when the robot has
+        # several trees or a scene body comes first (mocap targets and scenery after it do not matter).
+        tops = [b for b in range(1, m.nbody) if m.body_parentid[b] == 0]
+        robot_tops = [b for b in tops if b in set(robot.robot_body_ids)]
+        first_is_scene = bool(tops) and tops[0] not in robot_tops
+        if pm.njoints - 1 < len(robot.joints) and (len(robot_tops) > 1 or first_is_scene):
             problems.append(
-                f"the MuJoCo model has {top_level} bodies directly under <worldbody>, and Pinocchio "
-                "4.1's MJCF parser builds only the first body tree: put the robot first, or give the "
-                "Pinocchio side its own file (--pin-model / pin_model_file)"
+                f"the robot has {len(robot_tops)} body trees under <worldbody>"
+                + (" after a scene body" if first_is_scene else "")
+                + ", and Pinocchio 4.1's MJCF parser builds only the first body tree: put the robot "
+                "first, or give the Pinocchio side its own file (--pin-model / pin_model_file), or use "
+                "--analytic mujoco"
             )
     else:
         for k, j in enumerate(robot.joints.values(), start=1):
@@ -133,14 +140,14 @@ class _Frames(NamedTuple):
 def _match_frames(robot: Robot) -> _Frames:
     pm = robot.pin_model
     pin_ids, body_ids, site_ids, names, missing = [], [], [], [], []
-    for b, name in enumerate(robot.bodies, start=1):
+    for b, name in zip(robot.robot_body_ids, robot.bodies, strict=True):
         if name and pm.existFrame(name, pin.FrameType.BODY):
             pin_ids.append(pm.getFrameId(name, pin.FrameType.BODY))
             body_ids.append(b)
             names.append(name)
         else:
             missing.append(f"body {name or f'#{b}'}")
-    for s, name in enumerate(robot.sites):
+    for s, name in zip(robot.robot_site_ids, robot.sites, strict=True):
         if name and pm.existFrame(name, pin.FrameType.OP_FRAME):
             pin_ids.append(pm.getFrameId(name, pin.FrameType.OP_FRAME))
         elif name and pm.existFrame(name):
@@ -161,10 +168,15 @@ class _Evaluator:
         self.pm = robot.pin_model
         self.pd = self.pm.createData()
         self.d = mujoco.MjData(m)
-        nv, nf = m.nv, len(frames.pin_ids)
-        self.tops = top_moving_bodies(m)
+        nv, nf = robot.nv, len(frames.pin_ids)
+        # The robot's coordinates in the plant; the scene's (a free box) stay at qpos0, at rest.
+        self.qi, self.vi = robot.qpos_index, robot.qvel_index
+        self.vv = np.ix_(self.vi, self.vi) if isinstance(self.vi, np.ndarray) else (self.vi, self.vi)
+        in_robot = set(robot.robot_body_ids)
+        self.tops = np.array([b for b in top_moving_bodies(m) if b in in_robot], dtype=int)
         self.top_mass = np.array(m.body_subtreemass[self.tops])
-        self.static = static_bodies(m)
+        # Bodies that do not move in the comparison: welded to the world, or scene.
+        self.static = np.array(sorted(set(static_bodies(m).tolist()) | set(robot.scene_body_ids)), dtype=int)
         # Per-state outputs of each engine; the frame quantities of Pinocchio live in _H and _J_pin,
         # MuJoCo's Jacobians in _J_mj (mapped through T per chunk).
         shapes = {
@@ -186,7 +198,7 @@ class _Evaluator:
         self.mj_out["fk_rotation"] = np.zeros((chunk, nf, 3, 3))
         self._H = np.zeros((chunk, nf, 4, 4))
         self._J_pin = np.zeros((chunk, nf, 6, nv))
-        self._J_mj = np.zeros((chunk, nf, 6, nv))
+        self._J_mj = np.zeros((chunk, nf, 6, m.nv))  # plant columns; the robot's are taken per chunk
         self._T = np.zeros((chunk, nv, nv))
         # Where Pinocchio's matrices with nv columns are written. With nv = 1, eigenpy returns
         # them as vectors ((6,) for a frame Jacobian, (3,) for Jcom), so they go through views
@@ -204,9 +216,9 @@ class _Evaluator:
             ]
             for J in self._J_mj
         ]
-        self._M_mj = np.zeros((nv, nv))
-        self._jac_com = np.zeros((3, nv))
-        self._g_mj = np.zeros(nv)
+        self._M_mj = np.zeros((m.nv, m.nv))
+        self._jac_com = np.zeros((3, m.nv))
+        self._g_mj = np.zeros(m.nv)
         self._pe_static: float | None = None
 
     def _pin_state(self, i: int, q: np.ndarray, v: np.ndarray, tau: np.ndarray, a: np.ndarray) -> None:
@@ -238,9 +250,10 @@ class _Evaluator:
         # converter's per-vector methods would rebuild the rotations for every vector).
         T = conv.velocity_map(q)
         Tdot_v = conv.velocity_map_dot_v(q, v)
-        d.qpos[:] = conv.q_pin_to_mj(q)
-        d.qvel[:] = T @ v
-        d.qfrc_applied[:] = T @ tau
+        qi, vi = self.qi, self.vi
+        d.qpos[qi] = conv.q_pin_to_mj(q)
+        d.qvel[vi] = T @ v
+        d.qfrc_applied[vi] = T @ tau
         mujoco.mj_forward(m, d)
         nb = fr.mj_body_ids.size
         pos, rot = out["fk_position"][i], out["fk_rotation"][i]
@@ -252,11 +265,11 @@ class _Evaluator:
             jac(m, d, jacp, jacr, obj)
         self._T[i] = T
         mujoco.mj_fullM(m, d, self._M_mj)
-        M_mj = self._M_mj
+        M_mj = self._M_mj[self.vv]  # the robot's block (trees do not couple through M)
         out["mass_matrix"][i] = T.T @ M_mj @ T
-        out["bias"][i] = T.T @ (d.qfrc_bias + M_mj @ Tdot_v)  # the frame change adds M Tdot v
-        out["forward_dynamics"][i] = T.T @ (d.qacc - Tdot_v)
-        if self._pe_static is None:  # bodies welded to the world do not move
+        out["bias"][i] = T.T @ (d.qfrc_bias[vi] + M_mj @ Tdot_v)  # the frame change adds M Tdot v
+        out["forward_dynamics"][i] = T.T @ (d.qacc[vi] - Tdot_v)
+        if self._pe_static is None:  # bodies welded to the world and the scene do not move
             s = self.static
             self._pe_static = float(-np.sum(m.body_mass[s] * (d.xipos[s] @ m.opt.gravity)))
         out["kinetic_energy"][i] = d.energy[1]
@@ -269,7 +282,7 @@ class _Evaluator:
         Jc[:] = 0.0
         for r, wr in zip(self.tops, w, strict=True):
             mujoco.mj_jacSubtreeCom(m, d, self._jac_com, r)
-            Jc += wr * self._jac_com
+            Jc += wr * self._jac_com[:, vi]
         Jc[:] = Jc @ T
         mujoco.mj_subtreeVel(m, d)
         lin = d.subtree_linvel[self.tops] * self.top_mass[:, None]
@@ -277,14 +290,15 @@ class _Evaluator:
         lever = d.subtree_com[self.tops] - p_WC
         out["momentum_angular"][i] = (d.subtree_angmom[self.tops] + _cross(lever, lin)).sum(axis=0)
         # Inverse dynamics at the same (q, v): the position and velocity stages are current.
-        d.qacc[:] = T @ a + Tdot_v
+        d.qacc[:] = 0.0
+        d.qacc[vi] = T @ a + Tdot_v
         mujoco.mj_inverseSkip(m, d, mujoco.mjtStage.mjSTAGE_VEL, 1)
-        out["inverse_dynamics"][i] = T.T @ d.qfrc_inverse
+        out["inverse_dynamics"][i] = T.T @ d.qfrc_inverse[vi]
         # Gravity: the bias force at zero velocity (mj_rne reads cvel, so recompute it).
         d.qvel[:] = 0.0
         mujoco.mj_comVel(m, d)
         mujoco.mj_rne(m, d, 0, self._g_mj)
-        out["gravity"][i] = T.T @ self._g_mj
+        out["gravity"][i] = T.T @ self._g_mj[vi]
 
     def _evaluate(self, states: States, start: int, stop: int) -> None:
         """Evaluate states ``start:stop`` (at most ``chunk``) into buffer slots 0 .. stop - start."""
@@ -305,8 +319,8 @@ class _Evaluator:
         M = np.triu(P["mass_matrix"])  # crba fills the upper triangle
         P["mass_matrix"] = M + np.triu(M, 1).swapaxes(-1, -2)
         # J_mj v_mj = J_mj T v_pin, so J_pin = J_mj T (one batched product per chunk).
-        Jm = self._J_mj[:c]
-        Jm = np.matmul(Jm.reshape(c, -1, self.m.nv), self._T[:c]).reshape(Jm.shape)
+        Jm = self._J_mj[:c][..., self.vi]
+        Jm = np.matmul(Jm.reshape(c, -1, Jm.shape[-1]), self._T[:c]).reshape(Jm.shape)
         P["jacobian"], Q["jacobian"] = Jp, Jm
         return P, Q
 
@@ -423,7 +437,7 @@ def crosscheck(
             f"tolerances has no entry for {', '.join(missing_tol)}; expected every quantity of "
             f"TOLERANCES ({', '.join(TOLERANCES)})"
         )
-    m, features = comparison_model(robot.mj_model)
+    m, features = comparison_model(robot.mj_model, robot.scene_body_ids)
     notes: list[str] = []
     try:
         check_agreement(robot)

@@ -17,11 +17,13 @@ the plant has and how it was handled:
 from __future__ import annotations
 
 import copy
+from collections.abc import Sequence
 
 import mujoco
 import numpy as np
 
 from mbctl.robots.crosscheck.report import ACCOUNTED, EXCLUDED, NOT_COMPARED, FeatureNote
+from mbctl.robots.scene import describe_body
 
 _D = mujoco.mjtDisableBit
 
@@ -59,9 +61,24 @@ def top_moving_bodies(m: mujoco.MjModel) -> np.ndarray:
     return np.array([b for b in range(1, m.nbody) if moving[b] and not moving[m.body_parentid[b]]], dtype=int)
 
 
-def audit(m: mujoco.MjModel) -> tuple[FeatureNote, ...]:
-    """What ``m`` simulates beyond rigid-body dynamics, and how the cross-check handles each."""
+def audit(m: mujoco.MjModel, scene: Sequence[int] = ()) -> tuple[FeatureNote, ...]:
+    """What ``m`` simulates beyond rigid-body dynamics, and how the cross-check handles each.
+
+    ``scene`` holds the ids of the plant's bodies that are not the robot.
+    """
     notes: list[FeatureNote] = []
+    if len(scene):
+        ids = np.asarray(scene, dtype=int)
+        described = ", ".join(describe_body(m, int(b)) for b in ids[:6])
+        notes.append(
+            FeatureNote(
+                "scene bodies",
+                EXCLUDED,
+                f"{ids.size} bodies are scene, not robot ({described}"
+                f"{f' and {ids.size - 6} more' if ids.size > 6 else ''}); they stay at rest at their qpos0 "
+                "pose and only the robot's coordinates are compared.",
+            )
+        )
     collidable = np.flatnonzero((m.geom_contype != 0) | (m.geom_conaffinity != 0))
     if collidable.size or m.npair:
         notes.append(
@@ -213,16 +230,17 @@ def audit(m: mujoco.MjModel) -> tuple[FeatureNote, ...]:
                 f"{m.nflex} deformable flexes; Pinocchio has rigid bodies only.",
             )
         )
-    static = static_bodies(m)
+    static = np.union1d(static_bodies(m), np.asarray(scene, dtype=int))
     heavy = static[m.body_mass[static] > 0]
     if heavy.size and np.any(m.opt.gravity != 0):
         notes.append(
             FeatureNote(
                 "static bodies with mass",
                 ACCOUNTED,
-                f"{heavy.size} bodies welded to the world carry {np.sum(m.body_mass[heavy]):g} kg "
-                f"({_names(m, mujoco.mjtObj.mjOBJ_BODY, heavy)}); MuJoCo's potential energy "
-                "includes them, Pinocchio's does not, so their constant share is subtracted.",
+                f"{heavy.size} bodies welded to the world or held still as scene carry "
+                f"{np.sum(m.body_mass[heavy]):g} kg ({_names(m, mujoco.mjtObj.mjOBJ_BODY, heavy)}); "
+                "MuJoCo's potential energy includes them, the robot's Pinocchio model does not, so "
+                "their constant share is subtracted.",
             )
         )
     if m.opt.disableflags & _D.mjDSBL_GRAVITY:
@@ -238,7 +256,9 @@ def audit(m: mujoco.MjModel) -> tuple[FeatureNote, ...]:
     return tuple(notes)
 
 
-def comparison_model(m: mujoco.MjModel) -> tuple[mujoco.MjModel, tuple[FeatureNote, ...]]:
+def comparison_model(
+    m: mujoco.MjModel, scene: Sequence[int] = ()
+) -> tuple[mujoco.MjModel, tuple[FeatureNote, ...]]:
     """A private copy of ``m`` reduced to rigid-body dynamics, and the audit of what was removed.
 
     On the copy: the flags in ``DISABLE_FLAGS`` are set, energy computation is enabled
@@ -247,11 +267,12 @@ def comparison_model(m: mujoco.MjModel) -> tuple[mujoco.MjModel, tuple[FeatureNo
 
     Args:
         m: The plant model; not modified.
+        scene: Ids of the plant's bodies that are not the robot (for the notes).
 
     Returns:
         (model copy, feature notes).
     """
-    notes = audit(m)
+    notes = audit(m, scene)
     mc = copy.copy(m)  # MjModel.__copy__ is a deep copy (mj_copyModel)
     for flag, _ in DISABLE_FLAGS:
         mc.opt.disableflags |= int(flag)

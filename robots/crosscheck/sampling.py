@@ -67,7 +67,8 @@ def sample_states(robot: Robot, n_states: int, seed: int, sampling: Sampling = S
     """
     m = robot.mj_model
     rng = np.random.default_rng(seed)
-    jids = {name: i for i, name in enumerate(robot.joints)}
+    jid_at = {int(adr): j for j, adr in enumerate(m.jnt_qposadr)}  # plant qpos address -> joint id
+    jids = {j.name: jid_at[j.qposadr] for j in robot.joints.values()}
     limited = [
         (j.idx_q, jids[j.name])
         for j in robot.joints.values()

@@ -251,12 +251,13 @@ def test_free_and_ball_joints_agree(tmp_path):
     assert handled["static bodies with mass"] == ACCOUNTED  # the pedestal's potential energy
     assert handled["damping"] == EXCLUDED
     # Built from the compiled plant, the pedestal's mass is in both models: nothing to explain.
-    assert not any("total mass differs" in n for n in report.notes)
-    # Pinocchio's parser merges the pedestal into its universe: said, not silently dropped.
+    assert not any("robot mass differs" in n for n in report.notes)
+    # The pedestal is a tree without joints: scene, not robot, in both analytic paths.
+    assert "pedestal" not in robot.bodies and "pedestal" in robot.scene_bodies[0]
+    scene = next(f for f in report.features if f.feature == "scene bodies")
+    assert scene.handling == EXCLUDED and "pedestal (static, 3 kg)" in scene.detail
     parsed = crosscheck(load_robot(robot.source.robot_file, check=False, analytic="parser"), n_states=20)
-    assert parsed.passed
-    assert any("body pedestal" in n for n in parsed.notes)
-    assert any("total mass differs" in n for n in parsed.notes)
+    assert parsed.passed and parsed.notes == ()
 
 
 def test_one_hinge_robot_agrees(tmp_path):
@@ -323,7 +324,8 @@ def test_robot_after_another_top_level_body_fails_structure(tmp_path):
     report = crosscheck(robot, n_states=10, seed=0)
     assert not report.passed
     assert report.failed == ("structure",)
-    assert report.quantity("structure").note.startswith("sizes differ: Pinocchio nq=0, nv=0; MuJoCo nq=18")
+    why = report.quantity("structure").note
+    assert why.startswith("sizes differ: Pinocchio nq=0, nv=0; MuJoCo robot nq=18")
     assert "builds only the first body tree" in report.quantity("structure").note
     assert "only in MuJoCo: root, hip, knee, ankle, shoulder, elbow;" in report.quantity("structure").note
     assert "    -> structure failed: sizes differ" in report.to_text()
@@ -339,7 +341,7 @@ def test_structure_mismatch_names_the_joints_that_differ(tmp_path):
     report = crosscheck(robot, n_states=5, seed=0)
     assert report.failed == ("structure",)
     why = report.quantity("structure").note
-    assert "sizes differ: Pinocchio nq=2, nv=2; MuJoCo nq=3, nv=3" in why
+    assert "sizes differ: Pinocchio nq=2, nv=2; MuJoCo robot nq=3, nv=3" in why
     assert "joint count differs: Pinocchio 2, MuJoCo 3; only in MuJoCo: j2" in why
     assert "only in Pinocchio" not in why
     assert f"    -> structure failed: {why}" in report.to_text().splitlines()
@@ -391,7 +393,7 @@ def test_one_percent_mass_change_fails_mass_matrix_and_gravity(tmp_path):
     assert set(DYNAMICS) <= set(report.failed)
     assert {"fk_position", "fk_rotation", "jacobian_linear", "jacobian_angular"}.isdisjoint(report.failed)
     assert report.quantity("gravity").max_rel_error > 1e-3
-    assert any("total mass differs: Pinocchio 1.757 kg, MuJoCo 1.75 kg" in n for n in report.notes)
+    assert any("robot mass differs: Pinocchio 1.757 kg, MuJoCo 1.75 kg" in n for n in report.notes)
 
 
 def test_flipped_axis_fails_kinematics(tmp_path):

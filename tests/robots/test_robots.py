@@ -95,7 +95,7 @@ def test_corrupted_model_file_is_named(tmp_path):
 @pytest.mark.parametrize(
     "old, new, message",
     [
-        ('mass="0.7"', 'mass="0.707"', "total mass differs"),
+        ('mass="0.7"', 'mass="0.707"', "robot mass differs"),
         ('armature="0.002"', 'armature="0.0"', "armature differs at dofs"),
         ('<joint name="elbow"/>', '<joint name="knee"/>', "joint names/order differ"),
     ],
