@@ -17,7 +17,7 @@ from typing import Annotated
 import typer
 
 from mbctl.cli._run import OutputOpt, QuietOpt, execute
-from mbctl.cli.robots import ModelDirOpt, SceneOpt
+from mbctl.cli.robots import ModelDirOpt, RootOpt, SceneOpt
 from mbctl.control.exceptions import IKSetupError
 from mbctl.jobs.ik import IK, IKParams
 from mbctl.jobs.workspace import SUPPORTED_ROBOTS, WORKSPACE, WorkspaceParams
@@ -75,6 +75,7 @@ def ik(
     ] = None,
     scene: SceneOpt = None,
     model_dir: ModelDirOpt = None,
+    root: RootOpt = None,
     output: OutputOpt = None,
     quiet: QuietOpt = False,
 ) -> None:
@@ -91,6 +92,7 @@ def ik(
         keyframe=keyframe,
         scene=scene,
         model_dir=model_dir,
+        roots=tuple(root or ()),
     )
     execute(IK, params, output, quiet)
 

@@ -7,7 +7,7 @@ from typing import Annotated
 import typer
 
 from mbctl.cli._run import OutputOpt, QuietOpt, execute
-from mbctl.cli.robots import ModelDirOpt
+from mbctl.cli.robots import ModelDirOpt, SceneOpt
 from mbctl.jobs.joint_step import JOINT_STEP, JointStepParams
 from mbctl.jobs.verify import SUPPORTED, verify_robot
 
@@ -32,7 +32,7 @@ def joint_step(
     steps: Annotated[int, typer.Option(help="Physics steps to take.")] = 250,
     keyframe: Annotated[str | None, typer.Option(help="Keyframe to reset to (e.g. stand).")] = None,
     sensor: Annotated[list[str] | None, typer.Option(help="Sensor to record (repeatable).")] = None,
-    scene: Annotated[str | None, typer.Option(help="Scene MJCF when ROBOT is a path.")] = None,
+    scene: SceneOpt = None,
     model_dir: ModelDirOpt = None,
     output: OutputOpt = None,
     quiet: QuietOpt = False,

@@ -8,15 +8,13 @@ from typing import Annotated
 import typer
 
 from mbctl.cli._run import OutputOpt, QuietOpt, execute
-from mbctl.cli.robots import ModelDirOpt
+from mbctl.cli.robots import ModelDirOpt, RootOpt, SceneOpt
 from mbctl.jobs.xcheck import XCHECK, XcheckParams
 
 
 def xcheck(
     robot: Annotated[str, typer.Argument(help="Known robot name or MJCF robot file.")],
-    scene: Annotated[
-        str | None, typer.Option("--scene", help="Scene MJCF for MuJoCo, when ROBOT is a path.")
-    ] = None,
+    scene: SceneOpt = None,
     states: Annotated[int, typer.Option("--states", min=0, help="Number of random states.")] = 100,
     seed: Annotated[int, typer.Option("--seed", min=0, help="Seed of the random states.")] = 0,
     json_path: Annotated[
@@ -33,12 +31,13 @@ def xcheck(
     analytic: Annotated[
         str, typer.Option("--analytic", help="Pinocchio model: mujoco (from the compiled plant) or parser.")
     ] = "mujoco",
+    root: RootOpt = None,
     output: OutputOpt = None,
     quiet: QuietOpt = False,
 ) -> None:
     """Compare kinematics and dynamics of Pinocchio and MuJoCo; exit 1 if any quantity fails."""
     execute(XCHECK, XcheckParams(robot, scene, states, seed, json_path, pin_model, gravity, model_dir,
-                                     analytic),
+                                     analytic, tuple(root or ())),
             output, quiet)
 
 

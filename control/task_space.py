@@ -96,7 +96,7 @@ class TaskSpaceComputedTorque(ControllerBase):
         frame = pin.ReferenceFrame.LOCAL_WORLD_ALIGNED
         dJv = pin.getFrameClassicalAcceleration(model, data, fid, frame).linear[rows]
         p = data.oMf[fid].translation[rows]
-        J = pin.computeFrameJacobian(model, data, q, fid, frame)[rows]
+        J = pin.computeFrameJacobian(model, data, q, fid, frame).reshape(6, -1)[rows]  # (6,) if nv = 1
         a_task = reference.a + self.gains.kp * (reference.p - p) + self.gains.kd * (
             reference.v - J @ v
         )

@@ -76,8 +76,9 @@ class IKParams:
         solver: qpsolvers backend (``SOLVERS``).
         backend: IK backend (``BACKENDS``: "qp" or "mink").
         keyframe: Start keyframe (None: "stand" for the G1, else the neutral pose).
-        scene: Scene MJCF for MuJoCo when ``robot`` is a path.
+        scene: Scene MJCF for MuJoCo that includes the robot (default: the robot's own).
         model_dir: Explicit Menagerie model directory for a known robot.
+        roots: Bodies whose trees are the robot (default: the trees the actuators drive).
     """
 
     robot: str
@@ -91,6 +92,7 @@ class IKParams:
     keyframe: str | None = None
     scene: str | None = None
     model_dir: str | None = None
+    roots: tuple[str, ...] = ()
 
     def __post_init__(self) -> None:
         if not self.targets and self.com_xy is None:
@@ -113,12 +115,6 @@ class IKParams:
         if self.com_xy is not None and (len(self.com_xy) != 2 or
                                         not all(math.isfinite(v) for v in self.com_xy)):
             raise IKSetupError(f"com must be 2 finite numbers (m); got {self.com_xy!r}")
-        if self.scene is not None and self.robot in KNOWN_ROBOTS:
-            raise IKSetupError(
-                f"--scene applies only when ROBOT is an MJCF path; {self.robot!r} is a known robot "
-                f"with its own scene. Pass the robot file's path with --scene {self.scene}, or drop "
-                "--scene"
-            )
         if self.model_dir is not None and self.robot not in KNOWN_ROBOTS:
             raise IKSetupError(
                 f"--model-dir applies only to a known robot ({', '.join(KNOWN_ROBOTS)}); "
@@ -257,7 +253,7 @@ def prepare(params: IKParams, robot: Robot | None = None) -> Work:
         ToolkitError: The robot cannot be found or loaded.
     """
     if robot is None:
-        robot = load_robot(params.robot, params.scene, model_dir=params.model_dir)
+        robot = load_robot(params.robot, params.scene, model_dir=params.model_dir, roots=params.roots)
     try:
         robot, config, task_set = task_set_for(robot, params)
         q0 = start_q(robot, params.keyframe, task_set)

@@ -24,7 +24,7 @@ class XcheckParams:
 
     Attributes:
         robot: Known robot name or MJCF robot file (Pinocchio reads it unless ``pin_model``).
-        scene: Scene MJCF for MuJoCo that includes the robot (paths only).
+        scene: Scene MJCF for MuJoCo that includes the robot (default: the robot's own).
         states: Number of random states (edge states are added).
         seed: Seed of the random states.
         json_path: Also write the cross-check report as JSON to this file, or None.
@@ -33,6 +33,7 @@ class XcheckParams:
         model_dir: Explicit Menagerie model directory for a known robot.
         analytic: "mujoco" (the Pinocchio model built from MuJoCo's compiled model) or "parser"
             (Pinocchio's own parser on the robot file: the independent path).
+        roots: Bodies whose trees are the robot (default: the trees the actuators drive).
     """
 
     robot: str
@@ -44,6 +45,7 @@ class XcheckParams:
     gravity: bool = False
     model_dir: str | None = None
     analytic: str = "mujoco"
+    roots: tuple[str, ...] = ()
 
     def __post_init__(self) -> None:
         if self.states < 0:
@@ -69,6 +71,7 @@ def prepare(params: XcheckParams) -> Work:
         pin_model_file=params.pin_model,
         check=False,
         analytic=params.analytic,
+        roots=params.roots,
     )
 
     def work(ctx: RunContext) -> Outcome:

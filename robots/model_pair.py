@@ -410,7 +410,7 @@ class Robot:
             pin.computeFrameJacobian(
                 self.pin_model, self._data, q_, frame_id, JACOBIAN_REFERENCES[reference]
             )
-        )
+        ).reshape(6, -1)  # the bindings return a (6,) vector when nv = 1
 
     def frame_pose(self, frame: str, q: npt.ArrayLike) -> tuple[np.ndarray, np.ndarray]:
         """Pose of a site, body or frame F in the world frame W (Pinocchio's kinematics).

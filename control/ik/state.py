@@ -102,7 +102,8 @@ class IKState:
 
     def frame_jacobian_local(self, frame_id: int) -> np.ndarray:
         """Body Jacobian ``J_F`` (6, nv): the frame's twist in its own frame, [v; w]."""
-        return pin.getFrameJacobian(self.model, self.data, frame_id, pin.LOCAL)
+        # reshape: with nv = 1, Pinocchio's bindings return the matrix as a (6,) vector
+        return pin.getFrameJacobian(self.model, self.data, frame_id, pin.LOCAL).reshape(6, -1)
 
     def com(self) -> np.ndarray:
         """Centre of mass ``p_WC`` (3,) [m] (needs ``with_com``)."""
@@ -110,7 +111,7 @@ class IKState:
 
     def com_jacobian(self) -> np.ndarray:
         """CoM Jacobian (3, nv) [m/rad or m/m] in the world frame (needs ``with_com``)."""
-        return self.data.Jcom
+        return self.data.Jcom.reshape(3, -1)  # (3,) from the bindings when nv = 1
 
     def integrate(self, v: npt.ArrayLike, dt: float) -> np.ndarray:
         """``pin.integrate(q, v dt)``: the configuration after moving along ``v`` for ``dt``."""

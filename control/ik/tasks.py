@@ -262,7 +262,7 @@ class FramePoseTask(_FrameTask):
         in place with no temporaries for the negations.
         """
         X_TF = self._X_TF(state)
-        J_F = pin.getFrameJacobian(state.model, state.data, self.frame_id, pin.LOCAL)
+        J_F = state.frame_jacobian_local(self.frame_id)
         _, neg_col, _, gain_cost = self._weights()
         np.matmul(pin.Jlog6(X_TF), J_F, out=W_t)
         W_t *= neg_col
@@ -362,7 +362,7 @@ class FrameOrientationTask(_FrameAxesTask):
     def error_and_jacobian(self, state: IKState) -> tuple[np.ndarray, np.ndarray]:
         """Both, from one ``R_TF``."""
         R_TF = self._X_TF(state).rotation
-        J_F = pin.getFrameJacobian(state.model, state.data, self.frame_id, pin.LOCAL)
+        J_F = state.frame_jacobian_local(self.frame_id)
         J = pin.Jlog3(R_TF) @ J_F[3:]
         return -pin.log3(R_TF), np.negative(J, out=J)
 
@@ -437,7 +437,7 @@ class ComTask(Task):
         if self._target is None:
             raise self._no_target()
         col, _, neg_gain_cost, _ = self._weights()
-        np.multiply(col, state.data.Jcom, out=W_t)
+        np.multiply(col, state.com_jacobian(), out=W_t)
         np.subtract(state.data.com[0], self._target, out=r_t)
         r_t *= neg_gain_cost
         return self._lm_term(r_t)

@@ -119,7 +119,7 @@ class DynamicsState(IKState):
 
     def frame_jacobian(self, frame_id: int, reference: pin.ReferenceFrame) -> np.ndarray:
         """``J_F`` (6, nv) of frame ``frame_id`` in ``reference`` ([v; w])."""
-        return pin.getFrameJacobian(self.model, self.data, frame_id, reference)
+        return pin.getFrameJacobian(self.model, self.data, frame_id, reference).reshape(6, -1)  # nv = 1
 
     def frame_drift(self, frame_id: int, reference: pin.ReferenceFrame) -> np.ndarray:
         """``d/dt(J_F) v`` (6,) in ``reference``: the frame's acceleration at zero vdot.
@@ -204,7 +204,7 @@ class ComAcceleration(_PointAcceleration):
 
     def jacobian_and_drift(self, state: DynamicsState) -> tuple[np.ndarray, np.ndarray]:
         """``(J_com, Jdot_com v)``."""
-        return state.data.Jcom, state.com_drift()
+        return state.com_jacobian(), state.com_drift()
 
 
 class FrameOrientationAcceleration(AccelerationTask):

@@ -146,9 +146,7 @@ def test_generic_com_on_a_scene_qp_converges_and_mink_says_why_it_cannot(tmp_pat
     assert pose["plant_residual_m"]["com"] < 1e-4 and pose["iterations"] <= 10
 
 
-def test_scene_and_model_dir_only_where_they_apply(tmp_path):
-    with pytest.raises(IKSetupError, match="--scene applies only when ROBOT is an MJCF path"):
-        IKParams("g1", targets=(("left_palm", (0.1, 0.0, 0.0)),), scene=str(tmp_path / "scene.xml"))
+def test_model_dir_only_where_it_applies(tmp_path):
     with pytest.raises(IKSetupError, match="--model-dir applies only to a known robot"):
         IKParams(str(tmp_path / "arm.xml"), targets=(("end_effector", (0.3, 0.3, 0.0)),),
                  model_dir=str(tmp_path))

@@ -12,6 +12,7 @@ import subprocess
 import sys
 
 import mujoco
+import numpy as np
 import pytest
 
 from mbctl.robots import ModelMismatchError, load_robot
@@ -44,6 +45,33 @@ ROBOTS = {
         <geom type="box" size="0.3 0.2 0.1" mass="20"/>{ARM}</body></worldbody>
       <actuator><motor joint="base_x"/><motor joint="base_y"/><motor joint="base_yaw"/>
         <motor joint="shoulder"/><motor joint="elbow"/></actuator></mujoco>""",
+    # scene bodies before the robot: a free box (its 7 coordinates come first in qpos), a static
+    # wall with mass, a mocap target; the robot's q maps into the plant's qpos by index
+    "scene_with_props": f"""<mujoco>{DEFAULTS}<worldbody>
+      <geom name="floor" type="plane" size="2 2 0.1"/>
+      <body name="box" pos="0.5 0.3 0.05"><freejoint name="box_free"/>
+        <geom type="box" size="0.05 0.05 0.05" mass="0.4"/></body>
+      <body name="wall" pos="1 0 0.5"><geom type="box" size="0.05 1 0.5" mass="50"/></body>
+      <body name="target" mocap="true" pos="0.3 0 0.4"><site name="target_site"/>
+        <geom type="sphere" size="0.02" contype="0" conaffinity="0" mass="0.1"/></body>
+      <body name="mount" pos="0 0 0.3" euler="20 0 30">
+        <geom type="cylinder" size="0.05 0.05" mass="3"/>{ARM}</body></worldbody>
+      <actuator><motor joint="shoulder"/><position joint="elbow" kp="50"/></actuator></mujoco>""",
+    "one_hinge": f"""<mujoco>{DEFAULTS}<worldbody>
+      <body name="link" pos="0 0 0.5" euler="0 0 25"><joint name="shoulder" axis="0.2 1 0.3"/>
+        <geom type="capsule" fromto="0 0 0 0.3 0 0" size="0.03" mass="1"/>
+        <site name="tool" pos="0.3 0 0.02"/></body></worldbody>
+      <actuator><motor joint="shoulder"/></actuator></mujoco>""",
+    "ball_and_unaligned": f"""<mujoco>{DEFAULTS}<worldbody>
+      <body name="upper" pos="0 0 0.4" quat="0.9 0.1 0.3 0.2">
+        <joint name="shoulder" type="ball" pos="0.01 0.02 0"/>
+        <geom type="capsule" fromto="0 0 0 0.3 0 0" size="0.03" mass="1.2"/>
+        <body name="fore" pos="0.3 0 0">
+          <joint name="elbow" axis="0.3 0.8 0.2" pos="0.02 0 0.01" range="-100 100" limited="true"/>
+          <joint name="wrist" axis="1 1 0" pos="0.2 0 0" range="-100 100" limited="true"/>
+          <geom type="box" size="0.12 0.02 0.02" pos="0.12 0 0.01" mass="0.7"/>
+          <site name="tool" class="marker"/></body></body></worldbody>
+      <actuator><motor joint="elbow"/><motor joint="wrist"/></actuator></mujoco>""",
     "two_trees": f"""<mujoco>{DEFAULTS}<worldbody>
       <body name="mount_b" pos="0.5 0 0" euler="0 0 180">{ARM.replace('name="', 'name="b_')}</body>
       <body name="mount" pos="-0.5 0 0">{ARM}</body></worldbody>
@@ -68,11 +96,16 @@ def test_loads_and_cross_checks_at_1e9(robot_file):
 
 
 def test_ik_solution_lands_in_mujoco(robot_file, tmp_path):
-    # a reachable target: where MuJoCo puts the tool at another configuration of the arm
+    # a reachable target: where MuJoCo puts the tool at another configuration of the robot
     robot = load_robot(robot_file)
+    q = robot.neutral_q()
+    for k, j in enumerate(robot.joints.values()):
+        if j.kind in ("hinge", "slide"):
+            q[j.idx_q] = (0.4, -0.6, 0.3)[k % 3]
+        elif j.kind == "ball":
+            q[j.q_slice] = np.array([0.2, -0.1, 0.3, 0.9]) / np.linalg.norm([0.2, -0.1, 0.3, 0.9])
     m, d = robot.mj_model, mujoco.MjData(robot.mj_model)
-    d.qpos[robot.joint("shoulder").idx_q] = 0.4
-    d.qpos[robot.joint("elbow").idx_q] = -0.6
+    robot.plant_qpos(q, d.qpos)
     mujoco.mj_kinematics(m, d)
     target = ",".join(f"{x:.6f}" for x in d.site_xpos[robot.site_id("tool")])
     out = tmp_path / "ik"
