@@ -75,11 +75,12 @@ def describe(robot: Robot) -> str:
     for j in robot.joints.values():
         by_kind[j.kind] = by_kind.get(j.kind, 0) + 1
     lines.append("joints by type: " + ", ".join(f"{k} {n}" for k, n in by_kind.items()))
-    lines.append("actuators (name, joint, kind, gear, kp, kv, ctrl range, force range):")
+    lines.append("actuators (name, joint or transmission, kind, gear, kp, kv, ctrl range, force range):")
     for a in robot.actuators.values():
+        scale = f" target {a.target_per_ctrl:.4g} x ctrl" if a.target_per_ctrl != 1.0 else ""
         lines.append(
-            f"  {a.name:28s} {a.joint:28s} {a.kind:8s} gear {a.gear:g} kp {a.kp:g} kv {a.kv:.4g} "
-            f"ctrl {_range(*a.ctrl_range)} force {_range(*a.force_range)}"
+            f"  {a.name:28s} {a.joint or a.transmission:28s} {a.kind:8s} gear {a.gear:g} kp {a.kp:g} "
+            f"kv {a.kv:.4g} ctrl {_range(*a.ctrl_range)} force {_range(*a.force_range)}{scale}"
         )
     lines.append("sensors (name, type, dim):")
     lines += [f"  {s.name:36s} {s.type:16s} {s.dim}" for s in robot.sensors.values()]

@@ -1,6 +1,6 @@
 """Robot descriptions and the model pair (Pinocchio model + MuJoCo model) with conventions."""
 
-from mbctl.robots.commands import Command, CommandKind, position_target, torque, velocity_target
+from mbctl.robots.commands import Command, CommandKind, ctrl, position_target, torque, velocity_target
 from mbctl.robots.conventions import (
     JointLayout,
     StateConverter,
@@ -26,6 +26,7 @@ __all__ = [
     "ActuatorInfo",
     "Command",
     "CommandKind",
+    "ctrl",
     "JointLayout",
     "ModelFileError",
     "ModelMismatchError",

@@ -28,6 +28,7 @@ class CommandKind(str, Enum):
     TORQUE = "torque"  # [N m] or [N] through the gear of a motor actuator
     POSITION = "position"  # target [rad] or [m] of a position actuator
     VELOCITY = "velocity"  # target [rad/s] or [m/s] of a velocity actuator
+    CTRL = "ctrl"  # MjData.ctrl as is, in each actuator's own units: any actuator kind
 
 
 @dataclass(frozen=True, eq=False, init=False)
@@ -105,3 +106,14 @@ def position_target(values: npt.ArrayLike | Mapping[str, float]) -> Command:
 def velocity_target(values: npt.ArrayLike | Mapping[str, float]) -> Command:
     """Velocity-target command [rad/s] (or [m/s]): a full vector (nu,) or a name mapping."""
     return _make(CommandKind.VELOCITY, values)
+
+
+def ctrl(values: npt.ArrayLike | Mapping[str, float]) -> Command:
+    """Raw control command: ``MjData.ctrl`` in each actuator's own units, for any actuator kind.
+
+    For robots whose actuators differ in kind (arm motors and a gripper's position actuator) or
+    take neither a force nor a target (muscle activation in [0, 1]); a full vector (nu,) or a
+    name mapping. The typed commands above are checked against the actuator's kind; this one
+    says explicitly that the caller knows each actuator's units.
+    """
+    return _make(CommandKind.CTRL, values)

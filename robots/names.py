@@ -7,8 +7,9 @@ from dataclasses import dataclass
 import mujoco
 import numpy as np
 
-#: Command kinds an actuator can take. "other" covers anything mbctl does not drive directly
-#: (muscles, actuators with activation dynamics, tendon or site transmissions).
+#: What an actuator's ctrl means, from its gain and bias (whatever the transmission: joint,
+#: tendon, site). "other": neither a force nor a target (muscles, activation dynamics, gains that
+#: vary); such actuators take ``robots.commands.ctrl`` commands, as every actuator does.
 ACTUATOR_KINDS = ("torque", "position", "velocity", "other")
 
 
@@ -20,13 +21,18 @@ class ActuatorInfo:
         name: Actuator name.
         index: Index in ``MjData.ctrl``.
         joint: Name of the driven joint ("" for non-joint transmissions).
-        kind: "torque" (motor: force = gear * ctrl), "position" (ctrl is a target [rad] or [m]),
-            "velocity" (ctrl is a target [rad/s] or [m/s]) or "other".
+        kind: "torque" (motor: force = gear * ctrl), "position" (ctrl sets a target of the
+            transmission's length [rad] or [m]), "velocity" (ctrl is a target [rad/s] or [m/s])
+            or "other".
         gear: Transmission gear.
         kp: Position gain [N m/rad] for position actuators, else 0.
         kv: Velocity gain [N m s/rad] for position/velocity actuators, else 0.
         ctrl_range: (low, high) of ctrl, or (-inf, inf) when not limited.
         force_range: (low, high) of the actuator force [N m] or [N], or (-inf, inf).
+        transmission: What the actuator drives: "joint NAME", "tendon NAME", "site NAME" or
+            "body NAME".
+        target_per_ctrl: For position actuators, target = target_per_ctrl * ctrl: 1 for MuJoCo's
+            ``<position>``; a general actuator may scale (a gripper's ctrl 0..255 -> 0..0.8).
     """
 
     name: str
@@ -38,6 +44,8 @@ class ActuatorInfo:
     kv: float
     ctrl_range: tuple[float, float]
     force_range: tuple[float, float]
+    transmission: str = ""
+    target_per_ctrl: float = 1.0
 
 
 @dataclass(frozen=True)
@@ -65,10 +73,11 @@ def actuator_infos(m: mujoco.MjModel) -> dict[str, ActuatorInfo]:
     for i in range(m.nu):
         name = _name(m, mujoco.mjtObj.mjOBJ_ACTUATOR, i) or f"actuator{i}"
         joint = ""
-        if m.actuator_trntype[i] == mujoco.mjtTrn.mjTRN_JOINT:
+        trn = mujoco.mjtTrn(int(m.actuator_trntype[i]))
+        if trn in (mujoco.mjtTrn.mjTRN_JOINT, mujoco.mjtTrn.mjTRN_JOINTINPARENT):
             jid = int(m.actuator_trnid[i, 0])
             joint = _name(m, mujoco.mjtObj.mjOBJ_JOINT, jid)
-        kind, kp, kv = _classify(m, i, joint)
+        kind, kp, kv, scale = _classify(m, i)
         ctrl = tuple(m.actuator_ctrlrange[i]) if m.actuator_ctrllimited[i] else (-np.inf, np.inf)
         force = (-np.inf, np.inf)
         if m.actuator_forcelimited[i]:
@@ -88,25 +97,48 @@ def actuator_infos(m: mujoco.MjModel) -> dict[str, ActuatorInfo]:
             kv=kv,
             ctrl_range=(float(ctrl[0]), float(ctrl[1])),
             force_range=(float(force[0]), float(force[1])),
+            transmission=_transmission(m, i, trn),
+            target_per_ctrl=scale,
         )
     return out
 
 
-def _classify(m: mujoco.MjModel, i: int, joint: str) -> tuple[str, float, float]:
-    if not joint or m.actuator_dyntype[i] != mujoco.mjtDyn.mjDYN_NONE:
-        return "other", 0.0, 0.0
+_TRN_OBJECT = {
+    mujoco.mjtTrn.mjTRN_JOINT: ("joint", mujoco.mjtObj.mjOBJ_JOINT),
+    mujoco.mjtTrn.mjTRN_JOINTINPARENT: ("joint", mujoco.mjtObj.mjOBJ_JOINT),
+    mujoco.mjtTrn.mjTRN_TENDON: ("tendon", mujoco.mjtObj.mjOBJ_TENDON),
+    mujoco.mjtTrn.mjTRN_SITE: ("site", mujoco.mjtObj.mjOBJ_SITE),
+    mujoco.mjtTrn.mjTRN_SLIDERCRANK: ("slider-crank site", mujoco.mjtObj.mjOBJ_SITE),
+    mujoco.mjtTrn.mjTRN_BODY: ("body", mujoco.mjtObj.mjOBJ_BODY),
+}
+
+
+def _transmission(m: mujoco.MjModel, i: int, trn: mujoco.mjtTrn) -> str:
+    word, objtype = _TRN_OBJECT.get(trn, ("transmission", mujoco.mjtObj.mjOBJ_UNKNOWN))
+    obj = int(m.actuator_trnid[i, 0])
+    return f"{word} {_name(m, objtype, obj) or f'#{obj}'}"
+
+
+def _classify(m: mujoco.MjModel, i: int) -> tuple[str, float, float, float]:
+    """(kind, kp, kv, target_per_ctrl) from the gain and bias: force = gain ctrl + b0 + b1 L + b2 Ldot.
+
+    A general actuator with a fixed gain and an affine bias with stiffness (b1 < 0) is a
+    position actuator with kp = -b1, kv = -b2 and target L = (gain / kp) ctrl (a gripper).
+    """
+    if m.actuator_dyntype[i] != mujoco.mjtDyn.mjDYN_NONE:
+        return "other", 0.0, 0.0, 1.0
     if m.actuator_gaintype[i] != mujoco.mjtGain.mjGAIN_FIXED:
-        return "other", 0.0, 0.0
+        return "other", 0.0, 0.0, 1.0
     gain = float(m.actuator_gainprm[i, 0])
     bias = m.actuator_biasprm[i, :3]
     if m.actuator_biastype[i] == mujoco.mjtBias.mjBIAS_NONE:
-        return "torque", 0.0, 0.0
-    if m.actuator_biastype[i] == mujoco.mjtBias.mjBIAS_AFFINE and bias[0] == 0:
-        if bias[1] != 0 and np.isclose(bias[1], -gain):
-            return "position", gain, float(-bias[2])
+        return "torque", 0.0, 0.0, 1.0
+    if m.actuator_biastype[i] == mujoco.mjtBias.mjBIAS_AFFINE and bias[0] == 0 and gain > 0:
+        if bias[1] < 0:
+            return "position", float(-bias[1]), float(-bias[2]), gain / float(-bias[1])
         if bias[1] == 0 and np.isclose(bias[2], -gain):
-            return "velocity", 0.0, gain
-    return "other", 0.0, 0.0
+            return "velocity", 0.0, gain, 1.0
+    return "other", 0.0, 0.0, 1.0
 
 
 def sensor_infos(m: mujoco.MjModel) -> dict[str, SensorInfo]:
