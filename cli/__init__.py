@@ -25,9 +25,9 @@ app = typer.Typer(
 def _register_commands() -> None:
     # One module per command family; each exposes register(app). Imported here, not at module
     # top, so `mbctl --help` stays fast and a broken family names itself in the traceback.
-    from mbctl.cli import demo, g1, g1_wbc, ik, robots, sim, xcheck
+    from mbctl.cli import demo, g1, g1_wbc, ik, robots, sim, view, xcheck
 
-    for family in (robots, sim, demo, g1, g1_wbc, xcheck, ik):
+    for family in (robots, sim, demo, g1, g1_wbc, xcheck, ik, view):
         family.register(app)
 
 
@@ -54,8 +54,21 @@ def fail(message: str, code: int = 2) -> typer.Exit:
     return typer.Exit(code)
 
 
+def _wants_rendering(argv: list[str]) -> bool:
+    return "--video" in argv or bool(argv) and argv[0] in ("render", "replay")
+
+
 def main() -> None:
     """Console-script entry point: toolkit errors exit 2 with their message, no traceback."""
+    if _wants_rendering(sys.argv[1:]):
+        # MuJoCo reads MUJOCO_GL when first imported: pick a headless backend before that.
+        from mbctl.gl import VideoError, choose_gl_backend
+
+        try:
+            choose_gl_backend()
+        except VideoError as exc:
+            typer.echo(f"error: {exc}", err=True)
+            sys.exit(2)
     _register_commands()
     try:
         app()

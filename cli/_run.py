@@ -8,6 +8,7 @@ from typing import Annotated, Any
 import typer
 
 from mbctl.jobs.runner import Job, RunRecord, run_job
+from mbctl.sim.video import VideoSpec, parse_size
 
 #: ``--output`` for every job: the run folder (default out/<command>).
 OutputOpt = Annotated[
@@ -15,16 +16,30 @@ OutputOpt = Annotated[
 ]
 #: ``--quiet``: no progress bar.
 QuietOpt = Annotated[bool, typer.Option("--quiet", "-q", help="No progress bar.")]
+#: ``--video``: film the run headless into video.mp4 (simulating jobs).
+VideoOpt = Annotated[
+    bool, typer.Option("--video", help="Film the run headless into video.mp4 (30 frames per simulated s).")
+]
+#: ``--video-size``: frame size of ``--video``.
+VideoSizeOpt = Annotated[str, typer.Option("--video-size", help="Video frame size WIDTHxHEIGHT (px).")]
 
 
-def execute(job: Job[Any], params: Any, output: Path | None, quiet: bool) -> RunRecord:
+def video_spec(video: bool, size: str) -> VideoSpec | None:
+    """The ``--video`` / ``--video-size`` options as a VideoSpec (None when not filming)."""
+    width, height = parse_size(size)  # checked even without --video: a typo is an error
+    return VideoSpec(width, height) if video else None
+
+
+def execute(
+    job: Job[Any], params: Any, output: Path | None, quiet: bool, video: VideoSpec | None = None
+) -> RunRecord:
     """Run ``job``, print its summary (the interruption line on stderr) and exit with its code.
 
     Exit codes: 0 completed within bounds; 1 outside a bound, diverged or failed; 130 interrupted.
     Bad input and unusable output folders raise toolkit errors, which the entry point turns into
     exit 2.
     """
-    record = run_job(job, params, output, quiet=quiet)
+    record = run_job(job, params, output, quiet=quiet, video=video)
     typer.echo(record.summary(), err=record.status != "completed")
     if record.exit_code:
         raise typer.Exit(record.exit_code)

@@ -6,7 +6,7 @@ from typing import Annotated
 
 import typer
 
-from mbctl.cli._run import OutputOpt, QuietOpt, execute
+from mbctl.cli._run import OutputOpt, QuietOpt, VideoOpt, VideoSizeOpt, execute, video_spec
 from mbctl.jobs.demo import CONTROLLERS, DEMO, DemoConfig
 
 
@@ -32,6 +32,8 @@ def demo(
     ] = None,
     output: OutputOpt = None,
     quiet: QuietOpt = False,
+    video: VideoOpt = False,
+    video_size: VideoSizeOpt = "640x480",
 ) -> None:
     """Track a Cartesian square on the 2-link torque arm; print RMS and max Cartesian error."""
     config = DemoConfig(
@@ -45,7 +47,8 @@ def demo(
         compare=compare,
         max_rms_error_m=None if max_rms_mm is None else max_rms_mm * 1e-3,
     )
-    execute(DEMO, config, output, quiet)
+    execute(DEMO, config, output, quiet,
+            video_spec(video, video_size))
 
 
 def register(app: typer.Typer) -> None:

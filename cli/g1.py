@@ -6,7 +6,7 @@ from typing import Annotated
 
 import typer
 
-from mbctl.cli._run import OutputOpt, QuietOpt, execute
+from mbctl.cli._run import OutputOpt, QuietOpt, VideoOpt, VideoSizeOpt, execute, video_spec
 from mbctl.cli.robots import ModelDirOpt
 from mbctl.jobs.g1 import G1_ARM_PD, G1_STAND, G1_TRACK, ArmPDParams, StandParams, TrackParams
 
@@ -27,9 +27,12 @@ def stand(
     model_dir: ModelDirOpt = None,
     output: OutputOpt = None,
     quiet: QuietOpt = False,
+    video: VideoOpt = False,
+    video_size: VideoSizeOpt = "640x480",
 ) -> None:
     """Stand on the floor under PD + gravity compensation in torque mode; exit 1 if it fell."""
-    execute(G1_STAND, StandParams(duration, omega, zeta, model_dir), output, quiet)
+    execute(G1_STAND, StandParams(duration, omega, zeta, model_dir), output, quiet,
+            video_spec(video, video_size))
 
 
 def track(
@@ -40,9 +43,12 @@ def track(
     model_dir: ModelDirOpt = None,
     output: OutputOpt = None,
     quiet: QuietOpt = False,
+    video: VideoOpt = False,
+    video_size: VideoSizeOpt = "640x480",
 ) -> None:
     """Computed torque on the welded-base G1 along ruckig trajectories (arms, legs, waist)."""
-    execute(G1_TRACK, TrackParams(duration, omega, zeta, max_rms_rad, model_dir), output, quiet)
+    execute(G1_TRACK, TrackParams(duration, omega, zeta, max_rms_rad, model_dir), output, quiet,
+            video_spec(video, video_size))
 
 
 def arm_pd(
@@ -56,10 +62,13 @@ def arm_pd(
     model_dir: ModelDirOpt = None,
     output: OutputOpt = None,
     quiet: QuietOpt = False,
+    video: VideoOpt = False,
+    video_size: VideoSizeOpt = "640x480",
 ) -> None:
     """One arm follows a ruckig trajectory through the Menagerie position actuators."""
     execute(G1_ARM_PD, ArmPDParams(duration, side, gravity_feedforward, max_rms_rad, model_dir), output,
-            quiet)
+            quiet,
+            video_spec(video, video_size))
 
 
 def register(app: typer.Typer) -> None:

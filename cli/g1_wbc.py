@@ -6,7 +6,7 @@ from typing import Annotated
 
 import typer
 
-from mbctl.cli._run import OutputOpt, QuietOpt, execute
+from mbctl.cli._run import OutputOpt, QuietOpt, VideoOpt, VideoSizeOpt, execute, video_spec
 from mbctl.cli.robots import ModelDirOpt
 from mbctl.jobs.g1_wbc import DEFAULT_DURATION_S, G1_WBC, SCENARIOS, WBCParams
 
@@ -32,9 +32,12 @@ def g1_wbc(
     model_dir: ModelDirOpt = None,
     output: OutputOpt = None,
     quiet: QuietOpt = False,
+    video: VideoOpt = False,
+    video_size: VideoSizeOpt = "640x480",
 ) -> None:
     """Whole-body inverse dynamics (QP) on the G1 in torque mode; exit 1 if it fell or missed a bound."""
-    execute(G1_WBC, WBCParams(scenario, duration, impulse, direction, model_error, model_dir), output, quiet)
+    execute(G1_WBC, WBCParams(scenario, duration, impulse, direction, model_error, model_dir), output, quiet,
+            video_spec(video, video_size))
 
 
 def register(app: typer.Typer) -> None:

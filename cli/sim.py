@@ -6,7 +6,7 @@ from typing import Annotated
 
 import typer
 
-from mbctl.cli._run import OutputOpt, QuietOpt, execute
+from mbctl.cli._run import OutputOpt, QuietOpt, VideoOpt, VideoSizeOpt, execute, video_spec
 from mbctl.cli.robots import ModelDirOpt, SceneOpt
 from mbctl.jobs.joint_step import JOINT_STEP, JointStepParams
 from mbctl.jobs.verify import SUPPORTED, verify_robot
@@ -36,10 +36,13 @@ def joint_step(
     model_dir: ModelDirOpt = None,
     output: OutputOpt = None,
     quiet: QuietOpt = False,
+    video: VideoOpt = False,
+    video_size: VideoSizeOpt = "640x480",
 ) -> None:
     """Reset, raise one joint's position target by DELTA, step N times, record, summarize."""
     params = JointStepParams(robot, joint, delta, steps, keyframe, tuple(sensor or ()), scene, model_dir)
-    execute(JOINT_STEP, params, output, quiet)
+    execute(JOINT_STEP, params, output, quiet,
+            video_spec(video, video_size))
 
 
 def register(app: typer.Typer) -> None:

@@ -48,6 +48,7 @@ from mbctl.robots.interface import RobotState
 from mbctl.robots.model_pair import Robot
 from mbctl.robots.registry import load_robot
 from mbctl.sim.simulator import Simulator
+from mbctl.sim.video import add_markers
 
 CONTROLLERS = ("pd", "pd_gravity", "ct", "task_ct")
 #: Full names for plots and summaries.
@@ -257,7 +258,8 @@ def track_square(
     p_ref = cart.p[idx, :2]
     on_step = None
     if ctx is not None:
-        ctx.attach(sim)
+        path_points = cart.p[:: max(1, len(cart.p) // 80)]  # the reference square, drawn in the video
+        ctx.attach(sim, overlay=lambda scene: add_markers(scene, path_points, 0.004, (0.1, 0.8, 0.2, 1.0)))
         site = PlantSite(robot, SITE)
         t_start = sim.time_s
 

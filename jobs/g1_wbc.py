@@ -299,7 +299,7 @@ def _foot_geoms(wb: G1WholeBody) -> dict[str, tuple[int, ...]]:
 
 
 def _run(ctx: RunContext, params: WBCParams, robot: Robot, pin_model: pin.Model | None) -> Outcome:
-    sim = ctx.attach(Simulator(robot))
+    sim = ctx.attach(Simulator(robot), contact_forces=True)
     sim.reset(KEYFRAME)
     sim.set_state(crouched_start(robot), np.zeros(robot.pin_model.nv))
     wb = g1_whole_body(robot, pin_model)

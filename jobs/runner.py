@@ -32,7 +32,7 @@ import signal
 import sys
 import time
 from collections.abc import Callable, Iterator, Sequence
-from dataclasses import asdict, dataclass, field, is_dataclass
+from dataclasses import asdict, dataclass, field, is_dataclass, replace
 from pathlib import Path
 from types import FrameType
 from typing import Any, Generic, TypeVar
@@ -43,6 +43,8 @@ from mbctl.sim.exceptions import SimulationDiverged
 from mbctl.sim.recorder import CsvStream
 from mbctl.sim.report import environment, model_section, run_section
 from mbctl.sim.simulator import Simulator
+from mbctl.sim.trajectory import TrajectoryRecorder
+from mbctl.sim.video import Overlay, VideoRecorder, VideoSpec
 
 P = TypeVar("P")
 
@@ -153,7 +155,9 @@ class RunContext:
     files: dict[str, Path] = field(default_factory=dict)
     sim: Simulator | None = None
     csv: CsvStream | None = None
+    video: VideoSpec | None = None
     _streams: list[CsvStream] = field(default_factory=list)
+    _recorders: list[TrajectoryRecorder | VideoRecorder] = field(default_factory=list)
 
     def path(self, name: str, role: str | None = None) -> Path:
         """The path of output ``name`` in the run folder, registered under ``role`` (default name)."""
@@ -174,9 +178,31 @@ class RunContext:
             self.csv = stream
         return stream
 
-    def attach(self, sim: Simulator) -> Simulator:
-        """Record ``sim``'s model and run sections in the report (read at the end, in every case)."""
+    def attach(
+        self, sim: Simulator, *, contact_forces: bool = False, overlay: Overlay | None = None
+    ) -> Simulator:
+        """Make ``sim`` the run's plant: report sections, trajectory for replay, video if filmed.
+
+        Its model and run sections go in the report, its trajectory in ``trajectory.npz`` +
+        ``model.xml`` (for replay) and, when the run is filmed, its frames in ``video.mp4``.
+
+        Only the first simulator attached is recorded (``demo --compare`` runs several).
+
+        Args:
+            sim: The plant.
+            contact_forces: Draw contact force arrows in the video.
+            overlay: Adds markers to each video frame's scene (e.g. the reference path).
+        """
+        first = self.sim is None
         self.sim = sim
+        if first:
+            traj = TrajectoryRecorder(sim, self.output_dir)
+            self.files["model"], self.files["trajectory"] = traj.model_path, traj.path
+            self._recorders.append(traj.attach())
+            if self.video is not None:
+                spec = replace(self.video, contact_forces=contact_forces or self.video.contact_forces)
+                film = VideoRecorder(sim, self.path("video.mp4", "video"), spec, overlay)
+                self._recorders.append(film.attach())
         return sim
 
     def save_figure(self, fig: Any, name: str) -> Path:
@@ -189,9 +215,11 @@ class RunContext:
         return path
 
     def close_streams(self) -> None:
-        """Close every CSV (idempotent)."""
+        """Close every CSV, the trajectory and the video (idempotent)."""
         for stream in self._streams:
             stream.close()
+        for recorder in self._recorders:
+            recorder.close()
 
     @property
     def rows(self) -> int:
@@ -427,7 +455,14 @@ def _report(ctx: RunContext, params: Any, status: str, message: str | None, outc
     return report
 
 
-def run_job(job: Job[P], params: P, output_dir: Path | None = None, *, quiet: bool = True) -> RunRecord:
+def run_job(
+    job: Job[P],
+    params: P,
+    output_dir: Path | None = None,
+    *,
+    quiet: bool = True,
+    video: VideoSpec | None = None,
+) -> RunRecord:
     """Run ``job`` with ``params`` into ``output_dir`` (default ``out/<job>``).
 
     Args:
@@ -435,6 +470,7 @@ def run_job(job: Job[P], params: P, output_dir: Path | None = None, *, quiet: bo
         params: Its parameters (a frozen dataclass, validated on construction).
         output_dir: The run folder.
         quiet: No progress bar (the bar also needs stdout to be a terminal).
+        video: Film the run's plant into ``video.mp4`` (headless), or None.
 
     Returns:
         The RunRecord (status, exit code, values, files).
@@ -448,7 +484,7 @@ def run_job(job: Job[P], params: P, output_dir: Path | None = None, *, quiet: bo
     folder = check_output_dir(Path(output_dir) if output_dir is not None else default_output(job.name))
     work = job.prepare(params)
     progress = Progress(enabled=not quiet and sys.stdout.isatty())
-    ctx = RunContext(folder, job.name, progress=progress)
+    ctx = RunContext(folder, job.name, progress=progress, video=video)
     report_path = folder / REPORT_NAME
     with folder_lock(folder):
         _clear_previous_run(folder)

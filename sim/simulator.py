@@ -93,7 +93,7 @@ class Simulator:
         self.reset()
 
     def add_observer(self, observer: Callable[[Simulator], None]) -> None:
-        """Call ``observer(sim)`` after every ``step()`` (video frames, viewers, loggers).
+        """Call ``observer(sim)`` after every ``step()`` and ``sync()`` (video, trajectories, viewers).
 
         Observers read the plant; they must not change its state. With none (the default) a step
         costs nothing extra.
@@ -171,6 +171,8 @@ class Simulator:
         self.n_steps += self.n_substeps
         self._stale = True
         self._check_divergence()
+        for observer in self._observers:
+            observer(self)
 
     # ------------------------------------------------------------------ stepping
     def step(self, command: Command | None = None, n: int = 1) -> None:

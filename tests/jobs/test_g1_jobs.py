@@ -64,7 +64,8 @@ def test_g1_stands_under_pd_gravity(g1, tmp_path):
     np.testing.assert_array_equal(table["base_z_m"], table["floating_base_joint_z_m"])
     deviation = np.max(np.abs(table["base_z_m"] - v["pelvis_z_keyframe_m"]))
     assert deviation == pytest.approx(v["pelvis_max_deviation_m"], abs=2e-4)
-    assert sorted(p.name for p in tmp_path.iterdir()) == ["g1_stand.csv", "g1_stand.png", "report.json"]
+    assert sorted(p.name for p in tmp_path.iterdir()) == [
+        "g1_stand.csv", "g1_stand.png", "model.xml", "report.json", "trajectory.npz"]
     assert record.files["plot"].stat().st_size > 20_000
 
 
@@ -187,12 +188,13 @@ def test_interrupted_run_keeps_every_row_and_exits_130(g1, tmp_path, sig):
     assert report["status"] == "interrupted" and report["rows"] == n_rows
     assert report["last_time_s"] == pytest.approx(times[-1])
     assert not list(tmp_path.glob(".*.tmp")) and not (tmp_path / LOCK_NAME).exists()
-    assert sorted(os.listdir(tmp_path)) == ["g1_stand.csv", "report.json"]
+    assert sorted(os.listdir(tmp_path)) == ["g1_stand.csv", "model.xml", "report.json", "trajectory.npz"]
 
     # the next run into the folder leaves no file of the interrupted one beside its own
     record = _run(prepare_track, TrackParams(duration_s=0.1), g1, tmp_path, "g1-track")
     assert record.status == "completed"
-    assert sorted(os.listdir(tmp_path)) == ["g1_track.csv", "g1_track.png", "report.json"]
+    assert sorted(os.listdir(tmp_path)) == [
+        "g1_track.csv", "g1_track.png", "model.xml", "report.json", "trajectory.npz"]
 
 
 def test_run_after_a_diverged_run_leaves_none_of_its_files(g1, tmp_path):
@@ -203,12 +205,12 @@ def test_run_after_a_diverged_run_leaves_none_of_its_files(g1, tmp_path):
     diverged = _run(prepare_arm_pd, ArmPDParams(duration_s=1.0), unstable, tmp_path, "g1-arm-pd")
     assert (diverged.status, diverged.exit_code) == ("diverged", 1)
     assert "BADQACC" in (diverged.message or "")
-    assert sorted(os.listdir(tmp_path)) == ["g1_arm_pd.csv", "report.json"]
+    assert sorted(os.listdir(tmp_path)) == ["g1_arm_pd.csv", "model.xml", "report.json", "trajectory.npz"]
     assert json.loads((tmp_path / "report.json").read_text())["rows"] == diverged.rows > 0
 
     record = _run(prepare_stand, StandParams(duration_s=0.1), g1, tmp_path, "g1-stand")
     assert record.status == "completed"
-    assert sorted(os.listdir(tmp_path)) == ["g1_stand.csv", "g1_stand.png", "report.json"]
+    assert sorted(os.listdir(tmp_path)) == ["g1_stand.csv", "g1_stand.png", "model.xml", "report.json", "trajectory.npz"]
 
 
 def test_second_run_into_a_busy_folder_refuses(g1, tmp_path):

@@ -1,0 +1,232 @@
+"""Headless video of the plant: MuJoCo's renderer, frames streamed into an MP4 as they are drawn.
+
+A :class:`VideoRecorder` is a simulator observer: it renders a frame whenever simulated time
+passes the next frame time (``fps`` frames per simulated second) and hands it to the encoder at
+once, so an interrupted run leaves a playable video of what ran. The MP4 is fragmented
+(``-movflags frag_keyframe+empty_moov``): playable even if the process dies before closing it.
+With no recorder the simulator pays nothing.
+
+Encoder: imageio with imageio-ffmpeg, which ships its own ffmpeg binary (no system install);
+the ``mbctl[video]`` extra. OpenGL: MuJoCo picks its backend from ``MUJOCO_GL`` when it is first
+imported; ``mbctl.gl.choose_gl_backend`` probes EGL, then OSMesa, in subprocesses before that.
+"""
+
+from __future__ import annotations
+
+import os
+import re
+from collections.abc import Callable
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import mujoco
+import numpy as np
+
+from mbctl.gl import INSTALL_HINT, VideoError
+from mbctl.sim.simulator import Simulator
+from mbctl.sim.trajectory import base_body
+
+
+@dataclass(frozen=True)
+class VideoSpec:
+    """How a run is filmed.
+
+    Attributes:
+        width: Frame width [px].
+        height: Frame height [px].
+        fps: Frames per simulated second.
+        contact_forces: Draw contact force arrows.
+    """
+
+    width: int = 640
+    height: int = 480
+    fps: float = 30.0
+    contact_forces: bool = False
+
+    def __post_init__(self) -> None:
+        for name, value in (("width", self.width), ("height", self.height)):
+            if not 16 <= value <= 4096 or value % 2:
+                raise VideoError(
+                    f"video {name} must be an even number of pixels in [16, 4096]; got {value}"
+                )
+        if not 0 < self.fps <= 240:
+            raise VideoError(f"video fps must be in (0, 240]; got {self.fps}")
+
+
+def parse_size(text: str) -> tuple[int, int]:
+    """``"WxH"`` -> (width, height) [px]; VideoError naming the text otherwise."""
+    match = re.fullmatch(r"\s*(\d+)\s*[xX]\s*(\d+)\s*", text)
+    if not match:
+        raise VideoError(f"video size must be WIDTHxHEIGHT in pixels, e.g. 640x480; got {text!r}")
+    return int(match.group(1)), int(match.group(2))
+
+
+def make_renderer(model: mujoco.MjModel, width: int, height: int) -> mujoco.Renderer:
+    """MuJoCo's offscreen renderer at width x height [px] (the offscreen buffer grown if needed).
+
+    Raises:
+        VideoError: OpenGL cannot be initialised (the message says what to install).
+    """
+    model.vis.global_.offwidth = max(int(model.vis.global_.offwidth), width)
+    model.vis.global_.offheight = max(int(model.vis.global_.offheight), height)
+    try:
+        return mujoco.Renderer(model, height, width)
+    except Exception as exc:  # GL errors come as several types (RuntimeError, AttributeError, ...)
+        raise VideoError(
+            f"MuJoCo's renderer cannot start with MUJOCO_GL={os.environ.get('MUJOCO_GL', '(unset)')}: "
+            f"{type(exc).__name__}: {exc}; {INSTALL_HINT}"
+        ) from exc
+
+
+def default_camera(
+    model: mujoco.MjModel, data: mujoco.MjData, track_body: int | None
+) -> mujoco.MjvCamera:
+    """A camera that tracks ``track_body`` (a floating base) or frames the whole model (fixed).
+
+    A fixed robot whose hinges all share one axis (a planar arm) is seen along that axis.
+    """
+    cam = mujoco.MjvCamera()
+    mujoco.mjv_defaultFreeCamera(model, cam)
+    mujoco.mj_kinematics(model, data)
+    # Frame the bodies (not MuJoCo's stat.extent, which a floor plane or far props inflate):
+    # the bounding box of the body origins that carry mass, world excluded.
+    heavy = np.flatnonzero(model.body_mass[1:] > 0) + 1
+    points = data.xpos[heavy] if heavy.size else data.xpos[1:]
+    lo, hi = points.min(axis=0), points.max(axis=0)
+    size = max(float(np.linalg.norm(hi - lo)), 0.2)
+    if track_body is not None:
+        cam.type = mujoco.mjtCamera.mjCAMERA_TRACKING
+        cam.trackbodyid = track_body
+        cam.distance, cam.elevation, cam.azimuth = 2.2 * size, -15.0, 140.0
+        return cam
+    hinges = [j for j in range(model.njnt) if model.jnt_type[j] == mujoco.mjtJoint.mjJNT_HINGE]
+    axes = [data.xaxis[j] / np.linalg.norm(data.xaxis[j]) for j in hinges]
+    if axes and all(abs(float(a @ axes[0])) > 0.999 for a in axes):
+        ax = axes[0] if axes[0][2] >= 0 else -axes[0]  # look down the common axis
+        cam.elevation = float(-np.degrees(np.arcsin(np.clip(ax[2], -1, 1))))
+        cam.azimuth = float(np.degrees(np.arctan2(-ax[1], -ax[0]))) if abs(ax[2]) < 0.999 else 90.0
+    cam.lookat[:] = (lo + hi) / 2
+    cam.distance = 2.5 * size
+    return cam
+
+
+Overlay = Callable[[mujoco.MjvScene], None]
+
+
+def add_markers(
+    scene: mujoco.MjvScene, points: np.ndarray, radius_m: float, rgba: tuple[float, ...]
+) -> None:
+    """Append small spheres at ``points`` (n, 3) [m] to ``scene`` (as many as it has room for)."""
+    for p in points:
+        if scene.ngeom >= scene.maxgeom:
+            return
+        mujoco.mjv_initGeom(scene.geoms[scene.ngeom], mujoco.mjtGeom.mjGEOM_SPHERE,
+                            np.array([radius_m, 0, 0]), np.asarray(p, dtype=float), np.eye(3).ravel(),
+                            np.asarray(rgba, dtype=np.float32))
+        scene.ngeom += 1
+
+
+def _open_writer(path: Path, fps: float) -> Any:
+    try:
+        import imageio.v2 as imageio
+    except ImportError:
+        raise VideoError("video needs imageio and imageio-ffmpeg: pip install 'mbctl[video]'") from None
+    try:
+        return imageio.get_writer(
+            str(path), fps=fps, codec="libx264", macro_block_size=2, quality=None,
+            ffmpeg_params=["-crf", "23", "-movflags", "frag_keyframe+empty_moov"],
+            ffmpeg_log_level="error",
+        )
+    except Exception as exc:  # imageio raises several types for a missing ffmpeg backend
+        raise VideoError(
+            f"cannot open a video writer for {str(path)!r}: {exc}; pip install 'mbctl[video]'"
+        ) from exc
+
+
+class VideoRecorder:
+    """Films a simulator into an MP4: a frame every ``1 / fps`` simulated seconds.
+
+    Use as an observer (``sim.add_observer(recorder)``, done by :meth:`attach`) and ``close()``
+    in every case (the job runner does).
+    """
+
+    def __init__(self, sim: Simulator, path: Path, spec: VideoSpec = VideoSpec(),
+                 overlay: Overlay | None = None):
+        self.sim, self.path, self.spec, self.overlay = sim, Path(path), spec, overlay
+        self.renderer = make_renderer(sim.model, spec.width, spec.height)
+        robot = sim.robot
+        self.camera = default_camera(sim.model, mujoco.MjData(sim.model), base_body(robot))
+        self.options = mujoco.MjvOption()
+        if spec.contact_forces:
+            self.options.flags[mujoco.mjtVisFlag.mjVIS_CONTACTFORCE] = True
+        self._writer = _open_writer(self.path, spec.fps)
+        self.frames = 0
+        self._next_t = float(sim.data.time) + 1.0 / spec.fps
+
+    def attach(self) -> VideoRecorder:
+        """Start filming: register as the simulator's observer."""
+        self.sim.add_observer(self)
+        return self
+
+    def __call__(self, sim: Simulator) -> None:
+        """Observer hook: render the frames that simulated time has reached."""
+        if sim.data.time + 1e-9 < self._next_t:
+            return
+        frame = self.render()
+        while sim.data.time + 1e-9 >= self._next_t:  # a long sync() may span several frames
+            self._writer.append_data(frame)
+            self.frames += 1
+            self._next_t += 1.0 / self.spec.fps
+
+    def render(self) -> np.ndarray:
+        """The current frame (height, width, 3) uint8."""
+        self.renderer.update_scene(self.sim.data, self.camera, self.options)
+        if self.overlay is not None:
+            self.overlay(self.renderer.scene)
+        return self.renderer.render()
+
+    def close(self) -> None:
+        """Stop filming and finish the file (idempotent)."""
+        self.sim.remove_observer(self)
+        if self._writer is not None:
+            self._writer.close()
+            self._writer = None
+        self.renderer.close()
+
+
+def film_trajectory(model: mujoco.MjModel, t_s: np.ndarray, qpos: np.ndarray, path: Path,
+                    spec: VideoSpec = VideoSpec(), track_body: int | None = None) -> int:
+    """Render a recorded trajectory (``qpos`` (n, nq) at times ``t_s`` (n,)) into an MP4.
+
+    Frame k shows the last sample at or before ``t_s[0] + k / fps``. Returns the frame count.
+    """
+    renderer = make_renderer(model, spec.width, spec.height)
+    data = mujoco.MjData(model)
+    camera = default_camera(model, data, track_body)
+    writer = _open_writer(Path(path), spec.fps)
+    frames = 0
+    try:
+        n = int(np.floor((t_s[-1] - t_s[0]) * spec.fps + 1e-9)) + 1 if len(t_s) else 0
+        for k in range(n):
+            i = int(np.searchsorted(t_s, t_s[0] + k / spec.fps + 1e-9, side="right")) - 1
+            data.qpos[:] = qpos[max(i, 0)]
+            mujoco.mj_forward(model, data)
+            renderer.update_scene(data, camera)
+            writer.append_data(renderer.render())
+            frames += 1
+    finally:
+        writer.close()
+        renderer.close()
+    return frames
+
+
+def still(model: mujoco.MjModel, data: mujoco.MjData, spec: VideoSpec, track_body: int | None) -> np.ndarray:
+    """One frame (height, width, 3) uint8 of ``data``'s current state."""
+    renderer = make_renderer(model, spec.width, spec.height)
+    try:
+        mujoco.mj_forward(model, data)
+        renderer.update_scene(data, default_camera(model, data, track_body))
+        return renderer.render()
+    finally:
+        renderer.close()
