@@ -210,7 +210,8 @@ def test_run_after_a_diverged_run_leaves_none_of_its_files(g1, tmp_path):
 
     record = _run(prepare_stand, StandParams(duration_s=0.1), g1, tmp_path, "g1-stand")
     assert record.status == "completed"
-    assert sorted(os.listdir(tmp_path)) == ["g1_stand.csv", "g1_stand.png", "model.xml", "report.json", "trajectory.npz"]
+    assert sorted(os.listdir(tmp_path)) == [
+        "g1_stand.csv", "g1_stand.png", "model.xml", "report.json", "trajectory.npz"]
 
 
 def test_second_run_into_a_busy_folder_refuses(g1, tmp_path):
