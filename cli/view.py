@@ -10,7 +10,6 @@ from typing import Annotated
 import mujoco
 import typer
 
-from mbctl.cli._run import VideoSizeOpt
 from mbctl.cli.robots import ModelDirOpt, RobotArg, SceneOpt
 from mbctl.jobs.runner import OutputError, check_output_file
 from mbctl.robots import load_robot
@@ -18,6 +17,7 @@ from mbctl.robots.model_pair import Robot
 from mbctl.sim.trajectory import TRAJECTORY_NAME, base_body, load_trajectory
 from mbctl.sim.video import VideoError, VideoSpec, film_trajectory, parse_size, still
 
+SizeOpt = Annotated[str, typer.Option("--size", help="Image or video frame size WIDTHxHEIGHT (px).")]
 KeyframeOpt = Annotated[
     str | None, typer.Option("--keyframe", help="Keyframe to show (default: the model's qpos0).")
 ]
@@ -46,7 +46,7 @@ def render(
     robot: RobotArg,
     output: Annotated[Path, typer.Option("--output", help="PNG file to write.")],
     keyframe: KeyframeOpt = None,
-    size: VideoSizeOpt = "640x480",
+    size: SizeOpt = "640x480",
     scene: SceneOpt = None,
     model_dir: ModelDirOpt = None,
 ) -> None:
@@ -72,7 +72,7 @@ def replay(
     output: Annotated[
         Path | None, typer.Option("--output", help="MP4 file (default RUN_DIR/replay.mp4).")
     ] = None,
-    size: VideoSizeOpt = "640x480",
+    size: SizeOpt = "640x480",
 ) -> None:
     """Play a recorded run back: in MuJoCo's viewer, or to an MP4 with --video."""
     if not (run_dir / TRAJECTORY_NAME).is_file():

@@ -7,7 +7,15 @@ import os
 import pytest
 from hypothesis import settings
 
-from mbctl.robots import ModelNotFoundError, Robot, load_robot
+from mbctl.gl import VideoError, choose_gl_backend
+
+# MuJoCo reads MUJOCO_GL when first imported: pick the headless backend (EGL, then OSMesa) first.
+try:
+    GL_BACKEND: str | None = choose_gl_backend()
+except VideoError:  # the rendering tests fail with the message; the rest run
+    GL_BACKEND = None
+
+from mbctl.robots import ModelNotFoundError, Robot, load_robot  # noqa: E402 - after the GL choice
 
 # CI runs property tests with a fixed derivation of examples (reproducible, no flakes); local
 # runs explore new examples each time.

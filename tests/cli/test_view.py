@@ -1,0 +1,47 @@
+"""mbctl render, replay, view and --video from the command line (headless, MUJOCO_GL probed)."""
+
+from __future__ import annotations
+
+import os
+import subprocess
+import sys
+
+import imageio.v3 as iio
+from matplotlib import image
+
+ENV = {k: v for k, v in os.environ.items() if k not in ("MUJOCO_GL", "PYOPENGL_PLATFORM", "DISPLAY",
+                                                        "WAYLAND_DISPLAY")}
+
+
+def _mbctl(*args: str) -> subprocess.CompletedProcess:
+    return subprocess.run([sys.executable, "-m", "mbctl.cli", *args], capture_output=True, text=True,
+                          timeout=180, env=ENV)
+
+
+def test_demo_video_then_replay_to_mp4(tmp_path):
+    run = tmp_path / "demo"
+    out = _mbctl("demo", "--duration", "0.5", "--video", "--video-size", "320x240", "--output", str(run),
+                 "--quiet")
+    assert out.returncode == 0, out.stderr
+    assert iio.imread(run / "video.mp4").shape == (15, 240, 320, 3)
+    out = _mbctl("replay", str(run), "--video", "--output", str(tmp_path / "again.mp4"))
+    assert out.returncode == 0, out.stderr
+    assert "16 frames, 0.50 s simulated" in out.stdout
+    assert iio.imread(tmp_path / "again.mp4").shape == (16, 480, 640, 3)
+
+
+def test_render_writes_a_still(tmp_path):
+    out = _mbctl("render", "two_link_torque", "--output", str(tmp_path / "arm.png"), "--size", "200x100")
+    assert out.returncode == 0, out.stderr
+    assert image.imread(tmp_path / "arm.png").shape[:2] == (100, 200)
+
+
+def test_bad_input_exits_2_with_a_message(tmp_path):
+    out = _mbctl("demo", "--video", "--video-size", "640by480", "--output", str(tmp_path / "d"))
+    assert out.returncode == 2 and "video size must be WIDTHxHEIGHT in pixels" in out.stderr
+    out = _mbctl("view", "two_link")
+    assert out.returncode == 2 and "mbctl view needs a display" in out.stderr
+    out = _mbctl("replay", str(tmp_path))
+    assert out.returncode == 2 and "holds no trajectory.npz" in out.stderr
+    out = _mbctl("render", "two_link", "--output", str(tmp_path / "arm.jpg"))
+    assert out.returncode == 2 and "--output must be a .png file" in out.stderr
