@@ -71,7 +71,11 @@ def make_renderer(model: mujoco.MjModel, width: int, height: int) -> mujoco.Rend
     model.vis.global_.offwidth = max(int(model.vis.global_.offwidth), width)
     model.vis.global_.offheight = max(int(model.vis.global_.offheight), height)
     try:
-        return mujoco.Renderer(model, height, width)
+        renderer = mujoco.Renderer(model, height, width)
+        # Floor reflections cost ~60 ms of a G1 frame in software GL (bench/bench_video.py) for
+        # little information; shadows stay (they show contact with the floor).
+        renderer.scene.flags[mujoco.mjtRndFlag.mjRND_REFLECTION] = False
+        return renderer
     except Exception as exc:  # GL errors come as several types (RuntimeError, AttributeError, ...)
         raise VideoError(
             f"MuJoCo's renderer cannot start with MUJOCO_GL={os.environ.get('MUJOCO_GL', '(unset)')}: "
