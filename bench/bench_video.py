@@ -63,7 +63,8 @@ def main() -> None:
     print(f"OpenGL backend: {BACKEND}")
     for name in ("two_link_torque", "g1"):
         render, total = per_frame_ms(name)
-        print(f"{name:16s} per 640x480 frame: render {render:6.2f} ms, render + encode {total:6.2f} ms (median)")
+        print(f"{name:16s} per 640x480 frame: render {render:6.2f} ms, "
+              f"render + encode {total:6.2f} ms (median)")
     times = job_times()
     for key in ("demo", "g1-stand 2 s"):
         off, on = times[key], times[f"{key} --video"]
