@@ -41,6 +41,7 @@ def test_every_example_is_tested_and_listed():
     assert scripts == [
         "01_load_and_step.py", "02_pd_hold.py", "03_computed_torque_square.py",
         "04_g1_joint_step.py", "05_crosscheck_your_robot.py", "06_g1_whole_body_ik.py",
+        "07_g1_whole_body_control.py",
     ]
     readme = (EXAMPLES / "README.md").read_text()
     for script in scripts:
@@ -100,3 +101,9 @@ def test_06_g1_whole_body_ik(g1):
     out = _run("06_g1_whole_body_ik.py", "--duration", "0.1").stdout
     assert _figure(r"left_palm: .*residual in MuJoCo {n} mm", out) < 1.0
     assert _figure(r"right_palm: .*residual in MuJoCo {n} mm", out) < 1.0
+
+
+def test_07_g1_whole_body_control(g1):
+    out = _run("07_g1_whole_body_control.py", "--duration", "1").stdout
+    assert _figure(r"CoM RMS error \(MuJoCo's CoM\): {n} mm", out) < 5.0
+    assert _figure(r"QP vs MuJoCo vertical foot force: {n} %", out) < 5.0
