@@ -8,7 +8,8 @@ import typer
 
 from mbctl.cli._run import OutputOpt, QuietOpt, execute
 from mbctl.cli.robots import ModelDirOpt
-from mbctl.jobs.g1 import G1_ARM_PD, G1_STAND, G1_TRACK, ArmPDParams, StandParams, TrackParams
+from mbctl.jobs import options
+from mbctl.jobs.g1 import G1_ARM_PD, G1_STAND, G1_TRACK
 
 Omega = Annotated[float, typer.Option("--omega", help="Closed-loop natural frequency (rad/s).")]
 Zeta = Annotated[float, typer.Option("--zeta", help="Damping ratio (-).")]
@@ -29,7 +30,8 @@ def stand(
     quiet: QuietOpt = False,
 ) -> None:
     """Stand on the floor under PD + gravity compensation in torque mode; exit 1 if it fell."""
-    execute(G1_STAND, StandParams(duration, omega, zeta, model_dir), output, quiet)
+    params = options.g1_stand(duration=duration, omega=omega, zeta=zeta, model_dir=model_dir)
+    execute(G1_STAND, params, output, quiet)
 
 
 def track(
@@ -42,7 +44,9 @@ def track(
     quiet: QuietOpt = False,
 ) -> None:
     """Computed torque on the welded-base G1 along ruckig trajectories (arms, legs, waist)."""
-    execute(G1_TRACK, TrackParams(duration, omega, zeta, max_rms_rad, model_dir), output, quiet)
+    params = options.g1_track(duration=duration, omega=omega, zeta=zeta, max_rms_rad=max_rms_rad,
+                              model_dir=model_dir)
+    execute(G1_TRACK, params, output, quiet)
 
 
 def arm_pd(
@@ -58,8 +62,9 @@ def arm_pd(
     quiet: QuietOpt = False,
 ) -> None:
     """One arm follows a ruckig trajectory through the Menagerie position actuators."""
-    execute(G1_ARM_PD, ArmPDParams(duration, side, gravity_feedforward, max_rms_rad, model_dir), output,
-            quiet)
+    params = options.g1_arm_pd(duration=duration, side=side, gravity_feedforward=gravity_feedforward,
+                               max_rms_rad=max_rms_rad, model_dir=model_dir)
+    execute(G1_ARM_PD, params, output, quiet)
 
 
 def register(app: typer.Typer) -> None:
