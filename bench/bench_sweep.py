@@ -1,8 +1,8 @@
 """mbctl sweep on Dask: speed-up of 2 workers over 1, per-task overhead, open-loop rollouts.
 
 1. 16 tasks of ``g1-stand --duration 2`` through ``run_sweep`` on a LocalCluster of 1 worker and
-   of 2 workers (one thread each; robots loaded on every worker before the clock starts): wall
-   times and the speed-up, beside the same 16 runs called directly in this process.
+   of 2 workers (one thread each; robots loaded on every worker before the clock starts), the
+   sweeps alternated: median wall times and the speed-up, beside 16 x the direct call.
 2. Per-task overhead: one task at a time through Dask (submit, run, result) against
    ``run_task`` called directly, medians of the same task.
 3. Open-loop batches (no controller in the loop): N rollouts of the G1 holding its stand
@@ -92,47 +92,47 @@ def main() -> None:
     ap.add_argument("--tasks", type=int, default=16)
     ap.add_argument("--rollouts", type=int, default=32)
     ap.add_argument("--repeats", type=int, default=5)
+    ap.add_argument("--sweeps", type=int, default=3)
     args = ap.parse_args()
     out = Path(tempfile.mkdtemp(prefix="bench_sweep_"))
     cached_robot(RobotSource("g1"))
 
-    # the same 16 runs, called directly (serial, this process, robot cached)
-    t0 = time.perf_counter()
-    for i in range(args.tasks):
-        run_task(JOB, {"duration": DURATION, "zeta": 1 + i / 100}, str(out / "direct" / str(i)))
-    direct_serial = time.perf_counter() - t0
-
-    walls: dict[int, float] = {}
-    overhead: dict[str, float] = {}
-    for workers in (1, 2):
-        c, client = cluster(workers)
-        try:
-            walls[workers] = sweep_wall(client, args.tasks, out / f"sweep{workers}")
-            if workers == 1:
-                values = {"duration": DURATION}
-                dask_s, call_s = [], []
-                for i in range(args.repeats):  # interleaved, same task
-                    t = time.perf_counter()
-                    client.submit(run_task, JOB, values, str(out / "oh_dask" / str(i)), pure=False).result()
-                    dask_s.append(time.perf_counter() - t)
-                    t = time.perf_counter()
-                    run_task(JOB, values, str(out / "oh_direct" / str(i)))
-                    call_s.append(time.perf_counter() - t)
-                overhead = {"dask": statistics.median(dask_s), "direct": statistics.median(call_s)}
-            if workers == 2:
-                one_rollout(0)
-                t = time.perf_counter()
-                client.gather(client.map(one_rollout, range(args.rollouts), pure=False))
-                dask_rollouts = time.perf_counter() - t
-        finally:
+    clusters = {workers: cluster(workers) for workers in (1, 2)}
+    walls: dict[int, list[float]] = {1: [], 2: []}
+    try:
+        for r in range(args.sweeps):  # alternated, so machine noise hits both alike
+            for workers, (_, client) in clusters.items():
+                walls[workers].append(sweep_wall(client, args.tasks, out / f"sweep{workers}-{r}"))
+        client = clusters[1][1]
+        values = {"duration": DURATION}
+        dask_s, call_s = [], []
+        for i in range(args.repeats):  # interleaved, the same task
+            t = time.perf_counter()
+            client.submit(run_task, JOB, values, str(out / "oh_dask" / str(i)), pure=False).result()
+            dask_s.append(time.perf_counter() - t)
+            t = time.perf_counter()
+            run_task(JOB, values, str(out / "oh_direct" / str(i)))
+            call_s.append(time.perf_counter() - t)
+        overhead = {"dask": statistics.median(dask_s), "direct": statistics.median(call_s)}
+        client = clusters[2][1]
+        one_rollout(0)
+        t = time.perf_counter()
+        client.gather(client.map(one_rollout, range(args.rollouts), pure=False))
+        dask_rollouts = time.perf_counter() - t
+    finally:
+        for c, client in clusters.values():
             client.close()
             c.close()
+    w1, w2 = statistics.median(walls[1]), statistics.median(walls[2])
+    direct_serial = args.tasks * overhead["direct"]
 
-    print(f"1. {args.tasks} x {JOB} --duration {DURATION:g} (wall, robot preloaded):")
-    print(f"   direct, serial in one process: {direct_serial:7.2f} s")
-    print(f"   Dask, 1 worker:                {walls[1]:7.2f} s ({direct_serial / walls[1]:.2f}x of direct)")
-    print(f"   Dask, 2 workers:               {walls[2]:7.2f} s")
-    print(f"   speed-up 2 workers / 1 worker: {walls[1] / walls[2]:.2f}x (target >= 1.8x)")
+    print(f"1. {args.tasks} x {JOB} --duration {DURATION:g} (wall, robot preloaded, median of "
+          f"{args.sweeps} sweeps each, alternated):")
+    print(f"   direct, serial ({args.tasks} x the direct median below): {direct_serial:7.2f} s")
+    print(f"   Dask, 1 worker:  {w1:7.2f} s  (all: {', '.join(f'{w:.2f}' for w in walls[1])})")
+    print(f"   Dask, 2 workers: {w2:7.2f} s  (all: {', '.join(f'{w:.2f}' for w in walls[2])})")
+    print(f"   speed-up 2 workers / 1 worker: {w1 / w2:.2f}x (target >= 1.8x); "
+          f"2 workers / direct serial: {direct_serial / w2:.2f}x")
     print(f"2. per task ({JOB} --duration {DURATION:g}, median of {args.repeats}): direct "
           f"{overhead['direct'] * 1e3:.0f} ms, through Dask {overhead['dask'] * 1e3:.0f} ms; overhead "
           f"{(overhead['dask'] - overhead['direct']) * 1e3:.0f} ms "

@@ -39,13 +39,16 @@ def sweep(
         str | None, typer.Option("--metric", help="Report value to plot (default: the job's main value).")
     ] = None,
     output: Annotated[
-        Path, typer.Option("--output", help="Sweep folder: sweep.csv, sweep.json, sweep.png, runs/.")
-    ] = Path("out/sweep"),
+        Path | None,
+        typer.Option("--output", help="Sweep folder (default out/sweep-JOB/): sweep.csv, sweep.json, "
+                                      "sweep.png, runs/."),
+    ] = None,
     quiet: QuietOpt = False,
 ) -> None:
     """Run JOB for every combination of the values (times the seeds); exit 1 if a row failed."""
     grid = parse_grid(job, param or [], seeds)
-    config = SweepConfig(job, grid, output, workers, scheduler, dashboard, resume, metric)
+    folder = output or Path("out") / f"sweep-{job}"
+    config = SweepConfig(job, grid, folder, workers, scheduler, dashboard, resume, metric)
     result = run_sweep(config, Progress(enabled=not quiet and sys.stdout.isatty()))
     lines = [f"{len(result.rows)} rows ({result.ran} run, {result.skipped} kept) in "
              f"{result.wall_time_s:.1f} s; {len(result.failures)} not completed",

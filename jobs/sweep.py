@@ -195,7 +195,7 @@ def _row(combo: dict[str, Any], result: dict[str, Any], run_dir: Path) -> dict[s
 
 
 def _key(row: dict[str, Any], names: list[str]) -> tuple[str, ...]:
-    return tuple(cell(row[n]) if not isinstance(row[n], str) else row[n] for n in names)
+    return tuple(cell(row[n]) for n in names)
 
 
 def read_done_rows(path: Path, names: list[str]) -> dict[tuple[str, ...], dict[str, Any]]:
