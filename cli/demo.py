@@ -7,7 +7,8 @@ from typing import Annotated
 import typer
 
 from mbctl.cli._run import OutputOpt, QuietOpt, VideoOpt, VideoSizeOpt, execute, video_spec
-from mbctl.jobs.demo import CONTROLLERS, DEMO, DemoConfig
+from mbctl.jobs import options
+from mbctl.jobs.demo import CONTROLLERS, DEMO
 
 
 def demo(
@@ -36,19 +37,9 @@ def demo(
     video_size: VideoSizeOpt = "640x480",
 ) -> None:
     """Track a Cartesian square on the 2-link torque arm; print RMS and max Cartesian error."""
-    config = DemoConfig(
-        controller=controller,
-        side_m=side,
-        max_speed_m_s=speed,
-        omega_rad_s=omega,
-        duration_s=duration,
-        model_error_pct=model_error,
-        gravity=gravity,
-        compare=compare,
-        max_rms_error_m=None if max_rms_mm is None else max_rms_mm * 1e-3,
-    )
-    execute(DEMO, config, output, quiet,
-            video_spec(video, video_size))
+    config = options.demo(controller=controller, compare=compare, model_error=model_error, duration=duration,
+                          side=side, speed=speed, omega=omega, gravity=gravity, max_rms_mm=max_rms_mm)
+    execute(DEMO, config, output, quiet, video_spec(video, video_size))
 
 
 def register(app: typer.Typer) -> None:

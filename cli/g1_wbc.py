@@ -8,7 +8,8 @@ import typer
 
 from mbctl.cli._run import OutputOpt, QuietOpt, VideoOpt, VideoSizeOpt, execute, video_spec
 from mbctl.cli.robots import ModelDirOpt
-from mbctl.jobs.g1_wbc import DEFAULT_DURATION_S, G1_WBC, SCENARIOS, WBCParams
+from mbctl.jobs import options
+from mbctl.jobs.g1_wbc import DEFAULT_DURATION_S, G1_WBC, SCENARIOS
 
 
 def g1_wbc(
@@ -36,8 +37,9 @@ def g1_wbc(
     video_size: VideoSizeOpt = "640x480",
 ) -> None:
     """Whole-body inverse dynamics (QP) on the G1 in torque mode; exit 1 if it fell or missed a bound."""
-    execute(G1_WBC, WBCParams(scenario, duration, impulse, direction, model_error, model_dir), output, quiet,
-            video_spec(video, video_size))
+    params = options.g1_wbc(scenario=scenario, duration=duration, impulse=impulse, direction=direction,
+                            model_error=model_error, model_dir=model_dir)
+    execute(G1_WBC, params, output, quiet, video_spec(video, video_size))
 
 
 def register(app: typer.Typer) -> None:

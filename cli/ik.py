@@ -11,42 +11,15 @@ say how far); 2 bad input.
 
 from __future__ import annotations
 
-import math
 from typing import Annotated
 
 import typer
 
 from mbctl.cli._run import OutputOpt, QuietOpt, execute
 from mbctl.cli.robots import ModelDirOpt, RootOpt, SceneOpt
-from mbctl.control.exceptions import IKSetupError
-from mbctl.jobs.ik import IK, IKParams
-from mbctl.jobs.workspace import SUPPORTED_ROBOTS, WORKSPACE, WorkspaceParams
-
-
-def parse_vector(text: str, n: int, what: str) -> tuple[float, ...]:
-    """``"X,Y,Z"`` -> floats; IKSetupError naming ``what`` and the expected form otherwise."""
-    parts = [p.strip() for p in text.split(",")]
-    form = ",".join("XYZ"[:n]) if n <= 3 else f"{n} numbers"
-    try:
-        values = tuple(float(p) for p in parts)
-    except ValueError:
-        values = ()
-    if len(values) != n or not all(math.isfinite(v) for v in values):
-        raise IKSetupError(
-            f"{what} must be {n} finite numbers in metres as {form} (e.g. "
-            f"{','.join(['0.3'] * n)}); got {text!r}"
-        )
-    return values
-
-
-def parse_target(text: str) -> tuple[str, tuple[float, float, float]]:
-    """``"frame=X,Y,Z"`` -> (frame, (x, y, z)); IKSetupError if malformed."""
-    name, sep, vec = text.partition("=")
-    if not sep or not name.strip():
-        raise IKSetupError(f"--target must look like FRAME=X,Y,Z (e.g. left_palm=0.3,0.2,0.9); "
-                           f"got {text!r}")
-    xyz = parse_vector(vec, 3, f"--target {name.strip()}")
-    return name.strip(), (xyz[0], xyz[1], xyz[2])
+from mbctl.jobs import options
+from mbctl.jobs.ik import IK
+from mbctl.jobs.workspace import SUPPORTED_ROBOTS, WORKSPACE
 
 
 def ik(
@@ -80,20 +53,9 @@ def ik(
     quiet: QuietOpt = False,
 ) -> None:
     """Solve IK to convergence, check the pose in MuJoCo, write ik_pose.json; exit 1 if not converged."""
-    params = IKParams(
-        robot=robot,
-        targets=tuple(parse_target(t) for t in (target or [])),
-        com_xy=tuple(parse_vector(com, 2, "--com")) if com is not None else None,  # type: ignore[arg-type]
-        relative=relative,
-        tol_m=tol,
-        max_iters=max_iters,
-        solver=solver,
-        backend=backend,
-        keyframe=keyframe,
-        scene=scene,
-        model_dir=model_dir,
-        roots=tuple(root or ()),
-    )
+    params = options.ik(robot=robot, target=target, com=com, backend=backend, tol=tol, max_iters=max_iters,
+                        solver=solver, relative=relative, keyframe=keyframe, scene=scene, model_dir=model_dir,
+                        root=root)
     execute(IK, params, output, quiet)
 
 
@@ -109,7 +71,7 @@ def workspace(
 
     Supports only the planar 2-link arm (two_link, two_link_torque); other robots are refused.
     """
-    execute(WORKSPACE, WorkspaceParams(robot, samples), output, quiet)
+    execute(WORKSPACE, options.workspace(robot=robot, samples=samples), output, quiet)
 
 
 def register(app: typer.Typer) -> None:

@@ -8,7 +8,8 @@ import typer
 
 from mbctl.cli._run import OutputOpt, QuietOpt, VideoOpt, VideoSizeOpt, execute, video_spec
 from mbctl.cli.robots import ModelDirOpt, SceneOpt
-from mbctl.jobs.joint_step import JOINT_STEP, JointStepParams
+from mbctl.jobs import options
+from mbctl.jobs.joint_step import JOINT_STEP
 from mbctl.jobs.verify import SUPPORTED, verify_robot
 
 
@@ -40,9 +41,9 @@ def joint_step(
     video_size: VideoSizeOpt = "640x480",
 ) -> None:
     """Reset, raise one joint's position target by DELTA, step N times, record, summarize."""
-    params = JointStepParams(robot, joint, delta, steps, keyframe, tuple(sensor or ()), scene, model_dir)
-    execute(JOINT_STEP, params, output, quiet,
-            video_spec(video, video_size))
+    params = options.joint_step(robot=robot, joint=joint, delta=delta, steps=steps, keyframe=keyframe,
+                                sensor=sensor, scene=scene, model_dir=model_dir)
+    execute(JOINT_STEP, params, output, quiet, video_spec(video, video_size))
 
 
 def register(app: typer.Typer) -> None:

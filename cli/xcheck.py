@@ -9,7 +9,8 @@ import typer
 
 from mbctl.cli._run import OutputOpt, QuietOpt, execute
 from mbctl.cli.robots import ModelDirOpt, RootOpt, SceneOpt
-from mbctl.jobs.xcheck import XCHECK, XcheckParams
+from mbctl.jobs import options
+from mbctl.jobs.xcheck import XCHECK
 
 
 def xcheck(
@@ -36,9 +37,10 @@ def xcheck(
     quiet: QuietOpt = False,
 ) -> None:
     """Compare kinematics and dynamics of Pinocchio and MuJoCo; exit 1 if any quantity fails."""
-    execute(XCHECK, XcheckParams(robot, scene, states, seed, json_path, pin_model, gravity, model_dir,
-                                     analytic, tuple(root or ())),
-            output, quiet)
+    params = options.xcheck(robot=robot, scene=scene, states=states, seed=seed, json_path=json_path,
+                            pin_model=pin_model, gravity=gravity, model_dir=model_dir, analytic=analytic,
+                            root=root)
+    execute(XCHECK, params, output, quiet)
 
 
 def register(app: typer.Typer) -> None:

@@ -383,7 +383,7 @@ def _clear_previous_run(path: Path) -> None:
 
 
 @contextlib.contextmanager
-def _sigterm_as_interrupt() -> Iterator[None]:
+def sigterm_as_interrupt() -> Iterator[None]:
     """Turn SIGTERM into :class:`Interrupted` for the block (main thread only)."""
     import threading
 
@@ -493,7 +493,7 @@ def run_job(
         status, message, outcome, code = "failed", None, None, EXIT_OUT_OF_BOUND
         bug: BaseException | None = None
         try:
-            with _sigterm_as_interrupt():
+            with sigterm_as_interrupt():
                 outcome = work(ctx)
             status = "completed"
             code = EXIT_OK if outcome.passed else EXIT_OUT_OF_BOUND

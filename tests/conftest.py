@@ -51,3 +51,18 @@ def two_link_torque() -> Robot:
 def two_link_torque_gravity() -> Robot:
     """The 2-link arm with torque motors and in-plane gravity (-y)."""
     return load_robot("two_link_torque", gravity=True)
+
+
+@pytest.fixture(scope="session")
+def dask_client():
+    """A small local Dask cluster (2 processes x 1 thread) shared by the sweep tests."""
+    pytest.importorskip("dask.distributed")
+    import logging
+
+    from dask.distributed import Client, LocalCluster
+
+    cluster = LocalCluster(n_workers=2, threads_per_worker=1, processes=True, dashboard_address=None,
+                           silence_logs=logging.ERROR)
+    with Client(cluster) as client:
+        yield client
+    cluster.close()

@@ -1,0 +1,406 @@
+"""Run one job over a grid of option values on a Dask cluster: one task, one run folder, one row.
+
+The Cartesian product of the swept values (times the seeds) runs as Dask tasks, on a local
+cluster of ``workers`` processes with one thread each, or on an existing cluster given by its
+scheduler address. Each task runs the job through :func:`~mbctl.jobs.runner.run_job` into
+``DIR/runs/<name=value,...>/`` and returns the report's status and values; a worker loads each
+robot once and keeps it for its later tasks.
+
+The sweep folder holds:
+
+- ``sweep.csv``: one row per combination: the swept options (named as the options), the job's
+  report values (named as in its report), then ``status``, ``exit_code``, ``error`` and
+  ``run_dir``. It is rewritten as each task finishes, so an interrupted sweep keeps its rows.
+- ``sweep.json``: versions, the cluster, wall time, counts and the failures.
+- ``sweep.png``: the metric over one option (mean and std over the rest) or a heat map over two.
+
+A task that fails is a row with its status and error, never a lost sweep. Ctrl-C (or SIGTERM)
+cancels the remaining tasks and still writes the finished rows (exit 130). ``resume`` keeps the
+rows of ``sweep.csv`` whose run completed or diverged and runs the others.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import csv
+import functools
+import io
+import itertools
+import json
+import logging
+import re
+import shutil
+import sys
+import time
+from collections.abc import Iterator
+from dataclasses import dataclass, field
+from importlib import metadata
+from pathlib import Path
+from typing import Any
+
+from mbctl.exceptions import ToolkitError
+from mbctl.jobs.catalog import CatalogEntry, RobotSource, SweepInputError, entry
+from mbctl.jobs.runner import (
+    EXIT_INTERRUPTED,
+    EXIT_OK,
+    EXIT_OUT_OF_BOUND,
+    REPORT_NAME,
+    Interrupted,
+    Job,
+    JobError,
+    Progress,
+    check_output_dir,
+    folder_lock,
+    run_job,
+    sigterm_as_interrupt,
+)
+from mbctl.robots.model_pair import Robot
+from mbctl.robots.registry import load_robot
+from mbctl.sim.atomic import write_json_atomic, write_text_atomic
+from mbctl.sim.report import package_versions
+
+CSV_NAME = "sweep.csv"
+JSON_NAME = "sweep.json"
+PLOT_NAME = "sweep.png"
+RUNS = "runs"
+#: The columns after the values.
+TAIL = ("status", "exit_code", "error", "run_dir")
+#: Statuses a resumed sweep does not run again.
+DONE = ("completed", "diverged")
+INSTALL_HINT = "pip install 'mbctl[sweep]'"
+
+
+class SweepSetupError(JobError):
+    """Dask is missing, or the cluster cannot be started or reached."""
+
+
+@dataclass(frozen=True)
+class SweepConfig:
+    """One sweep.
+
+    Attributes:
+        job: The command name (``demo``).
+        grid: Option name -> its values (parsed, see :func:`mbctl.jobs.catalog.parse_grid`).
+        output_dir: The sweep folder.
+        workers: Local worker processes (one thread each); ignored with ``scheduler``.
+        scheduler: Address of an existing Dask scheduler (``tcp://HOST:PORT``), or None.
+        dashboard: Serve the Dask dashboard (local cluster only).
+        resume: Keep the done rows of an earlier ``sweep.csv`` in the folder.
+        metric: The report value to plot (default: the job's main value).
+    """
+
+    job: str
+    grid: dict[str, list[Any]]
+    output_dir: Path
+    workers: int = 2
+    scheduler: str | None = None
+    dashboard: bool = False
+    resume: bool = False
+    metric: str | None = None
+
+    def __post_init__(self) -> None:
+        if self.workers < 1:
+            raise SweepInputError(f"--workers must be >= 1; got {self.workers}")
+
+
+@dataclass
+class SweepResult:
+    """What a sweep wrote.
+
+    Attributes:
+        status: completed or interrupted.
+        rows: Every row (done earlier and now), in grid order.
+        ran: Tasks run by this sweep; skipped: rows kept from an earlier sweep.
+        failures: Rows whose status is not completed.
+        files: sweep.csv, sweep.json and (if drawn) sweep.png.
+        wall_time_s: Wall time [s] from submitting the first task to the last result.
+    """
+
+    status: str
+    rows: list[dict[str, Any]]
+    ran: int
+    skipped: int
+    failures: list[dict[str, Any]]
+    files: dict[str, Path] = field(default_factory=dict)
+    wall_time_s: float = 0.0
+
+    @property
+    def exit_code(self) -> int:
+        """130 interrupted; 1 if a row failed or is outside its bound; 0 otherwise."""
+        if self.status == "interrupted":
+            return EXIT_INTERRUPTED
+        bad = any(str(r.get("exit_code")) not in ("", str(EXIT_OK)) for r in self.rows)
+        return EXIT_OUT_OF_BOUND if bad else EXIT_OK
+
+
+def combinations(grid: dict[str, list[Any]]) -> list[dict[str, Any]]:
+    """The Cartesian product of the grid, the last option varying fastest."""
+    names = list(grid)
+    return [dict(zip(names, values, strict=True)) for values in itertools.product(*grid.values())]
+
+
+def cell(value: Any) -> str:
+    """A value as a CSV cell: '' for None, JSON for lists and dicts, repr-exact floats."""
+    if value is None:
+        return ""
+    if isinstance(value, (list, tuple, dict)):
+        return json.dumps(value)
+    return str(value)
+
+
+def run_name(combo: dict[str, Any]) -> str:
+    """The run folder name ``name=value,...`` (characters unsafe in a file name become ``_``)."""
+    text = ",".join(f"{k}={cell(v) or 'none'}" for k, v in combo.items())
+    return re.sub(r"[^A-Za-z0-9._=,+-]", "_", text)[:200]
+
+
+@functools.lru_cache(maxsize=8)
+def cached_robot(source: RobotSource) -> Robot:
+    """The robot from ``source``, loaded once per process (a worker keeps it for its tasks)."""
+    return load_robot(source.name, source.scene, gravity=source.gravity, model_dir=source.model_dir)
+
+
+def job_with_cached_robot(spec: CatalogEntry, params: Any) -> Job[Any]:
+    """``spec``'s job, preparing with the process's cached robot where the job takes one."""
+    if spec.prepare_with_robot is None or spec.robot_source is None:
+        return spec.job
+    robot = cached_robot(spec.robot_source(params))
+    prepare = spec.prepare_with_robot
+    return Job(spec.name, lambda p: prepare(p, robot))
+
+
+def run_task(job: str, values: dict[str, Any], run_dir: str) -> dict[str, Any]:
+    """Run ``job`` with CLI-named ``values`` into ``run_dir`` (in a worker); never raises.
+
+    Returns:
+        ``status``, ``exit_code``, ``error`` and the report's ``values``.
+    """
+    try:
+        spec = entry(job)
+        params = spec.params(values)
+        record = run_job(job_with_cached_robot(spec, params), params, Path(run_dir), quiet=True)
+        return {"status": record.status, "exit_code": record.exit_code, "error": record.message,
+                "values": json.loads(json.dumps(record.values, default=str))}
+    except Exception as exc:  # noqa: BLE001 - any failure is the row's error, never a lost sweep
+        return {"status": "failed", "exit_code": EXIT_OUT_OF_BOUND, "error": f"{type(exc).__name__}: {exc}",
+                "values": {}}
+
+
+def _row(combo: dict[str, Any], result: dict[str, Any], run_dir: Path) -> dict[str, Any]:
+    row: dict[str, Any] = {k: cell(v) for k, v in combo.items()}
+    row.update({k: cell(v) for k, v in result.get("values", {}).items() if k not in combo})
+    row.update(status=result["status"], exit_code=result["exit_code"], error=result.get("error") or "",
+               run_dir=str(run_dir))
+    return row
+
+
+def _key(row: dict[str, Any], names: list[str]) -> tuple[str, ...]:
+    return tuple(cell(row[n]) for n in names)
+
+
+def read_done_rows(path: Path, names: list[str]) -> dict[tuple[str, ...], dict[str, Any]]:
+    """The rows of an earlier ``sweep.csv`` whose run is done, by their parameter values.
+
+    Raises:
+        SweepInputError: The file's parameter columns are not this sweep's.
+    """
+    if not path.exists():
+        return {}
+    with path.open(newline="") as f:
+        reader = csv.DictReader(f)
+        header = list(reader.fieldnames or [])
+        if header[:len(names)] != names:
+            raise SweepInputError(f"{path} has the columns {', '.join(header[:len(names)])}, not this "
+                                  f"sweep's parameters {', '.join(names)}; drop --resume or choose "
+                                  "another --output")
+        return {_key(r, names): dict(r) for r in reader if r.get("status") in DONE}
+
+
+def write_csv(path: Path, rows: list[dict[str, Any]], names: list[str]) -> Path:
+    """Write ``rows`` (parameters, values in first-seen order, then the tail columns) atomically."""
+    values: dict[str, None] = {}
+    for row in rows:
+        values.update({k: None for k in row if k not in names and k not in TAIL})
+    buf = io.StringIO()
+    writer = csv.DictWriter(buf, [*names, *values, *TAIL], restval="", lineterminator="\n")
+    writer.writeheader()
+    writer.writerows(rows)
+    return write_text_atomic(path, buf.getvalue())
+
+
+def _clear_previous_sweep(folder: Path) -> None:
+    """Remove an earlier sweep's files and run folders (those holding a report)."""
+    for name in (CSV_NAME, JSON_NAME, PLOT_NAME):
+        (folder / name).unlink(missing_ok=True)
+    runs = folder / RUNS
+    if runs.is_dir():
+        for run in runs.iterdir():
+            if run.is_dir() and (run / REPORT_NAME).exists():
+                shutil.rmtree(run)
+
+
+@contextlib.contextmanager
+def open_client(config: SweepConfig) -> Iterator[tuple[Any, dict[str, Any]]]:
+    """A Dask client on a new local cluster, or on ``config.scheduler``; closed after the block.
+
+    Yields:
+        The client and the cluster section of ``sweep.json`` (address, workers, threads).
+
+    Raises:
+        SweepSetupError: Dask is not installed, or the scheduler cannot be reached.
+    """
+    try:
+        from dask.distributed import Client, LocalCluster
+    except ImportError:
+        raise SweepSetupError(f"mbctl sweep runs on Dask, which is not installed: {INSTALL_HINT}") from None
+    cluster = None
+    try:
+        if config.scheduler is not None:
+            client = Client(config.scheduler, timeout=10)
+        else:
+            cluster = LocalCluster(n_workers=config.workers, threads_per_worker=1, processes=True,
+                                   dashboard_address=":8787" if config.dashboard else None,
+                                   silence_logs=logging.ERROR)
+            client = Client(cluster)
+    except OSError as exc:
+        if cluster is not None:
+            cluster.close()
+        where = config.scheduler or "a local cluster"
+        raise SweepSetupError(f"cannot start or reach {where}: {exc}") from None
+    try:
+        section = _cluster_section(client)
+        section.update(local=cluster is not None,
+                       dashboard=client.dashboard_link if config.dashboard and cluster is not None else None)
+        yield client, section
+    finally:
+        client.close()
+        if cluster is not None:
+            cluster.close()
+
+
+def versions() -> dict[str, str]:
+    """The versions a sweep depends on: mbctl, dask, distributed, mujoco, pin, python."""
+    found = package_versions()
+    extra = {}
+    for name in ("dask", "distributed"):
+        try:
+            extra[name] = metadata.version(name)
+        except metadata.PackageNotFoundError:
+            extra[name] = "absent"
+    return {"mbctl": found["mbctl"], **extra, "mujoco": found["mujoco"], "pin": found["pin"],
+            "python": sys.version.split()[0]}
+
+
+def prepare_sweep(config: SweepConfig) -> tuple[CatalogEntry, list[dict[str, Any]]]:
+    """Check every combination's parameters before any task runs (bad input: nothing runs).
+
+    Raises:
+        SweepInputError: Unknown job, option or metric.
+        ToolkitError: A combination the job's parameters reject (the message names the values).
+    """
+    spec = entry(config.job)
+    combos = combinations(config.grid)
+    for combo in combos:
+        try:
+            spec.params(combo)
+        except JobError:
+            raise
+        except ToolkitError as exc:
+            raise SweepInputError(f"{run_name(combo)}: {exc}") from None
+    return spec, combos
+
+
+def run_sweep(config: SweepConfig, progress: Progress | None = None, client: Any = None) -> SweepResult:
+    """Run the sweep; write sweep.csv, sweep.json and sweep.png into ``config.output_dir``.
+
+    Args:
+        config: The sweep.
+        progress: A bar over the tasks.
+        client: An open Dask client to use instead of opening one from ``config`` (tests).
+
+    Returns:
+        The result (status, rows, counts, files).
+
+    Raises:
+        SweepInputError: Bad input, found before any task runs.
+        SweepSetupError: Dask missing or the cluster unreachable.
+        OutputError: The folder is not usable or another process holds it.
+    """
+    spec, combos = prepare_sweep(config)
+    names = list(config.grid)
+    folder = check_output_dir(config.output_dir)
+    progress = progress or Progress()
+    with folder_lock(folder):
+        done = read_done_rows(folder / CSV_NAME, names) if config.resume else {}
+        if not config.resume:
+            _clear_previous_sweep(folder)
+        keys = [_key(c, names) for c in combos]
+        rows: dict[tuple[str, ...], dict[str, Any]] = {k: done[k] for k in keys if k in done}
+        todo = [(k, c) for k, c in zip(keys, combos, strict=True) if k not in done]
+        skipped = len(rows)
+        status = "completed"
+
+        def flush() -> None:
+            write_csv(folder / CSV_NAME, [rows[k] for k in keys if k in rows], names)
+
+        with open_client(config) if client is None else contextlib.nullcontext((client, None)) as opened:
+            dask_client, cluster = opened
+            cluster = cluster or _cluster_section(dask_client)
+            t0 = time.perf_counter()
+            futures: dict[Any, tuple[tuple[str, ...], dict[str, Any]]] = {}
+            progress.start(len(todo), f"sweep {spec.name}")
+            try:
+                with sigterm_as_interrupt():
+                    from dask.distributed import as_completed
+
+                    for key, combo in todo:
+                        run_dir = folder / RUNS / run_name(combo)
+                        fut = dask_client.submit(run_task, spec.name, combo, str(run_dir), pure=False)
+                        futures[fut] = (key, combo)
+                    for fut in as_completed(list(futures)):
+                        key, combo = futures[fut]
+                        run_dir = folder / RUNS / run_name(combo)
+                        try:
+                            result = fut.result()
+                        except Exception as exc:  # noqa: BLE001 - a lost worker: the row says so
+                            result = {"status": "failed", "exit_code": EXIT_OUT_OF_BOUND,
+                                      "error": f"{type(exc).__name__}: {exc}"}
+                        rows[key] = _row(combo, result, run_dir)
+                        flush()
+                        progress.advance()
+            except (KeyboardInterrupt, Interrupted):
+                status = "interrupted"
+                dask_client.cancel([f for f in futures if not f.done()])
+            finally:
+                progress.stop()
+        wall = time.perf_counter() - t0
+        ordered = [rows[k] for k in keys if k in rows]
+        result = SweepResult(status, ordered, len(todo), skipped,
+                             [r for r in ordered if r["status"] != "completed"], wall_time_s=wall)
+        result.files["csv"] = write_csv(folder / CSV_NAME, ordered, names)
+        plot = _plot(spec, config, ordered, names, folder / PLOT_NAME)
+        if plot is not None:
+            result.files["plot"] = plot
+        result.files["json"] = write_json_atomic(folder / JSON_NAME, {
+            "job": spec.name, "status": status,
+            "grid": {k: [cell(v) for v in vs] for k, vs in config.grid.items()},
+            "tasks": len(combos), "ran": len(todo), "skipped": skipped, "finished": len(ordered),
+            "wall_time_s": wall, "metric": config.metric or spec.main_value,
+            "versions": versions(), "cluster": cluster,
+            "failures": [{k: r[k] for k in [*names, "status", "error", "run_dir"]} for r in result.failures],
+            "outputs": {role: p.name for role, p in result.files.items()},
+        })
+    return result
+
+
+def _cluster_section(client: Any) -> dict[str, Any]:
+    workers = client.scheduler_info().get("workers", {})
+    return {"address": client.scheduler.address, "local": False, "workers": len(workers),
+            "threads": sum(w.get("nthreads", 0) for w in workers.values()), "dashboard": None}
+
+
+def _plot(spec: CatalogEntry, config: SweepConfig, rows: list[dict[str, Any]], names: list[str],
+          path: Path) -> Path | None:
+    from mbctl.jobs.sweep_plots import plot_sweep
+
+    return plot_sweep(rows, names, config.metric or spec.main_value, f"mbctl sweep {spec.name}", path)

@@ -1,0 +1,55 @@
+"""mbctl sweep from the command line, and the option names it shares with every job's command."""
+
+from __future__ import annotations
+
+import csv
+import inspect
+import os
+import subprocess
+import sys
+import typing
+
+import pytest
+
+from mbctl.cli import _register_commands, app
+from mbctl.jobs.catalog import CATALOG, _unwrap
+
+_register_commands()
+COMMANDS = {c.name: c.callback for c in app.registered_commands}
+
+
+def mbctl(*args: str) -> subprocess.CompletedProcess:
+    return subprocess.run([sys.executable, "-m", "mbctl.cli", *args], capture_output=True, text=True,
+                          timeout=120, env=os.environ)
+
+
+@pytest.mark.parametrize("job", sorted(CATALOG))
+def test_sweep_options_are_the_commands_options(job):
+    """Names, order, defaults and types of the command equal those of jobs/options (no drift)."""
+    command = inspect.signature(COMMANDS[job], eval_str=True).parameters
+    cli = {n: p for n, p in command.items() if n not in ("output", "quiet", "video", "video_size")}
+    build = CATALOG[job].build
+    hints = typing.get_type_hints(build)
+    built = inspect.signature(build).parameters
+    assert list(cli) == list(built)
+    for name, param in cli.items():
+        assert param.default == built[name].default, name
+        assert _unwrap(param.annotation.__origin__) == _unwrap(hints[name]), name
+
+
+def test_unknown_option_exits_2_naming_the_allowed_names(tmp_path):
+    out = mbctl("sweep", "demo", "--param", "model_eror=1,2", "--output", str(tmp_path / "s"))
+    assert out.returncode == 2
+    assert "demo has no option 'model_eror'; its options are: controller, compare, model_error" in out.stderr
+    assert "Traceback" not in out.stderr and not (tmp_path / "s").exists()
+
+
+def test_sweep_on_an_existing_scheduler(dask_client, tmp_path):
+    out = mbctl("sweep", "demo", "--param", "duration=0.1", "--param", "model_error=0,5",
+                "--scheduler", dask_client.scheduler.address, "--output", str(tmp_path / "s"), "--quiet")
+    assert out.returncode == 0, out.stderr
+    assert "2 rows (2 run, 0 kept)" in out.stdout
+    with (tmp_path / "s" / "sweep.csv").open() as f:
+        rows = list(csv.DictReader(f))
+    assert [r["model_error"] for r in rows] == ["0.0", "5.0"]
+    assert (tmp_path / "s" / "sweep.png").exists()

@@ -1,0 +1,133 @@
+"""mbctl sweep on a small local Dask cluster: rows, failures, resume, single-run equality, plot."""
+
+from __future__ import annotations
+
+import csv
+import json
+import sys
+from pathlib import Path
+
+import pytest
+
+pytest.importorskip("dask.distributed")
+
+from mbctl.jobs import options  # noqa: E402
+from mbctl.jobs.catalog import CATALOG, SweepInputError, parse_grid  # noqa: E402
+from mbctl.jobs.demo import DEMO  # noqa: E402
+from mbctl.jobs.runner import Progress, run_job  # noqa: E402
+from mbctl.jobs.sweep import SweepConfig, SweepSetupError, open_client, run_sweep  # noqa: E402
+
+DURATION = "0.1"
+
+
+@pytest.fixture
+def client(dask_client):
+    return dask_client
+
+
+def read_rows(path: Path) -> tuple[list[str], list[dict[str, str]]]:
+    with path.open(newline="") as f:
+        reader = csv.DictReader(f)
+        return list(reader.fieldnames or []), list(reader)
+
+
+def demo_sweep(tmp_path: Path, *params: str, resume: bool = False) -> SweepConfig:
+    grid = parse_grid("demo", [f"duration={DURATION}", *params])
+    return SweepConfig("demo", grid, tmp_path / "sweep", resume=resume)
+
+
+def test_csv_columns_rows_json_and_plot(client, tmp_path):
+    result = run_sweep(demo_sweep(tmp_path, "model_error=0,10", "controller=ct,pd"), client=client)
+    assert result.status == "completed" and result.exit_code == 0
+    header, rows = read_rows(result.files["csv"])
+    assert header[:3] == ["duration", "model_error", "controller"]
+    assert header[-4:] == ["status", "exit_code", "error", "run_dir"]
+    assert "rms_error_m" in header and "max_error_m" in header
+    assert [(r["model_error"], r["controller"]) for r in rows] == [
+        ("0.0", "ct"), ("0.0", "pd"), ("10.0", "ct"), ("10.0", "pd")]
+    assert all(r["status"] == "completed" and Path(r["run_dir"], "report.json").exists() for r in rows)
+    assert Path(rows[0]["run_dir"]).name == "duration=0.1,model_error=0.0,controller=ct"
+    meta = json.loads(result.files["json"].read_text())
+    assert {"mbctl", "dask", "mujoco", "pin"} <= set(meta["versions"])
+    assert meta["cluster"]["workers"] == 2 and meta["cluster"]["threads"] == 2
+    assert meta["failures"] == [] and meta["wall_time_s"] > 0
+    assert result.files["plot"].stat().st_size > 1000
+
+
+def test_row_equals_the_job_run_alone(client, tmp_path):
+    result = run_sweep(demo_sweep(tmp_path, "model_error=0,15"), client=client)
+    for row in result.rows:
+        alone = run_job(DEMO, options.demo(duration=float(DURATION), model_error=float(row["model_error"])),
+                        tmp_path / f"alone{row['model_error']}")
+        for key, value in alone.values.items():
+            expected = json.dumps(value) if isinstance(value, dict) else str(value)
+            assert row[key] == expected, key  # exact: the demo is deterministic
+
+
+def test_failed_task_is_a_row_and_resume_reruns_only_it(client, tmp_path):
+    # a 0.9 m square leaves the arm's workspace: the task fails in prepare, the sweep goes on
+    result = run_sweep(demo_sweep(tmp_path, "side=0.2,0.9"), client=client)
+    assert result.status == "completed" and result.exit_code == 1
+    by_side = {r["side"]: r for r in result.rows}
+    assert by_side["0.2"]["status"] == "completed"
+    assert by_side["0.9"]["status"] == "failed" and "InvalidPlanningInput" in by_side["0.9"]["error"]
+    assert json.loads(result.files["json"].read_text())["failures"][0]["side"] == "0.9"
+    again = run_sweep(demo_sweep(tmp_path, "side=0.2,0.9", resume=True), client=client)
+    assert (again.ran, again.skipped) == (1, 1)
+    assert [r["side"] for r in read_rows(again.files["csv"])[1]] == ["0.2", "0.9"]
+
+
+def test_resume_with_other_parameters_is_refused(client, tmp_path):
+    run_sweep(demo_sweep(tmp_path, "model_error=0"), client=client)
+    with pytest.raises(SweepInputError, match="drop --resume"):
+        run_sweep(demo_sweep(tmp_path, "omega=20", resume=True), client=client)
+
+
+class InterruptAfterFirst(Progress):
+    def advance(self, n: int = 1) -> None:
+        raise KeyboardInterrupt
+
+
+def test_ctrl_c_keeps_the_finished_rows(client, tmp_path):
+    config = demo_sweep(tmp_path, "model_error=0,5,10")
+    result = run_sweep(config, InterruptAfterFirst(), client=client)
+    assert result.status == "interrupted" and result.exit_code == 130
+    rows = read_rows(result.files["csv"])[1]
+    assert len(rows) == 1 and rows[0]["status"] == "completed"
+    assert json.loads(result.files["json"].read_text())["status"] == "interrupted"
+    resumed = run_sweep(SweepConfig("demo", config.grid, config.output_dir, resume=True), client=client)
+    assert (resumed.skipped, resumed.ran, len(resumed.rows)) == (1, 2, 3)
+
+
+@pytest.mark.parametrize(("job", "params", "seeds", "message"), [
+    ("dmeo", [], None, "unknown job 'dmeo'; a sweep runs one of: demo, joint-step"),
+    ("demo", ["model_eror=1"], None, "demo has no option 'model_eror'; its options are: controller"),
+    ("demo", ["model_error=five"], None, "model_error='five' is not a number"),
+    ("demo", ["gravity=maybe"], None, "gravity='maybe' is not a boolean"),
+    ("demo", [], 3, "demo has no randomness"),
+    ("xcheck", ["states=3"], None, "xcheck needs robot: give --param robot=VALUE"),
+    ("ik", ["robot=g1", "target=a"], None, "repeatable"),
+    ("demo", ["model_error"], None, "NAME=V1,V2"),
+])
+def test_bad_input_names_the_value_and_the_allowed(job, params, seeds, message):
+    with pytest.raises(SweepInputError, match=message.replace("(", r"\(")):
+        parse_grid(job, params, seeds)
+
+
+def test_a_value_the_job_rejects_fails_before_any_task(tmp_path):
+    config = SweepConfig("demo", parse_grid("demo", ["controller=ct,nope"]), tmp_path / "s")
+    with pytest.raises(SweepInputError, match="controller=nope"):
+        run_sweep(config, client=object())  # never used: the check comes first
+    assert not (tmp_path / "s").exists()
+
+
+def test_seeds_add_a_seed_column_for_jobs_with_randomness():
+    assert parse_grid("xcheck", ["robot=two_link", "states=2"], seeds=3)["seed"] == [0, 1, 2]
+    assert [e for e in CATALOG if CATALOG[e].seeded] == ["xcheck"]
+
+
+def test_missing_dask_says_how_to_install(monkeypatch, tmp_path):
+    monkeypatch.setitem(sys.modules, "dask.distributed", None)
+    with pytest.raises(SweepSetupError, match=r"pip install 'mbctl\[sweep\]'"):
+        with open_client(SweepConfig("demo", {}, tmp_path)):
+            pass
