@@ -30,7 +30,9 @@ import json
 import logging
 import re
 import shutil
+import signal
 import sys
+import threading
 import time
 from collections.abc import Iterator
 from dataclasses import dataclass, field
@@ -110,7 +112,7 @@ class SweepResult:
     Attributes:
         status: completed or interrupted.
         rows: Every row (done earlier and now), in grid order.
-        ran: Tasks run by this sweep; skipped: rows kept from an earlier sweep.
+        ran: Tasks this sweep finished; skipped: rows kept from an earlier sweep.
         failures: Rows whose status is not completed.
         files: sweep.csv, sweep.json and (if drawn) sweep.png.
         wall_time_s: Wall time [s] from submitting the first task to the last result.
@@ -240,6 +242,19 @@ def _clear_previous_sweep(folder: Path) -> None:
 
 
 @contextlib.contextmanager
+def _sigint_ignored() -> Iterator[None]:
+    """Ignore SIGINT for the block (main thread only); processes started in it keep ignoring it."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    previous = signal.signal(signal.SIGINT, signal.SIG_IGN)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGINT, previous)
+
+
+@contextlib.contextmanager
 def open_client(config: SweepConfig) -> Iterator[tuple[Any, dict[str, Any]]]:
     """A Dask client on a new local cluster, or on ``config.scheduler``; closed after the block.
 
@@ -258,9 +273,10 @@ def open_client(config: SweepConfig) -> Iterator[tuple[Any, dict[str, Any]]]:
         if config.scheduler is not None:
             client = Client(config.scheduler, timeout=10)
         else:
-            cluster = LocalCluster(n_workers=config.workers, threads_per_worker=1, processes=True,
-                                   dashboard_address=":8787" if config.dashboard else None,
-                                   silence_logs=logging.ERROR)
+            with _sigint_ignored():  # the workers inherit it: Ctrl-C reaches the sweep only
+                cluster = LocalCluster(n_workers=config.workers, threads_per_worker=1, processes=True,
+                                       dashboard_address=":8787" if config.dashboard else None,
+                                       silence_logs=logging.ERROR)
             client = Client(cluster)
     except OSError as exc:
         if cluster is not None:
@@ -375,7 +391,7 @@ def run_sweep(config: SweepConfig, progress: Progress | None = None, client: Any
                 progress.stop()
         wall = time.perf_counter() - t0
         ordered = [rows[k] for k in keys if k in rows]
-        result = SweepResult(status, ordered, len(todo), skipped,
+        result = SweepResult(status, ordered, len(ordered) - skipped, skipped,
                              [r for r in ordered if r["status"] != "completed"], wall_time_s=wall)
         result.files["csv"] = write_csv(folder / CSV_NAME, ordered, names)
         plot = _plot(spec, config, ordered, names, folder / PLOT_NAME)
@@ -384,7 +400,7 @@ def run_sweep(config: SweepConfig, progress: Progress | None = None, client: Any
         result.files["json"] = write_json_atomic(folder / JSON_NAME, {
             "job": spec.name, "status": status,
             "grid": {k: [cell(v) for v in vs] for k, vs in config.grid.items()},
-            "tasks": len(combos), "ran": len(todo), "skipped": skipped, "finished": len(ordered),
+            "tasks": len(combos), "submitted": len(todo), "ran": result.ran, "skipped": skipped,
             "wall_time_s": wall, "metric": config.metric or spec.main_value,
             "versions": versions(), "cluster": cluster,
             "failures": [{k: r[k] for k in [*names, "status", "error", "run_dir"]} for r in result.failures],
