@@ -24,6 +24,7 @@ from __future__ import annotations
 import contextlib
 import csv
 import functools
+import hashlib
 import io
 import itertools
 import json
@@ -151,9 +152,16 @@ def cell(value: Any) -> str:
 
 
 def run_name(combo: dict[str, Any]) -> str:
-    """The run folder name ``name=value,...`` (characters unsafe in a file name become ``_``)."""
+    """The run folder name ``name=value,...``.
+
+    Characters unsafe in a file name become ``_`` and long names are cut; either adds a hash of
+    the values, so two combinations never share a folder.
+    """
     text = ",".join(f"{k}={cell(v) or 'none'}" for k, v in combo.items())
-    return re.sub(r"[^A-Za-z0-9._=,+-]", "_", text)[:200]
+    name = re.sub(r"[^A-Za-z0-9._=,+-]", "_", text)
+    if name != text or len(name) > 120:  # changed: a hash of the values keeps two runs apart
+        name = f"{name[:120]}-{hashlib.sha1(text.encode()).hexdigest()[:8]}"
+    return name
 
 
 @functools.lru_cache(maxsize=8)
