@@ -16,7 +16,9 @@ from __future__ import annotations
 
 import argparse
 import functools
+import json
 import logging
+import os
 import statistics
 import tempfile
 import time
@@ -46,6 +48,11 @@ def preload() -> None:
     """Load the G1 into this process's robot cache and the rollout setup (returns nothing to send)."""
     cached_robot(RobotSource("g1"))
     g1_rollout_setup()
+
+
+def work_times(folder: Path) -> list[float]:
+    """Each run's own wall time [s] (``report.json``: the job's work, without prepare and Dask)."""
+    return [json.loads(f.read_text())["wall_time_s"] for f in folder.glob("runs/*/report.json")]
 
 
 def sweep_wall(client: Client, tasks: int, out: Path) -> float:
@@ -95,6 +102,7 @@ def main() -> None:
     ap.add_argument("--sweeps", type=int, default=3)
     args = ap.parse_args()
     out = Path(tempfile.mkdtemp(prefix="bench_sweep_"))
+    load_before = os.getloadavg()[0]
     cached_robot(RobotSource("g1"))
 
     clusters = {workers: cluster(workers) for workers in (1, 2)}
@@ -124,6 +132,8 @@ def main() -> None:
             client.close()
             c.close()
     w1, w2 = statistics.median(walls[1]), statistics.median(walls[2])
+    work = {w: statistics.median(t for r in range(args.sweeps) for t in work_times(out / f"sweep{w}-{r}"))
+            for w in (1, 2)}
     direct_serial = args.tasks * overhead["direct"]
 
     print(f"1. {args.tasks} x {JOB} --duration {DURATION:g} (wall, robot preloaded, median of "
@@ -133,6 +143,9 @@ def main() -> None:
     print(f"   Dask, 2 workers: {w2:7.2f} s  (all: {', '.join(f'{w:.2f}' for w in walls[2])})")
     print(f"   speed-up 2 workers / 1 worker: {w1 / w2:.2f}x (target >= 1.8x); "
           f"2 workers / direct serial: {direct_serial / w2:.2f}x")
+    print(f"   one run's own work (report wall_time_s, median): 1 worker {work[1] * 1e3:.0f} ms, 2 workers "
+          f"{work[2] * 1e3:.0f} ms ({work[2] / work[1]:.2f}x: above 1 means the 2 workers shared the cores "
+          "with something else)")
     print(f"2. per task ({JOB} --duration {DURATION:g}, median of {args.repeats}): direct "
           f"{overhead['direct'] * 1e3:.0f} ms, through Dask {overhead['dask'] * 1e3:.0f} ms; overhead "
           f"{(overhead['dask'] - overhead['direct']) * 1e3:.0f} ms "
@@ -145,7 +158,8 @@ def main() -> None:
     print(f"   mujoco.rollout 2 threads: {t2:6.2f} s ({steps / t2:,.0f} steps/s), {t1 / t2:.2f}x")
     print(f"   Dask, 2 workers, 1 rollout per task: {dask_rollouts:6.2f} s, "
           f"{dask_rollouts / t2:.2f}x the 2-thread rollout")
-    print(f"(run folders in {out})")
+    print(f"load average (1 min) before {load_before:.2f}, after {os.getloadavg()[0]:.2f} on "
+          f"{os.cpu_count()} cores; run folders in {out}")
 
 
 def _timed(fn: object) -> float:

@@ -24,13 +24,16 @@ from __future__ import annotations
 import contextlib
 import csv
 import functools
+import hashlib
 import io
 import itertools
 import json
 import logging
 import re
 import shutil
+import signal
 import sys
+import threading
 import time
 from collections.abc import Iterator
 from dataclasses import dataclass, field
@@ -110,7 +113,7 @@ class SweepResult:
     Attributes:
         status: completed or interrupted.
         rows: Every row (done earlier and now), in grid order.
-        ran: Tasks run by this sweep; skipped: rows kept from an earlier sweep.
+        ran: Tasks this sweep finished; skipped: rows kept from an earlier sweep.
         failures: Rows whose status is not completed.
         files: sweep.csv, sweep.json and (if drawn) sweep.png.
         wall_time_s: Wall time [s] from submitting the first task to the last result.
@@ -149,9 +152,16 @@ def cell(value: Any) -> str:
 
 
 def run_name(combo: dict[str, Any]) -> str:
-    """The run folder name ``name=value,...`` (characters unsafe in a file name become ``_``)."""
+    """The run folder name ``name=value,...``.
+
+    Characters unsafe in a file name become ``_`` and long names are cut; either adds a hash of
+    the values, so two combinations never share a folder.
+    """
     text = ",".join(f"{k}={cell(v) or 'none'}" for k, v in combo.items())
-    return re.sub(r"[^A-Za-z0-9._=,+-]", "_", text)[:200]
+    name = re.sub(r"[^A-Za-z0-9._=,+-]", "_", text)
+    if name != text or len(name) > 120:  # changed: a hash of the values keeps two runs apart
+        name = f"{name[:120]}-{hashlib.sha1(text.encode()).hexdigest()[:8]}"
+    return name
 
 
 @functools.lru_cache(maxsize=8)
@@ -240,6 +250,19 @@ def _clear_previous_sweep(folder: Path) -> None:
 
 
 @contextlib.contextmanager
+def _sigint_ignored() -> Iterator[None]:
+    """Ignore SIGINT for the block (main thread only); processes started in it keep ignoring it."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    previous = signal.signal(signal.SIGINT, signal.SIG_IGN)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGINT, previous)
+
+
+@contextlib.contextmanager
 def open_client(config: SweepConfig) -> Iterator[tuple[Any, dict[str, Any]]]:
     """A Dask client on a new local cluster, or on ``config.scheduler``; closed after the block.
 
@@ -258,9 +281,10 @@ def open_client(config: SweepConfig) -> Iterator[tuple[Any, dict[str, Any]]]:
         if config.scheduler is not None:
             client = Client(config.scheduler, timeout=10)
         else:
-            cluster = LocalCluster(n_workers=config.workers, threads_per_worker=1, processes=True,
-                                   dashboard_address=":8787" if config.dashboard else None,
-                                   silence_logs=logging.ERROR)
+            with _sigint_ignored():  # the workers inherit it: Ctrl-C reaches the sweep only
+                cluster = LocalCluster(n_workers=config.workers, threads_per_worker=1, processes=True,
+                                       dashboard_address=":8787" if config.dashboard else None,
+                                       silence_logs=logging.ERROR)
             client = Client(cluster)
     except OSError as exc:
         if cluster is not None:
@@ -375,7 +399,7 @@ def run_sweep(config: SweepConfig, progress: Progress | None = None, client: Any
                 progress.stop()
         wall = time.perf_counter() - t0
         ordered = [rows[k] for k in keys if k in rows]
-        result = SweepResult(status, ordered, len(todo), skipped,
+        result = SweepResult(status, ordered, len(ordered) - skipped, skipped,
                              [r for r in ordered if r["status"] != "completed"], wall_time_s=wall)
         result.files["csv"] = write_csv(folder / CSV_NAME, ordered, names)
         plot = _plot(spec, config, ordered, names, folder / PLOT_NAME)
@@ -384,7 +408,7 @@ def run_sweep(config: SweepConfig, progress: Progress | None = None, client: Any
         result.files["json"] = write_json_atomic(folder / JSON_NAME, {
             "job": spec.name, "status": status,
             "grid": {k: [cell(v) for v in vs] for k, vs in config.grid.items()},
-            "tasks": len(combos), "ran": len(todo), "skipped": skipped, "finished": len(ordered),
+            "tasks": len(combos), "submitted": len(todo), "ran": result.ran, "skipped": skipped,
             "wall_time_s": wall, "metric": config.metric or spec.main_value,
             "versions": versions(), "cluster": cluster,
             "failures": [{k: r[k] for k in [*names, "status", "error", "run_dir"]} for r in result.failures],

@@ -131,3 +131,22 @@ def test_missing_dask_says_how_to_install(monkeypatch, tmp_path):
     with pytest.raises(SweepSetupError, match=r"pip install 'mbctl\[sweep\]'"):
         with open_client(SweepConfig("demo", {}, tmp_path)):
             pass
+
+
+def test_plot_line_over_one_option_with_seeds_and_heat_map_over_two(tmp_path):
+    from mbctl.jobs.sweep_plots import plot_sweep
+
+    rows = [{"states": s, "seed": str(k), "err": str(0.1 * k + s)} for s in (1, 2, 3) for k in range(3)]
+    assert plot_sweep(rows, ["states", "seed"], "err", "t", tmp_path / "line.png").stat().st_size > 1000
+    heat = [{"impulse": i, "direction": d, "slip": str(i * d)} for i in (5, 10) for d in (0, 90)]
+    assert plot_sweep(heat, ["impulse", "direction"], "slip", "t", tmp_path / "heat.png").exists()
+    assert plot_sweep(rows[:1], ["states", "seed"], "err", "t", tmp_path / "none.png") is None
+    assert plot_sweep(rows, ["states", "seed"], "missing", "t", tmp_path / "none.png") is None
+
+
+def test_run_folder_names_are_safe_and_distinct():
+    from mbctl.jobs.sweep import run_name
+
+    assert run_name({"model_error": 5.0, "controller": "ct"}) == "model_error=5.0,controller=ct"
+    a, b = run_name({"robot": "a/b.xml"}), run_name({"robot": "a_b.xml"})
+    assert "/" not in a and a != b
