@@ -35,6 +35,7 @@ import signal
 import sys
 import threading
 import time
+import warnings
 from collections.abc import Iterator
 from dataclasses import dataclass, field
 from importlib import metadata
@@ -281,7 +282,10 @@ def open_client(config: SweepConfig) -> Iterator[tuple[Any, dict[str, Any]]]:
         if config.scheduler is not None:
             client = Client(config.scheduler, timeout=10)
         else:
-            with _sigint_ignored():  # the workers inherit it: Ctrl-C reaches the sweep only
+            with _sigint_ignored(), warnings.catch_warnings():  # workers inherit SIGINT ignored
+                # Without --dashboard the scheduler still serves /health on 8787, or on a free port
+                # when 8787 is taken (another sweep): that fallback is not worth a warning.
+                warnings.filterwarnings("ignore", message=".*already in use", category=UserWarning)
                 cluster = LocalCluster(n_workers=config.workers, threads_per_worker=1, processes=True,
                                        dashboard_address=":8787" if config.dashboard else None,
                                        silence_logs=logging.ERROR)
