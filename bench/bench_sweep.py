@@ -121,7 +121,13 @@ def main() -> None:
             t = time.perf_counter()
             run_task(JOB, values, str(out / "oh_direct" / str(i)))
             call_s.append(time.perf_counter() - t)
-        overhead = {"dask": statistics.median(dask_s), "direct": statistics.median(call_s)}
+        empty = []
+        for _ in range(20):  # Dask's own round trip: an empty task
+            t = time.perf_counter()
+            client.submit(_nothing, pure=False).result()
+            empty.append(time.perf_counter() - t)
+        overhead = {"dask": statistics.median(dask_s), "direct": statistics.median(call_s),
+                    "empty": statistics.median(empty)}
         client = clusters[2][1]
         one_rollout(0)
         t = time.perf_counter()
@@ -149,7 +155,8 @@ def main() -> None:
     print(f"2. per task ({JOB} --duration {DURATION:g}, median of {args.repeats}): direct "
           f"{overhead['direct'] * 1e3:.0f} ms, through Dask {overhead['dask'] * 1e3:.0f} ms; overhead "
           f"{(overhead['dask'] - overhead['direct']) * 1e3:.0f} ms "
-          f"({overhead['dask'] / overhead['direct']:.3f}x)")
+          f"({overhead['dask'] / overhead['direct']:.3f}x); an empty task's round trip "
+          f"{overhead['empty'] * 1e3:.1f} ms (median of 20)")
     t1 = statistics.median(_timed(lambda: batch_rollout(args.rollouts, 1)) for _ in range(args.repeats))
     t2 = statistics.median(_timed(lambda: batch_rollout(args.rollouts, 2)) for _ in range(args.repeats))
     steps = args.rollouts * ROLLOUT_STEPS
@@ -160,6 +167,10 @@ def main() -> None:
           f"{dask_rollouts / t2:.2f}x the 2-thread rollout")
     print(f"load average (1 min) before {load_before:.2f}, after {os.getloadavg()[0]:.2f} on "
           f"{os.cpu_count()} cores; run folders in {out}")
+
+
+def _nothing() -> None:
+    """An empty task."""
 
 
 def _timed(fn: object) -> float:

@@ -98,8 +98,10 @@ def _heat(fig: Any, ax: Any, rows: list[dict[str, Any]], x_name: str, y_name: st
     ax.set_yticks(range(len(ys)), ys)
     ax.set_xlabel(x_name)
     ax.set_ylabel(y_name)
+    middle = np.nanmean([np.nanmin(grid), np.nanmax(grid)])
     for j in range(len(ys)):
         for i in range(len(xs)):
-            if np.isfinite(grid[j, i]):
-                ax.text(i, j, f"{grid[j, i]:.3g}", ha="center", va="center", fontsize=7, color="w")
+            if np.isfinite(grid[j, i]):  # dark text on the bright half of viridis
+                ax.text(i, j, f"{grid[j, i]:.3g}", ha="center", va="center", fontsize=7,
+                        color="k" if grid[j, i] > middle else "w")
     fig.colorbar(image, ax=ax, label=metric)
