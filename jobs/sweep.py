@@ -117,6 +117,7 @@ class SweepResult:
         failures: Rows whose status is not completed.
         files: sweep.csv, sweep.json and (if drawn) sweep.png.
         wall_time_s: Wall time [s] from submitting the first task to the last result.
+        note: Why no plot was drawn, if none was.
     """
 
     status: str
@@ -126,6 +127,7 @@ class SweepResult:
     failures: list[dict[str, Any]]
     files: dict[str, Path] = field(default_factory=dict)
     wall_time_s: float = 0.0
+    note: str | None = None
 
     @property
     def exit_code(self) -> int:
@@ -405,6 +407,8 @@ def run_sweep(config: SweepConfig, progress: Progress | None = None, client: Any
         plot = _plot(spec, config, ordered, names, folder / PLOT_NAME)
         if plot is not None:
             result.files["plot"] = plot
+        else:
+            result.note = _no_plot_reason(config.metric or spec.main_value, ordered, names)
         result.files["json"] = write_json_atomic(folder / JSON_NAME, {
             "job": spec.name, "status": status,
             "grid": {k: [cell(v) for v in vs] for k, vs in config.grid.items()},
@@ -415,6 +419,13 @@ def run_sweep(config: SweepConfig, progress: Progress | None = None, client: Any
             "outputs": {role: p.name for role, p in result.files.items()},
         })
     return result
+
+
+def _no_plot_reason(metric: str, rows: list[dict[str, Any]], names: list[str]) -> str:
+    keys = [k for k in dict.fromkeys(k for r in rows for k in r) if k not in names and k not in TAIL]
+    if rows and not any(metric in r for r in rows):
+        return f"no plot: --metric {metric} is not a value of this job; its values: {', '.join(keys)}"
+    return f"no plot: no row has a number for {metric}, or no option has two values"
 
 
 def _cluster_section(client: Any) -> dict[str, Any]:
