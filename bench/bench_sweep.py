@@ -17,7 +17,6 @@ from __future__ import annotations
 import argparse
 import functools
 import json
-import logging
 import os
 import statistics
 import tempfile
@@ -30,15 +29,14 @@ from dask.distributed import Client, LocalCluster
 from mujoco import rollout
 
 from mbctl.jobs.catalog import RobotSource, parse_grid
-from mbctl.jobs.sweep import SweepConfig, cached_robot, run_sweep, run_task
+from mbctl.jobs.sweep import SweepConfig, cached_robot, local_cluster, run_sweep, run_task
 
 JOB, DURATION = "g1-stand", 2.0
 ROLLOUT_STEPS = 1000  # 2 s at the G1's 2 ms step
 
 
 def cluster(workers: int) -> tuple[LocalCluster, Client]:
-    c = LocalCluster(n_workers=workers, threads_per_worker=1, processes=True, dashboard_address=None,
-                     silence_logs=logging.ERROR)
+    c = local_cluster(workers)  # as mbctl sweep starts it
     client = Client(c)
     client.run(preload)  # every worker loads the G1 before the clock starts
     return c, client

@@ -53,6 +53,8 @@ def sweep(
     lines = [f"{len(result.rows)} rows ({result.ran} run, {result.skipped} kept) in "
              f"{result.wall_time_s:.1f} s; {len(result.failures)} not completed",
              "wrote " + ", ".join(str(p) for p in result.files.values())]
+    if result.note:
+        lines.append(result.note)
     if result.status == "interrupted":
         lines.insert(0, "interrupted: the remaining tasks were cancelled; --resume runs them")
     typer.echo("\n".join(lines), err=result.status != "completed")

@@ -118,6 +118,7 @@ class SweepResult:
         failures: Rows whose status is not completed.
         files: sweep.csv, sweep.json and (if drawn) sweep.png.
         wall_time_s: Wall time [s] from submitting the first task to the last result.
+        note: Why no plot was drawn, if none was.
     """
 
     status: str
@@ -127,6 +128,7 @@ class SweepResult:
     failures: list[dict[str, Any]]
     files: dict[str, Path] = field(default_factory=dict)
     wall_time_s: float = 0.0
+    note: str | None = None
 
     @property
     def exit_code(self) -> int:
@@ -263,6 +265,25 @@ def _sigint_ignored() -> Iterator[None]:
         signal.signal(signal.SIGINT, previous)
 
 
+def local_cluster(workers: int, dashboard: bool = False) -> Any:
+    """A LocalCluster of ``workers`` processes with one thread each, started quietly.
+
+    The workers ignore SIGINT (Ctrl-C reaches the sweep, which cancels and closes them). Without
+    the dashboard the workers' statistical profiler, which only the dashboard shows, is off: it
+    sampled every 10 ms and cost ~3 % of a task's CPU time.
+    """
+    import dask
+    from dask.distributed import LocalCluster
+
+    with _sigint_ignored(), dask.config.set({"distributed.worker.profile.enabled": dashboard}), \
+            warnings.catch_warnings():
+        # Without the dashboard the scheduler still serves /health on 8787, or on a free port when
+        # 8787 is taken (another sweep): that fallback is not worth a warning.
+        warnings.filterwarnings("ignore", message=".*already in use", category=UserWarning)
+        return LocalCluster(n_workers=workers, threads_per_worker=1, processes=True,
+                            dashboard_address=":8787" if dashboard else None, silence_logs=logging.ERROR)
+
+
 @contextlib.contextmanager
 def open_client(config: SweepConfig) -> Iterator[tuple[Any, dict[str, Any]]]:
     """A Dask client on a new local cluster, or on ``config.scheduler``; closed after the block.
@@ -274,7 +295,7 @@ def open_client(config: SweepConfig) -> Iterator[tuple[Any, dict[str, Any]]]:
         SweepSetupError: Dask is not installed, or the scheduler cannot be reached.
     """
     try:
-        from dask.distributed import Client, LocalCluster
+        from dask.distributed import Client
     except ImportError:
         raise SweepSetupError(f"mbctl sweep runs on Dask, which is not installed: {INSTALL_HINT}") from None
     cluster = None
@@ -282,13 +303,7 @@ def open_client(config: SweepConfig) -> Iterator[tuple[Any, dict[str, Any]]]:
         if config.scheduler is not None:
             client = Client(config.scheduler, timeout=10)
         else:
-            with _sigint_ignored(), warnings.catch_warnings():  # workers inherit SIGINT ignored
-                # Without --dashboard the scheduler still serves /health on 8787, or on a free port
-                # when 8787 is taken (another sweep): that fallback is not worth a warning.
-                warnings.filterwarnings("ignore", message=".*already in use", category=UserWarning)
-                cluster = LocalCluster(n_workers=config.workers, threads_per_worker=1, processes=True,
-                                       dashboard_address=":8787" if config.dashboard else None,
-                                       silence_logs=logging.ERROR)
+            cluster = local_cluster(config.workers, config.dashboard)
             client = Client(cluster)
     except OSError as exc:
         if cluster is not None:
@@ -409,6 +424,8 @@ def run_sweep(config: SweepConfig, progress: Progress | None = None, client: Any
         plot = _plot(spec, config, ordered, names, folder / PLOT_NAME)
         if plot is not None:
             result.files["plot"] = plot
+        else:
+            result.note = _no_plot_reason(config.metric or spec.main_value, ordered, names)
         result.files["json"] = write_json_atomic(folder / JSON_NAME, {
             "job": spec.name, "status": status,
             "grid": {k: [cell(v) for v in vs] for k, vs in config.grid.items()},
@@ -419,6 +436,13 @@ def run_sweep(config: SweepConfig, progress: Progress | None = None, client: Any
             "outputs": {role: p.name for role, p in result.files.items()},
         })
     return result
+
+
+def _no_plot_reason(metric: str, rows: list[dict[str, Any]], names: list[str]) -> str:
+    keys = [k for k in dict.fromkeys(k for r in rows for k in r) if k not in names and k not in TAIL]
+    if rows and not any(metric in r for r in rows):
+        return f"no plot: --metric {metric} is not a value of this job; its values: {', '.join(keys)}"
+    return f"no plot: no row has a number for {metric}, or no option has two values"
 
 
 def _cluster_section(client: Any) -> dict[str, Any]:

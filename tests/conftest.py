@@ -57,12 +57,11 @@ def two_link_torque_gravity() -> Robot:
 def dask_client():
     """A small local Dask cluster (2 processes x 1 thread) shared by the sweep tests."""
     pytest.importorskip("dask.distributed")
-    import logging
+    from dask.distributed import Client
 
-    from dask.distributed import Client, LocalCluster
+    from mbctl.jobs.sweep import local_cluster
 
-    cluster = LocalCluster(n_workers=2, threads_per_worker=1, processes=True, dashboard_address=None,
-                           silence_logs=logging.ERROR)
+    cluster = local_cluster(2)  # as mbctl sweep starts it
     with Client(cluster) as client:
         yield client
     cluster.close()

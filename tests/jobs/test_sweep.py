@@ -55,7 +55,10 @@ def test_csv_columns_rows_json_and_plot(client, tmp_path):
 
 
 def test_row_equals_the_job_run_alone(client, tmp_path):
-    result = run_sweep(demo_sweep(tmp_path, "model_error=0,15"), client=client)
+    config = demo_sweep(tmp_path, "model_error=0,15")
+    result = run_sweep(SweepConfig("demo", config.grid, config.output_dir, metric="rms_eror"), client=client)
+    assert "plot" not in result.files
+    assert "its values: controller, model_error_pct, rms_error_m" in (result.note or "")
     for row in result.rows:
         alone = run_job(DEMO, options.demo(duration=float(DURATION), model_error=float(row["model_error"])),
                         tmp_path / f"alone{row['model_error']}")
