@@ -30,6 +30,7 @@ and ``proxqp`` is not a dependency (bench/bench_wbc.py compares what is installe
 
 from __future__ import annotations
 
+import functools
 import time
 from collections.abc import Sequence
 from dataclasses import dataclass, field
@@ -60,6 +61,8 @@ class WBCConfig:
         joint_limit_horizon_s: Horizon T [s] of the joint-limit acceleration bounds (> 0).
         ramp_s: Duration [s] of a contact's force ramp (> 0).
         solver: qpsolvers backend name.
+        warm_start: Start each solve from the previous cycle's solution (daqp: its nearly
+            active constraints become the initial working set).
     """
 
     f_min_n: float = 1.0
@@ -70,6 +73,7 @@ class WBCConfig:
     joint_limit_horizon_s: float = 0.1
     ramp_s: float = 0.3
     solver: str = "daqp"
+    warm_start: bool = True
 
     def __post_init__(self) -> None:
         checks = {
@@ -92,6 +96,7 @@ class _ContactState:
     contact: FootContact
     fid: int
     cols: slice                       # its force variables in x
+    fz: np.ndarray                    # the normal-force variables among them
     active: bool = True               # foot-acceleration equality in force
     weight: float = 1.0               # force ramp w_c in [0, 1]
     target_weight: float = 1.0
@@ -106,8 +111,8 @@ class WBCSolution:
         tau: Joint torques (n_actuated,) [N m], actuator order.
         vdot: Accelerations (nv,), Pinocchio convention.
         forces_W: Contact point forces by foot name, (n_points, 3) [N] in W.
-        wrenches_W: Foot wrench about the foot frame origin, in W, [f; m] (6,) [N, N m].
-        cop_W: Centre of pressure by foot (3,) [m] in W (NaN for a foot without normal force).
+        points_W: Contact point positions by foot name, (n_points, 3) [m] in W.
+        foot_origins_W: Foot frame origins by foot name, (3,) [m] in W.
         controller_time_s: Wall time of the whole ``compute`` [s].
         qp_time_s: Wall time of the QP solve alone [s].
     """
@@ -115,10 +120,28 @@ class WBCSolution:
     tau: np.ndarray
     vdot: np.ndarray
     forces_W: dict[str, np.ndarray]
-    wrenches_W: dict[str, np.ndarray]
-    cop_W: dict[str, np.ndarray]
+    points_W: dict[str, np.ndarray]
+    foot_origins_W: dict[str, np.ndarray]
     controller_time_s: float
     qp_time_s: float
+
+    @functools.cached_property
+    def wrenches_W(self) -> dict[str, np.ndarray]:
+        """Foot wrench about the foot frame origin, in W, [f; m] (6,) [N, N m], by foot name."""
+        out = {}
+        for name, F in self.forces_W.items():
+            r = self.points_W[name] - self.foot_origins_W[name]
+            out[name] = np.concatenate([F.sum(0), np.cross(r, F).sum(0)])
+        return out
+
+    @functools.cached_property
+    def cop_W(self) -> dict[str, np.ndarray]:
+        """Centre of pressure (3,) [m] in W by foot name (NaN for a foot without normal force)."""
+        out = {}
+        for name, F in self.forces_W.items():
+            fz = F[:, 2].sum()
+            out[name] = (F[:, 2] @ self.points_W[name]) / fz if fz > 1e-6 else np.full(3, np.nan)
+        return out
 
 
 class WholeBodyController:
@@ -145,7 +168,7 @@ class WholeBodyController:
 
     def __init__(self, robot: Robot, feet: Sequence[FootContact], config: WBCConfig | None = None,
                  pin_model: pin.Model | None = None):
-        self.config = config or WBCConfig()
+        self._config = config or WBCConfig()
         self.model = pin_model if pin_model is not None else robot.pin_model
         if (self.model.nq, self.model.nv) != (robot.pin_model.nq, robot.pin_model.nv):
             raise WBCSetupError(f"pin_model has nq={self.model.nq}, nv={self.model.nv}; the robot has "
@@ -166,9 +189,11 @@ class WholeBodyController:
             if not self.model.existFrame(foot.frame):
                 raise WBCSetupError(f"unknown foot frame {foot.frame!r}")
             cols = slice(col, col + 3 * foot.n_points)
-            self.contacts[foot.name] = _ContactState(foot, self.model.getFrameId(foot.frame), cols)
+            self.contacts[foot.name] = _ContactState(foot, self.model.getFrameId(foot.frame), cols,
+                                                     np.arange(cols.start + 2, cols.stop, 3))
             col = cols.stop
         self.n_x = col
+        self.config = self._config  # the setter derives the regularisation diagonal
         n_f = col - nv
         self._n_fric = 4 * n_f // 3
         self._G = np.zeros((self._n_fric + 2 * len(self._act), col))
@@ -187,7 +212,20 @@ class WholeBodyController:
         self.tasks: list[AccelerationTask] = []
         self._limits = self._joint_limits()
         self.last: WBCSolution | None = None
+        self._x_warm: np.ndarray | None = None
         self.steps = 0
+
+    @property
+    def config(self) -> WBCConfig:
+        """QP options (assignable)."""
+        return self._config
+
+    @config.setter
+    def config(self, config: WBCConfig) -> None:
+        self._config = config
+        nv = self.model.nv
+        self._regularisation = np.concatenate([np.full(nv, config.acceleration_weight**2),
+                                               np.full(self.n_x - nv, config.force_weight**2)])
 
     @property
     def solution(self) -> WBCSolution:
@@ -277,17 +315,19 @@ class WholeBodyController:
         s.update(state.q, state.v)
         nv, n_x = self.model.nv, self.n_x
         cfg = self.config
-        H = np.zeros((n_x, n_x))
-        c = np.zeros(n_x)
+        # tasks: one stacked weighted least-squares block, H = Jw^T Jw, c = -Jw^T rw
+        J_rows, r_rows = [], []
         for task in self.tasks:
             J, r = task.rows(s)
-            w2 = task.gains.weight**2
-            H[:nv, :nv] += w2 * (J.T @ J)
-            c[:nv] -= w2 * (J.T @ r)
-        idx = np.arange(nv)
-        H[idx, idx] += cfg.acceleration_weight**2
-        idx = np.arange(nv, n_x)
-        H[idx, idx] += cfg.force_weight**2
+            J_rows.append(task.gains.weight * J)
+            r_rows.append(task.gains.weight * r)
+        H = np.zeros((n_x, n_x))
+        c = np.zeros(n_x)
+        if J_rows:
+            Jw = np.vstack(J_rows)
+            H[:nv, :nv] = Jw.T @ Jw
+            c[:nv] = -(Jw.T @ np.concatenate(r_rows))
+        np.einsum("ii->i", H)[:] += self._regularisation  # a writable view of the diagonal
 
         # contact Jacobians of the points, in W: J_P = J_lin - [p_WP - p_WF]x J_ang
         Jc = np.zeros((n_x - nv, nv))
@@ -298,28 +338,31 @@ class WholeBodyController:
         row = self._n_fric
         kp_c = cfg.contact_omega_rad_s**2
         kd_c = 2.0 * cfg.contact_omega_rad_s
-        for cs in self.contacts.values():
+        points_W, origins_W = {}, {}
+        for name, cs in self.contacts.items():
             X_WF = s.frame_pose(cs.fid)
+            R_WF = X_WF.rotation
             J_lwa = s.frame_jacobian(cs.fid, pin.LOCAL_WORLD_ALIGNED)
             J_lin, J_ang = J_lwa[:3], J_lwa[3:]
-            r_W = cs.contact.points_F @ X_WF.rotation.T  # (n, 3)
+            r_W = cs.contact.points_F @ R_WF.T  # (n, 3)
+            origins_W[name] = X_WF.translation.copy()
+            points_W[name] = r_W + origins_W[name]
             block = Jc[cs.cols.start - nv:cs.cols.stop - nv].reshape(-1, 3, nv)
             block[:] = J_lin
             # - [r]x J_ang, row by row (no per-point matrix products)
             block[:, 0] += r_W[:, 2:3] * J_ang[1] - r_W[:, 1:2] * J_ang[2]
             block[:, 1] += r_W[:, 0:1] * J_ang[2] - r_W[:, 2:3] * J_ang[0]
             block[:, 2] += r_W[:, 1:2] * J_ang[0] - r_W[:, 0:1] * J_ang[1]
-            fz = np.arange(cs.cols.start + 2, cs.cols.stop, 3)
-            lb[fz] = cs.weight * cfg.f_min_n
-            ub[fz] = cs.weight * cfg.f_max_n
+            lb[cs.fz] = cs.weight * cfg.f_min_n
+            ub[cs.fz] = cs.weight * cfg.f_max_n
             if cs.active:
-                J_F = s.frame_jacobian(cs.fid, pin.LOCAL)
+                eq = np.zeros((6, n_x))
+                eq[:3, :nv] = R_WF.T @ J_lin  # J_F in LOCAL: the same twist in F's axes
+                eq[3:, :nv] = R_WF.T @ J_ang
                 drift = s.frame_drift(cs.fid, pin.LOCAL)
                 err = pin.log6(X_WF.actInv(cs.X_WF0)).vector
                 err[2:5] = 0.0  # the ground sets height, roll and pitch; feedback corrects slip only
-                a_fb = kp_c * err - kd_c * (J_F @ s.v)
-                eq = np.zeros((6, n_x))
-                eq[:, :nv] = J_F
+                a_fb = kp_c * err - kd_c * (eq[:, :nv] @ s.v)
                 eq_rows.append(eq)
                 eq_rhs.append(a_fb - drift)
         M, b = s.M, s.b
@@ -349,7 +392,8 @@ class WholeBodyController:
             ub[iv] = np.maximum(hi, 0.0)
         problem = qpsolvers.Problem(H, c, G, h, A_eq, b_eq, lb, ub)
         t_qp = time.perf_counter()
-        result = qpsolvers.solve_problem(problem, solver=cfg.solver)
+        initvals = self._x_warm if cfg.warm_start else None
+        result = qpsolvers.solve_problem(problem, solver=cfg.solver, initvals=initvals)
         qp_time = time.perf_counter() - t_qp
         if not result.found or result.x is None or not np.all(np.isfinite(result.x)):
             raise WBCInfeasible(
@@ -361,26 +405,12 @@ class WholeBodyController:
                 qpsolvers.Problem(H, c, G.copy(), h.copy(), A_eq, b_eq, lb.copy(), ub.copy()), result,
                 cfg.solver)
         x = result.x
+        self._x_warm = x
         vdot, f = x[:nv], x[nv:]
         tau = M[a] @ vdot + b[a] - Jc[:, a].T @ f
         np.clip(tau, self.tau_low, self.tau_high, out=tau)
         self.steps += 1
-        self.last = self._solution(tau, vdot, f, time.perf_counter() - t0, qp_time)
+        forces_W = {name: f[cs.cols.start - nv:cs.cols.stop - nv].reshape(-1, 3)
+                    for name, cs in self.contacts.items()}
+        self.last = WBCSolution(tau, vdot, forces_W, points_W, origins_W, time.perf_counter() - t0, qp_time)
         return Command(CommandKind.TORQUE, tau, self._command_names)
-
-    def _solution(self, tau: np.ndarray, vdot: np.ndarray, f: np.ndarray, ctrl_time: float,
-                  qp_time: float) -> WBCSolution:
-        nv = self.model.nv
-        forces, wrenches, cops = {}, {}, {}
-        for name, cs in self.contacts.items():
-            F = f[cs.cols.start - nv:cs.cols.stop - nv].reshape(-1, 3)
-            X_WF = self.state.frame_pose(cs.fid)
-            r = cs.contact.points_F @ X_WF.rotation.T
-            forces[name] = F
-            moment = np.array([r[:, 1] @ F[:, 2] - r[:, 2] @ F[:, 1], r[:, 2] @ F[:, 0] - r[:, 0] @ F[:, 2],
-                               r[:, 0] @ F[:, 1] - r[:, 1] @ F[:, 0]])  # sum of r x F
-            wrenches[name] = np.concatenate([F.sum(0), moment])
-            fz = F[:, 2].sum()
-            p = r + X_WF.translation
-            cops[name] = (F[:, 2] @ p) / fz if fz > 1e-6 else np.full(3, np.nan)
-        return WBCSolution(tau, vdot, forces, wrenches, cops, ctrl_time, qp_time)

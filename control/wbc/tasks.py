@@ -84,6 +84,8 @@ class DynamicsState(IKState):
 
     def __init__(self, model: pin.Model, q: npt.ArrayLike | None = None, v: npt.ArrayLike | None = None):
         self.v = np.zeros(model.nv)
+        self._lower = np.tril_indices(model.nv, -1)
+        self._M: np.ndarray | None = None
         self.mass = float(sum(inertia.mass for inertia in model.inertias))
         super().__init__(model, q, with_com=True)
         if v is not None:
@@ -100,13 +102,18 @@ class DynamicsState(IKState):
         pin.computeAllTerms(model, data, self._q, self.v)
         pin.updateFramePlacements(model, data)
         self._drift_com = None
+        self._M = None
         pin.computeCentroidalMapTimeVariation(model, data, self._q, self.v)
 
     @property
     def M(self) -> np.ndarray:  # noqa: N802 - the mass matrix is M in every text
-        """Joint-space inertia (nv, nv) at q, both triangles filled."""
-        M = self.data.M
-        return np.triu(M) + np.triu(M, 1).T
+        """Joint-space inertia (nv, nv) at q, both triangles filled (read-only, once per update)."""
+        if self._M is None:  # Pinocchio fills the upper triangle only
+            M = self.data.M.copy()
+            M[self._lower] = M.T[self._lower]
+            M.setflags(write=False)
+            self._M = M
+        return self._M
 
     @property
     def b(self) -> np.ndarray:
