@@ -11,9 +11,12 @@ without it that part is skipped with a line saying so.
 from __future__ import annotations
 
 import argparse
+import dataclasses
+import os
 import statistics
 import sys
 import time
+import warnings
 from pathlib import Path
 
 import numpy as np
@@ -30,8 +33,8 @@ from mbctl.sim.simulator import Simulator
 sys.path.insert(0, str(Path(__file__).parent))
 
 
-def _states(robot, n: int = 60) -> list[RobotState]:
-    """States of the first 1.2 s of a squat under our controller, every 10th cycle."""
+def _states(robot, n: int = 60, stride: int = 10) -> list[RobotState]:
+    """States of a squat under our controller: ``n`` states, every ``stride``-th cycle."""
     sim = Simulator(robot)
     sim.reset("stand")
     sim.set_state(crouched_start(robot), np.zeros(robot.pin_model.nv))
@@ -44,12 +47,12 @@ def _states(robot, n: int = 60) -> list[RobotState]:
     wb.torso.set_reference(s.frame_pose(wb.torso.fid))
     wb.posture.set_reference(state.q)
     out = []
-    for k in range(10 * n):
+    for k in range(stride * n):
         t = sim.time_s
         wb.com.set_reference(c0 - [0, 0, 0.04 * (1 - np.cos(np.pi * t))])
         state = sim.read_state()
         sim.step(wb.controller.compute(state, dt_s=sim.control_period_s))
-        if k % 10 == 0:
+        if k % stride == 0:
             out.append(state)
     return out
 
@@ -64,55 +67,94 @@ def _per_cycle(fn, states, repeats: int = 5) -> float:
     return statistics.median(samples)
 
 
-def timings(robot) -> None:
-    states = _states(robot)
+def _controller(robot, q0: np.ndarray, momentum: bool = True, warm_start: bool = True):
+    """Our controller at rest at ``q0``: the job's task set, or without angular momentum (TSID's)."""
     wb = g1_whole_body(robot)
     ctrl = wb.controller
-    q0 = crouched_start(robot)
+    ctrl.config = dataclasses.replace(ctrl.config, warm_start=warm_start)
+    if not momentum:
+        ctrl.remove_task(wb.momentum)
     ctrl.reset_contacts(RobotState(q0, np.zeros(robot.pin_model.nv), 0.0))
     s = ctrl.state
     wb.com.set_reference(s.com().copy())
     wb.pelvis.set_reference(s.frame_pose(wb.pelvis.fid))
     wb.torso.set_reference(s.frame_pose(wb.torso.fid))
     wb.posture.set_reference(q0)
-    qp_times: list[float] = []
+    return ctrl
 
-    def ours(st: RobotState) -> None:
-        ctrl.compute(st)
-        qp_times.append(ctrl.solution.qp_time_s)
 
-    fns = {"ours": ours}
+#: Our controller on TSID's task set (no angular-momentum task): the ratio's numerator.
+SAME_TASKS = "ours, TSID's tasks"
+
+
+def timings(robot) -> None:
+    states = _states(robot)
+    q0 = crouched_start(robot)
+    ctrls = {"ours": _controller(robot, q0), SAME_TASKS: _controller(robot, q0, momentum=False),
+             "ours, cold start": _controller(robot, q0, warm_start=False)}
+    qp_times: dict[str, list[float]] = {name: [] for name in ctrls}
+
+    def ours(name):
+        ctrl = ctrls[name]
+
+        def run(st: RobotState) -> None:
+            ctrl.compute(st)
+            qp_times[name].append(ctrl.solution.qp_time_s)
+        return run
+
+    fns = {name: ours(name) for name in ctrls}
     try:
         from tsid_g1 import TsidG1
 
-        tsid_ctrl = TsidG1(ctrl, q0)
-        tsid_ctrl.compute(q0, np.zeros(robot.pin_model.nv))
-        rel = abs(tsid_ctrl.normal_force_n() - s.mass * 9.81) / (s.mass * 9.81)
-        print(f"TSID at rest: sum f_z / (m g) - 1 = {rel:.2e} (a like-for-like solution)")
+        tsid_ctrl = TsidG1(ctrls["ours"], q0)
+        tau_tsid = tsid_ctrl.compute(q0, np.zeros(robot.pin_model.nv))  # joint order (idx_v - 6)
+        same = ctrls[SAME_TASKS]
+        same.compute(RobotState(q0, np.zeros(robot.pin_model.nv), 0.0))
+        tau_ours = same.solution.tau  # actuator order
+        tau_tsid = tau_tsid[np.asarray(same.joints.idx_v) - 6]
+        mg = same.state.mass * 9.81
+        print(f"TSID at rest: sum f_z / (m g) - 1 = {abs(tsid_ctrl.normal_force_n() - mg) / mg:.2e}; "
+              f"torques against ours: max |diff| {np.abs(tau_ours - tau_tsid).max():.2e} N m "
+              f"(largest torque {np.abs(tau_ours).max():.1f} N m)")
         fns["tsid"] = lambda st: tsid_ctrl.compute(np.asarray(st.q), np.asarray(st.v))
     except ImportError:
-        print("TSID not installed (pip install tsid): its column is skipped")
+        print("TSID not importable (see bench/README.md for building it): its column is skipped")
     except MemoryError:
-        # seen with tsid 1.10 + pin 4.1 from PyPI: RobotWrapper(model, ...) raises MemoryError
-        # even for pin.buildSampleModelHumanoid() in a clean venv (a binary mismatch of the wheels)
-        print("TSID installed but its RobotWrapper(pin.Model) fails (MemoryError, tsid 1.10 wheels): "
-              "its column is skipped")
-    medians = {name: [] for name in fns}
-    for _ in range(3):  # interleaved rounds
+        # seen with the PyPI tsid 1.10 wheel + pin 4.1: RobotWrapper(model, ...) raises MemoryError
+        # even for pin.buildSampleModelHumanoid() (a binary mismatch of the wheels)
+        print("TSID imports but its RobotWrapper(pin.Model) fails (MemoryError: the PyPI tsid 1.10 "
+              "wheel; build it from source, bench/README.md): its column is skipped")
+    medians: dict[str, list[float]] = {name: [] for name in fns}
+    for _ in range(5):  # interleaved rounds
         for name, fn in fns.items():
             medians[name].append(_per_cycle(fn, states, repeats=2))
     res = {k: statistics.median(v) for k, v in medians.items()}
+    solver = ctrls["ours"].config.solver
     print(f"G1 whole-body ID per cycle (Pinocchio terms + QP build + solve), median over {len(states)} "
-          "squat states:")
-    print(f"  ours (qpsolvers/{ctrl.config.solver}): {res['ours'] * 1e6:7.0f} us   (goal 400 us); "
-          f"QP solve alone {statistics.median(qp_times) * 1e6:.0f} us")
+          f"squat states x 10, load average {os.getloadavg()[0]:.1f}:")
+    for name in ctrls:
+        print(f"  {name + f' (qpsolvers/{solver})':38s} {res[name] * 1e6:6.0f} us; QP solve alone "
+              f"{statistics.median(qp_times[name]) * 1e6:4.0f} us  (goal 400 us)")
     if "tsid" in res:
-        print(f"  TSID 1.10 (C++, HQuadProgFast):  {res['tsid'] * 1e6:7.0f} us   ratio ours/TSID "
-              f"{res['ours'] / res['tsid']:.2f}x")
+        print(f"  {'TSID 1.10 (C++, eiquadprog-fast)':38s} {res['tsid'] * 1e6:6.0f} us   ratio ours/TSID "
+              f"{res[SAME_TASKS] / res['tsid']:.2f}x on the same task set")
+    # warm start on consecutive cycles (the job's case)
+    consecutive = _states(robot, n=200, stride=1)
+    warm = {w: _controller(robot, q0, warm_start=w) for w in (True, False)}
+    t_qp: dict[bool, list[float]] = {True: [], False: []}
+    for _ in range(3):
+        for w, ctrl in warm.items():
+            for st in consecutive:
+                ctrl.compute(st)
+                t_qp[w].append(ctrl.solution.qp_time_s)
+    warm_us, cold_us = (statistics.median(t_qp[w]) * 1e6 for w in (True, False))
+    print(f"warm start on {len(consecutive)} consecutive cycles: QP solve {warm_us:.0f} us warm against "
+          f"{cold_us:.0f} us cold")
     # the QP backend: the same problem through each installed solver
+    ctrl = ctrls["ours"]
     ctrl.compute(states[-1])
     problem = _last_problem(ctrl, states[-1])
-    print("QP backends on the same G1 problem (59 variables):")
+    print(f"QP backends on the same G1 problem ({ctrl.n_x} variables):")
     for solver in ("daqp", "proxqp", "osqp", "quadprog"):
         if solver not in qpsolvers.available_solvers:
             print(f"  {solver:8s} not installed")
@@ -120,7 +162,9 @@ def timings(robot) -> None:
         t = []
         for _ in range(50):
             t0 = time.perf_counter()
-            sol = qpsolvers.solve_problem(problem, solver=solver)
+            with warnings.catch_warnings():
+                warnings.simplefilter("ignore")  # osqp: "converted to csc_matrix"
+                sol = qpsolvers.solve_problem(problem, solver=solver)
             t.append(time.perf_counter() - t0)
         ref = qpsolvers.solve_problem(problem, solver="daqp").x
         print(f"  {solver:8s} {statistics.median(t) * 1e6:7.0f} us, found={sol.found}, "

@@ -67,6 +67,7 @@ class TsidG1:
         bounds = tsid.TaskActuationBounds("torque_bounds", self.robot)
         bounds.setBounds(ours.tau_low, ours.tau_high)
         self.formulation.addActuationTask(bounds, 1.0, 0, 0.0)
+        self.tasks.append(bounds)  # TSID holds C++ references: every task must outlive the formulation
         self.solver = tsid.SolverHQuadProgFast("qp")
         self.solver.resize(self.formulation.nVar, self.formulation.nEq, self.formulation.nIn)
         self.mass = float(data.mass[0])

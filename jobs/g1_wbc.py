@@ -149,8 +149,8 @@ class G1WholeBody:
 def g1_whole_body(robot: Robot, pin_model: pin.Model | None = None) -> G1WholeBody:
     """The controller and its standing task set on ``robot`` (a torque-mode G1 with palm sites).
 
-    Task weights and gains (weight, omega [rad/s], zeta): CoM (10, 8, 1), pelvis orientation
-    (5, 10, 1), torso orientation (2, 10, 1), posture (0.5, 10, 1), angular momentum (0.2, -, 1).
+    Task weights and gains (weight, omega [rad/s], zeta): CoM (10, 10, 1), pelvis orientation
+    (5, 10, 1), torso orientation (2, 10, 1), posture (0.05, 10, 1), angular momentum (0.2, 4, 1).
     """
     feet = [foot_contact_from_model(robot, f) for f in FEET]
     ctrl = WholeBodyController(robot, feet, pin_model=pin_model)

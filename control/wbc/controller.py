@@ -144,6 +144,13 @@ class WBCSolution:
         return out
 
 
+def _as_slice(idx: np.ndarray) -> slice | np.ndarray:
+    """``idx`` as a slice when it is a contiguous increasing run (indexing then gives views)."""
+    if len(idx) and np.array_equal(idx, np.arange(idx[0], idx[0] + len(idx))):
+        return slice(int(idx[0]), int(idx[0]) + len(idx))
+    return idx
+
+
 class WholeBodyController:
     """Whole-body inverse dynamics on a Pinocchio model; torque commands for every actuated joint.
 
@@ -178,6 +185,8 @@ class WholeBodyController:
         nv = self.model.nv
         self._act = np.asarray(self.joints.idx_v, dtype=int)
         self._unact = np.setdiff1d(np.arange(nv), self._act)
+        self._n_unact = len(self._unact)
+        self._a, self._u = _as_slice(self._act), _as_slice(self._unact)  # views where contiguous
         self.tau_low = np.array(self.joints.tau_low, dtype=float)
         self.tau_high = np.array(self.joints.tau_high, dtype=float)
         self._command_names = self.joints.command_names
@@ -366,21 +375,21 @@ class WholeBodyController:
                 eq_rows.append(eq)
                 eq_rhs.append(a_fb - drift)
         M, b = s.M, s.b
-        u, a = self._unact, self._act
-        dyn = np.zeros((len(u), n_x))
+        u, a = self._u, self._a
+        dyn = np.zeros((self._n_unact, n_x))
         dyn[:, :nv] = M[u]
         dyn[:, nv:] = -Jc[:, u].T
         A_eq = np.vstack([dyn, *eq_rows])
         b_eq = np.concatenate([-b[u], *eq_rhs])
-        # torque rows: tau = M_a vdot + b_a - Jc_a^T f
-        T = np.zeros((len(a), n_x))
+        # torque rows: tau = T x + b_a with T = [M_a, -Jc_a^T]; tau_min <= tau <= tau_max
+        n_a = len(self.tau_low)
+        T = G[row:row + n_a]
         T[:, :nv] = M[a]
         T[:, nv:] = -Jc[:, a].T
-        G[row:row + len(a)] = T
-        h[row:row + len(a)] = self.tau_high - b[a]
-        row += len(a)
-        G[row:row + len(a)] = -T
-        h[row:row + len(a)] = b[a] - self.tau_low
+        np.negative(T, out=G[row + n_a:row + 2 * n_a])
+        b_a = b[a]
+        h[row:row + n_a] = self.tau_high - b_a
+        h[row + n_a:row + 2 * n_a] = b_a - self.tau_low
         # joint limits: q + v T + vdot T^2/2 within [q_min, q_max]
         iv, iq, q_lo, q_hi = self._limits
         if len(iv):
@@ -407,7 +416,7 @@ class WholeBodyController:
         x = result.x
         self._x_warm = x
         vdot, f = x[:nv], x[nv:]
-        tau = M[a] @ vdot + b[a] - Jc[:, a].T @ f
+        tau = T @ x + b_a
         np.clip(tau, self.tau_low, self.tau_high, out=tau)
         self.steps += 1
         forces_W = {name: f[cs.cols.start - nv:cs.cols.stop - nv].reshape(-1, 3)
