@@ -116,3 +116,57 @@ def test_unknown_foot_is_named(g1_motor):
     wb, _ = _stance_controller(g1_motor)
     with pytest.raises(WBCSetupError, match="unknown foot 'hand'; feet: left_foot, right_foot"):
         wb.controller.release("hand")
+
+
+def _moving_state(robot, seed=5):
+    rng = np.random.default_rng(seed)
+    q = crouched_start(robot)
+    return RobotState(q, 0.2 * rng.normal(size=robot.pin_model.nv), 0.0)
+
+
+def test_slices_index_arrays_and_warm_start_give_the_same_solution(g1_motor):
+    # the G1's base and actuated columns are contiguous, so the controller indexes with slices;
+    # the index-array path (any actuator order) and a cold start must give the same torques
+    state = _moving_state(g1_motor)
+    wb, _ = _stance_controller(g1_motor)
+    ctrl = wb.controller
+    assert isinstance(ctrl._a, slice) and isinstance(ctrl._u, slice)
+    ctrl.compute(state)
+    ctrl.compute(state)  # warm-started from the first solve
+    warm = ctrl.solution
+    ctrl._a, ctrl._u = ctrl._act, ctrl._unact
+    ctrl.config = WBCConfig(warm_start=False)
+    ctrl.compute(state)
+    cold = ctrl.solution
+    np.testing.assert_allclose(cold.tau, warm.tau, atol=1e-7)
+    np.testing.assert_allclose(cold.vdot, warm.vdot, atol=1e-7)
+    assert np.abs(cold.tau).max() > 1.0  # a loaded, moving state, not a zero solution
+
+
+def test_wrench_and_cop_agree_with_the_point_forces(g1_motor):
+    wb, state = _stance_controller(g1_motor)
+    wb.controller.compute(_moving_state(g1_motor, seed=7))
+    sol = wb.controller.solution
+    s = wb.controller.state
+    for name, cs in wb.controller.contacts.items():
+        X_WF = s.frame_pose(cs.fid)
+        points = np.array([X_WF.act(p) for p in cs.contact.points_F])
+        F = sol.forces_W[name]
+        np.testing.assert_allclose(sol.points_W[name], points, atol=1e-12)
+        moment = sum(np.cross(p - X_WF.translation, f) for p, f in zip(points, F, strict=True))
+        np.testing.assert_allclose(sol.wrenches_W[name], np.concatenate([F.sum(0), moment]), atol=1e-9)
+        cop = sol.cop_W[name]
+        lo, hi = points.min(0), points.max(0)
+        assert np.all(cop[:2] >= lo[:2] - 1e-9) and np.all(cop[:2] <= hi[:2] + 1e-9), name
+        # the CoP is where the moment of the normal forces about it vanishes
+        assert abs(((points[:, :2] - cop[:2]) * F[:, 2:3]).sum(0)).max() < 1e-9
+
+
+def test_mass_matrix_is_symmetric_and_matches_crba(g1_motor):
+    model = g1_motor.pin_model
+    q = crouched_start(g1_motor)
+    s = DynamicsState(model, q, np.ones(model.nv))
+    M = pin.crba(model, model.createData(), q)
+    M = np.triu(M) + np.triu(M, 1).T
+    np.testing.assert_allclose(s.M, M, atol=1e-10)
+    assert not s.M.flags.writeable
