@@ -39,13 +39,8 @@ def _states(robot, n: int = 60, stride: int = 10) -> list[RobotState]:
     sim.reset("stand")
     sim.set_state(crouched_start(robot), np.zeros(robot.pin_model.nv))
     wb = g1_whole_body(robot)
-    state = sim.read_state()
-    wb.controller.reset_contacts(state)
-    s = wb.controller.state
-    c0 = s.com().copy()
-    wb.pelvis.set_reference(s.frame_pose(wb.pelvis.fid))
-    wb.torso.set_reference(s.frame_pose(wb.torso.fid))
-    wb.posture.set_reference(state.q)
+    wb.hold(sim.read_state())
+    c0 = wb.com.p_ref
     out = []
     for k in range(stride * n):
         t = sim.time_s
@@ -74,12 +69,7 @@ def _controller(robot, q0: np.ndarray, momentum: bool = True, warm_start: bool =
     ctrl.config = dataclasses.replace(ctrl.config, warm_start=warm_start)
     if not momentum:
         ctrl.remove_task(wb.momentum)
-    ctrl.reset_contacts(RobotState(q0, np.zeros(robot.pin_model.nv), 0.0))
-    s = ctrl.state
-    wb.com.set_reference(s.com().copy())
-    wb.pelvis.set_reference(s.frame_pose(wb.pelvis.fid))
-    wb.torso.set_reference(s.frame_pose(wb.torso.fid))
-    wb.posture.set_reference(q0)
+    wb.hold(RobotState(q0, np.zeros(robot.pin_model.nv), 0.0))
     return ctrl
 
 

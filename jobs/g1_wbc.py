@@ -49,6 +49,7 @@ from mbctl.jobs.recording import q_columns
 from mbctl.jobs.robot_constants import FEET, KEYFRAME, PALM_SITES, PELVIS, with_palm_sites
 from mbctl.jobs.runner import Job, Outcome, RunContext, Work
 from mbctl.robots.edits import position_to_motor
+from mbctl.robots.interface import RobotState
 from mbctl.robots.model_pair import Robot
 from mbctl.robots.registry import load_robot
 from mbctl.sim.contacts import measure_contacts, touching
@@ -144,6 +145,15 @@ class G1WholeBody:
     posture: PostureAcceleration
     momentum: AngularMomentumDamping
     extra: dict[str, Any] = field(default_factory=dict)
+
+    def hold(self, state: RobotState) -> None:
+        """Both feet in contact where they are, and every task's reference at ``state``'s values."""
+        self.controller.reset_contacts(state)
+        s = self.controller.state
+        self.com.set_reference(s.com().copy())
+        self.pelvis.set_reference(s.frame_pose(self.pelvis.fid))
+        self.torso.set_reference(s.frame_pose(self.torso.fid))
+        self.posture.set_reference(state.q)
 
 
 def g1_whole_body(robot: Robot, pin_model: pin.Model | None = None) -> G1WholeBody:

@@ -21,6 +21,7 @@ Notation (Drake monograms): W world, F a task frame, C the centre of mass.
 
 from __future__ import annotations
 
+import abc
 from dataclasses import dataclass
 
 import numpy as np
@@ -144,7 +145,7 @@ class DynamicsState(IKState):
         return pin.getFrameVelocity(self.model, self.data, frame_id, reference).vector
 
 
-class AccelerationTask:
+class AccelerationTask(abc.ABC):
     """Base class: ``rows(state) -> (J, rhs)``, the least-squares rows ``J vdot ≈ rhs``.
 
     Attributes:
@@ -159,13 +160,13 @@ class AccelerationTask:
     def __init__(self, name: str, k: int, gains: TaskGains):
         self.name, self.k, self.gains = name, k, gains
 
+    @abc.abstractmethod
     def rows(self, state: DynamicsState) -> tuple[np.ndarray, np.ndarray]:
         """``(J (k, nv), a_des - Jdot v (k,))`` at ``state``."""
-        raise NotImplementedError
 
+    @abc.abstractmethod
     def jacobian_and_drift(self, state: DynamicsState) -> tuple[np.ndarray, np.ndarray]:
         """``(J (k, nv), Jdot v (k,))`` at ``state`` (tested against finite differences)."""
-        raise NotImplementedError
 
 
 class _PointAcceleration(AccelerationTask):

@@ -61,12 +61,7 @@ def _stance_controller(robot):
     wb = g1_whole_body(robot)
     q = crouched_start(robot)
     state = RobotState(q, np.zeros(robot.pin_model.nv), 0.0)
-    wb.controller.reset_contacts(state)
-    s = wb.controller.state
-    wb.com.set_reference(s.com().copy())
-    wb.pelvis.set_reference(s.frame_pose(wb.pelvis.fid))
-    wb.torso.set_reference(s.frame_pose(wb.torso.fid))
-    wb.posture.set_reference(q)
+    wb.hold(state)
     return wb, state
 
 
