@@ -26,9 +26,8 @@ class WBCConfig:
         acceleration_weight: Regularisation weight on vdot [cost]/[rad/s^2].
         joint_limit_horizon_s: Horizon T [s] of the joint-limit acceleration bounds (> 0).
         ramp_s: Duration [s] of a contact's force ramp (> 0).
-        solver: qpsolvers backend name.
-        warm_start: Start each solve from the previous cycle's solution (daqp: its nearly
-            active constraints become the initial working set).
+        solver: "daqp" (the structured solve of ``control/wbc/qp.py``: an equality-constrained fast
+            path, else daqp) or another qpsolvers backend on the same problem (for comparison).
         on_infeasible: "raise" (``WBCInfeasible``) or "damp": from the first infeasible QP on, the
             controller commands joint damping ``tau = -fallback_kd v`` (a safe fallback that lets
             the plant show whether the robot stands or falls) and records when it switched.
@@ -43,7 +42,6 @@ class WBCConfig:
     joint_limit_horizon_s: float = 0.1
     ramp_s: float = 0.3
     solver: str = "daqp"
-    warm_start: bool = True
     on_infeasible: str = "raise"
     fallback_kd_n_m_s_rad: float = 5.0
 
