@@ -45,3 +45,27 @@ def test_bad_input_exits_2_with_a_message(tmp_path):
     assert out.returncode == 2 and "holds no trajectory.npz" in out.stderr
     out = _mbctl("render", "two_link", "--output", str(tmp_path / "arm.jpg"))
     assert out.returncode == 2 and "--output must be a .png file" in out.stderr
+
+
+def test_replay_of_a_damaged_run_exits_2_naming_the_problem(tmp_path):
+    import numpy as np
+
+    from mbctl.robots import load_robot
+    from mbctl.sim import Simulator
+    from mbctl.sim.trajectory import TrajectoryRecorder
+
+    sim = Simulator(load_robot("two_link_torque"))
+    rec = TrajectoryRecorder(sim, tmp_path).attach()
+    for _ in range(10):
+        sim.step()
+    path = rec.close()
+    with np.load(path) as data:
+        arrays = {k: data[k] for k in data.files}
+    arrays["qpos"][4, 1] = np.nan
+    np.savez(path, **arrays)
+    out = _mbctl("replay", str(tmp_path), "--video", "--output", str(tmp_path / "r.mp4"))
+    assert out.returncode == 2 and "qpos sample 4 (of 11) holds NaN or inf" in out.stderr, out.stderr
+    path.write_bytes(path.read_bytes()[:100])
+    out = _mbctl("replay", str(tmp_path), "--video", "--output", str(tmp_path / "r.mp4"))
+    assert out.returncode == 2 and "is damaged (truncated or not an npz archive)" in out.stderr, out.stderr
+    assert "Traceback" not in out.stderr and not (tmp_path / "r.mp4").exists()
