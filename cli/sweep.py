@@ -11,7 +11,7 @@ import typer
 from mbctl.cli._run import QuietOpt
 from mbctl.jobs.catalog import CATALOG, parse_grid
 from mbctl.jobs.runner import Progress
-from mbctl.jobs.sweep import SweepConfig, run_sweep
+from mbctl.jobs.sweep import CSV_NAME, SweepConfig, run_sweep
 
 
 def sweep(
@@ -53,6 +53,11 @@ def sweep(
     lines = [f"{len(result.rows)} rows ({result.ran} run, {result.skipped} kept) in "
              f"{result.wall_time_s:.1f} s; {len(result.failures)} not completed",
              "wrote " + ", ".join(str(p) for p in result.files.values())]
+    if result.earlier:
+        lines.append(f"kept {len(result.earlier)} rows of an earlier grid in {CSV_NAME} (after this grid's)")
+    if result.unsound:
+        lines.append(f"{result.unsound} rows of the earlier {CSV_NAME} were torn or disagreed with their "
+                     "run folder: dropped (this grid's ones ran again)")
     if result.note:
         lines.append(result.note)
     if result.status == "interrupted":

@@ -317,6 +317,13 @@ def check_output_dir(path: Path) -> Path:
     return path
 
 
+def refuse_link(path: Path) -> None:
+    """OutputError if ``path`` is a symbolic link: mbctl writes only into what it creates."""
+    if Path(path).is_symlink():
+        raise OutputError(f"{path} is a symbolic link; mbctl never writes through one (it could "
+                          "overwrite a file elsewhere): remove the link or choose another --output")
+
+
 def check_output_file(path: Path) -> Path:
     """Check that file ``path`` can be created (its folder made and writable) before any work."""
     check_output_dir(Path(path).parent)

@@ -16,7 +16,9 @@ The sweep folder holds:
 
 A task that fails is a row with its status and error, never a lost sweep. Ctrl-C (or SIGTERM)
 cancels the remaining tasks and still writes the finished rows (exit 130). ``resume`` keeps the
-rows of ``sweep.csv`` whose run completed or diverged and runs the others.
+rows of ``sweep.csv`` whose run completed or diverged and runs the others. It trusts a row only
+if the line is whole and its run folder's report agrees with it (a torn line runs again), and it
+keeps the rows of an earlier grid that this one does not hold (after this grid's rows).
 """
 
 from __future__ import annotations
@@ -55,12 +57,13 @@ from mbctl.jobs.runner import (
     Progress,
     check_output_dir,
     folder_lock,
+    refuse_link,
     run_job,
     sigterm_as_interrupt,
 )
 from mbctl.robots.model_pair import Robot
 from mbctl.robots.registry import load_robot
-from mbctl.sim.atomic import write_json_atomic, write_text_atomic
+from mbctl.sim.atomic import read_text_nofollow, write_json_atomic, write_text_atomic
 from mbctl.sim.report import package_versions
 
 CSV_NAME = "sweep.csv"
@@ -114,8 +117,12 @@ class SweepResult:
     Attributes:
         status: completed or interrupted.
         rows: Every row (done earlier and now), in grid order.
-        ran: Tasks this sweep finished; skipped: rows kept from an earlier sweep.
+        ran: Tasks this sweep finished; skipped: rows of this grid kept from an earlier sweep.
         failures: Rows whose status is not completed.
+        earlier: Rows of an earlier sweep (``--resume``) whose combination this grid does not
+            hold: kept in sweep.csv after this grid's rows (not in ``rows``).
+        unsound: Rows of the earlier sweep.csv that were torn or did not match their run folder:
+            dropped (run again where this grid holds them).
         files: sweep.csv, sweep.json and (if drawn) sweep.png.
         wall_time_s: Wall time [s] from submitting the first task to the last result.
         note: Why no plot was drawn, if none was.
@@ -129,6 +136,8 @@ class SweepResult:
     files: dict[str, Path] = field(default_factory=dict)
     wall_time_s: float = 0.0
     note: str | None = None
+    earlier: list[dict[str, Any]] = field(default_factory=list)
+    unsound: int = 0
 
     @property
     def exit_code(self) -> int:
@@ -211,22 +220,67 @@ def _key(row: dict[str, Any], names: list[str]) -> tuple[str, ...]:
     return tuple(cell(row[n]) for n in names)
 
 
-def read_done_rows(path: Path, names: list[str]) -> dict[tuple[str, ...], dict[str, Any]]:
-    """The rows of an earlier ``sweep.csv`` whose run is done, by their parameter values.
+def _row_problem(row: dict[Any, Any], names: list[str], folder: Path) -> str | None:
+    """Why an earlier ``sweep.csv`` row cannot be trusted (torn, edited, or its run gone), or None.
+
+    A row is sound if it has every column and no extra one, an integer exit code and a
+    ``run_dir`` that is its own run folder (``DIR/runs/<name>``); a row whose status a resumed
+    sweep keeps (completed, diverged) also needs that folder's report to have its status.
+    """
+    if None in row or any(v is None for v in row.values()):
+        return "its field count is not the header's (a torn or edited line)"
+    if not re.fullmatch(r"-?\d+", row["exit_code"]):
+        return f"exit_code {row['exit_code']!r} is not an integer"
+    name = run_name({n: row[n] for n in names})
+    if Path(row["run_dir"]).name != name:
+        return f"run_dir {row['run_dir']!r} is not its run folder {name!r}"
+    if row["status"] not in DONE:
+        return None
+    report = folder / RUNS / name / REPORT_NAME
+    try:
+        status = json.loads(read_text_nofollow(report)).get("status")
+    except (OSError, ValueError, AttributeError):
+        return f"{report} is missing or unreadable"
+    if status != row["status"]:
+        return f"its run's report says {status!r}, the row {row['status']!r}"
+    return None
+
+
+def read_earlier_rows(path: Path, names: list[str]) -> tuple[dict[tuple[str, ...], dict[str, Any]], int]:
+    """The sound rows of an earlier ``sweep.csv`` by their parameter values, and the count of the others.
+
+    Rows that fail :func:`_row_problem` (a line cut short by a crash or an edit, a run folder that
+    is gone) are left out, so their combination runs again. ``run_dir`` is set to where the run
+    folder is now (the sweep folder may have moved).
 
     Raises:
-        SweepInputError: The file's parameter columns are not this sweep's.
+        SweepInputError: The file's parameter columns are not this sweep's, or it is not a sweep's
+            CSV.
     """
     if not path.exists():
-        return {}
-    with path.open(newline="") as f:
-        reader = csv.DictReader(f)
-        header = list(reader.fieldnames or [])
-        if header[:len(names)] != names:
-            raise SweepInputError(f"{path} has the columns {', '.join(header[:len(names)])}, not this "
-                                  f"sweep's parameters {', '.join(names)}; drop --resume or choose "
-                                  "another --output")
-        return {_key(r, names): dict(r) for r in reader if r.get("status") in DONE}
+        return {}, 0
+    try:
+        text = read_text_nofollow(path)
+    except (OSError, UnicodeDecodeError) as exc:
+        raise SweepInputError(f"cannot read {path} to resume: {exc}; drop --resume or choose another "
+                              "--output") from None
+    reader = csv.DictReader(io.StringIO(text, newline=""))
+    header = list(reader.fieldnames or [])
+    if header[:len(names)] != names:
+        raise SweepInputError(f"{path} has the columns {', '.join(header[:len(names)])}, not this "
+                              f"sweep's parameters {', '.join(names)}; drop --resume or choose "
+                              "another --output")
+    if header[-len(TAIL):] != list(TAIL):
+        raise SweepInputError(f"{path} does not end its header with {', '.join(TAIL)}: not a sweep's "
+                              "CSV (or cut inside its header); drop --resume or choose another --output")
+    sound, unsound = {}, 0
+    for row in reader:
+        if _row_problem(row, names, path.parent) is None:
+            row["run_dir"] = str(path.parent / RUNS / run_name({n: row[n] for n in names}))
+            sound[_key(row, names)] = dict(row)
+        else:
+            unsound += 1
+    return sound, unsound
 
 
 def write_csv(path: Path, rows: list[dict[str, Any]], names: list[str]) -> Path:
@@ -239,6 +293,16 @@ def write_csv(path: Path, rows: list[dict[str, Any]], names: list[str]) -> Path:
     writer.writeheader()
     writer.writerows(rows)
     return write_text_atomic(path, buf.getvalue())
+
+
+def check_runs_folder(folder: Path) -> None:
+    """OutputError if ``DIR/runs``, a run folder in it or a sweep file is a symbolic link."""
+    for name in (CSV_NAME, JSON_NAME, PLOT_NAME, RUNS):
+        refuse_link(folder / name)
+    runs = folder / RUNS
+    if runs.is_dir():
+        for run in runs.iterdir():
+            refuse_link(run)
 
 
 def _clear_previous_sweep(folder: Path) -> None:
@@ -374,17 +438,25 @@ def run_sweep(config: SweepConfig, progress: Progress | None = None, client: Any
     folder = check_output_dir(config.output_dir)
     progress = progress or Progress()
     with folder_lock(folder):
-        done = read_done_rows(folder / CSV_NAME, names) if config.resume else {}
+        check_runs_folder(folder)
+        earlier, unsound = read_earlier_rows(folder / CSV_NAME, names) if config.resume else ({}, 0)
         if not config.resume:
             _clear_previous_sweep(folder)
         keys = [_key(c, names) for c in combos]
-        rows: dict[tuple[str, ...], dict[str, Any]] = {k: done[k] for k in keys if k in done}
-        todo = [(k, c) for k, c in zip(keys, combos, strict=True) if k not in done]
-        skipped = len(rows)
-        status = "completed"
+        # rows of this grid found earlier (a failed one stays until its rerun replaces it)
+        rows: dict[tuple[str, ...], dict[str, Any]] = {k: earlier[k] for k in keys if k in earlier}
+        todo = [(k, c) for k, c in zip(keys, combos, strict=True) if rows.get(k, {}).get("status") not in DONE]
+        skipped = len(keys) - len(todo)
+        # rows of an earlier grid that this one does not hold: kept, after this grid's rows
+        in_grid = set(keys)
+        extra = [r for k, r in earlier.items() if k not in in_grid]
+        status, ran = "completed", 0
+
+        def every_row() -> list[dict[str, Any]]:
+            return [rows[k] for k in keys if k in rows] + extra
 
         def flush() -> None:
-            write_csv(folder / CSV_NAME, [rows[k] for k in keys if k in rows], names)
+            write_csv(folder / CSV_NAME, every_row(), names)
 
         with open_client(config) if client is None else contextlib.nullcontext((client, None)) as opened:
             dask_client, cluster = opened
@@ -409,6 +481,7 @@ def run_sweep(config: SweepConfig, progress: Progress | None = None, client: Any
                             result = {"status": "failed", "exit_code": EXIT_OUT_OF_BOUND,
                                       "error": f"{type(exc).__name__}: {exc}"}
                         rows[key] = _row(combo, result, run_dir)
+                        ran += 1
                         flush()
                         progress.advance()
             except (KeyboardInterrupt, Interrupted):
@@ -418,10 +491,11 @@ def run_sweep(config: SweepConfig, progress: Progress | None = None, client: Any
                 progress.stop()
         wall = time.perf_counter() - t0
         ordered = [rows[k] for k in keys if k in rows]
-        result = SweepResult(status, ordered, len(ordered) - skipped, skipped,
-                             [r for r in ordered if r["status"] != "completed"], wall_time_s=wall)
-        result.files["csv"] = write_csv(folder / CSV_NAME, ordered, names)
-        plot = _plot(spec, config, ordered, names, folder / PLOT_NAME)
+        result = SweepResult(status, ordered, ran, skipped,
+                             [r for r in ordered if r["status"] != "completed"], wall_time_s=wall,
+                             earlier=extra, unsound=unsound)
+        result.files["csv"] = write_csv(folder / CSV_NAME, every_row(), names)
+        plot = _plot(spec, config, every_row(), names, folder / PLOT_NAME)
         if plot is not None:
             result.files["plot"] = plot
         else:
@@ -430,6 +504,7 @@ def run_sweep(config: SweepConfig, progress: Progress | None = None, client: Any
             "job": spec.name, "status": status,
             "grid": {k: [cell(v) for v in vs] for k, vs in config.grid.items()},
             "tasks": len(combos), "submitted": len(todo), "ran": result.ran, "skipped": skipped,
+            "earlier_grid_rows": len(extra), "unsound_rows": unsound,
             "wall_time_s": wall, "metric": config.metric or spec.main_value,
             "versions": versions(), "cluster": cluster,
             "failures": [{k: r[k] for k in [*names, "status", "error", "run_dir"]} for r in result.failures],

@@ -104,3 +104,14 @@ def _finite(x: Any) -> Any:
     if hasattr(x, "tolist"):
         return _finite(x.tolist())
     return x
+
+
+def read_text_nofollow(path: str | os.PathLike) -> str:
+    """The text of ``path``, refusing a symbolic link in its place (OSError ELOOP).
+
+    For files a run reads back from its own folder (an earlier report): a link planted there
+    must not make mbctl read, then act on, a file elsewhere.
+    """
+    fd = os.open(path, os.O_RDONLY | os.O_NOFOLLOW)
+    with os.fdopen(fd, encoding="utf-8") as f:
+        return f.read()

@@ -53,3 +53,11 @@ def test_sweep_on_an_existing_scheduler(dask_client, tmp_path):
         rows = list(csv.DictReader(f))
     assert [r["model_error"] for r in rows] == ["0.0", "5.0"]
     assert (tmp_path / "s" / "sweep.png").exists()
+
+
+def test_a_symlink_under_runs_exits_2(tmp_path):
+    (tmp_path / "s" / "runs").mkdir(parents=True)
+    (tmp_path / "s" / "runs" / "duration=0.1").symlink_to(tmp_path)
+    out = mbctl("sweep", "demo", "--param", "duration=0.1", "--output", str(tmp_path / "s"))
+    assert out.returncode == 2 and "runs/duration=0.1 is a symbolic link" in out.stderr, out.stderr
+    assert "Traceback" not in out.stderr
