@@ -30,6 +30,7 @@ import contextlib
 import os
 import signal
 import sys
+import tempfile
 import time
 from collections.abc import Callable, Iterator, Sequence
 from dataclasses import asdict, dataclass, field, is_dataclass, replace
@@ -43,7 +44,7 @@ from mbctl.sim.exceptions import SimulationDiverged
 from mbctl.sim.recorder import CsvStream
 from mbctl.sim.report import environment, model_section, run_section
 from mbctl.sim.simulator import Simulator
-from mbctl.sim.trajectory import TrajectoryRecorder
+from mbctl.sim.trajectory import MODEL_NAME, TRAJECTORY_NAME, TrajectoryRecorder
 from mbctl.sim.video import Overlay, VideoRecorder, VideoSpec
 
 P = TypeVar("P")
@@ -54,6 +55,7 @@ EXIT_BAD_INPUT = 2
 EXIT_INTERRUPTED = 130
 
 REPORT_NAME = "report.json"
+VIDEO_NAME = "video.mp4"
 LOCK_NAME = ".mbctl.lock"
 
 
@@ -171,7 +173,7 @@ class RunContext:
         The first CSV opened is the run's main one: its row count and last ``time_s`` go in the
         report and the interruption message.
         """
-        stream = CsvStream(self.path(name or f"{self.job.replace('-', '_')}.csv", "csv" if not
+        stream = CsvStream(self.path(name or csv_name(self.job), "csv" if not
                                      self._streams else name), header)
         self._streams.append(stream)
         if self.csv is None:
@@ -201,7 +203,7 @@ class RunContext:
             self._recorders.append(traj.attach())
             if self.video is not None:
                 spec = replace(self.video, contact_forces=contact_forces or self.video.contact_forces)
-                film = VideoRecorder(sim, self.path("video.mp4", "video"), spec, overlay)
+                film = VideoRecorder(sim, self.path(VIDEO_NAME, "video"), spec, overlay)
                 self._recorders.append(film.attach())
         return sim
 
@@ -305,9 +307,9 @@ def check_output_dir(path: Path) -> Path:
         if path.exists() and not path.is_dir():
             raise OutputError(f"output {path} exists and is not a directory; choose a folder")
         path.mkdir(parents=True, exist_ok=True)
-        probe = path / f".mbctl-write-test.{os.getpid()}"
-        probe.write_text("")
-        probe.unlink()
+        fd, probe = tempfile.mkstemp(prefix=".mbctl-write-test.", dir=path)  # O_EXCL: no link followed
+        os.close(fd)
+        os.unlink(probe)
     except OutputError:
         raise
     except OSError as exc:
@@ -315,6 +317,20 @@ def check_output_dir(path: Path) -> Path:
         raise OutputError(f"cannot write to output folder {path}: {reason}; choose another "
                           "--output") from None
     return path
+
+
+def csv_name(job: str) -> str:
+    """The name of a job's main CSV: ``<job>.csv`` with dashes as underscores."""
+    return f"{job.replace('-', '_')}.csv"
+
+
+def check_output_names(folder: Path, names: Sequence[str]) -> None:
+    """OutputError if one of the files a run will write is a directory in ``folder`` (before the run)."""
+    for name in names:
+        path = folder / name
+        if path.is_dir() and not path.is_symlink():  # a link is replaced, never followed
+            raise OutputError(f"{path} is a directory where this run writes a file; remove it or "
+                              "choose another --output")
 
 
 def refuse_link(path: Path) -> None:
@@ -489,6 +505,8 @@ def run_job(
             (status ``failed``).
     """
     folder = check_output_dir(Path(output_dir) if output_dir is not None else default_output(job.name))
+    check_output_names(folder, [REPORT_NAME, TRAJECTORY_NAME, MODEL_NAME, csv_name(job.name),
+                                *([VIDEO_NAME] if video is not None else [])])
     work = job.prepare(params)
     progress = Progress(enabled=not quiet and sys.stdout.isatty())
     ctx = RunContext(folder, job.name, progress=progress, video=video)

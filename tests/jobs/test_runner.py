@@ -160,3 +160,51 @@ def test_cli_bad_output_exits_2_with_one_line_before_any_work():
 def test_cli_version():
     out = _cli("--version")
     assert out.returncode == 0 and out.stdout.startswith("mbctl 0.")
+
+
+def _filmed(params: None):
+    def work(ctx: RunContext) -> Outcome:
+        from mbctl.jobs.plots import new_figure
+        from mbctl.robots import load_robot, torque
+        from mbctl.sim import Simulator
+
+        sim = ctx.attach(Simulator(load_robot("two_link_torque")))
+        for _ in range(30):
+            sim.step(torque([1.0, 0.0]))
+        fig, _ = new_figure()
+        ctx.save_figure(fig, "toy.png")
+        return Outcome()
+
+    return work
+
+
+def test_no_output_follows_a_symlink(tmp_path):
+    from mbctl.sim.video import VideoSpec
+
+    run, victims = tmp_path / "run", tmp_path / "victims"
+    run.mkdir()
+    victims.mkdir()
+    names = ["report.json", "trajectory.npz", "model.xml", "video.mp4", "toy.png"]
+    for name in names:
+        (victims / name).write_text(f"the user's {name}")
+        (run / name).symlink_to(victims / name)
+    record = run_job(Job("toy", _filmed), None, run, video=VideoSpec(64, 48))
+    assert record.status == "completed"
+    for name in names:
+        assert (victims / name).read_text() == f"the user's {name}", name
+        assert not (run / name).is_symlink() and (run / name).stat().st_size > 0, name
+    assert (run / "video.mp4").read_bytes()[4:8] == b"ftyp"  # the run's own MP4 replaced the link
+
+
+def test_a_directory_in_place_of_an_output_is_refused_before_the_run(tmp_path):
+    from mbctl.sim.video import VideoSpec
+
+    calls = []
+    job = Job("toy", lambda p: calls.append(p))
+    (tmp_path / "video.mp4").mkdir()
+    with pytest.raises(OutputError, match="video.mp4 is a directory where this run writes a file"):
+        run_job(job, Params(), tmp_path, video=VideoSpec(64, 48))
+    assert calls == [] and sorted(os.listdir(tmp_path)) == ["video.mp4"]
+    out = _cli("demo", "--duration", "0.1", "--video", "--output", str(tmp_path), "--quiet")
+    assert out.returncode == 2 and "video.mp4 is a directory" in out.stderr, out.stderr
+    assert "Traceback" not in out.stderr and sorted(os.listdir(tmp_path)) == ["video.mp4"]
