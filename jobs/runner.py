@@ -12,9 +12,10 @@ The runner owns the output folder (one run per folder):
   :class:`OutputError` (exit 2) naming it.
 - A lock file ``.mbctl.lock`` (holding the pid) makes a second concurrent run into the same folder
   refuse with a message naming the other process; a lock left by a dead process is taken over.
-- The files of an earlier run in the folder (those its ``report.json`` lists, the report itself and
-  temporary files of dead processes) are removed before the new run writes anything, so no file
-  of an earlier run survives beside a new one.
+- The files of an earlier run in the folder (those its ``report.json`` lists with their SHA-256
+  and that still have it, the report itself and temporary files of dead processes) are removed
+  before the new run writes anything, so no file of an earlier run survives beside a new one,
+  and no other file is removed (see :func:`clear_previous_run`).
 - ``report.json`` is written when the work starts (status ``running``) and again at the end in
   every case: ``completed``, ``interrupted`` (Ctrl-C or SIGTERM), ``diverged`` (the plant
   diverged) or ``failed`` (with the message), with the values known so far, the row count, the
@@ -29,6 +30,7 @@ from __future__ import annotations
 import contextlib
 import os
 import signal
+import stat
 import sys
 import tempfile
 import time
@@ -39,7 +41,8 @@ from types import FrameType
 from typing import Any, Generic, TypeVar
 
 from mbctl.exceptions import ToolkitError
-from mbctl.sim.atomic import FILE_MODE, write_bytes_atomic, write_json_atomic
+from mbctl.robots.menagerie import sha256_file
+from mbctl.sim.atomic import FILE_MODE, read_text_nofollow, write_bytes_atomic, write_json_atomic
 from mbctl.sim.exceptions import SimulationDiverged
 from mbctl.sim.recorder import CsvStream
 from mbctl.sim.report import environment, model_section, run_section
@@ -386,20 +389,51 @@ def folder_lock(path: Path) -> Iterator[None]:
         lock.unlink(missing_ok=True)
 
 
-def _clear_previous_run(path: Path) -> None:
-    """Remove the previous run's outputs (from its report), the report and dead temp files."""
+def output_hashes(folder: Path, files: dict[str, Path]) -> dict[str, str]:
+    """SHA-256 of each output in ``files`` that is a plain file in ``folder``, by file name."""
+    hashes = {}
+    for path in files.values():
+        if path.parent == folder and stat.S_ISREG(_lstat_mode(path)):
+            hashes[path.name] = sha256_file(path)
+    return hashes
+
+
+def _lstat_mode(path: Path) -> int:
+    try:
+        return os.lstat(path).st_mode
+    except OSError:
+        return 0
+
+
+def _made_by_the_run(folder: Path, name: Any, digest: Any) -> bool:
+    """Whether ``name`` is a plain file directly in ``folder`` (no link) whose SHA-256 is ``digest``."""
+    if not isinstance(name, str) or not isinstance(digest, str) or name in ("", ".", "..") \
+            or name != Path(name).name or "\0" in name:
+        return False
+    path = folder / name
+    return stat.S_ISREG(_lstat_mode(path)) and sha256_file(path) == digest.lower()
+
+
+def clear_previous_run(path: Path) -> None:
+    """Remove the previous run's outputs, its report and dead temp files.
+
+    Only files the previous run made are removed: those its report lists in ``output_sha256``
+    that are plain files in the folder (not links) with that SHA-256. A forged or stale report
+    cannot make a run delete a user's file; a file edited since the run is left alone. A report
+    that is a symbolic link is removed without being read.
+    """
     import json
 
     report = path / REPORT_NAME
-    if report.exists():
+    if report.exists() or report.is_symlink():
         try:
-            listed = json.loads(report.read_text()).get("outputs", {})
+            data = json.loads(read_text_nofollow(report))
         except (OSError, ValueError):
-            listed = {}
-        for name in listed.values() if isinstance(listed, dict) else ():
-            target = path / Path(str(name)).name  # only files inside this folder
-            if target.is_file():
-                target.unlink()
+            data = {}
+        hashes = data.get("output_sha256") if isinstance(data, dict) else None
+        for name, digest in hashes.items() if isinstance(hashes, dict) else ():
+            if _made_by_the_run(path, name, digest):
+                (path / name).unlink()
         report.unlink()
     for tmp in path.glob(".*.tmp"):
         tmp.unlink(missing_ok=True)  # under the lock, every temp file is a dead process's
@@ -475,6 +509,9 @@ def _report(ctx: RunContext, params: Any, status: str, message: str | None, outc
     report["values"] = _jsonable(ctx.values)
     report.update(_jsonable(ctx.sections))
     report["outputs"] = {role: p.name for role, p in ctx.files.items() if role != "report"}
+    if status != "running":  # what the next run into this folder may remove, and nothing else
+        report["output_sha256"] = output_hashes(ctx.output_dir, {
+            role: p for role, p in ctx.files.items() if role != "report"})
     return report
 
 
@@ -512,7 +549,7 @@ def run_job(
     ctx = RunContext(folder, job.name, progress=progress, video=video)
     report_path = folder / REPORT_NAME
     with folder_lock(folder):
-        _clear_previous_run(folder)
+        clear_previous_run(folder)
         write_json_atomic(report_path, _report(ctx, params, "running", None, None, 0.0))
         wall0 = time.perf_counter()
         status, message, outcome, code = "failed", None, None, EXIT_OUT_OF_BOUND

@@ -32,7 +32,6 @@ import itertools
 import json
 import logging
 import re
-import shutil
 import signal
 import sys
 import threading
@@ -56,6 +55,7 @@ from mbctl.jobs.runner import (
     JobError,
     Progress,
     check_output_dir,
+    clear_previous_run,
     folder_lock,
     refuse_link,
     run_job,
@@ -306,14 +306,21 @@ def check_runs_folder(folder: Path) -> None:
 
 
 def _clear_previous_sweep(folder: Path) -> None:
-    """Remove an earlier sweep's files and run folders (those holding a report)."""
+    """Remove an earlier sweep's files and what its runs made (run folders left empty go too).
+
+    Each run folder is cleared as the job runner clears a folder (only the files its report
+    lists with their SHA-256), so a file the sweep did not make is never removed.
+    """
     for name in (CSV_NAME, JSON_NAME, PLOT_NAME):
         (folder / name).unlink(missing_ok=True)
     runs = folder / RUNS
     if runs.is_dir():
         for run in runs.iterdir():
-            if run.is_dir() and (run / REPORT_NAME).exists():
-                shutil.rmtree(run)
+            if run.is_dir() and not run.is_symlink() and (run / REPORT_NAME).exists():
+                with folder_lock(run):
+                    clear_previous_run(run)
+                with contextlib.suppress(OSError):
+                    run.rmdir()  # only if empty
 
 
 @contextlib.contextmanager
@@ -445,7 +452,8 @@ def run_sweep(config: SweepConfig, progress: Progress | None = None, client: Any
         keys = [_key(c, names) for c in combos]
         # rows of this grid found earlier (a failed one stays until its rerun replaces it)
         rows: dict[tuple[str, ...], dict[str, Any]] = {k: earlier[k] for k in keys if k in earlier}
-        todo = [(k, c) for k, c in zip(keys, combos, strict=True) if rows.get(k, {}).get("status") not in DONE]
+        todo = [(k, c) for k, c in zip(keys, combos, strict=True)
+                if rows.get(k, {}).get("status") not in DONE]
         skipped = len(keys) - len(todo)
         # rows of an earlier grid that this one does not hold: kept, after this grid's rows
         in_grid = set(keys)

@@ -208,3 +208,45 @@ def test_a_directory_in_place_of_an_output_is_refused_before_the_run(tmp_path):
     out = _cli("demo", "--duration", "0.1", "--video", "--output", str(tmp_path), "--quiet")
     assert out.returncode == 2 and "video.mp4 is a directory" in out.stderr, out.stderr
     assert "Traceback" not in out.stderr and sorted(os.listdir(tmp_path)) == ["video.mp4"]
+
+
+def test_a_forged_or_stale_report_removes_no_user_file(tmp_path):
+    from mbctl.robots.menagerie import sha256_file
+
+    run_job(TOY, Params(rows=3, plot=True), tmp_path)
+    report = _report(tmp_path)
+    assert set(report["output_sha256"]) == {"toy.csv", "toy.png"}
+    assert report["output_sha256"]["toy.csv"] == sha256_file(tmp_path / "toy.csv")
+    outside, victim = tmp_path.parent / f"{tmp_path.name}-outside.txt", tmp_path / "victim.txt"
+    outside.write_text("outside")
+    victim.write_text("the user's notes")
+    (tmp_path / "notes.txt").write_text("the user's notes")
+    (tmp_path / "link.txt").symlink_to(victim)
+    (tmp_path / "toy.png").write_text("edited by the user since the run")  # stale entry
+    digest = sha256_file(victim)
+    report["outputs"].update(notes="notes.txt", link="link.txt", out=f"../{outside.name}",
+                             victim="victim.txt")
+    report["output_sha256"].update({"notes.txt": "0" * 64, "link.txt": digest,
+                                    f"../{outside.name}": sha256_file(outside), "/etc/passwd": "0" * 64})
+    (tmp_path / "report.json").write_text(json.dumps(report))
+    run_job(TOY, Params(rows=2), tmp_path)
+    assert sorted(os.listdir(tmp_path)) == ["link.txt", "notes.txt", "report.json", "toy.csv", "toy.png",
+                                           "victim.txt"]
+    assert victim.read_text() == "the user's notes" and outside.read_text() == "outside"
+    assert (tmp_path / "toy.png").read_text() == "edited by the user since the run"
+
+
+def test_a_report_that_is_a_symlink_is_not_read(tmp_path):
+    from mbctl.robots.menagerie import sha256_file
+
+    elsewhere = tmp_path / "elsewhere"
+    elsewhere.mkdir()
+    (tmp_path / "run").mkdir()
+    (tmp_path / "run" / "data.txt").write_text("the user's data")
+    digest = sha256_file(tmp_path / "run" / "data.txt")
+    (elsewhere / "report.json").write_text(json.dumps(
+        {"outputs": {"csv": "data.txt"}, "output_sha256": {"data.txt": digest}}))
+    (tmp_path / "run" / "report.json").symlink_to(elsewhere / "report.json")
+    run_job(TOY, Params(rows=2), tmp_path / "run")
+    assert (tmp_path / "run" / "data.txt").read_text() == "the user's data"
+    assert (elsewhere / "report.json").exists() and not (tmp_path / "run" / "report.json").is_symlink()

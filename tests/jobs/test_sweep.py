@@ -198,3 +198,18 @@ def test_a_symlink_under_runs_is_refused_before_any_task(tmp_path, resume):
                                           "never writes through one"):
         run_sweep(config, client=object())  # never used: the check comes first
     assert sorted(p.name for p in victim.iterdir()) == ["report.json", "thesis.tex"]
+
+
+def test_a_new_sweep_removes_only_what_its_runs_made(client, tmp_path):
+    config = demo_sweep(tmp_path, "model_error=0")
+    run_sweep(config, client=client)
+    runs = config.output_dir / "runs"
+    (runs / "mine").mkdir()
+    (runs / "mine" / "report.json").write_text('{"outputs": {"a": "thesis.tex"}}')  # forged
+    (runs / "mine" / "thesis.tex").write_text("years of work")
+    (runs / "duration=0.1,model_error=0.0" / "notes.txt").write_text("the user's notes")
+    run_sweep(demo_sweep(tmp_path, "model_error=5"), client=client)
+    assert (runs / "mine" / "thesis.tex").read_text() == "years of work"
+    assert sorted(p.name for p in (runs / "duration=0.1,model_error=0.0").iterdir()) == ["notes.txt"]
+    assert sorted(p.name for p in runs.iterdir()) == ["duration=0.1,model_error=0.0",
+                                                      "duration=0.1,model_error=5.0", "mine"]

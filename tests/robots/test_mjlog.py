@@ -7,7 +7,8 @@ import sys
 
 NAN_STEP = """
 import mujoco, numpy as np
-m = mujoco.MjModel.from_xml_string('<mujoco><worldbody><body><joint/><geom size="0.1"/></body></worldbody></mujoco>')
+m = mujoco.MjModel.from_xml_string(
+    '<mujoco><worldbody><body><joint/><geom size="0.1"/></body></worldbody></mujoco>')
 d = mujoco.MjData(m)
 d.qpos[0] = np.nan
 mujoco.mj_step(m, d)  # MuJoCo warns: Nan, Inf or huge value in QPOS

@@ -93,8 +93,9 @@ def test_a_model_of_another_robot_with_the_same_nq_is_refused(run_dir, tmp_path)
     folder = tmp_path / "mixed"
     shutil.copytree(run_dir, folder)
     (folder / MODEL_NAME).write_text(ONE_DOF_ARM)  # nq = 2, as the arm's
-    with pytest.raises(TrajectoryError, match="recorded on robot 'two_link_torque' \\(model 'two_link_torque'\\), "
-                                              "but model.xml beside it is model 'pendulum_pair'"):
+    with pytest.raises(TrajectoryError, match="recorded on robot 'two_link_torque' \\(model "
+                                              "'two_link_torque'\\), but model.xml beside it is model "
+                                              "'pendulum_pair'"):
         load_trajectory(folder)
     # the same model name, other joints: still refused, naming the first joint that differs
     (folder / MODEL_NAME).write_text(ONE_DOF_ARM.replace("pendulum_pair", "two_link_torque"))
