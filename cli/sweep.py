@@ -29,6 +29,9 @@ def sweep(
     scheduler: Annotated[
         str | None, typer.Option("--scheduler", help="Use this Dask scheduler (tcp://HOST:PORT).")
     ] = None,
+    connect_timeout: Annotated[
+        float, typer.Option("--connect-timeout", help="Seconds to wait for --scheduler to answer.")
+    ] = 10.0,
     dashboard: Annotated[
         bool, typer.Option("--dashboard", help="Serve the Dask dashboard (local cluster, port 8787).")
     ] = False,
@@ -48,7 +51,7 @@ def sweep(
     """Run JOB for every combination of the values (times the seeds); exit 1 if a row failed."""
     grid = parse_grid(job, param or [], seeds)
     folder = output or Path("out") / f"sweep-{job}"
-    config = SweepConfig(job, grid, folder, workers, scheduler, dashboard, resume, metric)
+    config = SweepConfig(job, grid, folder, workers, scheduler, dashboard, resume, metric, connect_timeout)
     result = run_sweep(config, Progress(enabled=not quiet and sys.stdout.isatty()))
     lines = [f"{len(result.rows)} rows ({result.ran} run, {result.skipped} kept) in "
              f"{result.wall_time_s:.1f} s; {len(result.failures)} not completed",

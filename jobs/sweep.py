@@ -94,6 +94,7 @@ class SweepConfig:
         dashboard: Serve the Dask dashboard (local cluster only).
         resume: Keep the done rows of an earlier ``sweep.csv`` in the folder.
         metric: The report value to plot (default: the job's main value).
+        connect_timeout_s: How long [s] to wait for ``scheduler`` to answer as a Dask scheduler.
     """
 
     job: str
@@ -104,10 +105,13 @@ class SweepConfig:
     dashboard: bool = False
     resume: bool = False
     metric: str | None = None
+    connect_timeout_s: float = 10.0
 
     def __post_init__(self) -> None:
         if self.workers < 1:
             raise SweepInputError(f"--workers must be >= 1; got {self.workers}")
+        if not 0 < self.connect_timeout_s <= 600:
+            raise SweepInputError(f"--connect-timeout must be in (0, 600] s; got {self.connect_timeout_s}")
 
 
 @dataclass
@@ -355,6 +359,65 @@ def local_cluster(workers: int, dashboard: bool = False) -> Any:
                             dashboard_address=":8787" if dashboard else None, silence_logs=logging.ERROR)
 
 
+#: Dask comm schemes a scheduler can listen on (``inproc`` is within one process only).
+SCHEDULER_SCHEMES = ("tcp", "tls", "ws", "wss", "ucx")
+
+
+def parse_scheduler(address: str) -> str:
+    """The scheduler address as ``scheme://host:port``; SweepInputError naming it if malformed.
+
+    Raises:
+        SweepInputError: No port, a port outside 1-65535, no host, or a scheme Dask cannot
+            reach a scheduler by (``http://`` is the dashboard's, not the scheduler's).
+    """
+    from distributed.comm.addressing import parse_address, parse_host_port, unparse_address
+
+    form = "give tcp://HOST:PORT, e.g. tcp://127.0.0.1:8786 (the port the scheduler prints, not the dashboard's)"
+    try:
+        scheme, location = parse_address(address.strip(), strict=False)
+        host, port = parse_host_port(location)
+    except ValueError as exc:
+        raise SweepInputError(f"--scheduler {address!r} is not a scheduler address ({exc}); {form}") from None
+    if scheme not in SCHEDULER_SCHEMES:
+        raise SweepInputError(f"--scheduler {address!r}: Dask reaches a scheduler by "
+                              f"{', '.join(SCHEDULER_SCHEMES)}, not {scheme}://; {form}")
+    if not host or not 0 < int(port) < 65536:
+        raise SweepInputError(f"--scheduler {address!r} needs a host and a port in 1-65535; {form}")
+    return unparse_address(scheme, location)
+
+
+def check_scheduler(address: str, timeout_s: float) -> None:
+    """Ask ``address`` who it is; SweepSetupError unless a Dask scheduler answers within ``timeout_s``.
+
+    Dask's own ``Client(address, timeout=...)`` can wait minutes on a port that accepts the
+    connection but never speaks Dask's protocol (an HTTP server); this handshake is bounded.
+    """
+    import asyncio
+
+    from distributed.comm import connect
+
+    async def identity() -> Any:
+        comm = await connect(address, timeout=timeout_s)
+        try:
+            await comm.write({"op": "identity"})
+            return await comm.read()
+        finally:
+            comm.abort()
+
+    try:
+        answer = asyncio.run(asyncio.wait_for(identity(), timeout_s))
+    except (OSError, asyncio.TimeoutError, ValueError, TypeError) as exc:
+        why = f"{type(exc).__name__}: {exc}" if str(exc) else type(exc).__name__
+        raise SweepSetupError(
+            f"no Dask scheduler answered at {address} within {timeout_s:g} s ({why}); check that "
+            "`dask scheduler` runs there and that this is its address (not the dashboard's), or "
+            "raise --connect-timeout") from None
+    kind = answer.get("type") if isinstance(answer, dict) else None
+    if kind != "Scheduler":
+        raise SweepSetupError(f"{address} answers, but as a Dask {kind or 'peer of unknown kind'}, not a "
+                              "scheduler: give the scheduler's address")
+
+
 @contextlib.contextmanager
 def open_client(config: SweepConfig) -> Iterator[tuple[Any, dict[str, Any]]]:
     """A Dask client on a new local cluster, or on ``config.scheduler``; closed after the block.
@@ -363,7 +426,9 @@ def open_client(config: SweepConfig) -> Iterator[tuple[Any, dict[str, Any]]]:
         The client and the cluster section of ``sweep.json`` (address, workers, threads).
 
     Raises:
-        SweepSetupError: Dask is not installed, or the scheduler cannot be reached.
+        SweepInputError: The scheduler address is malformed.
+        SweepSetupError: Dask is not installed, or no scheduler answers at the address within
+            ``config.connect_timeout_s``.
     """
     try:
         from dask.distributed import Client
@@ -372,7 +437,9 @@ def open_client(config: SweepConfig) -> Iterator[tuple[Any, dict[str, Any]]]:
     cluster = None
     try:
         if config.scheduler is not None:
-            client = Client(config.scheduler, timeout=10)
+            address = parse_scheduler(config.scheduler)
+            check_scheduler(address, config.connect_timeout_s)
+            client = Client(address, timeout=config.connect_timeout_s)
         else:
             cluster = local_cluster(config.workers, config.dashboard)
             client = Client(cluster)
@@ -441,6 +508,11 @@ def run_sweep(config: SweepConfig, progress: Progress | None = None, client: Any
         OutputError: The folder is not usable or another process holds it.
     """
     spec, combos = prepare_sweep(config)
+    if config.scheduler is not None and client is None:
+        try:
+            parse_scheduler(config.scheduler)  # a malformed address: nothing written
+        except ImportError:
+            raise SweepSetupError(f"mbctl sweep runs on Dask, which is not installed: {INSTALL_HINT}") from None
     names = list(config.grid)
     folder = check_output_dir(config.output_dir)
     progress = progress or Progress()
