@@ -372,7 +372,8 @@ def parse_scheduler(address: str) -> str:
     """
     from distributed.comm.addressing import parse_address, parse_host_port, unparse_address
 
-    form = "give tcp://HOST:PORT, e.g. tcp://127.0.0.1:8786 (the port the scheduler prints, not the dashboard's)"
+    form = ("give tcp://HOST:PORT, e.g. tcp://127.0.0.1:8786 (the port the scheduler prints, not the "
+            "dashboard's)")
     try:
         scheme, location = parse_address(address.strip(), strict=False)
         host, port = parse_host_port(location)
@@ -512,7 +513,8 @@ def run_sweep(config: SweepConfig, progress: Progress | None = None, client: Any
         try:
             parse_scheduler(config.scheduler)  # a malformed address: nothing written
         except ImportError:
-            raise SweepSetupError(f"mbctl sweep runs on Dask, which is not installed: {INSTALL_HINT}") from None
+            raise SweepSetupError(f"mbctl sweep runs on Dask, which is not installed: {INSTALL_HINT}") \
+                from None
     names = list(config.grid)
     folder = check_output_dir(config.output_dir)
     progress = progress or Progress()
