@@ -75,6 +75,7 @@ TAIL = ("status", "exit_code", "error", "run_dir")
 #: Statuses a resumed sweep does not run again.
 DONE = ("completed", "diverged")
 INSTALL_HINT = "pip install 'mbctl[sweep]'"
+NO_DASK = f"mbctl sweep runs on Dask, which is not installed: {INSTALL_HINT}"
 
 
 class SweepSetupError(JobError):
@@ -434,7 +435,7 @@ def open_client(config: SweepConfig) -> Iterator[tuple[Any, dict[str, Any]]]:
     try:
         from dask.distributed import Client
     except ImportError:
-        raise SweepSetupError(f"mbctl sweep runs on Dask, which is not installed: {INSTALL_HINT}") from None
+        raise SweepSetupError(NO_DASK) from None
     cluster = None
     try:
         if config.scheduler is not None:
@@ -513,8 +514,7 @@ def run_sweep(config: SweepConfig, progress: Progress | None = None, client: Any
         try:
             parse_scheduler(config.scheduler)  # a malformed address: nothing written
         except ImportError:
-            raise SweepSetupError(f"mbctl sweep runs on Dask, which is not installed: {INSTALL_HINT}") \
-                from None
+            raise SweepSetupError(NO_DASK) from None
     names = list(config.grid)
     folder = check_output_dir(config.output_dir)
     progress = progress or Progress()
