@@ -12,6 +12,7 @@ from mbctl.cli._run import QuietOpt
 from mbctl.jobs.catalog import CATALOG, parse_grid
 from mbctl.jobs.runner import Progress
 from mbctl.jobs.sweep import CSV_NAME, SweepConfig, run_sweep
+from mbctl.limits import MAX_SWEEP_TASKS
 
 
 def sweep(
@@ -47,11 +48,15 @@ def sweep(
                                       "sweep.png, runs/."),
     ] = None,
     quiet: QuietOpt = False,
+    force: Annotated[
+        bool, typer.Option("--force", help=f"Run a grid of more than {MAX_SWEEP_TASKS:,} tasks.")
+    ] = False,
 ) -> None:
     """Run JOB for every combination of the values (times the seeds); exit 1 if a row failed."""
     grid = parse_grid(job, param or [], seeds)
     folder = output or Path("out") / f"sweep-{job}"
-    config = SweepConfig(job, grid, folder, workers, scheduler, dashboard, resume, metric, connect_timeout)
+    config = SweepConfig(job, grid, folder, workers, scheduler, dashboard, resume, metric, connect_timeout,
+                         force)
     result = run_sweep(config, Progress(enabled=not quiet and sys.stdout.isatty()))
     lines = [f"{len(result.rows)} rows ({result.ran} run, {result.skipped} kept) in "
              f"{result.wall_time_s:.1f} s; {len(result.failures)} not completed",

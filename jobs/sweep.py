@@ -31,6 +31,7 @@ import io
 import itertools
 import json
 import logging
+import math
 import re
 import signal
 import sys
@@ -61,6 +62,7 @@ from mbctl.jobs.runner import (
     run_job,
     sigterm_as_interrupt,
 )
+from mbctl.limits import MAX_SWEEP_TASKS, check_limit
 from mbctl.robots.model_pair import Robot
 from mbctl.robots.registry import load_robot
 from mbctl.sim.atomic import read_text_nofollow, write_json_atomic, write_text_atomic
@@ -96,6 +98,7 @@ class SweepConfig:
         resume: Keep the done rows of an earlier ``sweep.csv`` in the folder.
         metric: The report value to plot (default: the job's main value).
         connect_timeout_s: How long [s] to wait for ``scheduler`` to answer as a Dask scheduler.
+        force: Run more than :data:`~mbctl.limits.MAX_SWEEP_TASKS` tasks.
     """
 
     job: str
@@ -107,6 +110,7 @@ class SweepConfig:
     resume: bool = False
     metric: str | None = None
     connect_timeout_s: float = 10.0
+    force: bool = False
 
     def __post_init__(self) -> None:
         if self.workers < 1:
@@ -479,9 +483,15 @@ def prepare_sweep(config: SweepConfig) -> tuple[CatalogEntry, list[dict[str, Any
 
     Raises:
         SweepInputError: Unknown job, option or metric.
+        SizeLimitError: More than ``MAX_SWEEP_TASKS`` combinations without ``force``.
         ToolkitError: A combination the job's parameters reject (the message names the values).
     """
     spec = entry(config.job)
+    tasks = math.prod(len(values) for values in config.grid.values())
+    if not config.force:
+        check_limit("the grid", tasks, MAX_SWEEP_TASKS, " tasks",
+                    f"{' x '.join(f'{len(v)} {k}' for k, v in config.grid.items())}; split the grid, "
+                    "or give --force to run it anyway")
     combos = combinations(config.grid)
     for combo in combos:
         try:
