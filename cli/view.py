@@ -5,7 +5,7 @@ from __future__ import annotations
 import os
 import time
 from pathlib import Path
-from typing import Annotated
+from typing import Annotated, BinaryIO, cast
 
 import mujoco
 import typer
@@ -61,7 +61,8 @@ def render(
     loaded = load_robot(robot, scene, model_dir=model_dir)
     data = _posed(loaded, keyframe)
     frame = still(loaded.mj_model, data, VideoSpec(width, height), base_body(loaded))
-    write_bytes_atomic(output, lambda f: image.imsave(f, frame, format="png"))  # a link is replaced
+    # written beside and renamed: a symbolic link at --output is replaced, never followed
+    write_bytes_atomic(output, lambda f: image.imsave(cast(BinaryIO, f), frame, format="png"))
     typer.echo(f"wrote {output} ({width}x{height} px)")
 
 

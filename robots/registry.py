@@ -146,8 +146,9 @@ def load_robot(
     pin_file = Path(pin_model_file).expanduser().resolve() if pin_model_file else robot_file
     if pin_model_file or analytic == "parser":
         analytic = "parser"
-        pin_model: pin.Model | None = load_pin_model(pin_file)
-        check_robot_dof(pin_model.nv, name)
+        parsed = load_pin_model(pin_file)
+        check_robot_dof(parsed.nv, name)
+        pin_model: pin.Model | None = parsed
     else:
         pin_model = None  # built by Robot from the compiled MjModel (robots/pin_from_mj.py)
     edits: tuple[str, ...] = ()

@@ -145,11 +145,11 @@ def check_trajectory(arrays: dict[str, np.ndarray], model: mujoco.MjModel, path:
         if recorded != plant:
             k = next((i for i, (a, b) in enumerate(zip(recorded, plant, strict=False)) if a != b),
                      min(len(recorded), len(plant)))
-            a = recorded[k] if k < len(recorded) else "(none)"
-            b = plant[k] if k < len(plant) else "(none)"
+            ours = recorded[k] if k < len(recorded) else "(none)"
+            theirs = plant[k] if k < len(plant) else "(none)"
             raise TrajectoryError(
                 f"{path} was recorded on robot {robot!r} with {len(recorded)} joints, but {MODEL_NAME} "
-                f"beside it has {len(plant)}; joint {k} is {a!r} in the recording and {b!r} in "
+                f"beside it has {len(plant)}; joint {k} is {ours!r} in the recording and {theirs!r} in "
                 f"{MODEL_NAME}: the run folder mixes two robots")
     if qpos.ndim != 2 or qpos.shape[1] != model.nq:
         raise TrajectoryError(f"{path}: qpos has shape {qpos.shape}, but the plant in {MODEL_NAME} "

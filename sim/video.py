@@ -175,7 +175,7 @@ class _Writer:
         self._frames.send(np.ascontiguousarray(frame))
 
     def close(self) -> None:
-        """Finish the file and rename it into place (a video without frames is not published)."""
+        """Finish the file and rename it into place (idempotent; a video without frames is not published)."""
         if self._frames is None:
             self.out.discard()
             return
@@ -183,6 +183,7 @@ class _Writer:
             self._frames.close()
         finally:
             self.out.publish()
+            self._frames = None
 
 
 def _open_writer(path: Path, fps: float) -> _Writer:
@@ -234,9 +235,7 @@ class VideoRecorder:
     def close(self) -> None:
         """Stop filming and finish the file (idempotent)."""
         self.sim.remove_observer(self)
-        if self._writer is not None:
-            self._writer.close()
-            self._writer = None
+        self._writer.close()
         self.renderer.close()
 
 

@@ -99,7 +99,7 @@ def test_a_malformed_scheduler_address_exits_2_before_anything_is_written(tmp_pa
 
 
 def test_a_worker_address_is_not_taken_for_a_scheduler(dask_client):
-    from mbctl.jobs.sweep import SweepSetupError, check_scheduler
+    from mbctl.jobs.sweep_cluster import SweepSetupError, check_scheduler
 
     worker = next(iter(dask_client.scheduler_info()["workers"]))
     with pytest.raises(SweepSetupError, match="answers, but as a Dask Worker, not a scheduler"):

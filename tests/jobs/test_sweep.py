@@ -15,7 +15,8 @@ from mbctl.jobs import options  # noqa: E402
 from mbctl.jobs.catalog import CATALOG, SweepInputError, parse_grid  # noqa: E402
 from mbctl.jobs.demo import DEMO  # noqa: E402
 from mbctl.jobs.runner import Progress, run_job  # noqa: E402
-from mbctl.jobs.sweep import SweepConfig, SweepSetupError, open_client, run_sweep  # noqa: E402
+from mbctl.jobs.sweep import SweepConfig, run_sweep  # noqa: E402
+from mbctl.jobs.sweep_cluster import SweepSetupError, open_client  # noqa: E402
 
 DURATION = "0.1"
 
