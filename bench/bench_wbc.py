@@ -22,11 +22,11 @@ from pathlib import Path
 import numpy as np
 import qpsolvers
 
-from mbctl.jobs.g1_wbc import G1_WBC, WBCParams, crouched_start, g1_whole_body
-from mbctl.jobs.robot_constants import with_palm_sites
+from mbctl.jobs.g1_wbc import G1_WBC, WBCParams, g1_whole_body
 from mbctl.jobs.runner import run_job
 from mbctl.robots import load_robot
 from mbctl.robots.edits import position_to_motor
+from mbctl.robots.g1 import crouched_start, with_palm_sites
 from mbctl.robots.interface import RobotState
 from mbctl.sim.simulator import Simulator
 
@@ -40,13 +40,13 @@ def _states(robot, n: int = 60, stride: int = 10) -> list[RobotState]:
     sim.set_state(crouched_start(robot), np.zeros(robot.pin_model.nv))
     wb = g1_whole_body(robot)
     wb.hold(sim.read_state())
-    c0 = wb.com.p_ref
+    c0 = wb.com.target
     out = []
     for k in range(stride * n):
         t = sim.time_s
-        wb.com.set_reference(c0 - [0, 0, 0.04 * (1 - np.cos(np.pi * t))])
+        wb.com.set_target(c0 - [0, 0, 0.04 * (1 - np.cos(np.pi * t))])
         state = sim.read_state()
-        sim.step(wb.controller.compute(state, dt_s=sim.control_period_s))
+        sim.step(wb.controller.compute(state))
         if k % stride == 0:
             out.append(state)
     return out

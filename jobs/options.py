@@ -57,7 +57,7 @@ def g1_arm_pd(duration: float | None = None, side: str = "left", gravity_feedfor
     return ArmPDParams(duration, side, gravity_feedforward, max_rms_rad, model_dir)
 
 
-def g1_wbc(scenario: str = "stand", duration: float | None = None, impulse: float = 10.0,
+def g1_wbc(scenario: str = "stand", duration: float | None = None, impulse: float | None = None,
            direction: float | None = None, model_error: float = 0.0,
            model_dir: str | None = None) -> WBCParams:
     """``mbctl g1-wbc``: duration in s, impulse in N s, direction in deg, model_error in %."""
