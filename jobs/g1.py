@@ -47,6 +47,7 @@ from mbctl.control.position_pd import PositionTargetPD
 from mbctl.jobs.plots import coincident_groups, joint_colors, most_moved, new_figure, tracking_panels
 from mbctl.jobs.recording import LoopRows, command_columns
 from mbctl.jobs.runner import Job, Outcome, RunContext, Work
+from mbctl.limits import check_duration
 from mbctl.planners.ruckig_planner import JointLimits, plan_ruckig, plan_waypoints
 from mbctl.planners.trajectory import JointTrajectory
 from mbctl.robots.edits import position_to_motor, weld_base
@@ -157,6 +158,7 @@ class StandParams:
     model_dir: str | None = None
 
     def __post_init__(self) -> None:
+        check_duration(self.duration_s)
         for name in ("duration_s", "omega_rad_s", "zeta"):
             _positive(name, getattr(self, name), allow_none=False)
 
@@ -172,6 +174,7 @@ class TrackParams:
     model_dir: str | None = None
 
     def __post_init__(self) -> None:
+        check_duration(self.duration_s)
         _positive("duration_s", self.duration_s)
         _positive("omega_rad_s", self.omega_rad_s, allow_none=False)
         _positive("zeta", self.zeta, allow_none=False)
@@ -191,6 +194,7 @@ class ArmPDParams:
     def __post_init__(self) -> None:
         if self.side not in ("left", "right"):
             raise ControlError(f"side must be 'left' or 'right'; got {self.side!r}")
+        check_duration(self.duration_s)
         _positive("duration_s", self.duration_s)
         _positive("max_rms_error_rad", self.max_rms_error_rad)
 

@@ -24,7 +24,6 @@ from mbctl.jobs.ik import IKParams
 from mbctl.jobs.joint_step import JointStepParams
 from mbctl.jobs.workspace import WorkspaceParams
 from mbctl.jobs.xcheck import XcheckParams
-from mbctl.limits import check_duration
 
 
 def demo(controller: str = "ct", compare: bool = False, model_error: float = 0.0,
@@ -39,21 +38,18 @@ def demo(controller: str = "ct", compare: bool = False, model_error: float = 0.0
 def g1_stand(duration: float = 10.0, omega: float = 10.0, zeta: float = 1.0,
              model_dir: str | None = None) -> StandParams:
     """``mbctl g1-stand``: duration in s, omega in rad/s, zeta (-)."""
-    check_duration(duration)
     return StandParams(duration, omega, zeta, model_dir)
 
 
 def g1_track(duration: float | None = None, omega: float = 40.0, zeta: float = 1.0,
              max_rms_rad: float | None = None, model_dir: str | None = None) -> TrackParams:
     """``mbctl g1-track``: duration in s, omega in rad/s, zeta (-), max_rms_rad in rad."""
-    check_duration(duration)
     return TrackParams(duration, omega, zeta, max_rms_rad, model_dir)
 
 
 def g1_arm_pd(duration: float | None = None, side: str = "left", gravity_feedforward: bool = True,
               max_rms_rad: float | None = None, model_dir: str | None = None) -> ArmPDParams:
     """``mbctl g1-arm-pd``: duration in s, side left or right, max_rms_rad in rad."""
-    check_duration(duration)
     return ArmPDParams(duration, side, gravity_feedforward, max_rms_rad, model_dir)
 
 
@@ -61,7 +57,6 @@ def g1_wbc(scenario: str = "stand", duration: float | None = None, impulse: floa
            direction: float | None = None, model_error: float = 0.0,
            model_dir: str | None = None) -> WBCParams:
     """``mbctl g1-wbc``: duration in s, impulse in N s, direction in deg, model_error in %."""
-    check_duration(duration)
     return WBCParams(scenario, duration, impulse, direction, model_error, model_dir)
 
 
