@@ -160,16 +160,16 @@ class WholeBodyQP:
         S = B @ B.T
         S += (E_f @ E_f.T) * self._inv_wf2
         rhs = e + B @ Lc  # e + E H^-1 c   (c_f = 0)
-        # S = E H^-1 E^T, pivoted Cholesky: its rank is E's; the pivots pick independent rows
+        # S = E H^-1 E^T: a plain Cholesky when E has full row rank (pivots well above round-off),
+        # else a pivoted one, whose rank is E's and whose pivots pick independent rows
         scale = max(float(S.diagonal().max()), 1e-300)
-        factor, piv, rank, _ = dpstrf(S, tol=RANK_RTOL * scale, lower=1)
-        if rank == m_eq:  # P^T S P = L_s L_s^T with P the pivots: solve for lambda in pivot order
+        Ls, info = dpotrf(S, lower=1)
+        if info == 0 and float(Ls.diagonal().min()) ** 2 > RANK_RTOL * scale:
             rows = all_rows
-            perm = piv - 1
-            y, _ = dpotrs(factor, rhs[perm], lower=1)
-            lam = np.empty(m_eq)
-            lam[perm] = -y
+            y, _ = dpotrs(Ls, rhs, lower=1)
+            lam = -y
         else:
+            _, piv, rank, _ = dpstrf(S, tol=RANK_RTOL * scale, lower=1)
             rows = np.sort(piv[:rank] - 1)
             Ls, _ = dpotrf(S[np.ix_(rows, rows)], lower=1)
             y, _ = dpotrs(Ls, rhs[rows], lower=1)

@@ -58,6 +58,30 @@ def test_every_task_drift_is_the_time_derivative_of_its_jacobian_times_v(tiny_bi
         assert J.shape == (task.k, model.nv)
 
 
+def test_every_fast_acceleration_path_equals_the_generic_rows(tiny_biped):
+    """Each task's own write_acceleration_rows (a fast path) equals Task's generic one."""
+    from mbctl.control.tasks import Task
+
+    model = tiny_biped.pin_model
+    rng = np.random.default_rng(11)
+    q = pin.integrate(model, pin.neutral(model), 0.3 * rng.normal(size=model.nv))
+    state = DynamicsState(model, q, rng.normal(size=model.nv))
+    for task in _tasks(model):
+        if hasattr(task, "set_target") and not isinstance(task, (ComTask, PostureTask)):
+            task.set_target(pin.SE3(pin.exp3(0.2 * rng.normal(size=3)), rng.normal(size=3)))
+        elif isinstance(task, ComTask):
+            task.set_target(rng.normal(size=3), rng.normal(size=3), rng.normal(size=3))
+        task.servo = AccelerationGains(7.0, 0.6)
+        task.set_cost(rng.uniform(0.5, 2.0, task.k))
+        fast = np.zeros((task.k, model.nv)), np.zeros(task.k)
+        generic = np.zeros((task.k, model.nv)), np.zeros(task.k)
+        task.write_acceleration_rows(state, *fast)
+        Task.write_acceleration_rows(task, state, *generic)
+        np.testing.assert_allclose(fast[0], generic[0], atol=1e-12, err_msg=task.name)
+        np.testing.assert_allclose(fast[1], generic[1], atol=1e-10, err_msg=task.name)
+    np.testing.assert_allclose(state.angular_momentum(), state.centroidal_map()[3:] @ state.v, atol=1e-12)
+
+
 def test_a_task_without_an_acceleration_form_is_named(tiny_biped, crouch):
     wb = standing_controller(tiny_biped, FEET, "pelvis")
     wb.hold(RobotState(crouch(tiny_biped), np.zeros(tiny_biped.nv), 0.0))
