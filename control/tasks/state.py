@@ -156,7 +156,10 @@ class DynamicsState(TaskState):
         """Create the state at ``(q, v)`` (defaults: the neutral configuration, at rest)."""
         super().__init__(model)
         self.v = np.zeros(model.nv)
+        self._M_buffer = np.zeros((model.nv, model.nv))
         self._lower = np.tril_indices(model.nv, -1)
+        self._M_view = self._M_buffer.view()
+        self._M_view.setflags(write=False)
         self._M: np.ndarray | None = None
         self._centroidal_drift: np.ndarray | None = None
         self.mass = float(sum(inertia.mass for inertia in model.inertias))
@@ -189,11 +192,11 @@ class DynamicsState(TaskState):
     @property
     def M(self) -> np.ndarray:  # noqa: N802 - the mass matrix is M in every text
         """Joint-space inertia (nv, nv) at q, both triangles filled (read-only, once per update)."""
-        if self._M is None:  # Pinocchio fills the upper triangle only
-            M = self.data.M.copy()
+        if self._M is None:  # Pinocchio fills the upper triangle (the lower holds other values)
+            M = self._M_buffer
+            np.copyto(M, self.data.M)
             M[self._lower] = M.T[self._lower]
-            M.setflags(write=False)
-            self._M = M
+            self._M = self._M_view
         return self._M
 
     @property

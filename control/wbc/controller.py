@@ -118,7 +118,7 @@ class WholeBodyController:
                 raise WBCSetupError(f"unknown foot frame {foot.frame!r}")
             cols = slice(col, col + 3 * foot.n_points)
             self.contacts[foot.name] = ContactState(foot, self.model.getFrameId(foot.frame), cols,
-                                                    np.arange(cols.start + 2, cols.stop, 3))
+                                                    slice(cols.start + 2, cols.stop, 3))
             col = cols.stop
         self.n_x = col
         n_f = col - nv
@@ -139,6 +139,7 @@ class WholeBodyController:
                         row += 1
         self._T = qp.G[self._n_fric:]  # torque rows: tau = T x + b_a (a view, written each cycle)
         self._Jc = np.zeros((n_f, nv))
+        self._H_vv_diag = np.einsum("ii->i", qp.H_vv)  # a writable view of its diagonal
         self.config = self._config  # the setter sets the weights
         self._stack = TaskStack(nv)
         self._limits = self._joint_limits()
@@ -272,7 +273,7 @@ class WholeBodyController:
         qp = self._qp
         # tasks: H_vv = W^T W + w_r^2 I, c_v = -W^T r (the task layer's stack)
         self._stack.acceleration_objective(s, qp.H_vv, qp.c_v)
-        np.einsum("ii->i", qp.H_vv)[:] += cfg.acceleration_weight**2
+        self._H_vv_diag += cfg.acceleration_weight**2
 
         # contact Jacobians of the points, in W: J_P = J_lin - [p_WP - p_WF]x J_ang
         Jc = self._Jc
@@ -293,11 +294,9 @@ class WholeBodyController:
             block[:] = J_lin - ((r_W @ _SKEW).reshape(-1, 3) @ J_ang).reshape(-1, 3, nv)
             lb[cs.fz] = cs.weight * cfg.f_min_n
             ub[cs.fz] = cs.weight * cfg.f_max_n
-            if cs.active:
+            if cs.active:  # (the force columns of the foot rows stay zero)
                 eq = qp.E[m_eq:m_eq + 6]
-                eq[:, nv:] = 0.0
-                np.matmul(R_WF.T, J_lin, out=eq[:3, :nv])  # J_F in LOCAL: the same twist in F's axes
-                np.matmul(R_WF.T, J_ang, out=eq[3:, :nv])
+                eq[:, :nv] = s.frame_jacobian(cs.fid, pin.LOCAL)  # J_F: the foot's twist in F
                 drift = s.frame_drift(cs.fid, pin.LOCAL)
                 err = pin.log6(X_WF.actInv(cs.X_WF0)).vector
                 err[2:5] = 0.0  # the ground sets height, roll and pitch; feedback corrects slip only
@@ -321,11 +320,10 @@ class WholeBodyController:
         iv, iq, q_lo, q_hi = self._limits
         if len(iv):
             Th = cfg.joint_limit_horizon_s
-            q, v = s.q[iq], s.v[iv]
-            lo = 2.0 * (q_lo - q - v * Th) / Th**2
-            hi = 2.0 * (q_hi - q - v * Th) / Th**2
-            lb[iv] = np.minimum(lo, 0.0)
-            ub[iv] = np.maximum(hi, 0.0)
+            reach = s.q[iq] + s.v[iv] * Th  # where the joints coast to in Th
+            scale = 2.0 / Th**2
+            lb[iv] = np.minimum((q_lo - reach) * scale, 0.0)
+            ub[iv] = np.maximum((q_hi - reach) * scale, 0.0)
         t_qp = time.perf_counter()
         if cfg.solver == "daqp":
             result = qp.solve(m_eq)
