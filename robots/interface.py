@@ -13,7 +13,6 @@ import numpy as np
 from mbctl.robots.commands import Command
 from mbctl.robots.model_pair import Robot
 
-
 #: Names of the state fields a robot does not measure and an estimator provides.
 BASE_POSITION = "base_position"
 BASE_LINEAR_VELOCITY = "base_linear_velocity"

@@ -66,10 +66,16 @@ class ImuReader:
         self._rng = np.random.default_rng(seed)
         self._quat = np.empty(4)
 
-    def imu(self) -> ImuReading:
-        """The IMU now: quaternion (w, x, y, z) of its site, gyro [rad/s], specific force [m/s^2]."""
+    def imu(self, forward: bool = True) -> ImuReading:
+        """The IMU now: quaternion (w, x, y, z) of its site, gyro [rad/s], specific force [m/s^2].
+
+        Args:
+            forward: Bring the data up to date first; False reads it as it is (between
+                ``Simulator.step_begin`` and after ``step_end``, it holds the step's start state).
+        """
         sim = self._sim
-        sim.forward()
+        if forward:
+            sim.forward()
         d = sim.data
         mujoco.mju_mat2Quat(self._quat, d.site_xmat[self._site])
         gyro = d.sensordata[self._gyro].copy()

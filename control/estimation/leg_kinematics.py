@@ -124,7 +124,8 @@ class LegKinematicsEstimator:
         self._t: float | None = None
         self._H = self._measurement_matrix()
         nz = self.noise
-        self._r_diag = np.concatenate([np.full(3 * n, nz.kinematics_m**2), np.full(3 * n, nz.leg_velocity_m_s**2)])
+        self._r_diag = np.concatenate([np.full(3 * n, nz.kinematics_m**2),
+                                       np.full(3 * n, nz.leg_velocity_m_s**2)])
 
     @property
     def estimated(self) -> tuple[str, ...]:

@@ -44,19 +44,18 @@ _INTERFACE_CONFIG = """<CycloneDDS><Domain Id="any">
 </Domain></CycloneDDS>"""
 
 
-def _dds() -> Any:
-    """The cyclonedds modules, or ChannelError saying how to install them."""
+def _dds() -> dict[str, Any]:
+    """The cyclonedds names used here, or ChannelError saying how to install them."""
     try:
         import cyclonedds._clayer as clayer
-        from cyclonedds.core import InstanceState, ReadCondition, SampleState, ViewState, WaitSet
-        from cyclonedds.domain import Domain, DomainParticipant
-        from cyclonedds.pub import DataWriter
-        from cyclonedds.qos import Policy, Qos
-        from cyclonedds.sub import DataReader
-        from cyclonedds.topic import Topic
+        from cyclonedds import core, domain, pub, qos, sub, topic
     except ImportError as exc:
         raise ChannelError(f"DDS needs the hardware extra: pip install 'mbctl[hardware]' ({exc})") from None
-    return locals()
+    return {"clayer": clayer, "Domain": domain.Domain, "DomainParticipant": domain.DomainParticipant,
+            "Topic": topic.Topic, "DataWriter": pub.DataWriter, "DataReader": sub.DataReader,
+            "Qos": qos.Qos, "Policy": qos.Policy, "WaitSet": core.WaitSet,
+            "ReadCondition": core.ReadCondition, "SampleState": core.SampleState,
+            "ViewState": core.ViewState, "InstanceState": core.InstanceState}
 
 
 def message_types() -> tuple[type, type]:
