@@ -2,8 +2,8 @@
 
 The same controller object that runs on the simulator runs here, through ``control.loop.run``:
 ``read_state`` takes the latest ``rt/lowstate`` (LowState_), ``send`` fills a LowCmd_ and
-publishes it on ``rt/lowcmd``, ``sync`` sleeps to the next wall-clock deadline (GIL released) and
-watches the link.
+publishes it on ``rt/lowcmd``, ``sync`` waits for the robot's next state (the robot's 500 Hz
+stream is the wall clock; GIL released while waiting) and watches the link.
 
 Lifecycle (as ros2_control's hardware components): constructing the interface configures DDS and
 *activates* only once a valid LowState has been read: no LowState with a valid CRC within
@@ -267,25 +267,43 @@ class UnitreeG1:
         self._writer.write(self._cmd_codec.encode())
 
     def sync(self) -> None:
-        """Sleep to the next period's start; check the link.
+        """Wait for the robot's next state (GIL released); check the link.
+
+        The loop is paced by the robot's LowState stream (500 Hz on the G1, paced by its own
+        clock): the cycle ends when the next state arrives, at the earliest half a period after
+        it began, so the command computed from state n reaches the robot before it applies
+        state n + 1's period (one period of loop delay, the least a sampled loop has). A cycle
+        whose compute and IO ran past its period counts as a deadline miss.
 
         Raises:
             LinkLost: No LowState for ``watchdog_periods`` periods (the damping command was sent).
         """
-        if self._clock.cycles == 0:
-            self._clock.start()
-        self._clock.wait()
+        clock, period = self._clock, self.options.control_period_s
+        if clock.cycles == 0:
+            clock.start()
+        overran = time.perf_counter() > clock.deadline
+        earliest = clock.deadline - 0.5 * period
+        now = time.perf_counter()
+        if earliest > now:
+            time.sleep(earliest - now)
+        limit_s = self.options.watchdog_periods * period
         self._drain()
+        while not self._fresh:
+            remaining = self._last_rx + limit_s - time.perf_counter()
+            if remaining <= 0 or not self._reader.wait(remaining):
+                self._lost(limit_s)
+            self._drain()
+        clock.mark(overran)
+
+    def _lost(self, limit_s: float) -> None:
         silent_s = time.perf_counter() - self._last_rx
-        limit_s = self.options.watchdog_periods * self.options.control_period_s
-        if silent_s > limit_s:
-            self.watchdog_events += 1
-            if self._commanded:
-                self.damp()
-            raise LinkLost(
-                f"link lost: no LowState for {silent_s * 1e3:.1f} ms (limit {limit_s * 1e3:.0f} ms, "
-                f"{self.options.watchdog_periods} periods) at t={self.time_s:.3f} s; sent the damping "
-                f"command. Check the robot and the link on {self.options.network_interface!r}.")
+        self.watchdog_events += 1
+        if self._commanded:
+            self.damp()
+        raise LinkLost(
+            f"link lost: no LowState for {silent_s * 1e3:.1f} ms (limit {limit_s * 1e3:.0f} ms, "
+            f"{self.options.watchdog_periods} periods) at t={self.time_s:.3f} s; sent the damping "
+            f"command. Check the robot and the link on {self.options.network_interface!r}.")
 
     # ------------------------------------------------------------------ RobotInterface
     @property

@@ -1,5 +1,8 @@
 """Wall-clock pacing for the real-time plants (DDS interface, bridge): deadlines, GIL-free sleep, statistics.
 
+A free-running loop (the bridge) calls ``wait()``; a loop paced by the robot's state stream (the
+DDS interface) calls ``mark()`` when its state arrives.
+
 Cycle k should start at t_k = t_0 + k T. ``wait()`` ends cycle k: if the cycle's compute and IO
 ran past t_{k+1} it counts a deadline miss and starts the next cycle at once, re-anchoring the
 grid there (no burst of catch-up cycles); otherwise it sleeps until t_{k+1} (``time.sleep`` is a
@@ -73,6 +76,26 @@ class CycleClock:
         self._record(now)
         self._next += self.period_s
         return now
+
+    def mark(self, overran: bool) -> float:
+        """Start the next cycle now, for a loop paced by something else (the robot's state stream).
+
+        Args:
+            overran: The cycle that ends overran its period (counted as a deadline miss).
+
+        Returns:
+            The next cycle's start [s].
+        """
+        now = time.perf_counter()
+        self.deadline_misses += bool(overran)
+        self._record(now)
+        self._next = now + self.period_s
+        return now
+
+    @property
+    def deadline(self) -> float:
+        """When the current cycle should end (``time.perf_counter``) [s]."""
+        return self._next
 
     @property
     def cycles(self) -> int:
