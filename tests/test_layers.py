@@ -23,11 +23,13 @@ ALLOWED = {
     "sim": {"", "robots", "sim"},
     "planners": {"", "robots", "planners"},
     "control": {"", "robots", "planners", "control"},
-    "jobs": {"", "robots", "sim", "planners", "control", "jobs"},
-    "cli": {"", "robots", "sim", "planners", "control", "jobs", "cli"},
+    "jobs": {"", "robots", "sim", "planners", "control", "jobs", "hardware"},
+    "cli": {"", "robots", "sim", "planners", "control", "jobs", "cli", "hardware"},
+    # the real robots: a plant beside sim/, never importing it (nor control/: the estimator is given)
+    "hardware": {"", "robots", "hardware"},
 }
 #: Top-level names that belong to other projects and must never be imported bare.
-FOREIGN = {"control", "robots", "sim", "planners", "jobs", "cli"}
+FOREIGN = {"control", "robots", "sim", "planners", "jobs", "cli", "hardware"}
 
 
 def _imports(path: Path) -> list[str]:
