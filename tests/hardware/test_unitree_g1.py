@@ -133,7 +133,8 @@ def test_command_kinds_map_explicitly(g1, fake_g1, dds_domain):
             act = g1.actuator_for_joint(joint)
             assert cmd["q"][i] == pytest.approx(value) and cmd["dq"][i] == 0 and cmd["tau"][i] == 0
             assert cmd["kp"][i] == pytest.approx(act.kp) and cmd["kd"][i] == pytest.approx(act.kv, rel=1e-6)
-        assert np.all(cmd["kp"][[i for i, j in enumerate(motors.joints) if j not in arm]] == 0)  # torques kept
+        # the other motors keep their torques (kp = 0)
+        assert np.all(cmd["kp"][[i for i, j in enumerate(motors.joints) if j not in arm]] == 0)
 
         robot.send(velocity_target({"waist_yaw_joint": 0.3}))
         cmd = last()
