@@ -193,7 +193,7 @@ def report_plant(ctx: RunContext, plant: Plant, log: RunLog,
     iface = plant.interface
     values: dict[str, Any] = {"interface": plant.options.interface, "cycles": log.cycles}
     if isinstance(iface, UnitreeG1):
-        values.update(iface.stats())
+        values.update({**iface.stats(), "cycles": log.cycles})
         ctx.sections["estimator"] = {"kind": "leg kinematics Kalman filter", "feet": list(G1_FEET),
                                      "imu": G1_IMU.site, "estimated": list(iface.estimator.estimated)}
     else:
