@@ -413,7 +413,7 @@ def _plant_lines(v: dict[str, Any]) -> tuple[str, ...]:
     """The summary lines of a run through a link or over DDS (none in-process)."""
     if v.get("interface") != "dds":
         return ()
-    lines = (f"dds: {v['cycles']} cycles, period p50 {v['period_p50_ms']:.3f} ms, p99 "
+    lines: tuple[str, ...] = (f"dds: {v['cycles']} cycles, period p50 {v['period_p50_ms']:.3f} ms, p99 "
              f"{v['period_p99_ms']:.3f} ms, {v['deadline_misses']} deadline misses, "
              f"{v['messages_lost']} messages lost, "
              f"{v['watchdog_events']} watchdog events",)
