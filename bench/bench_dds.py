@@ -25,7 +25,6 @@ import signal
 import subprocess
 import sys
 import tempfile
-import time
 from pathlib import Path
 
 import numpy as np
@@ -93,52 +92,21 @@ def io_parts(domain: int) -> None:
 
 
 def estimator_runs(durations: list[float]) -> None:
-    from mbctl.jobs.g1_wbc import crouched_start, g1_whole_body
-    from mbctl.jobs.plant import g1_estimator
+    from mbctl.jobs.estimator_check import squat_check
     from mbctl.jobs.robot_constants import with_palm_sites
     from mbctl.robots.edits import position_to_motor
     from mbctl.robots.registry import load_robot
-    from mbctl.robots.unitree import G1_IMU
-    from mbctl.sim.imu import ImuReader
-    from mbctl.sim.simulator import Simulator
 
     robot = position_to_motor(with_palm_sites(load_robot("g1")))
     print("2. estimator vs plant truth, in-process (whole-body squat, CoM 8 cm at 0.5 Hz after 1 s standing)")
     for seconds in durations:
-        sim = Simulator(robot)
-        sim.reset("stand")
-        sim.set_state(crouched_start(robot), np.zeros(robot.nv))
-        wb = g1_whole_body(robot)
-        wb.hold(sim.read_state())
-        c0 = wb.com.p_ref.copy()
-        sim.forward()
-        mid = 0.5 * (sim.site_pose("left_foot")[0] + sim.site_pose("right_foot")[0])
-        home = np.array([mid[0] + 0.035, mid[1], c0[2]])  # CoM over the soles' centres
-        reader = ImuReader(sim, G1_IMU)
-        q0 = sim.read_state().q
-        est = g1_estimator(robot, (float(q0[0]), float(q0[1])))
-        est.reset(reader.proprioception())
-        w, a = np.pi, 0.08
-        errs, angs, us, feet0 = [], [], [], sim.site_pose("left_foot")[0]
-        for _ in range(int(seconds / sim.control_period_s)):
-            t = sim.time_s
-            s = min(max(t, 0.0), 1.0)
-            blend = 10 * s**3 - 15 * s**4 + 6 * s**5
-            tt = max(0.0, t - 1.0)
-            wb.com.set_reference(c0 + blend * (home - c0) - [0, 0, a * (1 - np.cos(w * tt))])
-            sim.step(wb.controller.compute(sim.read_state(), dt_s=sim.control_period_s))
-            t0 = time.perf_counter()
-            qb, _ = est.update(reader.proprioception())
-            us.append(time.perf_counter() - t0)
-            truth = sim.read_state()
-            errs.append(np.linalg.norm(qb[:3] - truth.q[:3]))
-            R = pin.Quaternion(qb[3:7]).matrix().T @ pin.Quaternion(truth.q[3:7]).matrix()
-            angs.append(np.degrees(np.linalg.norm(pin.log3(R))))
-        slip = np.linalg.norm((sim.site_pose("left_foot")[0] - feet0)[:2])
-        print(f"   {seconds:4.0f} s: position error max {max(errs) * 1e3:.2f} mm, at the end "
-              f"{errs[-1] * 1e3:.2f} mm (drift {errs[-1] / seconds * 1e3:.3f} mm/s); "
-              f"the plant's foot slid {slip * 1e3:.2f} mm; "
-              f"orientation error max {max(angs):.2e} deg; update {np.median(us) * 1e6:.0f} us median")
+        c = squat_check(robot, seconds)
+        print(f"   {seconds:4.0f} s: position error max {c.position_error_max_m * 1e3:.2f} mm, at the end "
+              f"{c.position_error_final_m * 1e3:.2f} mm (drift "
+              f"{c.position_error_final_m / seconds * 1e3:.3f} mm/s); the plant's foot slid "
+              f"{c.foot_slip_m * 1e3:.2f} mm; orientation error max "
+              f"{c.orientation_error_max_deg:.2e} deg; base moved {c.base_z_range_m * 1e3:.0f} mm; update "
+              f"{c.update_median_us:.0f} us median")
 
 
 def _mbctl(*args: str) -> list[str]:

@@ -63,6 +63,18 @@ def truth_at_ticks(truth: np.ndarray, ticks: np.ndarray) -> np.ndarray:
     return truth[rows]
 
 
+def truth_com(path: str | Path, ticks: np.ndarray) -> np.ndarray:
+    """The robot's true CoM p_WC (N, 3) [m] when each of the LowStates with ``ticks`` (N,) was made.
+
+    For a job comparing its CoM reference with the plant (g1-wbc's CoM RMS over DDS).
+
+    Raises:
+        TruthLogError: A missing or foreign log, or ticks it does not have.
+    """
+    rows = truth_at_ticks(read_truth(path), np.asarray(ticks))
+    return np.column_stack([rows["com_x_m"], rows["com_y_m"], rows["com_z_m"]])
+
+
 def _foot_slip(window: np.ndarray) -> float:
     """Largest horizontal drift [m] of a supporting foot from where it started to support."""
     weight = window["left_foot_fz_N"][0] + window["right_foot_fz_N"][0]
