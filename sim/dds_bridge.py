@@ -16,8 +16,9 @@ Each physics step (the G1's 2 ms, paced to wall-clock time) the bridge
    the LowStates made;
 4. records its ground truth (base pose and velocity, CoM, feet, contact forces) in a CSV row.
 
-Until the first valid command the physics is paused (states are still published), like a robot
-held in its harness, so a client starts from the same pose as the in-process run.
+Until the first valid command the physics is paused (states are still published, the IMU reading
+at rest), like a robot held still in its harness, so a client starts from the same pose as the
+in-process run.
 """
 
 from __future__ import annotations
@@ -120,6 +121,7 @@ class G1Bridge:
         self.motors = MotorMap.for_robot(self.robot)
         self._act = self.motors.actuator
         self._imu = ImuReader(self.sim, imu, self.options.link.imu_noise, self.options.link.seed + 1)
+        self._imu_site = self.robot.site_id(imu.site)
         rng = np.random.default_rng(self.options.link.seed)
         self._commands: DelayLine[np.ndarray] = DelayLine(self.options.link, rng)
         self._states: DelayLine[bytes] = DelayLine(self.options.link, rng)
@@ -203,10 +205,18 @@ class G1Bridge:
         ms["tau_est"][:n] = d.actuator_force[self._act]
         imu = self._imu.imu(forward=False)
         msg["imu_state"]["quaternion"] = imu.quat_wxyz
-        msg["imu_state"]["gyroscope"] = imu.gyro_I
-        msg["imu_state"]["accelerometer"] = imu.accel_I
+        if self.started:
+            msg["imu_state"]["gyroscope"] = imu.gyro_I
+            msg["imu_state"]["accelerometer"] = imu.accel_I
+        else:  # held still before the first command: no rotation, the specific force is -g
+            msg["imu_state"]["gyroscope"] = 0.0
+            msg["imu_state"]["accelerometer"] = -self._R_WI().T @ self.sim.model.opt.gravity
         self._states.send(now, self._state.encode())
         return tick
+
+    def _R_WI(self) -> np.ndarray:
+        """The IMU site's rotation R_WI (3, 3) now."""
+        return self.sim.data.site_xmat[self._imu_site].reshape(3, 3)
 
     def truth_row(self, tick: int, wall_s: float) -> list[float]:
         """The plant's true state at the start of the last step, as a row of :data:`TRUTH_COLUMNS`.

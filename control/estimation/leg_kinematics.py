@@ -77,6 +77,8 @@ class LegKinematicsEstimator:
         noise: The filter's noise models.
         start_xy_m: The base's (x, y) [m] in W at ``reset`` (W is where the robot started).
         ground_z_m: Height [m] of the ground the feet stand on at ``reset``.
+        max_dt_s: Longest IMU integration step [s]: after a gap in the readings (a stalled
+            process, lost messages) the prediction covers at most this, and the legs correct the rest.
 
     Raises:
         EstimatorError: A fixed-base robot, no feet, or an unknown frame.
@@ -91,6 +93,7 @@ class LegKinematicsEstimator:
         *,
         start_xy_m: tuple[float, float] = (0.0, 0.0),
         ground_z_m: float = 0.0,
+        max_dt_s: float = 0.02,
     ):
         if not robot.has_floating_base:
             raise EstimatorError(f"{robot.name} has a fixed base: there is no base state to estimate")
@@ -108,6 +111,7 @@ class LegKinematicsEstimator:
         self.noise = noise or LegKinematicsNoise()
         self.start_xy_m = (float(start_xy_m[0]), float(start_xy_m[1]))
         self.ground_z_m = float(ground_z_m)
+        self.max_dt_s = float(max_dt_s)
         self._g_W = np.array(self.model.gravity.linear)
         # the IMU's placement in the base, at the neutral joint configuration (it is on the base)
         pin.framesForwardKinematics(self.model, self.data, pin.neutral(self.model))
@@ -205,7 +209,7 @@ class LegKinematicsEstimator:
             raise EstimatorError("call reset(reading) with the first reading before update()")
         R_WI, R_WB, q_WB = self._orientation(reading)
         w_B = self._R_BI @ np.asarray(reading.imu.gyro_I, dtype=float)
-        dt = float(reading.time_s) - self._t
+        dt = min(float(reading.time_s) - self._t, self.max_dt_s)
         self._t = float(reading.time_s)
         nz = self.noise
         x, P = self.x, self.P

@@ -55,3 +55,17 @@ def test_bad_setups_are_named(g1_torque, two_link):
         estimator.update(ImuReader(sim, G1_IMU).proprioception())
     with pytest.raises(EstimatorError, match="unknown foot 'right_foot'"):
         estimator.set_contacts({"right_foot": False})
+
+
+def test_a_gap_in_the_readings_does_not_throw_the_estimate(g1_torque):
+    # a process that stalls 1 s between two readings (the DDS client before its loop starts) must
+    # not integrate the accelerometer over the whole gap
+    sim = Simulator(g1_torque)
+    sim.reset("stand")
+    reader = ImuReader(sim, G1_IMU)
+    estimator = g1_estimator(g1_torque)
+    first = reader.proprioception()
+    estimator.reset(first)
+    shaken = first.imu._replace(accel_I=first.imu.accel_I + [3.0, 0.0, 0.0])
+    q_base, _ = estimator.update(first._replace(time_s=first.time_s + 1.0, imu=shaken))
+    assert abs(q_base[0]) < 5e-3
