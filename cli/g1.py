@@ -16,8 +16,8 @@ from mbctl.cli.plant_options import (
     InterfaceOpt,
     JitterOpt,
     LatencyOpt,
+    LinkSeedOpt,
     NetworkOpt,
-    SeedOpt,
     TruthOpt,
     WatchdogOpt,
 )
@@ -48,7 +48,7 @@ def stand(
     drop: DropOpt = 0.0,
     imu_noise: ImuNoiseOpt = 0.0,
     estimate: EstimateOpt = False,
-    seed: SeedOpt = 0,
+    link_seed: LinkSeedOpt = 0,
     truth: TruthOpt = None,
     watchdog_periods: WatchdogOpt = 3,
     dry_run: DryRunOpt = False,
@@ -64,8 +64,8 @@ def stand(
     params = options.g1_stand(duration=duration, omega=omega, zeta=zeta, model_dir=model_dir,
                               interface=interface, domain=domain, network_interface=network_interface,
                               latency_ms=latency_ms, jitter_ms=jitter_ms, drop=drop, imu_noise=imu_noise,
-                              estimate=estimate, seed=seed, truth=truth, watchdog_periods=watchdog_periods,
-                              dry_run=dry_run)
+                              estimate=estimate, link_seed=link_seed, truth=truth,
+                              watchdog_periods=watchdog_periods, dry_run=dry_run)
     execute(G1_STAND, params, output, quiet, video_spec(video, video_size))
 
 
@@ -106,7 +106,7 @@ def arm_pd(
     drop: DropOpt = 0.0,
     imu_noise: ImuNoiseOpt = 0.0,
     estimate: EstimateOpt = False,
-    seed: SeedOpt = 0,
+    link_seed: LinkSeedOpt = 0,
     truth: TruthOpt = None,
     watchdog_periods: WatchdogOpt = 3,
     dry_run: DryRunOpt = False,
@@ -124,7 +124,8 @@ def arm_pd(
                                domain=domain,
                                network_interface=network_interface, latency_ms=latency_ms,
                                jitter_ms=jitter_ms, drop=drop, imu_noise=imu_noise, estimate=estimate,
-                               seed=seed, truth=truth, watchdog_periods=watchdog_periods, dry_run=dry_run)
+                               link_seed=link_seed, truth=truth, watchdog_periods=watchdog_periods,
+                               dry_run=dry_run)
     execute(G1_ARM_PD, params, output, quiet, video_spec(video, video_size))
 
 

@@ -18,6 +18,8 @@ DropOpt = Annotated[float, typer.Option("--drop", help="Probability of losing a 
 ImuNoiseOpt = Annotated[float, typer.Option("--imu-noise", help="Gyro and accelerometer noise, a multiple of "
                                                                 "the model's declared sensor noise.")]
 SeedOpt = Annotated[int, typer.Option("--seed", help="Seed of the link's drops, jitter and noise.")]
+LinkSeedOpt = Annotated[int, typer.Option("--link-seed", help="Seed of the in-process link's drops, jitter "
+                                                              "and noise.")]
 EstimateOpt = Annotated[bool, typer.Option("--estimate", help="In-process: base position and velocity from "
                                                               "the leg-kinematics estimator, as over DDS.")]
 TruthOpt = Annotated[Path | None, typer.Option("--truth", help="DDS: the bridge's truth.csv, to check the "

@@ -39,12 +39,12 @@ def demo(controller: str = "ct", compare: bool = False, model_error: float = 0.0
 def g1_stand(duration: float = 10.0, omega: float = 10.0, zeta: float = 1.0,
              model_dir: str | None = None, interface: str = "sim", domain: int = 0,
              network_interface: str = "lo", latency_ms: float = 0.0, jitter_ms: float = 0.0,
-             drop: float = 0.0, imu_noise: float = 0.0, estimate: bool = False, seed: int = 0,
+             drop: float = 0.0, imu_noise: float = 0.0, estimate: bool = False, link_seed: int = 0,
              truth: Path | None = None, watchdog_periods: int = 3, dry_run: bool = False) -> StandParams:
     """``mbctl g1-stand``: duration in s, omega in rad/s, zeta (-); the plant options (see ``plant``)."""
     return StandParams(duration, omega, zeta, model_dir, plant(
-        interface, domain, network_interface, latency_ms, jitter_ms, drop, imu_noise, estimate, seed, truth,
-        watchdog_periods, dry_run))
+        interface, domain, network_interface, latency_ms, jitter_ms, drop, imu_noise, estimate, link_seed,
+        truth, watchdog_periods, dry_run))
 
 
 def g1_track(duration: float | None = None, omega: float = 40.0, zeta: float = 1.0,
@@ -56,21 +56,25 @@ def g1_track(duration: float | None = None, omega: float = 40.0, zeta: float = 1
 def g1_arm_pd(duration: float | None = None, side: str = "left", gravity_feedforward: bool = True,
               max_rms_rad: float | None = None, model_dir: str | None = None, interface: str = "sim",
               domain: int = 0, network_interface: str = "lo", latency_ms: float = 0.0, jitter_ms: float = 0.0,
-              drop: float = 0.0, imu_noise: float = 0.0, estimate: bool = False, seed: int = 0,
+              drop: float = 0.0, imu_noise: float = 0.0, estimate: bool = False, link_seed: int = 0,
               truth: Path | None = None, watchdog_periods: int = 3, dry_run: bool = False) -> ArmPDParams:
     """``mbctl g1-arm-pd``: duration in s, side left or right, max_rms_rad in rad; the plant options."""
     return ArmPDParams(duration, side, gravity_feedforward, max_rms_rad, model_dir, plant(
-        interface, domain, network_interface, latency_ms, jitter_ms, drop, imu_noise, estimate, seed, truth,
-        watchdog_periods, dry_run))
+        interface, domain, network_interface, latency_ms, jitter_ms, drop, imu_noise, estimate, link_seed,
+        truth, watchdog_periods, dry_run))
 
 
 def plant(interface: str = "sim", domain: int = 0, network_interface: str = "lo", latency_ms: float = 0.0,
           jitter_ms: float = 0.0, drop: float = 0.0, imu_noise: float = 0.0, estimate: bool = False,
-          seed: int = 0, truth: Path | None = None, watchdog_periods: int = 3,
+          link_seed: int = 0, truth: Path | None = None, watchdog_periods: int = 3,
           dry_run: bool = False) -> PlantOptions:
-    """The plant options of the G1 jobs: latency and jitter in ms, drop a probability, imu_noise a factor."""
+    """The plant options of the G1 jobs: latency and jitter in ms, drop a probability, imu_noise a factor.
+
+    ``link_seed`` (not ``seed``: a sweep's ``--seeds`` is for jobs that always draw random numbers)
+    seeds the in-process link's drops, jitter and noise.
+    """
     return PlantOptions(interface, domain, network_interface, latency_ms, jitter_ms, drop, imu_noise,
-                        estimate, seed, None if truth is None else str(truth), watchdog_periods, dry_run)
+                        estimate, link_seed, None if truth is None else str(truth), watchdog_periods, dry_run)
 
 
 def serve(robot: str = "g1", start: str = "stand", domain: int = 0, network_interface: str = "lo",
