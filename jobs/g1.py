@@ -45,7 +45,7 @@ from mbctl.control.gains import PDGains, gains_from_frequency
 from mbctl.control.loop import RunLog, run
 from mbctl.control.pd_gravity import PDGravity
 from mbctl.control.position_pd import PositionTargetPD
-from mbctl.jobs.plant import Plant, PlantOptions, dry_run, prepare_plant, report_plant
+from mbctl.jobs.plant import Plant, PlantOptions, dry_run, plant_lines, prepare_plant, report_plant
 from mbctl.jobs.plots import coincident_groups, joint_colors, most_moved, new_figure, tracking_panels
 from mbctl.jobs.recording import LoopRows, command_columns
 from mbctl.jobs.runner import Job, Outcome, RunContext, Work
@@ -389,7 +389,7 @@ def _stand(ctx: RunContext, params: StandParams, robot: Robot, gains: PDGains, i
         f"g1-stand {params.duration_s:g} s, PD + gravity (omega {params.omega_rad_s:g} rad/s, zeta "
         f"{params.zeta:g}): {'FELL (' + str(reason) + ')' if fell else 'stood'}, pelvis max "
         f"deviation {v['pelvis_max_deviation_m'] * 1e3:.2f} mm, joint RMS error "
-        f"{v['joint_rms_error_rad']:.3e} rad, saturated cycles {v['saturated_cycles']}", *_plant_lines(v),
+        f"{v['joint_rms_error_rad']:.3e} rad, saturated cycles {v['saturated_cycles']}", *plant_lines(v),
     ), f"did not fall; pelvis within {PELVIS_BOUND_M * 1e3:g} mm of the keyframe height")
 
 
@@ -414,22 +414,6 @@ def _off_bound(ctx: RunContext, estimated_deviation_m: float) -> bool:
     """The pelvis moved more than PELVIS_BOUND_M (the truth log's word over the estimate's)."""
     deviation = ctx.values.get("truth_pelvis_max_deviation_m", estimated_deviation_m)
     return bool(deviation > PELVIS_BOUND_M)
-
-
-def _plant_lines(v: dict[str, Any]) -> tuple[str, ...]:
-    """The summary lines of a run through a link or over DDS (none in-process)."""
-    if v.get("interface") != "dds":
-        return ()
-    lines: tuple[str, ...] = (f"dds: {v['cycles']} cycles, period p50 {v['period_p50_ms']:.3f} ms, p99 "
-             f"{v['period_p99_ms']:.3f} ms, {v['deadline_misses']} deadline misses, "
-             f"{v['messages_lost']} messages lost, "
-             f"{v['watchdog_events']} watchdog events",)
-    if "truth_pelvis_max_deviation_m" in v:
-        lines += (f"truth: pelvis max deviation {v['truth_pelvis_max_deviation_m'] * 1e3:.2f} mm, foot slip "
-                  f"{v['truth_max_foot_slip_m'] * 1e3:.3f} mm; estimator error max "
-                  f"{v['estimator_position_error_max_m'] * 1e3:.2f} mm, "
-                  f"{v['estimator_orientation_error_max_deg']:.3f} deg",)
-    return lines
 
 
 def _stand_plot(ctx: RunContext, log: RunLog, dz_m: np.ndarray, deviation: np.ndarray,

@@ -88,10 +88,15 @@ def serve(robot: str = "g1", start: str = "stand", domain: int = 0, network_inte
 
 
 def g1_wbc(scenario: str = "stand", duration: float | None = None, impulse: float | None = None,
-           direction: float | None = None, model_error: float = 0.0,
-           model_dir: str | None = None) -> WBCParams:
-    """``mbctl g1-wbc``: duration in s, impulse in N s, direction in deg, model_error in %."""
-    return WBCParams(scenario, duration, impulse, direction, model_error, model_dir)
+           direction: float | None = None, model_error: float = 0.0, model_dir: str | None = None,
+           interface: str = "sim", domain: int = 0, network_interface: str = "lo", latency_ms: float = 0.0,
+           jitter_ms: float = 0.0, drop: float = 0.0, imu_noise: float = 0.0, estimate: bool = False,
+           link_seed: int = 0, truth: Path | None = None, watchdog_periods: int = 3,
+           dry_run: bool = False) -> WBCParams:
+    """``mbctl g1-wbc``: duration in s, impulse in N s, direction in deg, model_error %; plant options."""
+    return WBCParams(scenario, duration, impulse, direction, model_error, model_dir, plant(
+        interface, domain, network_interface, latency_ms, jitter_ms, drop, imu_noise, estimate, link_seed,
+        truth, watchdog_periods, dry_run))
 
 
 def joint_step(robot: str, joint: str, delta: float, steps: int = 250, keyframe: str | None = None,

@@ -141,7 +141,7 @@ PlantFactory = Callable[[RunContext], Plant]
 
 
 def prepare_plant(options: PlantOptions, robot: Robot, keyframe: str | None = None,
-                  start_q: np.ndarray | None = None) -> PlantFactory:
+                  start_q: np.ndarray | None = None, contact_forces: bool = False) -> PlantFactory:
     """Check the options and, over DDS, connect (no robot: exit 2 before any output).
 
     Args:
@@ -149,6 +149,7 @@ def prepare_plant(options: PlantOptions, robot: Robot, keyframe: str | None = No
         robot: The robot the controller is built for.
         keyframe: The in-process start (its ctrl too), or None.
         start_q: The in-process start configuration (nq,) (after the keyframe), or None.
+        contact_forces: A filmed in-process run draws the contact forces.
 
     Returns:
         A function of the run's context that gives the plant (the simulator is attached to the run).
@@ -167,7 +168,7 @@ def prepare_plant(options: PlantOptions, robot: Robot, keyframe: str | None = No
         sim.reset(keyframe)
         if start_q is not None:
             sim.set_state(start_q, np.zeros(robot.nv))
-        ctx.attach(sim)
+        ctx.attach(sim, contact_forces=contact_forces)
         if options.link.ideal and not options.estimate:
             return Plant(sim, sim, options)
         q = sim.read_state().q
@@ -210,6 +211,22 @@ def report_plant(ctx: RunContext, plant: Plant, log: RunLog,
                           fall_height_m)
     ctx.values.update(checks)
     return bool(checks["truth_fell"])
+
+
+def plant_lines(v: dict[str, Any]) -> tuple[str, ...]:
+    """The summary lines of a run through a link or over DDS (none in-process)."""
+    if v.get("interface") != "dds":
+        return ()
+    lines: tuple[str, ...] = (f"dds: {v['cycles']} cycles, period p50 {v['period_p50_ms']:.3f} ms, p99 "
+             f"{v['period_p99_ms']:.3f} ms, {v['deadline_misses']} deadline misses, "
+             f"{v['messages_lost']} messages lost, "
+             f"{v['watchdog_events']} watchdog events",)
+    if "truth_pelvis_max_deviation_m" in v:
+        lines += (f"truth: pelvis max deviation {v['truth_pelvis_max_deviation_m'] * 1e3:.2f} mm, foot slip "
+                  f"{v['truth_max_foot_slip_m'] * 1e3:.3f} mm; estimator error max "
+                  f"{v['estimator_position_error_max_m'] * 1e3:.2f} mm, "
+                  f"{v['estimator_orientation_error_max_deg']:.3f} deg",)
+    return lines
 
 
 def dry_run(ctx: RunContext, plant: Plant, duration_s: float) -> Outcome:

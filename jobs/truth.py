@@ -63,16 +63,32 @@ def truth_at_ticks(truth: np.ndarray, ticks: np.ndarray) -> np.ndarray:
     return truth[rows]
 
 
-def truth_com(path: str | Path, ticks: np.ndarray) -> np.ndarray:
-    """The robot's true CoM p_WC (N, 3) [m] when each of the LowStates with ``ticks`` (N,) was made.
+def to_estimator_frame(at: np.ndarray, q_est: np.ndarray) -> np.ndarray:
+    """The (x, y) shift [m] (2,) taking truth rows ``at`` into the estimator's world frame.
 
-    For a job comparing its CoM reference with the plant (g1-wbc's CoM RMS over DDS).
+    A leg-kinematics estimator cannot observe its horizontal position: its W starts at (x, y) = the
+    start it was given, so compare displacements in x, y (and absolute z, which the feet observe).
+
+    Args:
+        at: Truth rows at each cycle's state (N,).
+        q_est: The run's estimated configurations (N, nq), Pinocchio convention.
+    """
+    return np.asarray(q_est[0, :2] - np.array([at["base_x_m"][0], at["base_y_m"][0]]))
+
+
+def truth_com(path: str | Path, ticks: np.ndarray, q_est: np.ndarray) -> np.ndarray:
+    """The robot's true CoM p_WC (N, 3) [m] in the estimator's W when each LowState with ``ticks`` was made.
+
+    For a job comparing its CoM reference with the plant (g1-wbc's CoM RMS over DDS); ``q_est``
+    (N, nq) are the run's estimated configurations (see :func:`to_estimator_frame`).
 
     Raises:
         TruthLogError: A missing or foreign log, or ticks it does not have.
     """
-    rows = truth_at_ticks(read_truth(path), np.asarray(ticks))
-    return np.column_stack([rows["com_x_m"], rows["com_y_m"], rows["com_z_m"]])
+    at = truth_at_ticks(read_truth(path), np.asarray(ticks))
+    com = np.column_stack([at["com_x_m"], at["com_y_m"], at["com_z_m"]])
+    com[:, :2] += to_estimator_frame(at, q_est)
+    return com
 
 
 def _foot_slip(window: np.ndarray) -> float:
@@ -116,8 +132,7 @@ def truth_checks(path: str | Path, ticks: np.ndarray, log: RunLog,
     dz = window["base_z_m"] - window["base_z_m"][0]
     p_true = np.column_stack([at["base_x_m"], at["base_y_m"], at["base_z_m"]])
     p_est = log.q[:, 0:3].copy()
-    # W of the estimator starts at (x, y) = its start; compare displacements in x, y and absolute z
-    p_est[:, :2] += p_true[0, :2] - p_est[0, :2]
+    p_est[:, :2] -= to_estimator_frame(at, log.q)
     err = np.linalg.norm(p_est - p_true, axis=1)
     angles = []
     for k in range(len(at)):

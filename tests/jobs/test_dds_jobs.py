@@ -72,6 +72,21 @@ def test_g1_stand_over_dds_stands_and_checks_against_the_truth(g1, dds_domain, t
     assert "dds: 750 cycles" in out.stdout and "truth: pelvis max deviation" in out.stdout
 
 
+def test_g1_wbc_over_dds_holds_the_com_checked_against_the_truth(g1, dds_domain, tmp_path):
+    """The whole-body QP on the bridge's crouched G1: the CoM RMS comes from the plant's truth log."""
+    serve_dir, run_dir = tmp_path / "serve", tmp_path / "wbc"
+    with bridge(dds_domain, serve_dir, "--start", "crouched"):
+        out = mbctl("g1-wbc", "stand", "--interface", "dds", "--domain", str(dds_domain), "--duration", "1.5",
+                    *WATCHDOG, "--truth", str(serve_dir / "truth.csv"), "--output", str(run_dir), "-q")
+    values = json.loads((run_dir / "report.json").read_text())["values"]
+    assert out.returncode == 0, out.stdout + out.stderr + json.dumps(values)
+    assert values["com_error_source"] == "truth log" and values["cycles"] == 750
+    # the truth CoM in the estimator's frame (x, y from its start): millimetres, not the start offset
+    assert values["com_error_rms_m"] < 5e-3 and values["fell"] is False
+    assert values["truth_max_foot_slip_m"] < 1e-3 and values["estimator_position_error_max_m"] < 5e-3
+    assert values["contact_force_rel_error"] is None  # no MuJoCo contact forces over DDS
+
+
 def test_no_robot_exits_2_naming_domain_and_interface(g1, dds_domain, tmp_path):
     out = mbctl("g1-stand", "--interface", "dds", "--domain", str(dds_domain), "--output", str(tmp_path))
     assert out.returncode == 2, out.stderr
@@ -114,6 +129,7 @@ def _running(folder: Path) -> bool:
     (("g1-stand", "--truth", "x.csv"), "--truth and --dry-run are for --interface dds"),
     (("g1-arm-pd", "--interface", "can"), "interface must be one of sim, dds"),
     (("serve", "h1"), "speaks the G1's low-level messages only"),
+    (("g1-wbc", "push", "--interface", "dds"), "push"),
 ])
 def test_bad_plant_options_exit_2(args, message, tmp_path):
     out = mbctl(*args, "--output", str(tmp_path))
