@@ -13,7 +13,11 @@ compared in one convention, Pinocchio's (free-flyer quaternion (x, y, z, w), bas
   velocity frame adds);
 * forward dynamics (Pinocchio ABA against MuJoCo's ``qacc``) and inverse dynamics (RNEA against
   ``mj_inverse``);
-* kinetic and potential energy; centroidal momentum against MuJoCo's subtree momentum.
+* kinetic and potential energy; centroidal momentum against MuJoCo's subtree momentum. The
+  kinetic energy is ``1/2 v^T M v`` with armature on both sides: MuJoCo's ``energy[1]`` (armature
+  in its M); Pinocchio's ``computeKineticEnergy`` of the rigid bodies plus
+  ``1/2 v^T diag(armature) v`` (Pinocchio 4.1 leaves the armature of unaligned revolute joints out
+  of its own energy).
 
 MuJoCo runs on a private copy of the plant with everything outside rigid-body dynamics switched
 off (see ``plant.comparison_model``); the report says what that was and what could not be compared.
@@ -111,24 +115,6 @@ def _cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     )
 
 
-def _known_pinocchio_discrepancies(robot: Robot) -> list[str]:
-    """Notes on Pinocchio behaviour this check has found to differ, so a failure names its cause."""
-    pm = robot.pin_model
-    unaligned = [
-        pm.names[k]
-        for k in range(1, pm.njoints)
-        if pm.joints[k].shortname() == "JointModelRevoluteUnaligned"
-        and float(pm.armature[pm.joints[k].idx_v]) != 0.0
-    ]
-    if not unaligned:
-        return []
-    return [
-        "known Pinocchio 4.1 discrepancy: computeKineticEnergy leaves out the armature of revolute "
-        "joints with a non-axis-aligned axis (crba includes it), so kinetic_energy differs by "
-        f"0.5 armature v^2 on: {', '.join(unaligned[:6])}"
-    ]
-
-
 class _Frames(NamedTuple):
     pin_ids: list[int]
     mj_body_ids: np.ndarray
@@ -167,6 +153,13 @@ class _Evaluator:
         self.robot, self.m, self.frames, self.chunk = robot, m, frames, chunk
         self.pm = robot.pin_model
         self.pd = self.pm.createData()
+        # Kinetic energy like with like: MuJoCo's 1/2 v^T M v has the armature in M, while
+        # Pinocchio 4.1's computeKineticEnergy leaves out the armature of revolute joints with an
+        # unaligned axis. So Pinocchio's energy of the rigid bodies alone (the same model without
+        # armature, on the same data) plus 1/2 v^T diag(armature) v.
+        self._pm_rigid = self.pm.copy()
+        self._pm_rigid.armature = np.zeros(self.pm.nv)
+        self._half_armature = 0.5 * np.asarray(self.pm.armature, dtype=float)
         self.d = mujoco.MjData(m)
         nv, nf = robot.nv, len(frames.pin_ids)
         # The robot's coordinates in the plant; the scene's (a free box) stay at qpos0, at rest.
@@ -235,7 +228,8 @@ class _Evaluator:
         out["gravity"][i] = pd.g
         out["com"][i] = pd.com[0]
         self._Jcom_pin_out[i] = pd.Jcom
-        out["kinetic_energy"][i] = pd.kinetic_energy
+        rigid = pin.computeKineticEnergy(self._pm_rigid, pd)  # from pd.v of computeAllTerms
+        out["kinetic_energy"][i] = rigid + self._half_armature @ (v * v)
         out["potential_energy"][i] = pd.potential_energy
         hg = pd.hg
         out["momentum_linear"][i] = hg.linear
@@ -448,7 +442,6 @@ def crosscheck(
     if problems or robot.nv == 0:
         why = "; ".join(problems) if problems else "the robot has no degrees of freedom"
         return _structure_failure(robot, seed, tolerances, features, notes, why, pin_file, mj_file)
-    notes += _known_pinocchio_discrepancies(robot)
     frames = _match_frames(robot)
     if frames.missing:
         notes.append(
@@ -516,6 +509,7 @@ def crosscheck(
                 worst,
                 states.kinds[worst],
                 status,
+                tol.method,
                 worst_entry=where,
             )
         )

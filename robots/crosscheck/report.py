@@ -33,8 +33,8 @@ class QuantityResult(NamedTuple):
         worst_state: Index of the state with the largest absolute error (-1 if not compared).
         worst_state_kind: What kind of state that is ("random", "zero velocity", ...).
         status: "pass", "fail" or "not compared".
-        note: Why a quantity was not compared or failed structurally, or what it covers; ""
-            otherwise.
+        note: Why a quantity was not compared or failed structurally, or what it covers or how
+            each side computes it (``Tolerance.method``); "" otherwise.
         worst_entry: For a failing quantity, where in the worst state the largest error is
             (frame, joint of the velocity coordinate, axis), e.g. "body 'link2', axis z";
             "" when it passed, is a scalar, or the place is unknown.
@@ -243,6 +243,8 @@ class Report:
             )
             if q.status == FAIL:
                 lines.append(f"    -> {q.reason}")
+            elif q.note and q.worst_state >= 0:  # how a compared quantity is computed
+                lines.append(f"    ({q.note})")
         if self.features:
             lines += ["", "model features outside the rigid-body comparison:"]
             lines += [f"  {f.feature:22s} {f.handling.upper():13s} {f.detail}" for f in self.features]
