@@ -9,10 +9,12 @@ from mbctl.robots.conventions import (
 )
 from mbctl.robots.edits import position_to_motor, weld_base
 from mbctl.robots.exceptions import (
+    JointMapError,
     ModelFileError,
     ModelMismatchError,
     ModelNotFoundError,
     RobotError,
+    SceneMismatchError,
     StateError,
     UnknownNameError,
 )
@@ -28,6 +30,7 @@ __all__ = [
     "CommandKind",
     "ctrl",
     "JointLayout",
+    "JointMapError",
     "ModelFileError",
     "ModelMismatchError",
     "ModelNotFoundError",
@@ -36,6 +39,7 @@ __all__ = [
     "RobotError",
     "RobotInterface",
     "RobotState",
+    "SceneMismatchError",
     "SensorInfo",
     "StateConverter",
     "StateError",

@@ -153,16 +153,17 @@ class Robot:
         pin_model: pin.Model | None,
         mj_spec: mujoco.MjSpec,
         check: bool = True,
+        mj_model: mujoco.MjModel | None = None,
     ):
         """Build the pair.
 
         ``pin_model=None`` builds the analytic model from the compiled MjModel. ``check=False``
         skips the agreement check (for cross-checking a deliberately different Pinocchio model
-        against the plant).
+        against the plant). ``mj_model``: ``mj_spec`` already compiled by the caller.
         """
         self.source = source
         self.mj_spec = mj_spec
-        self.mj_model = compile_spec(mj_spec, source.scene_file)
+        self.mj_model = compile_spec(mj_spec, source.scene_file) if mj_model is None else mj_model
         m = self.mj_model
         # The robot is a set of whole trees; the rest of the plant is scene (robots/scene.py).
         in_robot = robot_bodies(m, source.roots)
