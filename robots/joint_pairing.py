@@ -22,7 +22,7 @@ sides. Written here because Pinocchio has no function to rename, reorder or re-r
 
 from __future__ import annotations
 
-from collections.abc import Mapping
+from collections.abc import Collection, Mapping
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -89,6 +89,7 @@ def pair_joints(
     plant: pin.Model,
     joint_map: Mapping[str, str] | None = None,
     floating_base: bool | None = None,
+    unnamed: Collection[str] = (),
 ) -> Pairing:
     """Rebuild ``parsed`` with the joint names, base and joint order of ``plant``.
 
@@ -100,6 +101,9 @@ def pair_joints(
         floating_base: True adds a free flyer to a fixed-base ``parsed``; False never adds one;
             None (default) adds one when the plant's robot has a free root joint and ``parsed``
             has none.
+        unnamed: Plant joints that have no name in the MJCF (``pin_model_from_mj`` calls them
+            ``joint<id>``): each is paired with the parsed joint that moves the body of the same
+            name, as nothing else can pair them.
 
     Returns:
         The rebuilt model and what was done.
@@ -127,6 +131,10 @@ def pair_joints(
     names = {j: joint_map.get(n, n) for j, n in enumerate(parsed_names, start=1)}
     if parsed_free and plant_free and parsed_names[parsed_free[0] - 1] not in joint_map:
         names[parsed_free[0]] = plant.names[1]  # the free flyers pair whatever their names
+    through_bodies = _pair_unnamed(parsed, plant, names, set(unnamed))
+    if through_bodies:
+        edits.append("unnamed MuJoCo joints paired through the bodies they move: " + ", ".join(
+            f"{parsed.names[j]} -> {names[j]} ({body!r})" for j, body in through_bodies.items()))
     renamed = {parsed.names[j]: n for j, n in names.items() if n != parsed.names[j]}
     if renamed:
         edits.append("joints renamed: " + ", ".join(f"{a} -> {b}" for a, b in renamed.items()))
@@ -169,7 +177,7 @@ def _free_flyer_root(parsed: pin.Model, plant: pin.Model | None, forced: bool) -
         return _Root("root_joint", pin.SE3.Identity(),
                      "free flyer 'root_joint' added at the root of the Pinocchio model (floating base "
                      "requested; the plant's robot has no free joint)")
-    body = next((f.name for f in plant.frames if f.type == pin.FrameType.BODY and f.parentJoint == 1), "")
+    body = _first_body(plant, 1) or ""
     name = plant.names[1]
     fixed = [f for f in parsed.frames if f.name == body and f.parentJoint == 0]
     if fixed:
@@ -181,6 +189,34 @@ def _free_flyer_root(parsed: pin.Model, plant: pin.Model | None, forced: bool) -
     return _Root(name, pin.SE3.Identity(),
                  f"free flyer {name!r} added at the root of the Pinocchio model (floating base requested; "
                  f"the plant's free body {body!r} has no frame of that name in it, so its pose may differ)")
+
+
+def _first_body(model: pin.Model, j: int) -> str | None:
+    """The name of the first body (BODY frame) joint ``j`` moves, or None."""
+    return next((f.name for f in model.frames if f.type == pin.FrameType.BODY and f.parentJoint == j), None)
+
+
+def _pair_unnamed(
+    parsed: pin.Model, plant: pin.Model, names: dict[int, str], unnamed: set[str]
+) -> dict[int, str]:
+    """Rename in ``names`` the parsed joints that move the body of an unnamed plant joint.
+
+    Returns:
+        ``{parsed joint id: body name}`` of the joints paired this way.
+    """
+    taken = set(names.values())
+    plant_names = set(list(plant.names)[1:])
+    out = {}
+    for name in sorted(unnamed - taken):
+        if not plant.existJointName(name):
+            continue
+        body = _first_body(plant, plant.getJointId(name))
+        candidates = [j for j, n in names.items()
+                      if n not in plant_names and body and _first_body(parsed, j) == body]
+        if len(candidates) == 1:
+            names[candidates[0]] = name
+            out[candidates[0]] = body
+    return out
 
 
 def _plant_order(
@@ -220,8 +256,7 @@ def _body_names(
         if parsed.names[j] not in renamed or not plant.existJointName(new):
             continue
         jp = plant.getJointId(new)
-        a = next((f.name for f in parsed.frames if f.type == pin.FrameType.BODY and f.parentJoint == j), None)
-        b = next((f.name for f in plant.frames if f.type == pin.FrameType.BODY and f.parentJoint == jp), None)
+        a, b = _first_body(parsed, j), _first_body(plant, jp)
         if a and b and a != b and b not in taken:
             out[a] = b
     return out

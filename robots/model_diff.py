@@ -119,10 +119,22 @@ def _at_neutral(model: pin.Model) -> pin.Data:
     return data
 
 
-def _vec(x: np.ndarray) -> str:
-    """``(0.3, 0, 0.4)``: 6 significant digits, round-off below 1e-12 and -0 shown as 0."""
+def _vec(x: np.ndarray, digits: int = 6) -> str:
+    """``(0.3, 0, 0.4)``: ``digits`` significant digits, round-off below 1e-12 and -0 shown as 0."""
     values = np.asarray(x, dtype=float).ravel()
-    return "(" + ", ".join(f"{v:.6g}" for v in np.where(np.abs(values) < 1e-12, 0.0, values) + 0.0) + ")"
+    values = np.where(np.abs(values) < 1e-12, 0.0, values) + 0.0
+    return "(" + ", ".join(f"{v:.{digits}g}" for v in values) + ")"
+
+
+def _versus(a: float | np.ndarray, b: float | np.ndarray, unit: str) -> str:
+    """``"a vs b unit"`` with the fewest digits (6 or more) that show the two values apart."""
+    scalar = np.ndim(a) == 0
+    for digits in range(6, 18):
+        text_a, text_b = (f"{float(a):.{digits}g}", f"{float(b):.{digits}g}") if scalar else (
+            _vec(np.asarray(a), digits), _vec(np.asarray(b), digits))
+        if text_a != text_b:
+            break
+    return f"{text_a} vs {text_b} {unit}"
 
 
 def _joint_differences(
@@ -139,8 +151,8 @@ def _joint_differences(
         return [f"{where}: {kind_a} (nq {ja_.nq}, nv {ja_.nv}) in {la}, "
                 f"{kind_b} (nq {jb_.nq}, nv {jb_.nv}) in {lb}"]
     out = []
-    S_a = da.J[:, ja_.idx_v : ja_.idx_v + ja_.nv]
-    S_b = db.J[:, jb_.idx_v : jb_.idx_v + jb_.nv]
+    S_a = np.asarray(da.J).reshape(6, -1)[:, ja_.idx_v : ja_.idx_v + ja_.nv]  # (6,) when nv = 1
+    S_b = np.asarray(db.J).reshape(6, -1)[:, jb_.idx_v : jb_.idx_v + jb_.nv]
     if not np.allclose(S_a, S_b, rtol=0.0, atol=ATOL):
         out.append(f"{where}: {_axis_words(S_a, kind_a)} vs {_axis_words(S_b, kind_b)}")
     out += _inertia_differences(where, da.oMi[ja].act(a.inertias[ja]), db.oMi[jb].act(b.inertias[jb]))
@@ -162,16 +174,16 @@ def _inertia_differences(where: str, I_a: pin.Inertia, I_b: pin.Inertia) -> list
     """Mass, centre of mass (world) and rotational inertia about it (world axes), at q0."""
     out = []
     if not np.isclose(I_a.mass, I_b.mass, rtol=RTOL, atol=1e-12):
-        out.append(f"{where}: mass {I_a.mass:.6g} vs {I_b.mass:.6g} kg")
+        out.append(f"{where}: mass {_versus(I_a.mass, I_b.mass, 'kg')}")
     if max(I_a.mass, I_b.mass) > 0 and not np.allclose(I_a.lever, I_b.lever, rtol=0.0, atol=ATOL):
-        out.append(f"{where}: centre of mass at q0 {_vec(I_a.lever)} vs {_vec(I_b.lever)} m")
+        out.append(f"{where}: centre of mass at q0 {_versus(I_a.lever, I_b.lever, 'm')}")
     Ia, Ib = np.asarray(I_a.inertia), np.asarray(I_b.inertia)
     scale = max(float(np.abs(Ib).max()), 1e-12)
     if np.abs(Ia - Ib).max() > RTOL * scale:
         r, c = np.unravel_index(int(np.argmax(np.abs(Ia - Ib))), Ia.shape)
         out.append(
             f"{where}: rotational inertia about the centre of mass (world axes at q0), entry ({r}, {c}): "
-            f"{Ia[r, c]:.6g} vs {Ib[r, c]:.6g} kg m^2"
+            f"{_versus(Ia[r, c], Ib[r, c], 'kg m^2')}"
         )
     return out
 
@@ -179,7 +191,7 @@ def _inertia_differences(where: str, I_a: pin.Inertia, I_b: pin.Inertia) -> list
 def _pose_difference(where: str, X_a: pin.SE3, X_b: pin.SE3) -> list[str]:
     out = []
     if not np.allclose(X_a.translation, X_b.translation, rtol=0.0, atol=ATOL):
-        out.append(f"{where}: position at q0 {_vec(X_a.translation)} vs {_vec(X_b.translation)} m")
+        out.append(f"{where}: position at q0 {_versus(X_a.translation, X_b.translation, 'm')}")
     if not np.allclose(X_a.rotation, X_b.rotation, rtol=0.0, atol=ATOL):
         angle = float(np.degrees(np.linalg.norm(pin.log3(X_a.rotation.T @ X_b.rotation))))
         out.append(f"{where}: orientation at q0 differs by {angle:.4g} deg")

@@ -178,7 +178,8 @@ def load_robot(
     pin_model: pin.Model | None = None  # built by Robot from the compiled MjModel (robots/pin_from_mj.py)
     if analytic == "parser":
         plant = pin_model_from_mj(mj_model, robot_bodies(mj_model, roots))
-        pairing = pair_joints(load_pin_model(pin_file), plant, joint_map, floating_base)
+        unnamed = [f"joint{j}" for j in range(mj_model.njnt) if not mj_model.joint(j).name]
+        pairing = pair_joints(load_pin_model(pin_file), plant, joint_map, floating_base, unnamed)
         pin_model = pairing.model
         if pin_model_file:
             edits = (*edits, f"Pinocchio model from {pin_file}")

@@ -51,56 +51,11 @@ from mbctl.robots.crosscheck.report import (
     Report,
 )
 from mbctl.robots.crosscheck.sampling import Sampling, States, sample_states
+from mbctl.robots.crosscheck.structure import first as _first
+from mbctl.robots.crosscheck.structure import located_differences, structure_problems
 from mbctl.robots.crosscheck.tolerances import TOLERANCES, Tolerance
 from mbctl.robots.exceptions import ModelMismatchError
 from mbctl.robots.model_pair import Robot, check_agreement
-
-
-def _structure_problems(robot: Robot) -> list[str]:
-    pm, m = robot.pin_model, robot.mj_model
-    problems = []
-    nq, nv = robot.converter.nq, robot.converter.nv
-    if (pm.nq, pm.nv) != (nq, nv):
-        problems.append(f"sizes differ: Pinocchio nq={pm.nq}, nv={pm.nv}; MuJoCo robot nq={nq}, nv={nv}")
-    if pm.njoints - 1 != len(robot.joints):
-        pin_names, mj_names = list(pm.names)[1:], list(robot.joints)
-        only_mj = [n for n in mj_names if n not in set(pin_names)]
-        only_pin = [n for n in pin_names if n not in set(mj_names)]
-        problems.append(
-            f"joint count differs: Pinocchio {len(pin_names)}, MuJoCo {len(mj_names)}"
-            + (f"; only in MuJoCo: {_first(only_mj)}" if only_mj else "")
-            + (f"; only in Pinocchio: {_first(only_pin)}" if only_pin else "")
-        )
-        # Pinocchio 4.1's MJCF parser builds only the first body tree: say so when the robot has
-        # several trees or a scene body comes first (mocap targets and scenery after it do not matter).
-        tops = [b for b in range(1, m.nbody) if m.body_parentid[b] == 0]
-        robot_tops = [b for b in tops if b in set(robot.robot_body_ids)]
-        first_is_scene = bool(tops) and tops[0] not in robot_tops
-        if pm.njoints - 1 < len(robot.joints) and (len(robot_tops) > 1 or first_is_scene):
-            problems.append(
-                f"the robot has {len(robot_tops)} body trees under <worldbody>"
-                + (" after a scene body" if first_is_scene else "")
-                + ", and Pinocchio 4.1's MJCF parser builds only the first body tree: put the robot "
-                "first, or give the Pinocchio side its own file (--pin-model / pin_model_file), or use "
-                "--analytic mujoco"
-            )
-    else:
-        for k, j in enumerate(robot.joints.values(), start=1):
-            pj = pm.joints[k]
-            if (pj.idx_q, pj.idx_v, pj.nq, pj.nv) != (j.idx_q, j.idx_v, j.nq, j.nv):
-                problems.append(
-                    f"joint #{k - 1} ({j.name!r}, MuJoCo {j.kind}) has q[{j.idx_q}:+{j.nq}] "
-                    f"v[{j.idx_v}:+{j.nv}] in MuJoCo but q[{pj.idx_q}:+{pj.nq}] "
-                    f"v[{pj.idx_v}:+{pj.nv}] in Pinocchio ({pm.names[k]!r}, {pj.shortname()})"
-                )
-                break
-    return problems
-
-
-def _first(names: list[str], limit: int = 8) -> str:
-    """``names`` joined with commas, the first ``limit`` of them and how many more."""
-    more = f" and {len(names) - limit} more" if len(names) > limit else ""
-    return ", ".join(names[:limit]) + more
 
 
 def _cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
@@ -438,10 +393,11 @@ def crosscheck(
     except ModelMismatchError as exc:
         notes.append(f"load-time agreement check found differences: {exc}")
     pin_file, mj_file = str(robot.source.robot_file), str(robot.source.scene_file)
-    problems = _structure_problems(robot)
+    problems = structure_problems(robot)
     if problems or robot.nv == 0:
         why = "; ".join(problems) if problems else "the robot has no degrees of freedom"
         return _structure_failure(robot, seed, tolerances, features, notes, why, pin_file, mj_file)
+    notes += located_differences(robot)
     frames = _match_frames(robot)
     if frames.missing:
         notes.append(
@@ -527,6 +483,7 @@ def crosscheck(
         features,
         tuple(notes),
         elapsed,
+        robot.source.edits,
     )
 
 
@@ -572,5 +529,6 @@ def _structure_failure(
         for k, t in ((k, tolerances[k]) for k in TOLERANCES)
     ]
     return Report(
-        robot.name, pin_file, mj_file, 0, int(seed), {}, tuple(results), features, tuple(notes), 0.0
+        robot.name, pin_file, mj_file, 0, int(seed), {}, tuple(results), features, tuple(notes), 0.0,
+        robot.source.edits,
     )

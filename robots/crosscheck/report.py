@@ -112,6 +112,9 @@ class Report:
         features: Model features outside the rigid-body comparison and their handling.
         notes: Other findings (load-time agreement check, frames without a counterpart).
         elapsed_s: Wall-clock time of the evaluation [s] (sampling and model preparation excluded).
+        edits: Load-time edits of the models (``ModelSource.edits``): gravity, the Pinocchio
+            file, and how its joints were paired with the plant's (renamed, reordered, a free
+            flyer added).
     """
 
     robot: str
@@ -124,6 +127,7 @@ class Report:
     features: tuple[FeatureNote, ...] = field(default=())
     notes: tuple[str, ...] = field(default=())
     elapsed_s: float = 0.0
+    edits: tuple[str, ...] = field(default=())
 
     @property
     def passed(self) -> bool:
@@ -207,6 +211,7 @@ class Report:
             ],
             "features": [f._asdict() for f in self.features],
             "notes": list(self.notes),
+            "edits": list(self.edits),
             "elapsed_s": self.elapsed_s,
             "states_per_second": _json_float(self.states_per_second),
         }
@@ -248,6 +253,9 @@ class Report:
         if self.features:
             lines += ["", "model features outside the rigid-body comparison:"]
             lines += [f"  {f.feature:22s} {f.handling.upper():13s} {f.detail}" for f in self.features]
+        if self.edits:
+            lines += ["", "load-time edits:"]
+            lines += [f"  - {e}" for e in self.edits]
         if self.notes:
             lines += ["", "notes:"]
             lines += [f"  - {n}" for n in self.notes]
