@@ -219,3 +219,18 @@ def test_cli_joint_map_and_floating_base(files, tmp_path):
     assert out.returncode == 1 and "--floating-base" in out.stdout
     out = _mbctl("xcheck", str(robot_file), "--joint-map", "a=b", "--output", str(tmp_path / "e"))
     assert out.returncode == 2 and "use them with pin_model_file (--pin-model)" in out.stderr
+
+
+def test_unnamed_mujoco_joints_pair_through_their_bodies(tmp_path):
+    # Pinocchio's MJCF parser invents names ("b_free", "cJoint_0"), the plant calls them joint<id>.
+    path = tmp_path / "unnamed.xml"
+    path.write_text('<mujoco><worldbody><body name="b" pos="0 0 1"><freejoint/>'
+                    '<inertial pos="0 0 0" mass="1" diaginertia="0.1 0.2 0.3"/>'
+                    '<body name="c" pos="0.1 0 0"><joint axis="0 1 0"/>'
+                    '<inertial pos="0.1 0 0" mass="0.5" diaginertia="0.01 0.02 0.02"/></body></body>'
+                    "</worldbody></mujoco>")
+    robot = load_robot(path, analytic="parser")
+    assert list(robot.joints) == ["joint0", "joint1"] == list(robot.pin_model.names)[1:]
+    paired = "unnamed MuJoCo joints paired through the bodies they move: cJoint_0 -> joint1 ('c')"
+    assert paired in robot.source.edits
+    _clean(crosscheck(robot, n_states=20))
