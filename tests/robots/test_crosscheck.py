@@ -623,3 +623,52 @@ def test_cli_xcheck_exits_1_on_a_different_pin_model(tmp_path):
     assert out.returncode == 1, out.stderr
     assert "load-time agreement check found differences" in out.stdout
     assert out.stdout.splitlines()[-1] == "result: FAIL"
+
+
+# ---------------------------------------------------------------- the batched evaluation
+
+
+def _evaluator(robot, n_states=20, seed=0, chunk=8):
+    from mbctl.robots.crosscheck.evaluator import Evaluator, match_frames
+    from mbctl.robots.crosscheck.plant import comparison_model
+
+    m, _ = comparison_model(robot.mj_model, robot.scene_body_ids)
+    states = sample_states(robot, n_states, seed)
+    evaluator = Evaluator(robot, m, match_frames(robot), chunk)
+    evaluator._evaluate(states, 0, chunk)
+    return evaluator, states
+
+
+@pytest.mark.parametrize("name", ["g1", "leg"])
+def test_batched_frame_jacobians_equal_get_frame_jacobian(name, request, tmp_path):
+    import pinocchio as pin
+
+    robot = (request.getfixturevalue("g1") if name == "g1"
+             else load_robot(_write(tmp_path, "leg.xml", BALL_FREE_XML), check=False))
+    evaluator, states = _evaluator(robot)
+    P, _ = evaluator.aligned(evaluator.chunk, full=True)
+    pm, pd = robot.pin_model, robot.pin_model.createData()
+    lwa = pin.ReferenceFrame.LOCAL_WORLD_ALIGNED
+    for i in (0, 3, 7):  # slots of the chunk: states 0, 3, 7
+        pin.computeAllTerms(pm, pd, states.q[i], states.v[i])
+        pin.updateFramePlacements(pm, pd)
+        for k, f in enumerate(evaluator.frames.pin_ids):
+            np.testing.assert_allclose(P["jacobian"][i, k], pin.getFrameJacobian(pm, pd, f, lwa), atol=1e-14)
+            np.testing.assert_allclose(P["fk_position"][i, k], pd.oMf[f].translation, atol=1e-14)
+            np.testing.assert_allclose(P["fk_rotation"][i, k], pd.oMf[f].rotation, atol=1e-14)
+
+
+def test_jacobians_compared_on_the_supports_give_the_full_maxima(g1):
+    """Outside both engines' supports every entry is exactly zero: the packed maxima are the full ones."""
+    evaluator, _ = _evaluator(g1)
+    c = evaluator.chunk
+    P, Q = evaluator.aligned(c)
+    packed = evaluator._reduced(P, Q, c)
+    evaluator2, _ = _evaluator(g1)  # the same states afresh (aligned converts MuJoCo's buffers in place)
+    Pf, Qf = evaluator2.aligned(c, full=True)
+    outside = np.broadcast_to((evaluator2._mask == 0)[None, :, None, :], Pf["jacobian"].shape)
+    assert np.all(Pf["jacobian"][outside] == 0.0) and np.all(Qf["jacobian"][outside] == 0.0)
+    full = np.abs(Pf["jacobian"] - Qf["jacobian"])
+    np.testing.assert_array_equal(packed["jacobian_linear"][0], full[:, :, :3].max(axis=(1, 2, 3)))
+    np.testing.assert_array_equal(packed["jacobian_angular"][0], full[:, :, 3:].max(axis=(1, 2, 3)))
+    assert packed["jacobian_linear"][1] == np.abs(Qf["jacobian"][:, :, :3]).max()
