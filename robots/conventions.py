@@ -193,6 +193,11 @@ class StateConverter:
         """Pinocchio configurations (n, nq) -> MuJoCo qpos (n, nq), a new array."""
         return np.asarray(q_pin, dtype=float)[:, self._perm_mj_from_pin]
 
+    @property
+    def free_v(self) -> list[int]:
+        """Index in v of each free joint's linear velocity (where ``T`` is not the identity)."""
+        return [iv for _, iv in self._free]
+
     def velocity_maps(self, q_pin: np.ndarray) -> VelocityMaps:
         """``T(q)`` of each configuration of a batch (n, nq), applied without (nv, nv) matrices."""
         q = np.asarray(q_pin, dtype=float)
@@ -300,6 +305,21 @@ class VelocityMaps:
             block = J[..., iv : iv + 3]
             rows = block.reshape(len(J), -1, 3)  # a copy when J is not contiguous: written back below
             block[...] = np.matmul(rows, self.R[:, k]).reshape(block.shape)
+        return J
+
+    def right_packed(self, J: np.ndarray, blocks: Sequence[tuple[int, int]]) -> np.ndarray:
+        """``J T`` in place for Jacobian entries packed along the last axis: J (n, r, L).
+
+        ``blocks[k] = (start, F)``: free joint k's linear columns x, y, z of F row blocks (frames)
+        sit at ``start``, ``start + F`` and ``start + 2 F``; no other entry changes.
+        """
+        for (start, F), R in zip(blocks, self.R.swapaxes(0, 1), strict=True):
+            X, Y, Z = (J[..., start + i * F : start + (i + 1) * F].copy() for i in range(3))
+            R = R[:, None, None]  # (n, 1, 1, 3, 3): one rotation per state
+            for i in range(3):
+                J[..., start + i * F : start + (i + 1) * F] = (
+                    X * R[..., 0, i] + Y * R[..., 1, i] + Z * R[..., 2, i]
+                )
         return J
 
     def congruence(self, M: np.ndarray) -> np.ndarray:

@@ -110,6 +110,30 @@ def mj_support_mask(robot: Robot, m: mujoco.MjModel, frames: Frames) -> np.ndarr
     return mask
 
 
+def _packing(union: np.ndarray, free_v: list[int]) -> tuple[np.ndarray, np.ndarray, list[tuple[int, int]]]:
+    """The order of the compared Jacobian entries (frame, column) of ``union`` (nf, nv).
+
+    Each free joint's linear columns come first, as three runs (x, y, z) over the same frames, so
+    that ``T`` acts on contiguous blocks (``VelocityMaps.right_packed``); then every other entry.
+
+    Returns:
+        Frame (L,) and column (L,) of each entry, and per free joint (start, number of frames).
+    """
+    union = union.copy()
+    frames, cols, blocks = [], [], []
+    for iv in free_v:
+        f = np.flatnonzero(union[:, iv : iv + 3].any(axis=1))
+        blocks.append((sum(len(x) for x in frames), f.size))
+        for i in range(3):
+            frames.append(f)
+            cols.append(np.full(f.size, iv + i))
+        union[:, iv : iv + 3] = False
+    rest_f, rest_c = np.nonzero(union)
+    frames.append(rest_f)
+    cols.append(rest_c)
+    return np.concatenate(frames).astype(int), np.concatenate(cols).astype(int), blocks
+
+
 def frame_jacobians(J_world: np.ndarray, p_WF: np.ndarray, mask: np.ndarray, out: np.ndarray) -> np.ndarray:
     """LOCAL_WORLD_ALIGNED frame Jacobians from Pinocchio's world-frame joint Jacobians.
 
@@ -142,7 +166,7 @@ GROUPS = {
     "points": ("com", "momentum_linear", "momentum_angular"),
 }
 #: The other quantities, each in a buffer of its own.
-SINGLES = ("mass_matrix", "com_jacobian", "fk_position", "fk_rotation")
+SINGLES = ("mass_matrix", "com_jacobian")
 
 
 class Evaluator:
@@ -180,7 +204,7 @@ class Evaluator:
         self._mask = support_mask(self.pm, frames.pin_ids)
         # The (frame, column) entries the Jacobians are compared on: the union of both supports.
         union = (self._mask + mj_support_mask(robot, m, frames)) > 0
-        self._pk_frame, self._pk_col = np.nonzero(union)
+        self._pk_frame, self._pk_col, self._pk_free = _packing(union, robot.converter.free_v)
         self._pk_in_pin = self._mask[self._pk_frame, self._pk_col]  # 0 where only MuJoCo's chain has it
         self._pk_pin_all = bool(np.all(self._pk_in_pin))
         rows = np.arange(6)[:, None]
@@ -209,6 +233,7 @@ class Evaluator:
         self._M_mj = np.zeros((chunk, nvp, nvp))
         self._m_vectors = np.zeros((chunk, 4, nvp))  # qfrc_bias, rne at v = 0, qacc, qfrc_inverse
         self._energy = np.zeros((chunk, 2))
+        self._X_mj = np.zeros((chunk, nf, 3, 4))
         self._m_points = np.zeros((chunk, 3, 3))  # p_WC, momentum: linear, angular about C
         nt = self.tops.size
         self._Jsub = np.zeros((chunk, nt, 3, nvp))
@@ -302,26 +327,26 @@ class Evaluator:
     def aligned(self, c: int, full: bool = False) -> tuple[dict[str, np.ndarray], dict[str, np.ndarray]]:
         """Pinocchio's and MuJoCo's values of the first ``c`` slots, in Pinocchio's convention.
 
-        Keys: the groups of ``GROUPS`` (quantities side by side on axis 1), the ``SINGLES``, and
-        "jacobian", all 6 rows: (c, 6, L) on the compared entries (``full=False``) or
-        (c, nf, 6, nv) (``full=True``). MuJoCo's buffers are converted in place.
+        Keys: the groups of ``GROUPS`` (quantities side by side on axis 1), the ``SINGLES``,
+        "frames": the placements ``[R_WF | p_WF]`` (c, nf, 3, 4), and "jacobian", all 6 rows:
+        (c, 6, L) on the compared entries (``full=False``) or (c, nf, 6, nv) (``full=True``).
+        MuJoCo's buffers are converted in place.
         """
-        maps, vi, Tdot_v, fr = self._maps, self.vi, self._Tdot_v, self.frames
+        maps, vi, Tdot_v = self._maps, self.vi, self._Tdot_v
         M = self._p_M[:c]
         M[:, self._tril[0], self._tril[1]] = M[:, self._tril[1], self._tril[0]]  # crba: upper triangle
         energies = self._p_energies[:c].copy()
         energies[:, 0] += (self._v * self._v) @ self._half_armature
-        X_WF = np.matmul(np.take(self._X_WJ[:c], self._frame_joint, axis=1), self._X_JF)
+        X_WF = np.matmul(np.take(self._X_WJ[:c, :, :3], self._frame_joint, axis=1), self._X_JF)  # 3 x 4
         P = {"vectors": self._p_vectors[:c], "energies": energies, "points": self._p_points[:c],
-             "mass_matrix": M, "com_jacobian": self._p_Jcom[:c],
-             "fk_position": X_WF[:, :, :3, 3], "fk_rotation": X_WF[:, :, :3, :3]}
+             "mass_matrix": M, "com_jacobian": self._p_Jcom[:c], "frames": X_WF}
         if full:
             nf = len(self.frames.pin_ids)
             P["jacobian"] = frame_jacobians(
-                self._J_world[:c], P["fk_position"], self._mask, np.zeros((c, nf, 6, self.robot.nv))
+                self._J_world[:c], X_WF[..., 3], self._mask, np.zeros((c, nf, 6, self.robot.nv))
             )
         else:
-            P["jacobian"] = self._packed_pin(c, P["fk_position"])
+            P["jacobian"] = self._packed_pin(c, X_WF[..., 3])
         M_mj = maps.congruence(self._M_mj[:c][(slice(None), *self.vv)])  # the robot's block: T^T M T
         vectors = self._m_vectors[:c][..., vi]  # bias, gravity, qacc, inverse (MuJoCo's convention)
         vectors[:, 2] -= Tdot_v  # a_pin = T^T (a_mj - Tdot v)
@@ -343,13 +368,19 @@ class Evaluator:
         Q = {"vectors": vectors, "energies": np.stack([energy[:, 1], energy[:, 0] - self._pe_static], axis=1),
              "points": points, "mass_matrix": M_mj,
              "com_jacobian": maps.right(np.einsum("k,nkij->nij", w, self._Jsub[:c][..., vi])),
-             "fk_position": np.concatenate([self._xbody[:c, fr.mj_body_ids], self._xsite[:c, fr.mj_site_ids]],
-                                           axis=1),
-             "fk_rotation": np.concatenate(
-                 [self._xbody_mat[:c, fr.mj_body_ids], self._xsite_mat[:c, fr.mj_site_ids]], axis=1
-             ).reshape(c, -1, 3, 3)}
+             "frames": self._mj_frames(c)}
         Q["jacobian"] = self._packed_mj(c) if not full else maps.right(np.array(self._J_mj[:c][..., vi]))
         return P, Q
+
+    def _mj_frames(self, c: int) -> np.ndarray:
+        """MuJoCo's placements ``[R_WF | p_WF]`` (c, nf, 3, 4) of the compared bodies and sites."""
+        fr, X = self.frames, self._X_mj[:c]
+        nb, ns = fr.mj_body_ids.size, fr.mj_site_ids.size
+        X[:, :nb, :, :3] = np.take(self._xbody_mat[:c], fr.mj_body_ids, axis=1).reshape(c, nb, 3, 3)
+        X[:, nb:, :, :3] = np.take(self._xsite_mat[:c], fr.mj_site_ids, axis=1).reshape(c, ns, 3, 3)
+        X[:, :nb, :, 3] = np.take(self._xbody[:c], fr.mj_body_ids, axis=1)
+        X[:, nb:, :, 3] = np.take(self._xsite[:c], fr.mj_site_ids, axis=1)
+        return X
 
     def _packed_pin(self, c: int, p_WF: np.ndarray) -> np.ndarray:
         """Pinocchio's frame Jacobians (c, 6, L) on the compared entries (``frame_jacobians``)."""
@@ -372,16 +403,16 @@ class Evaluator:
     def _packed_mj(self, c: int) -> np.ndarray:
         """MuJoCo's frame Jacobians (c, 6, L) on the compared entries, in Pinocchio's columns."""
         J = self._J_mj[:c]
-        if isinstance(self.vi, slice):
-            self._maps.right(J[..., self.vi])  # J_mj T, in the buffer (a view)
-        else:
-            J = self._maps.right(np.ascontiguousarray(J[..., self.vi]))
-        return np.take(J.reshape(c, -1), self._pk_mj, axis=1)  # (c, 6, L)
+        if not isinstance(self.vi, slice):
+            J = np.ascontiguousarray(J[..., self.vi])
+        packed = np.take(J.reshape(c, -1), self._pk_mj, axis=1)  # (c, 6, L)
+        return self._maps.right_packed(packed, self._pk_free)  # J_mj T
 
     @staticmethod
     def quantities(P: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
         """The values of ``aligned`` by quantity name (views into the groups)."""
         out = {k: P[k] for k in SINGLES}
+        out["fk_position"], out["fk_rotation"] = P["frames"][..., 3], P["frames"][..., :3]
         for group, names in GROUPS.items():
             out.update({name: P[group][:, k] for k, name in enumerate(names)})
         return out
@@ -394,19 +425,21 @@ class Evaluator:
         ``progress(done, n)`` is called after each chunk, if given.
         """
         n = len(states.kinds)
-        errors = {k: (np.zeros(n), 0.0) for k in TOLERANCES}
+        err = {k: np.zeros(n) for k in TOLERANCES}
+        scale = dict.fromkeys(TOLERANCES, 0.0)
         for start in range(0, n, self.chunk):
             stop = min(start + self.chunk, n)
             c = stop - start
             self._evaluate(states, start, stop)
             P, Q = self.aligned(c)
             for k, (diff, mag) in self._reduced(P, Q, c).items():
-                err, scale = errors[k]
-                err[start:stop] = np.where(np.isnan(diff), np.inf, diff)  # NaN propagates through max
-                errors[k] = (err, max(scale, mag))
+                err[k][start:stop] = diff
+                scale[k] = max(scale[k], mag)
             if progress is not None:
                 progress(stop, n)
-        return errors
+        for e in err.values():  # a NaN (propagated through max) is an infinite error
+            e[np.isnan(e)] = np.inf
+        return {k: (err[k], scale[k]) for k in TOLERANCES}
 
     def _reduced(
         self, P: dict[str, np.ndarray], Q: dict[str, np.ndarray], c: int
@@ -425,6 +458,13 @@ class Evaluator:
                 continue
             diff = np.abs(P[k] - Q[k]).reshape(c, -1)  # one reduction axis: several cost far more
             out[k] = (diff.max(axis=1), float(np.abs(Q[k]).max()))
+        D = np.abs(P["frames"] - Q["frames"])  # positions and rotations at once
+        for name, cols in (("fk_position", 3), ("fk_rotation", slice(0, 3))):
+            if D.size == 0:
+                out[name] = (np.zeros(c), 0.0)
+                continue
+            dx, mag = D[..., cols], Q["frames"][..., cols]
+            out[name] = (dx.reshape(c, -1).max(axis=1), float(max(mag.max(), -mag.min())))
         # The Jacobians are the bulk of the data: in place, on the compared entries (c, 6, L).
         D = self._J_diff[:c]
         Jm = Q["jacobian"]

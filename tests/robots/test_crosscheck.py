@@ -654,8 +654,8 @@ def test_batched_frame_jacobians_equal_get_frame_jacobian(name, request, tmp_pat
         pin.updateFramePlacements(pm, pd)
         for k, f in enumerate(evaluator.frames.pin_ids):
             np.testing.assert_allclose(P["jacobian"][i, k], pin.getFrameJacobian(pm, pd, f, lwa), atol=1e-14)
-            np.testing.assert_allclose(P["fk_position"][i, k], pd.oMf[f].translation, atol=1e-14)
-            np.testing.assert_allclose(P["fk_rotation"][i, k], pd.oMf[f].rotation, atol=1e-14)
+            np.testing.assert_allclose(P["frames"][i, k, :, 3], pd.oMf[f].translation, atol=1e-14)
+            np.testing.assert_allclose(P["frames"][i, k, :, :3], pd.oMf[f].rotation, atol=1e-14)
 
 
 def test_jacobians_compared_on_the_supports_give_the_full_maxima(g1):
