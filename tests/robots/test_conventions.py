@@ -136,3 +136,9 @@ def test_batched_velocity_maps_match_the_per_state_conversions(g1):
         np.testing.assert_allclose(dot_v[k], conv.velocity_map_dot_v(q[k], v[k]), atol=1e-14)
         np.testing.assert_allclose(right[k], J[k] @ T, atol=1e-14)
         np.testing.assert_allclose(congruence[k], T.T @ M[k] @ T, atol=1e-13)
+    # packed: the free joint's x, y, z columns of 4 frames first, then two other entries
+    iv = conv.free_v[0]
+    frames = np.r_[np.tile(np.arange(4), 3), 0, 2]
+    cols = np.r_[np.repeat([iv, iv + 1, iv + 2], 4), 10, 20]
+    packed = maps.right_packed(J[:, :, :, :].transpose(0, 2, 1, 3)[:, :, frames, cols].copy(), [(0, 4)])
+    np.testing.assert_allclose(packed, right.transpose(0, 2, 1, 3)[:, :, frames, cols], atol=1e-14)
