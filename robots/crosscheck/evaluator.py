@@ -36,6 +36,7 @@ import mujoco
 import numpy as np
 import pinocchio as pin
 
+from mbctl.robots.conventions import VelocityMaps
 from mbctl.robots.crosscheck.plant import static_bodies, top_moving_bodies
 from mbctl.robots.crosscheck.sampling import States
 from mbctl.robots.crosscheck.tolerances import TOLERANCES
@@ -207,12 +208,9 @@ class Evaluator:
         self._pk_frame, self._pk_col, self._pk_free = _packing(union, robot.converter.free_v)
         self._pk_in_pin = self._mask[self._pk_frame, self._pk_col]  # 0 where only MuJoCo's chain has it
         self._pk_pin_all = bool(np.all(self._pk_in_pin))
-        rows = np.arange(6)[:, None]
-        if isinstance(self.vi, slice):  # MuJoCo's Jacobians are taken from its buffer, plant columns
-            plant_col = np.arange(nvp)[self.vi][self._pk_col]
-            self._pk_mj = self._pk_frame * 6 * nvp + rows * nvp + plant_col  # (6, L) flat indices
-        else:  # from a copy of the robot's columns
-            self._pk_mj = self._pk_frame * 6 * nv + rows * nv + self._pk_col
+        # Flat indices of the compared entries in MuJoCo's (nf, 6, nvp) Jacobians (plant columns).
+        plant_col = np.arange(nvp)[self.vi][self._pk_col]
+        self._pk_mj = self._pk_frame * 6 * nvp + np.arange(6)[:, None] * nvp + plant_col  # (6, L)
         self._tril = np.tril_indices(nv, -1)
         # Pinocchio's outputs per state, in its convention.
         self._p_vectors = np.zeros((chunk, 4, nv))  # nle, g, aba, rnea (GROUPS["vectors"] order)
@@ -229,7 +227,8 @@ class Evaluator:
         # MuJoCo's raw outputs per state, in its convention and the plant's size.
         self._xbody, self._xbody_mat = np.zeros((chunk, m.nbody, 3)), np.zeros((chunk, m.nbody, 9))
         self._xsite, self._xsite_mat = np.zeros((chunk, m.nsite, 3)), np.zeros((chunk, m.nsite, 9))
-        self._J_mj = np.zeros((chunk, nf, 6, nvp))
+        self._J_mj = np.zeros((nf, 6, nvp))  # one state's, packed into _J_mj_packed right away
+        self._J_mj_packed = np.zeros((chunk, 6, self._pk_col.size))
         self._M_mj = np.zeros((chunk, nvp, nvp))
         self._m_vectors = np.zeros((chunk, 4, nvp))  # qfrc_bias, rne at v = 0, qacc, qfrc_inverse
         self._energy = np.zeros((chunk, 2))
@@ -241,10 +240,11 @@ class Evaluator:
         # The arguments of every Jacobian call, with output views, made once per slot:
         # (m, d, jacp (3, nvp), jacr (3, nvp), body or site id), bodies then sites.
         nb = frames.mj_body_ids.size
-        self._jac_body_args = [[(m, self.d, J[k, :3], J[k, 3:], int(b))
-                                for k, b in enumerate(frames.mj_body_ids)] for J in self._J_mj]
-        self._jac_site_args = [[(m, self.d, J[k, :3], J[k, 3:], int(s))
-                                for k, s in enumerate(frames.mj_site_ids, start=nb)] for J in self._J_mj]
+        J = self._J_mj
+        self._jac_body_args = [(m, self.d, J[k, :3], J[k, 3:], int(b))
+                               for k, b in enumerate(frames.mj_body_ids)]
+        self._jac_site_args = [(m, self.d, J[k, :3], J[k, 3:], int(s))
+                               for k, s in enumerate(frames.mj_site_ids, start=nb)]
         self._J_diff = np.zeros((chunk, 6, self._pk_col.size))
         L = self._pk_col.size
         self._pk_tmp, self._pk_J = np.zeros((chunk, L)), np.zeros((chunk, 6, L))
@@ -280,8 +280,10 @@ class Evaluator:
         self._xbody_mat[i] = d.xmat
         self._xsite[i] = d.site_xpos
         self._xsite_mat[i] = d.site_xmat
-        deque(starmap(mujoco.mj_jacBody, self._jac_body_args[i]), maxlen=0)  # the loops in C
-        deque(starmap(mujoco.mj_jacSite, self._jac_site_args[i]), maxlen=0)
+        deque(starmap(mujoco.mj_jacBody, self._jac_body_args), maxlen=0)  # the loops in C
+        deque(starmap(mujoco.mj_jacSite, self._jac_site_args), maxlen=0)
+        # only the compared entries are kept (the rest are zeros in both engines): small buffers
+        np.take(self._J_mj.reshape(-1), self._pk_mj, out=self._J_mj_packed[i])
         mujoco.mj_fullM(m, d, self._M_mj[i])
         vec[0] = d.qfrc_bias
         vec[2] = d.qacc
@@ -329,7 +331,8 @@ class Evaluator:
 
         Keys: the groups of ``GROUPS`` (quantities side by side on axis 1), the ``SINGLES``,
         "frames": the placements ``[R_WF | p_WF]`` (c, nf, 3, 4), and "jacobian", all 6 rows:
-        (c, 6, L) on the compared entries (``full=False``) or (c, nf, 6, nv) (``full=True``).
+        (c, 6, L) on the compared entries, or with ``full=True`` (c, nf, 6, nv) for Pinocchio and
+        (1, nf, 6, nv) for MuJoCo, whose dense Jacobians are kept for the last state only.
         MuJoCo's buffers are converted in place.
         """
         maps, vi, Tdot_v = self._maps, self.vi, self._Tdot_v
@@ -369,7 +372,11 @@ class Evaluator:
              "points": points, "mass_matrix": M_mj,
              "com_jacobian": maps.right(np.einsum("k,nkij->nij", w, self._Jsub[:c][..., vi])),
              "frames": self._mj_frames(c)}
-        Q["jacobian"] = self._packed_mj(c) if not full else maps.right(np.array(self._J_mj[:c][..., vi]))
+        if full:  # MuJoCo's dense Jacobians are kept for the last state only: c = 1 (worst_entry)
+            last = VelocityMaps(maps.free_v, maps.R[c - 1 :])
+            Q["jacobian"] = last.right(np.array(self._J_mj[None][..., vi]))
+        else:
+            Q["jacobian"] = maps.right_packed(self._J_mj_packed[:c], self._pk_free)  # J_mj T
         return P, Q
 
     def _mj_frames(self, c: int) -> np.ndarray:
@@ -399,14 +406,6 @@ class Evaluator:
         if not self._pk_pin_all:  # entries of MuJoCo's chain outside Pinocchio's support
             J *= self._pk_in_pin
         return J
-
-    def _packed_mj(self, c: int) -> np.ndarray:
-        """MuJoCo's frame Jacobians (c, 6, L) on the compared entries, in Pinocchio's columns."""
-        J = self._J_mj[:c]
-        if not isinstance(self.vi, slice):
-            J = np.ascontiguousarray(J[..., self.vi])
-        packed = np.take(J.reshape(c, -1), self._pk_mj, axis=1)  # (c, 6, L)
-        return self._maps.right_packed(packed, self._pk_free)  # J_mj T
 
     @staticmethod
     def quantities(P: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
