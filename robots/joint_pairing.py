@@ -206,13 +206,12 @@ def _pair_unnamed(
     """
     taken = set(names.values())
     plant_names = set(list(plant.names)[1:])
-    out = {}
+    out: dict[int, str] = {}
     for name in sorted(unnamed - taken):
-        if not plant.existJointName(name):
+        body = _first_body(plant, plant.getJointId(name)) if plant.existJointName(name) else None
+        if body is None:
             continue
-        body = _first_body(plant, plant.getJointId(name))
-        candidates = [j for j, n in names.items()
-                      if n not in plant_names and body and _first_body(parsed, j) == body]
+        candidates = [j for j, n in names.items() if n not in plant_names and _first_body(parsed, j) == body]
         if len(candidates) == 1:
             names[candidates[0]] = name
             out[candidates[0]] = body

@@ -14,6 +14,7 @@ from mbctl.robots.exceptions import ModelFileError, ModelNotFoundError, RobotErr
 from mbctl.robots.joint_pairing import pair_joints
 from mbctl.robots.menagerie import resolve_menagerie_dir
 from mbctl.robots.model_pair import ModelSource, Robot, compile_spec, load_mj_spec, load_pin_model
+from mbctl.robots.model_size import check_model_file_size, check_robot_dof
 from mbctl.robots.pin_from_mj import pin_model_from_mj
 from mbctl.robots.scene import robot_bodies
 from mbctl.robots.scene_match import robot_in_scene
@@ -163,6 +164,7 @@ def load_robot(
             "joint_map (--joint-map) and floating_base (--floating-base) pair a Pinocchio model read "
             "from a file with the plant: use them with pin_model_file (--pin-model) or analytic='parser'"
         )
+    check_model_file_size(scene_file)
     spec = load_mj_spec(scene_file)
     edits: tuple[str, ...] = ()
     if gravity is True and gravity_on is not None:
@@ -177,9 +179,11 @@ def load_robot(
     pin_file = Path(pin_model_file).expanduser().resolve() if pin_model_file else robot_file
     pin_model: pin.Model | None = None  # built by Robot from the compiled MjModel (robots/pin_from_mj.py)
     if analytic == "parser":
+        parsed = load_pin_model(pin_file)
+        check_robot_dof(parsed.nv, name)
         plant = pin_model_from_mj(mj_model, robot_bodies(mj_model, roots))
         unnamed = [f"joint{j}" for j in range(mj_model.njnt) if not mj_model.joint(j).name]
-        pairing = pair_joints(load_pin_model(pin_file), plant, joint_map, floating_base, unnamed)
+        pairing = pair_joints(parsed, plant, joint_map, floating_base, unnamed)
         pin_model = pairing.model
         if pin_model_file:
             edits = (*edits, f"Pinocchio model from {pin_file}")

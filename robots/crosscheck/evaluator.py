@@ -121,10 +121,12 @@ def _packing(union: np.ndarray, free_v: list[int]) -> tuple[np.ndarray, np.ndarr
         Frame (L,) and column (L,) of each entry, and per free joint (start, number of frames).
     """
     union = union.copy()
-    frames, cols, blocks = [], [], []
+    frames: list[np.ndarray] = []
+    cols: list[np.ndarray] = []
+    blocks: list[tuple[int, int]] = []
     for iv in free_v:
         f = np.flatnonzero(union[:, iv : iv + 3].any(axis=1))
-        blocks.append((sum(len(x) for x in frames), f.size))
+        blocks.append((int(sum(x.size for x in frames)), int(f.size)))
         for i in range(3):
             frames.append(f)
             cols.append(np.full(f.size, iv + i))
