@@ -39,7 +39,7 @@ import pinocchio as pin  # noqa: E402
 
 from mbctl.robots import Robot, load_robot  # noqa: E402
 from mbctl.robots.crosscheck import crosscheck  # noqa: E402
-from mbctl.robots.crosscheck.evaluator import Evaluator, match_frames  # noqa: E402
+from mbctl.robots.crosscheck.evaluator import CHUNK_SIZE, Evaluator, match_frames  # noqa: E402
 from mbctl.robots.crosscheck.plant import comparison_model  # noqa: E402
 from mbctl.robots.crosscheck.sampling import sample_states  # noqa: E402
 
@@ -57,7 +57,7 @@ def _same_states(robot: Robot, n_states: int, seed: int):
 def eval_seconds_per_state(robot: Robot, n_states: int, seed: int, clock=time.perf_counter) -> float:
     """Time [s] per state of the cross-check's evaluation (``Evaluator.run``, as in ``crosscheck``)."""
     states, m, frames = _same_states(robot, n_states, seed)
-    evaluator = Evaluator(robot, m, frames, 16)
+    evaluator = Evaluator(robot, m, frames, CHUNK_SIZE)
     t0 = clock()
     evaluator.run(states)
     return (clock() - t0) / len(states.q)

@@ -36,7 +36,7 @@ from collections.abc import Callable, Mapping
 
 import numpy as np
 
-from mbctl.robots.crosscheck.evaluator import Evaluator, match_frames
+from mbctl.robots.crosscheck.evaluator import CHUNK_SIZE, Evaluator, match_frames
 from mbctl.robots.crosscheck.exceptions import CrossCheckError
 from mbctl.robots.crosscheck.locate import describe_entry, dof_labels
 from mbctl.robots.crosscheck.plant import comparison_model
@@ -72,7 +72,7 @@ def crosscheck(
     *,
     tolerances: Mapping[str, Tolerance] = TOLERANCES,
     sampling: Sampling = _DEFAULT_SAMPLING,
-    chunk_size: int = 16,
+    chunk_size: int = CHUNK_SIZE,
     progress: Callable[[int, int], None] | None = None,
 ) -> Report:
     """Compare the dynamics of ``robot.pin_model`` with ``robot.mj_model`` over many states.
@@ -84,8 +84,8 @@ def crosscheck(
         seed: Seed of the random states.
         tolerances: Pass criterion per quantity; must name every quantity in ``TOLERANCES``.
         sampling: Ranges and scales of the random states.
-        chunk_size: States evaluated between two vectorized error reductions; 16 keeps the
-            buffers of a G1-sized robot (~85 kB of Jacobians per state and engine) in cache.
+        chunk_size: States evaluated between two batched conversions and error reductions
+            (``evaluator.CHUNK_SIZE``, chosen by measurement on the G1).
         progress: Called as ``progress(done_states, total_states)`` after each chunk of
             ``chunk_size`` states, with ``done_states`` increasing up to ``total_states``
             (random plus edge states, ``Report.n_states``); for progress bars. It runs inside the
