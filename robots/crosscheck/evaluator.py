@@ -1,27 +1,27 @@
 """Both engines over the cross-check's states: per state the engine calls, per chunk the rest.
 
-Per state only what an engine must do for that state runs: Pinocchio's ``computeAllTerms``, frame
-placements, kinetic energy, ABA and RNEA; MuJoCo's ``mj_forward``, one ``mj_jacBody`` /
-``mj_jacSite`` per compared frame, ``mj_fullM``, the subtree quantities, ``mj_inverse`` and
-``mj_rne`` at zero velocity. Their outputs are copied into buffers of ``chunk`` states. Everything
-else is done once per chunk with batched numpy: the MuJoCo inputs in MuJoCo's convention, the
-outputs back into Pinocchio's (``StateConverter.velocity_maps``: ``T(q)`` block by block), and the
-error reduction, in place in preallocated buffers (a fresh 1 MB temporary per operation costs
-more than the operation).
+Per state only what an engine must do for that state runs: Pinocchio's ``computeAllTerms`` (its
+joint placements ``oMi`` and joint Jacobians ``J`` fetched), kinetic energy, ABA and RNEA;
+MuJoCo's ``mj_forward``, one ``mj_jacBody`` / ``mj_jacSite`` per compared frame, ``mj_fullM``,
+the subtree quantities, ``mj_inverse`` and ``mj_rne`` at zero velocity. Their outputs are copied
+into buffers of ``chunk`` states. Everything else is done once per chunk with batched numpy: the
+MuJoCo inputs in MuJoCo's convention, the outputs back into Pinocchio's
+(``StateConverter.velocity_maps``: ``T(q)`` block by block), and the error reduction, in place in
+preallocated buffers (a fresh temporary per operation costs more than the operation).
 
-Pinocchio's frame Jacobians are formed per chunk from its joint Jacobians ``data.J`` (world
-frame, from ``computeAllTerms``), as ``getFrameJacobian`` forms them for LOCAL_WORLD_ALIGNED: the
-columns of the joints that support the frame, the linear rows shifted to the frame's origin
-``p_WF``, ``v_F = v_O - p_WF x w``. Pinocchio has no call for many frames, and 50 calls per state
-cost more than the rest of its work; the test suite checks the batch against
-``getFrameJacobian``. MuJoCo's frame Jacobians stay its own calls, so the comparison still
-checks one engine's Jacobian routine against the other's.
+Pinocchio's frame placements and frame Jacobians are formed per chunk the way Pinocchio forms
+them, because Pinocchio has no call for many frames and 50 calls per state cost more than the
+rest of its work: ``X_WF = X_WJ X_JF`` from the joint placements (``updateFramePlacements``), and
+for LOCAL_WORLD_ALIGNED the columns of the joints that support the frame with the linear rows
+shifted to the frame's origin, ``v_F = v_O - p_WF x w`` (``getFrameJacobian``); the test suite
+checks both against those functions. MuJoCo's frame Jacobians stay its own calls, so the
+comparison still checks one engine's Jacobian routine against the other's.
 
 The Jacobians are most of the data (G1: 50 frames x 6 x 35 per state and engine) but mostly
 zeros: a column is non-zero only for the joints that move the frame. Both engines write exact
 zeros elsewhere (Pinocchio outside the joint's support, MuJoCo's ``mj_jac`` outside the body's
-dof chain), so the errors are reduced over the union of the two supports only (about 40 % of the
-entries on the G1), which gives the same maxima as the full arrays.
+dof chain), so only the union of the two supports is kept, packed (31 % of the entries on the
+G1; MuJoCo's per state, right after its calls), which gives the same maxima as the full arrays.
 """
 
 from __future__ import annotations
