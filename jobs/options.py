@@ -26,6 +26,7 @@ from mbctl.jobs.plant import PlantOptions
 from mbctl.jobs.serve import ServeParams
 from mbctl.jobs.workspace import WorkspaceParams
 from mbctl.jobs.xcheck import XcheckParams
+from mbctl.robots.joint_pairing import parse_joint_map
 
 
 def demo(controller: str = "ct", compare: bool = False, model_error: float = 0.0,
@@ -109,10 +110,15 @@ def joint_step(robot: str, joint: str, delta: float, steps: int = 250, keyframe:
 def xcheck(robot: str, scene: str | None = None, states: int = 100, seed: int = 0,
            json_path: Path | None = None, pin_model: Path | None = None, gravity: bool = False,
            model_dir: str | None = None, analytic: str = "mujoco",
-           root: list[str] | None = None) -> XcheckParams:
-    """``mbctl xcheck``: states random states drawn from seed; root bodies select the robot's trees."""
+           root: list[str] | None = None, joint_map: str | None = None,
+           floating_base: bool | None = None) -> XcheckParams:
+    """``mbctl xcheck``: states random states drawn from seed; root bodies select the robot's trees.
+
+    ``joint_map`` is ``A=B,...`` or a file of such lines (``robots.joint_pairing.parse_joint_map``).
+    """
     return XcheckParams(robot, scene, states, seed, json_path, pin_model, gravity, model_dir, analytic,
-                        tuple(root or ()))
+                        tuple(root or ()), tuple(parse_joint_map(joint_map).items()) if joint_map else (),
+                        floating_base)
 
 
 def workspace(robot: str = "two_link", samples: int = 121) -> WorkspaceParams:
