@@ -22,7 +22,7 @@ import pinocchio as pin
 from mbctl.robots.conventions import JointLayout, StateConverter
 from mbctl.robots.exceptions import ModelFileError, ModelMismatchError, UnknownNameError
 from mbctl.robots.indexing import as_slice
-from mbctl.robots.names import ActuatorInfo, SensorInfo, actuator_infos, names_of, sensor_infos
+from mbctl.robots.names import ActuatorInfo, SensorInfo, actuator_infos, mj_name, names_of, sensor_infos
 from mbctl.robots.pin_from_mj import pin_model_from_mj
 from mbctl.robots.scene import describe_body, robot_bodies, scene_bodies
 
@@ -182,7 +182,7 @@ class Robot:
             kind = _MJ_JOINT_KIND[mujoco.mjtJoint(int(m.jnt_type[j]))]
             nq = {"free": 7, "ball": 4}.get(kind, 1)
             nv = {"free": 6, "ball": 3}.get(kind, 1)
-            name = mujoco.mj_id2name(m, mujoco.mjtObj.mjOBJ_JOINT, j) or f"joint{j}"  # as pin_from_mj
+            name = mj_name(m, mujoco.mjtObj.mjOBJ_JOINT, j)  # as pin_from_mj
             plant_q, plant_v = int(m.jnt_qposadr[j]), int(m.jnt_dofadr[j])
             layouts.append(JointLayout(name, kind, iq, iv, nq, nv, plant_q, plant_v))
             iq, iv = iq + nq, iv + nv
