@@ -7,6 +7,7 @@ from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
+import mujoco
 import numpy as np
 import pinocchio as pin
 
@@ -15,6 +16,7 @@ from mbctl.robots.joint_pairing import pair_joints
 from mbctl.robots.menagerie import resolve_menagerie_dir
 from mbctl.robots.model_pair import ModelSource, Robot, compile_spec, load_mj_spec, load_pin_model
 from mbctl.robots.model_size import check_model_file_size, check_robot_dof
+from mbctl.robots.names import mj_name
 from mbctl.robots.pin_from_mj import pin_model_from_mj
 from mbctl.robots.scene import robot_bodies
 from mbctl.robots.scene_match import robot_in_scene
@@ -182,7 +184,8 @@ def load_robot(
         parsed = load_pin_model(pin_file)
         check_robot_dof(parsed.nv, name)
         plant = pin_model_from_mj(mj_model, robot_bodies(mj_model, roots))
-        unnamed = [f"joint{j}" for j in range(mj_model.njnt) if not mj_model.joint(j).name]
+        unnamed = [mj_name(mj_model, mujoco.mjtObj.mjOBJ_JOINT, j)
+                   for j in range(mj_model.njnt) if not mj_model.joint(j).name]
         pairing = pair_joints(parsed, plant, joint_map, floating_base, unnamed)
         pin_model = pairing.model
         if pin_model_file:
