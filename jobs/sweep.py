@@ -345,6 +345,10 @@ def prepare_sweep(config: SweepConfig) -> tuple[CatalogEntry, list[dict[str, Any
         check_limit("the grid", tasks, MAX_SWEEP_TASKS, " tasks",
                     f"{' x '.join(f'{len(v)} {k}' for k, v in config.grid.items())}; split the grid, "
                     "or give --force to run it anyway")
+    if "dds" in [str(v) for v in config.grid.get("interface", [])]:
+        raise SweepInputError("interface=dds: a sweep runs its tasks in parallel on in-process plants, and "
+                              "one robot (or `mbctl serve g1`) takes one controller at a time; sweep the "
+                              "link in process (latency_ms, jitter_ms, drop, imu_noise)")
     combos = combinations(config.grid)
     for combo in combos:
         try:

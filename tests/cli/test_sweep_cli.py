@@ -105,3 +105,9 @@ def test_a_worker_address_is_not_taken_for_a_scheduler(dask_client):
     with pytest.raises(SweepSetupError, match="answers, but as a Dask Worker, not a scheduler"):
         check_scheduler(worker, 5.0)
     check_scheduler(dask_client.scheduler.address, 5.0)  # the scheduler itself passes
+
+
+def test_a_sweep_over_the_dds_interface_exits_2_before_any_task(tmp_path):
+    out = mbctl("sweep", "g1-stand", "--param", "interface=sim,dds", "--output", str(tmp_path / "s"))
+    assert out.returncode == 2 and "interface=dds" in out.stderr and "sweep the link in process" in out.stderr
+    assert not (tmp_path / "s" / "runs").exists()
