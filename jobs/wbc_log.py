@@ -40,9 +40,10 @@ class WBCRecord(NamedTuple):
     """The cycles of a g1-wbc run recorded so far (k of them), feet in :data:`~mbctl.robots.g1.FEET` order.
 
     Attributes:
-        t: Cycle times (k,) [s].
-        com_ref: CoM reference (k, 3) [m] in W.
-        com: MuJoCo's CoM (k, 3) [m] in W.
+        t: Cycle times (k,) [s]: the time of the state the controller was given.
+        t_plant: The plant's time (k,) [s] of ``com`` (later than ``t`` by the link's latency).
+        com_ref: CoM reference (k, 3) [m] in W, set for time ``t``.
+        com: MuJoCo's CoM (k, 3) [m] in W at ``t_plant``.
         fz_qp: Normal force per foot predicted by the QP (k, 2) [N].
         fz_mj: Normal force per foot measured in MuJoCo (k, 2) [N].
         ft_qp: Tangential force per foot, QP (k, 2) [N].
@@ -59,6 +60,7 @@ class WBCRecord(NamedTuple):
     """
 
     t: np.ndarray
+    t_plant: np.ndarray
     com_ref: np.ndarray
     com: np.ndarray
     fz_qp: np.ndarray
@@ -73,6 +75,18 @@ class WBCRecord(NamedTuple):
     ctrl_us: np.ndarray
     qp_us: np.ndarray
     cycle_us: np.ndarray
+
+
+def com_tracking_error(r: WBCRecord) -> np.ndarray:
+    """The plant's CoM minus the reference at the same time (k', 3) [m].
+
+    Behind a link with latency the controller's state (and so the reference it was given) is older
+    than the plant; the reference, a smooth trajectory, is interpolated at the plant's times (up to
+    the last reference time). Without latency ``t_plant == t`` and this is ``com - com_ref``.
+    """
+    keep = r.t_plant <= r.t[-1]
+    ref = np.column_stack([np.interp(r.t_plant[keep], r.t, r.com_ref[:, i]) for i in range(3)])
+    return r.com[keep] - ref
 
 
 class WBCLog:
@@ -90,11 +104,12 @@ class WBCLog:
         header += [f"tau_{a}_N_m" for a in ctrl.joints.actuators] + q_names
         self.csv = ctx.open_csv(header)
         nf = len(FEET)
-        self._buf = WBCRecord(np.zeros(n), np.zeros((n, 3)), np.zeros((n, 3)), np.zeros((n, nf)),
+        self._buf = WBCRecord(np.zeros(n), np.zeros(n), np.zeros((n, 3)), np.zeros((n, 3)), np.zeros((n, nf)),
                               np.zeros((n, nf)), np.zeros((n, nf)), np.zeros((n, nf)), np.zeros((n, nf, 2)),
                               np.zeros((n, nf, 2)), np.zeros(n, dtype=bool), np.zeros(n), np.zeros(n),
                               np.zeros(n), np.zeros(n), np.full(n, np.nan))
         self.k = 0
+        self.com_from_truth = False  # with_truth replaced the estimated CoM by the plant's
         self._last_cycle_end: float | None = None
         self._home: dict[str, np.ndarray] = {}  # where each foot started to support
 
@@ -143,6 +158,7 @@ class WBCLog:
         row += command.values.tolist() + state.q.tolist()
         self.csv.write(row)
         b.t[k] = t
+        b.t_plant[k] = mon.time_s if mon is not None else t
         b.com_ref[k], b.com[k] = com_ref, com
         b.stance[k] = stance and not sol.fallback
         b.ctrl_us[k], b.qp_us[k] = sol.controller_time_s * 1e6, sol.qp_time_s * 1e6
@@ -166,7 +182,9 @@ class WBCLog:
             fell: Whether the truth log shows the robot fell.
         """
         r = self.record()
-        err = com_W[: len(r.t)] - r.com_ref
+        r.com[:] = com_W[: len(r.t)]  # the plant at each state's time: t_plant == t
+        self.com_from_truth = True
+        err = com_tracking_error(r)
         self.ctx.values.update({"com_error_rms_m": float(np.sqrt(np.mean(np.sum(err**2, axis=1)))),
                                 "com_error_source": "truth log", "fell": fell,
                                 "fall_reason": "pelvis below its fall height (truth log)" if fell else None})
@@ -178,7 +196,7 @@ class WBCLog:
         if not self.k:
             return ctx.values
         r = self.record()
-        com_err = r.com - r.com_ref
+        com_err = com_tracking_error(r)
         settled = r.t >= r.t[0] + SETTLE_S
         stance = r.stance & settled
         rel = np.abs(r.fz_qp.sum(1) - r.fz_mj.sum(1)) / self.mg

@@ -8,7 +8,7 @@ import numpy as np
 
 from mbctl.jobs.plots import new_figure
 from mbctl.jobs.runner import RunContext
-from mbctl.jobs.wbc_log import WBCLog
+from mbctl.jobs.wbc_log import WBCLog, com_tracking_error
 from mbctl.robots.g1 import FEET
 
 
@@ -22,15 +22,16 @@ def wbc_plots(ctx: RunContext, log: WBCLog, params: Any, values: dict[str, Any])
     if not len(r.t):
         return
     t, com, ref, fz_qp, fz_mj = r.t, r.com, r.com_ref, r.fz_qp, r.fz_mj
+    source = "MuJoCo" if log.monitor is not None else "truth log" if log.com_from_truth else "estimated"
     fig, axes = new_figure(2, 2, (13.0, 7.5), layout="constrained")
     for i, (axis, color) in enumerate(zip("xyz", ("C0", "C1", "C2"), strict=True)):
         ax = axes[0][0] if i < 2 else axes[0][1]
-        ax.plot(t, com[:, i] * 1e3, color=color, lw=1.3, label=f"CoM {axis} (MuJoCo)")
+        ax.plot(r.t_plant, com[:, i] * 1e3, color=color, lw=1.3, label=f"CoM {axis} ({source})")
         ax.plot(t, ref[:, i] * 1e3, color=color, lw=1.0, ls="--", label=f"CoM {axis} reference")
     axes[0][0].set_ylabel("CoM x, y (mm)")
     axes[0][1].set_ylabel("CoM z (mm)")
-    err = np.linalg.norm(com - ref, axis=1)
-    axes[1][0].plot(t, err * 1e3, color="k", lw=1.0)
+    err = np.linalg.norm(com_tracking_error(r), axis=1)
+    axes[1][0].plot(r.t_plant[: len(err)], err * 1e3, color="k", lw=1.0)
     axes[1][0].set_ylabel("|CoM - reference| (mm)")
     axes[1][0].set_title(f"CoM error, RMS {values['com_error_rms_m'] * 1e3:.2f} mm", fontsize=9)
     axes[1][1].plot(t, fz_mj.sum(1), color="C3", lw=1.3, label="sum f_z MuJoCo")

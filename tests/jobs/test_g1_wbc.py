@@ -12,7 +12,9 @@ import numpy as np
 import pytest
 
 from mbctl.jobs.g1_wbc import WBCParams, prepare
+from mbctl.jobs.plant import PlantOptions
 from mbctl.jobs.runner import Job, run_job
+from mbctl.jobs.wbc_log import WBCRecord, com_tracking_error
 
 KEYS = {"fell", "com_error_rms_m", "max_foot_slip_m", "contact_force_rel_error",
         "controller_time_median_us", "qp_solve_time_median_us", "torque_saturation_steps"}
@@ -47,6 +49,30 @@ def test_squat_tracks_the_com_without_slipping(g1, tmp_path):
     assert report["bound"] == "CoM RMS < 5 mm, foot slip < 1 mm; did not fall"
     assert {"csv", "plot", "g1_wbc_contacts.png"} <= set(report["outputs"])
     assert record.rows == 2000
+
+
+def test_com_error_compares_the_plant_with_the_reference_at_the_plants_time():
+    # a plant that tracks a moving reference exactly, seen through 3 cycles of latency: the
+    # error is zero, not the reference's motion over the delay
+    t = np.arange(100) * 0.002
+    ref = np.column_stack([np.sin(t), np.cos(t), 0.1 * t])
+    t_plant = t + 0.006
+    plant = np.column_stack([np.sin(t_plant), np.cos(t_plant), 0.1 * t_plant])
+    empty = np.zeros((100, 2))
+    r = WBCRecord(t, t_plant, ref, plant, *([empty] * 4), np.zeros((100, 2, 2)), np.zeros((100, 2, 2)),
+                  *([np.zeros(100)] * 6))
+    err = com_tracking_error(r)
+    assert err.shape == (97, 3) and np.abs(err).max() < 1e-5
+    assert np.abs(plant - ref).max() > 5e-3  # what comparing cycle by cycle would report
+
+
+def test_latency_each_way_holds_to_30_ms_and_falls_at_40(g1, tmp_path):
+    """The controller sees the link: stand 10 s, 0/20/30/40 ms each way: 0.4/1.0/2.1 mm CoM RMS, a fall."""
+    held = _run(g1, tmp_path / "l20", scenario="stand", duration=1.5, plant=PlantOptions(latency_ms=20.0))
+    assert held.exit_code == 0 and held.values["fell"] is False and held.values["latency_ms"] == 20.0
+    assert held.values["com_error_rms_m"] < 4e-3  # measured 1.0-2.1 mm (0.4 mm without latency)
+    fell = _run(g1, tmp_path / "l40", scenario="stand", duration=1.5, plant=PlantOptions(latency_ms=40.0))
+    assert fell.exit_code == 1 and fell.values["fell"] is True and fell.values["fall_time_s"] < 1.5
 
 
 def test_one_foot_releases_lifts_and_puts_back_the_foot_with_bounded_torque_steps(g1, tmp_path):
