@@ -39,7 +39,8 @@ from typing import Any, Generic, TypeVar
 
 from mbctl.exceptions import ToolkitError
 from mbctl.sim.atomic import FILE_MODE, write_bytes_atomic, write_json_atomic
-from mbctl.sim.exceptions import SimulationDiverged
+from mbctl.sim.csv_stream import refuse_symlink
+from mbctl.sim.exceptions import OutputPathError, SimulationDiverged
 from mbctl.sim.recorder import CsvStream
 from mbctl.sim.report import environment, model_section, run_section
 from mbctl.sim.simulator import Simulator
@@ -171,8 +172,8 @@ class RunContext:
         The first CSV opened is the run's main one: its row count and last ``time_s`` go in the
         report and the interruption message.
         """
-        stream = CsvStream(self.path(name or f"{self.job.replace('-', '_')}.csv", "csv" if not
-                                     self._streams else name), header)
+        stream = CsvStream(self.path(name or csv_name(self.job), "csv" if not self._streams else name),
+                           header)
         self._streams.append(stream)
         if self.csv is None:
             self.csv = stream
@@ -257,7 +258,8 @@ class RunRecord:
 
     Attributes:
         status: completed | interrupted | diverged | failed.
-        exit_code: 0, 1 or 130 (see the module docstring).
+        exit_code: 0, 1, 2 (an output the work opened cannot be written safely) or 130 (see the
+            module docstring).
         values: The job's values (partial unless completed).
         files: Written files by role (the report included).
         rows: Rows in the main CSV.
@@ -291,6 +293,11 @@ class RunRecord:
         # the files first, the results (and the verdict) last, where a reader looks
         lines = ["wrote " + ", ".join(str(p) for p in self.files.values())]
         return "\n".join(lines + list(self.outcome.summary if self.outcome else ()))
+
+
+def csv_name(job: str) -> str:
+    """The file name of a job's main CSV: ``g1-stand`` -> ``g1_stand.csv``."""
+    return f"{job.replace('-', '_')}.csv"
 
 
 def default_output(job: str) -> Path:
@@ -477,11 +484,13 @@ def run_job(
 
     Raises:
         OutputError: The folder is not usable or another run holds it (nothing written).
+        OutputPathError: A symbolic link sits at the job's CSV path (nothing written).
         ToolkitError: ``prepare`` found bad input (nothing written).
         BaseException: A programming error in the work is re-raised after the report is written
             (status ``failed``).
     """
     folder = check_output_dir(Path(output_dir) if output_dir is not None else default_output(job.name))
+    refuse_symlink(folder / csv_name(job.name))  # the CSV never follows a link planted at its path
     work = job.prepare(params)
     progress = Progress(enabled=not quiet and sys.stdout.isatty())
     ctx = RunContext(folder, job.name, progress=progress, video=video)
@@ -501,6 +510,8 @@ def run_job(
             status, message, code = "interrupted", "interrupted by the user (Ctrl-C or SIGTERM)", 130
         except SimulationDiverged as exc:
             status, message = "diverged", str(exc)
+        except OutputPathError as exc:  # an output the work opened cannot be written safely
+            status, message, code = "failed", str(exc), EXIT_BAD_INPUT
         except ToolkitError as exc:
             status, message = "failed", str(exc)
         except BaseException as exc:  # a bug: report it, then let the traceback show
