@@ -8,8 +8,6 @@ import typer
 
 from mbctl.cli._run import OutputOpt, QuietOpt, VideoOpt, VideoSizeOpt, execute, video_spec
 from mbctl.cli.robots import ModelDirOpt
-from mbctl.jobs import options
-from mbctl.jobs.g1 import G1_ARM_PD, G1_STAND, G1_TRACK
 
 Omega = Annotated[float, typer.Option("--omega", help="Closed-loop natural frequency (rad/s).")]
 Zeta = Annotated[float, typer.Option("--zeta", help="Damping ratio (-).")]
@@ -32,6 +30,9 @@ def stand(
     video_size: VideoSizeOpt = "640x480",
 ) -> None:
     """Stand on the floor under PD + gravity compensation in torque mode; exit 1 if it fell."""
+    from mbctl.jobs import options
+    from mbctl.jobs.g1 import G1_STAND
+
     params = options.g1_stand(duration=duration, omega=omega, zeta=zeta, model_dir=model_dir)
     execute(G1_STAND, params, output, quiet, video_spec(video, video_size))
 
@@ -48,6 +49,9 @@ def track(
     video_size: VideoSizeOpt = "640x480",
 ) -> None:
     """Computed torque on the welded-base G1 along ruckig trajectories (arms, legs, waist)."""
+    from mbctl.jobs import options
+    from mbctl.jobs.g1 import G1_TRACK
+
     params = options.g1_track(duration=duration, omega=omega, zeta=zeta, max_rms_rad=max_rms_rad,
                               model_dir=model_dir)
     execute(G1_TRACK, params, output, quiet, video_spec(video, video_size))
@@ -68,6 +72,9 @@ def arm_pd(
     video_size: VideoSizeOpt = "640x480",
 ) -> None:
     """One arm follows a ruckig trajectory through the Menagerie position actuators."""
+    from mbctl.jobs import options
+    from mbctl.jobs.g1 import G1_ARM_PD
+
     params = options.g1_arm_pd(duration=duration, side=side, gravity_feedforward=gravity_feedforward,
                                max_rms_rad=max_rms_rad, model_dir=model_dir)
     execute(G1_ARM_PD, params, output, quiet, video_spec(video, video_size))

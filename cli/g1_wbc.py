@@ -8,16 +8,15 @@ import typer
 
 from mbctl.cli._run import OutputOpt, QuietOpt, VideoOpt, VideoSizeOpt, execute, video_spec
 from mbctl.cli.robots import ModelDirOpt
-from mbctl.jobs import options
-from mbctl.jobs.g1_wbc import DEFAULT_DURATION_S, G1_WBC, SCENARIOS
+from mbctl.jobs.choices import WBC_DEFAULT_DURATION_S, WBC_SCENARIOS
 
 
 def g1_wbc(
-    scenario: Annotated[str, typer.Argument(help=f"One of: {', '.join(SCENARIOS)}.")] = "stand",
+    scenario: Annotated[str, typer.Argument(help=f"One of: {', '.join(WBC_SCENARIOS)}.")] = "stand",
     duration: Annotated[
         float | None,
         typer.Option("--duration", help="Simulated time (s) (default per scenario: " + ", ".join(
-            f"{k} {v:g}" for k, v in DEFAULT_DURATION_S.items()) + ")."),
+            f"{k} {v:g}" for k, v in WBC_DEFAULT_DURATION_S.items()) + ")."),
     ] = None,
     impulse: Annotated[
         float, typer.Option("--impulse", help="Push impulse (N s): force held 0.1 s (push scenario).")
@@ -37,6 +36,9 @@ def g1_wbc(
     video_size: VideoSizeOpt = "640x480",
 ) -> None:
     """Whole-body inverse dynamics (QP) on the G1 in torque mode; exit 1 if it fell or missed a bound."""
+    from mbctl.jobs import options
+    from mbctl.jobs.g1_wbc import G1_WBC
+
     params = options.g1_wbc(scenario=scenario, duration=duration, impulse=impulse, direction=direction,
                             model_error=model_error, model_dir=model_dir)
     execute(G1_WBC, params, output, quiet, video_spec(video, video_size))

@@ -9,13 +9,11 @@ from typing import Annotated
 import typer
 
 from mbctl.cli._run import QuietOpt
-from mbctl.jobs.catalog import CATALOG, parse_grid
-from mbctl.jobs.runner import Progress
-from mbctl.jobs.sweep import SweepConfig, run_sweep
+from mbctl.jobs.choices import SWEEP_JOBS
 
 
 def sweep(
-    job: Annotated[str, typer.Argument(help=f"The job to sweep: {', '.join(CATALOG)}.")],
+    job: Annotated[str, typer.Argument(help=f"The job to sweep: {', '.join(SWEEP_JOBS)}.")],
     param: Annotated[
         list[str] | None,
         typer.Option("--param", help="NAME=V1,V2,... : the job's option (dashes as underscores, the "
@@ -46,6 +44,10 @@ def sweep(
     quiet: QuietOpt = False,
 ) -> None:
     """Run JOB for every combination of the values (times the seeds); exit 1 if a row failed."""
+    from mbctl.jobs.catalog import parse_grid
+    from mbctl.jobs.runner import Progress
+    from mbctl.jobs.sweep import SweepConfig, run_sweep
+
     grid = parse_grid(job, param or [], seeds)
     folder = output or Path("out") / f"sweep-{job}"
     config = SweepConfig(job, grid, folder, workers, scheduler, dashboard, resume, metric)
