@@ -74,9 +74,7 @@ class ComputedTorque(JointFeedbackController):
 
     def desired_acceleration(self, state: RobotState, reference: JointReference) -> np.ndarray:
         """``a_des = a_ref + kp e + kd de`` (n,) [rad/s^2] (internal buffer)."""
-        a = self.feedback(state, reference)
-        a += reference.a
-        return a
+        return self.feedback(state, reference, reference.a)
 
     def compute(self, state: RobotState, reference: JointReference) -> Command:
         """Torque command (n,) [N m] for the controlled joints."""
