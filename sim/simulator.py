@@ -32,6 +32,9 @@ DIVERGENCE_WARNINGS = (
     mujoco.mjtWarning.mjWARN_BADCTRL,
 )
 _DIVERGENCE_IDS = tuple(int(w) for w in DIVERGENCE_WARNINGS)
+#: ``RobotState((q, v, time_s))`` without the namedtuple's Python-level ``__new__`` (per cycle).
+_robot_state = RobotState._make
+
 _WARNING_NAMES = {
     int(w): name.removeprefix("mjWARN_")
     for name, w in mujoco.mjtWarning.__members__.items()
@@ -131,7 +134,7 @@ class Simulator:
                                           self.data.qvel[self._vi] if qvel is None else qvel)
         q.setflags(write=False)
         v.setflags(write=False)
-        return RobotState(q, v, float(self.data.time))
+        return _robot_state((q, v, float(self.data.time)))
 
     @property
     def state(self) -> RobotState:
