@@ -1,6 +1,9 @@
 """Start-up time of the command line: ``mbctl --help`` against ``python -c "import mujoco, pinocchio"``.
 
-Run: python bench/bench_cli.py [--rounds 15]
+Run: python bench/bench_cli.py [--rounds 15] [--module]
+
+``--module`` runs ``python -m mbctl.cli`` instead of the ``mbctl`` console script, e.g. to time
+another source tree of the package put first on ``PYTHONPATH``.
 
 Each command runs as a fresh subprocess (what a user waits for), rounds interleaved so machine
 noise hits all alike; medians, and the range of the per-round ratios. ``mbctl demo --help`` (one
@@ -24,7 +27,9 @@ from pathlib import Path
 GOAL = 1.5
 
 
-def _mbctl() -> list[str]:
+def _mbctl(module: bool) -> list[str]:
+    if module:
+        return [sys.executable, "-m", "mbctl.cli"]
     script = Path(sys.executable).parent / "mbctl"
     found = str(script) if script.exists() else shutil.which("mbctl")
     return [found] if found else [sys.executable, "-m", "mbctl.cli"]
@@ -39,8 +44,9 @@ def _time(cmd: list[str]) -> float:
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--rounds", type=int, default=15)
+    parser.add_argument("--module", action="store_true", help="Run python -m mbctl.cli.")
     args = parser.parse_args()
-    mbctl = _mbctl()
+    mbctl = _mbctl(args.module)
     cmds = {
         "mbctl --help": [*mbctl, "--help"],
         "mbctl demo --help": [*mbctl, "demo", "--help"],
@@ -56,8 +62,8 @@ def main() -> None:
     med = {k: statistics.median(v) for k, v in samples.items()}
     base = samples["import mujoco, pinocchio"]
     load = os.getloadavg()
-    print(f"{args.rounds} interleaved rounds, subprocesses; load average {load[0]:.2f} {load[1]:.2f} "
-          f"{load[2]:.2f}{'; ' + str(env_note) if env_note else ''}")
+    print(f"{' '.join(Path(c).name for c in mbctl)}: {args.rounds} interleaved rounds, subprocesses; "
+          f"load average {load[0]:.2f} {load[1]:.2f} {load[2]:.2f}{'; ' + str(env_note) if env_note else ''}")
     for name, v in med.items():
         print(f"{name:<26}: {v * 1e3:7.1f} ms (range {min(samples[name]) * 1e3:.1f}-"
               f"{max(samples[name]) * 1e3:.1f})")
