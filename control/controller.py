@@ -412,12 +412,25 @@ class JointFeedbackController(ControllerBase):
 
     def feedback(self, state: RobotState, reference: JointReference,
                  feedforward: np.ndarray | None = None) -> np.ndarray:
-        """``kp e + kd de`` (+ ``feedforward`` (n,)) (n,), in a buffer the next call may overwrite."""
+        """``kp e + kd de`` (+ ``feedforward`` (n,)) (n,), in a buffer the next call may overwrite.
+
+        Raises:
+            ReferenceMismatch: (up to ``SCALAR_FEEDBACK_MAX`` joints) a reference or state whose
+                length is not the number of joints (larger ones fail numpy's broadcasting).
+        """
         if self._scalar:
             ff = self._zeros if feedforward is None else feedforward.tolist()
-            return np.array([f + kp * (qr - q) + kd * (vr - v) for f, (kp, kd), qr, q, vr, v in zip(
-                ff, self._kp_kd, reference.q.tolist(), state.q.tolist(), reference.v.tolist(),
-                state.v.tolist(), strict=True)])
+            q_ref, v_ref = reference.q.tolist(), reference.v.tolist()
+            q, v = state.q.tolist(), state.v.tolist()
+            if not len(ff) == len(q_ref) == len(q) == len(v_ref) == len(v) == len(self._zeros):
+                raise ReferenceMismatch(
+                    f"{type(self).__name__} controls {len(self._zeros)} joints {list(self.joints)}; got "
+                    f"a reference q, v of {len(q_ref)}, {len(v_ref)} entries (feed-forward {len(ff)}) "
+                    f"and a state q, v of {len(q)}, {len(v)}"
+                )
+            # lengths checked above: zip's own check (strict=True) costs as much as the arithmetic
+            return np.array([f + kp * (a - b) + kd * (c - d) for f, (kp, kd), a, b, c, d in zip(
+                ff, self._kp_kd, q_ref, q, v_ref, v, strict=False)])
         out, ev = self._out, self._ev
         if self._identity:
             np.subtract(reference.q, state.q, out=out)

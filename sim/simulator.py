@@ -179,7 +179,8 @@ class Simulator:
         mujoco.mj_step(self.model, self.data, self.n_substeps)
         self.n_steps += self.n_substeps
         self._stale = True
-        self._check_divergence()
+        if self._warn_numbers.tolist() != self._warn_seen:  # the check, inlined: once per cycle
+            self._check_divergence()
         for observer in self._observers:
             observer(self)
 
