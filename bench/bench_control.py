@@ -44,10 +44,10 @@ from mbctl.control.loop import presample, run  # noqa: E402
 from mbctl.control.pd_gravity import PDGravity  # noqa: E402
 from mbctl.jobs.demo import DemoConfig, square_reference  # noqa: E402
 from mbctl.jobs.g1 import stance_inertia  # noqa: E402
-from mbctl.jobs.robot_constants import KEYFRAME  # noqa: E402
 from mbctl.robots import load_robot  # noqa: E402
 from mbctl.robots.commands import Command, CommandKind  # noqa: E402
 from mbctl.robots.edits import position_to_motor  # noqa: E402
+from mbctl.robots.g1 import KEYFRAME  # noqa: E402
 from mbctl.sim.simulator import Simulator  # noqa: E402
 
 GOALS = {"G1 PD + gravity": 1.15, "2-link computed torque": 1.3}

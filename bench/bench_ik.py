@@ -18,13 +18,15 @@ import numpy as np
 import pinocchio as pin
 
 from mbctl.control.ik import MinkWholeBodyIK, QPWholeBodyIK
-from mbctl.jobs.robot_constants import KEYFRAME, PALM_SITES, g1_whole_body_config, with_palm_sites
+from mbctl.control.tasks import Tolerance
+from mbctl.jobs.ik import g1_config
 from mbctl.robots import load_robot
+from mbctl.robots.g1 import KEYFRAME, PALM_SITES, with_palm_sites
 
 
 def _setup(robot, q0, solver, offset):
-    ours = QPWholeBodyIK(robot, g1_whole_body_config(), q0, solver=solver)
-    theirs = MinkWholeBodyIK(robot, g1_whole_body_config(), q0, solver=solver)
+    ours = QPWholeBodyIK(robot, g1_config(), q0, solver=solver)
+    theirs = MinkWholeBodyIK(robot, g1_config(), q0, solver=solver)
     for palm in PALM_SITES:
         target = ours.frame_position(palm) + offset
         ours.set_target_position(palm, target)
@@ -89,10 +91,10 @@ def main() -> None:
     med_ours = statistics.median(t_ours)
     med_mink = statistics.median(t_mink)
 
-    res = ours.solve(q0, tol=1e-3, max_iters=20)
-    mink_res = theirs.solve(q0, tol=1e-3, max_iters=20)
-    palm_err = max(res.residuals[p]["position [m]"] for p in PALM_SITES)
-    mink_err = max(mink_res.residuals[p]["position [m]"] for p in PALM_SITES)
+    res = ours.solve(q0, Tolerance(1e-3), max_iters=20)
+    mink_res = theirs.solve(q0, Tolerance(1e-3), max_iters=20)
+    palm_err = max(res.residuals[p].position_m for p in PALM_SITES)
+    mink_err = max(mink_res.residuals[p].position_m for p in PALM_SITES)
 
     print(f"G1 whole-body IK, solver={args.solver}, {len(t_ours)} iterations timed per solver")
     print(

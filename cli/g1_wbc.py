@@ -19,12 +19,14 @@ def g1_wbc(
             f"{k} {v:g}" for k, v in WBC_DEFAULT_DURATION_S.items()) + ")."),
     ] = None,
     impulse: Annotated[
-        float, typer.Option("--impulse", help="Push impulse (N s): force held 0.1 s (push scenario).")
-    ] = 10.0,
+        float | None,
+        typer.Option("--impulse", help="Push impulse (N s): force held 0.1 s (push scenario only; "
+                                       "default 10)."),
+    ] = None,
     direction: Annotated[
         float | None,
         typer.Option("--direction", help="Push direction (deg): 0 = +x (front), 90 = +y (left); "
-                                         "default: 8 directions 45 deg apart."),
+                                         "default: 8 directions 45 deg apart (push scenario only)."),
     ] = None,
     model_error: Annotated[
         float, typer.Option("--model-error", help="Controller model link masses off by PCT (%).")

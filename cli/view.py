@@ -5,7 +5,7 @@ from __future__ import annotations
 import os
 import time
 from pathlib import Path
-from typing import TYPE_CHECKING, Annotated
+from typing import TYPE_CHECKING, Annotated, BinaryIO, cast
 
 import typer
 
@@ -59,6 +59,7 @@ def render(
 
     from mbctl.jobs.runner import OutputError, check_output_file
     from mbctl.robots import load_robot
+    from mbctl.sim.atomic import write_bytes_atomic
     from mbctl.sim.trajectory import base_body
     from mbctl.sim.video import VideoSpec, parse_size, still
 
@@ -69,7 +70,8 @@ def render(
     loaded = load_robot(robot, scene, model_dir=model_dir)
     data = _posed(loaded, keyframe)
     frame = still(loaded.mj_model, data, VideoSpec(width, height), base_body(loaded))
-    image.imsave(output, frame)
+    # written beside and renamed: a symbolic link at --output is replaced, never followed
+    write_bytes_atomic(output, lambda f: image.imsave(cast(BinaryIO, f), frame, format="png"))
     typer.echo(f"wrote {output} ({width}x{height} px)")
 
 

@@ -1,29 +1,12 @@
-"""mbctl.control: controllers, kinematics and inverse kinematics (never imports mbctl.sim)."""
+"""mbctl.control: feedback laws and the control loop, written against the robot API (never imports mbctl.sim).
 
-from mbctl.control.exceptions import (
-    ControlError,
-    IKInfeasible,
-    IKSetupError,
-    KinematicsError,
-    UnreachableTarget,
-)
+Subpackages, each with its own public names: :mod:`mbctl.control.tasks` (the task layer),
+:mod:`mbctl.control.ik` (differential IK) and :mod:`mbctl.control.wbc` (whole-body inverse
+dynamics), the two peers above the task layer.
+"""
 
-# The IK names are mbctl.control.ik's; re-exported here as one list (no second copy).
-from mbctl.control.ik import *  # noqa: E402, F403
-from mbctl.control.ik import __all__ as _IK_ALL  # noqa: E402
-
-__all__ = [
-    "ControlError",
-    "IKInfeasible",
-    "IKSetupError",
-    "KinematicsError",
-    "UnreachableTarget",
-    *_IK_ALL,
-]
-
-# Controllers, gains and the control loop (appended; the IK names above are another module family).
-from mbctl.control.computed_torque import ComputedTorque  # noqa: E402
-from mbctl.control.controller import (  # noqa: E402
+from mbctl.control.computed_torque import ComputedTorque
+from mbctl.control.controller import (
     Controller,
     JointMap,
     JointReference,
@@ -32,30 +15,52 @@ from mbctl.control.controller import (  # noqa: E402
     joint_reference,
     task_reference,
 )
-from mbctl.control.exceptions import ControllerSetupError, GainsError, ReferenceMismatch  # noqa: E402
-from mbctl.control.gains import PDGains, gains_from_frequency  # noqa: E402
-from mbctl.control.loop import RunLog, presample, run  # noqa: E402
-from mbctl.control.pd import JointPD  # noqa: E402
-from mbctl.control.pd_gravity import PDGravity  # noqa: E402
-from mbctl.control.position_pd import PositionTargetPD  # noqa: E402
-from mbctl.control.task_space import TaskSpaceComputedTorque  # noqa: E402
+from mbctl.control.exceptions import (
+    ControlError,
+    ControllerSetupError,
+    GainsError,
+    IKInfeasible,
+    IKSetupError,
+    KinematicsError,
+    ReferenceMismatch,
+    SingularJacobian,
+    TaskSetupError,
+    UnreachableTarget,
+    WBCInfeasible,
+    WBCSetupError,
+)
+from mbctl.control.gains import PDGains, gains_from_frequency
+from mbctl.control.loop import RunLog, presample, run
+from mbctl.control.pd import JointPD
+from mbctl.control.pd_gravity import PDGravity
+from mbctl.control.position_pd import PositionTargetPD
+from mbctl.control.task_space import TaskSpaceComputedTorque
 
-__all__ += [
+__all__ = [
     "ComputedTorque",
+    "ControlError",
     "Controller",
     "ControllerSetupError",
     "GainsError",
+    "IKInfeasible",
+    "IKSetupError",
     "JointMap",
     "JointPD",
     "JointReference",
+    "KinematicsError",
     "PDGains",
     "PDGravity",
     "PositionTargetPD",
     "ReferenceMismatch",
     "RunLog",
+    "SingularJacobian",
     "TaskReference",
+    "TaskSetupError",
     "TaskSpaceComputedTorque",
     "TorqueSaturation",
+    "UnreachableTarget",
+    "WBCInfeasible",
+    "WBCSetupError",
     "gains_from_frequency",
     "joint_reference",
     "presample",

@@ -1,4 +1,4 @@
-"""Errors raised by controllers and inverse kinematics."""
+"""Errors raised by controllers, tasks, inverse kinematics and whole-body control."""
 
 from __future__ import annotations
 
@@ -36,6 +36,10 @@ class UnreachableTarget(ControlError, ValueError):
             "Move the target into the annulus, or use an iterative IK (it returns the closest "
             "pose)."
         )
+
+
+class TaskSetupError(ControlError, ValueError):
+    """A task (weights, gains, target, frame) or task state with an invalid value (named in the message)."""
 
 
 class IKSetupError(ControlError, ValueError):

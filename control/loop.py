@@ -26,7 +26,7 @@ from mbctl.robots.interface import RobotInterface, RobotState
 
 Reference = JointReference | TaskReference
 ReferenceFn = Callable[[float], Reference]
-OnStep = Callable[[int, RobotState, Any, Command], None]
+OnStep = Callable[[int, RobotState, Any, Command], "bool | None"]
 
 
 @dataclass(frozen=True)
@@ -118,7 +118,7 @@ def presample(
 def run(
     interface: RobotInterface,
     controller: Controller[Any],
-    reference: JointTrajectory | ReferenceFn | Reference,
+    reference: JointTrajectory | ReferenceFn | Reference | None,
     duration_s: float,
     on_step: OnStep | None = None,
     *,
@@ -131,10 +131,15 @@ def run(
         controller: The control law; ``reset()`` is called first.
         reference: A JointTrajectory (pre-sampled at the control times, columns matched to
             ``controller.joints`` by name), a function of time since start ``t [s] -> reference``,
-            or a constant JointReference / TaskReference.
+            a constant JointReference / TaskReference, or None for a controller that carries its
+            own targets (``reference_type = None``, e.g. a scheduled whole-body controller).
         duration_s: How long to run [s]; rounded to whole control periods (at least one).
-        on_step: Called after each cycle's send as ``on_step(k, state, reference, command)``
-            (e.g. to stream a row: the run keeps every completed cycle even if interrupted).
+        on_step: Called after each cycle as ``on_step(k, state, reference, command)``, once the
+            interface has run the command for the period (``sync``): ``state`` is the one the
+            command was computed from, and the plant's measurements of the period (contact forces)
+            are available (e.g. to stream a row: the run keeps every completed cycle even if
+            interrupted). A true return value ends the run after that cycle (e.g. the robot
+            fell); the log then holds the cycles run.
         hold_q: For a trajectory that covers only some of the controller's joints: positions
             (n,) [rad] the others hold.
 
@@ -156,7 +161,14 @@ def run(
     fn: ReferenceFn | None = None
     sampled: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None
     constant: Reference | None = None
-    if isinstance(reference, JointTrajectory):
+    no_reference = reference is None
+    if no_reference:
+        if getattr(controller, "reference_type", JointReference) is not None:
+            raise ReferenceMismatch(
+                f"{type(controller).__name__} takes a reference; pass a JointTrajectory, a function "
+                "of time or a constant reference (None is for controllers that carry their targets)"
+            )
+    elif isinstance(reference, JointTrajectory):
         joints = getattr(controller, "joints", None) or reference.names
         sampled = presample(reference, t_rel, joints, hold_q)
     elif isinstance(reference, (JointReference, TaskReference)):
@@ -174,8 +186,11 @@ def run(
             arr.setflags(write=False)
         ref_q, ref_v, ref_a = sampled
         refs = [JointReference(ref_q[k], ref_v[k], ref_a[k]) for k in range(n_cycles)]
-    if constant is not None:
-        first: Reference = constant
+    first: Reference | None
+    if no_reference:
+        first = None
+    elif constant is not None:
+        first = constant
     elif fn is not None:
         first = fn(0.0)
     else:
@@ -186,7 +201,7 @@ def run(
             f"{type(controller).__name__} takes a {expected.__name__}; the reference gives a "
             f"{type(first).__name__}"
         )
-    k_ref = np.size(first[0])
+    k_ref = 0 if first is None else np.size(first[0])
     log_t = np.empty(n_cycles)
     log_q = np.empty((n_cycles, robot.nq))
     log_v = np.empty((n_cycles, robot.nv))
@@ -198,7 +213,7 @@ def run(
     # bound methods looked up once: the loop body is the hot path
     read_state, compute = interface.read_state, controller.compute
     send, sync = interface.send, interface.sync
-    log_refs = refs is None
+    log_refs = refs is None and not no_reference
     wall0 = time.perf_counter()
     for k in range(n_cycles):
         state = read_state()
@@ -210,8 +225,6 @@ def run(
             ref = constant  # type: ignore[assignment]
         command = compute(state, ref)
         send(command)
-        if on_step is not None:
-            on_step(k, state, ref, command)
         sync()
         if k == 0:
             log_cmd = np.empty((n_cycles, command.values.size))
@@ -222,7 +235,15 @@ def run(
         if log_refs:
             log_ref[k] = ref[0]
             log_ref_v[k] = ref[1]
+        if on_step is not None and on_step(k, state, ref, command):
+            n_run = k + 1  # the callback ended the run (e.g. the robot fell)
+            break
+    else:
+        n_run = n_cycles
     wall = time.perf_counter() - wall0
     if sampled is not None:  # a pre-sampled trajectory is its own log
         log_ref, log_ref_v = sampled[0], sampled[1]
+    if n_run < n_cycles:
+        log_t, log_q, log_v, log_cmd = log_t[:n_run], log_q[:n_run], log_v[:n_run], log_cmd[:n_run]
+        log_ref, log_ref_v = log_ref[:n_run], log_ref_v[:n_run]
     return RunLog(log_t, log_q, log_v, log_cmd, log_ref, log_ref_v, wall)

@@ -1,6 +1,6 @@
 """Joint PD executed by the robot's position actuators: the controller outputs position targets.
 
-A MuJoCo position actuator (as in the Menagerie G1) applies ``f = kp (u - q) - kv v`` for a
+A MuJoCo position actuator (e.g. the Menagerie G1's) applies ``f = kp (u - q) - kv v`` for a
 target ``u`` [rad], with its own ``kp`` [N m/rad] and ``kv`` [N m s/rad]. Choosing::
 
     u = q_ref + (kv v_ref + tau_ff) / kp

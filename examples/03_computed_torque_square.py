@@ -29,7 +29,8 @@ import sys
 import mujoco
 import numpy as np
 
-from mbctl.control import ComputedTorque, ElbowBranch, TwoLinkArm, gains_from_frequency, run
+from mbctl.control import ComputedTorque, gains_from_frequency, run
+from mbctl.control.ik import ElbowBranch, TwoLinkArm
 from mbctl.planners import PathLimits, square_path, time_path, to_joint_trajectory
 from mbctl.robots import load_robot
 from mbctl.sim import Simulator

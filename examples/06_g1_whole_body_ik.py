@@ -4,7 +4,7 @@ The differential-IK QP (Pinocchio model) weighs one task per goal: both feet kee
 both palms move 10 cm forward (+x in the world), the centre of mass stays over the midpoint of
 the feet (x, y), the pelvis keeps its orientation, and a small posture task regularises the
 rest, under joint position and velocity limits. The task set is generic
-(``WholeBodyIKConfig`` names the frames); the G1's names come from ``mbctl.jobs.robot_constants``.
+(``WholeBodyIKConfig`` names the frames); the G1's names come from ``mbctl.robots.g1``.
 The G1 has no palm sites, so ``with_palm_sites`` adds them to both engines at load time
 (``mbctl.robots.edits.add_site``, recorded in ``robot.source.edits``).
 
@@ -34,9 +34,10 @@ import sys
 import mujoco
 import numpy as np
 
-from mbctl.control import QPWholeBodyIK
-from mbctl.jobs.robot_constants import FEET, KEYFRAME, PALM_SITES, g1_whole_body_config, with_palm_sites
+from mbctl.control.ik import QPWholeBodyIK, WholeBodyIKConfig
+from mbctl.control.tasks import Tolerance
 from mbctl.robots import ModelFileError, ModelNotFoundError, load_robot
+from mbctl.robots.g1 import FEET, KEYFRAME, PALM_SITES, PELVIS, with_palm_sites
 from mbctl.sim import Simulator, position_target
 
 PALMS = tuple(PALM_SITES)
@@ -80,11 +81,13 @@ def main() -> int:
     targets.update({foot: start[foot] for foot in FEET})
     com_xy = 0.5 * (start["left_foot"][:2] + start["right_foot"][:2])
 
-    ik = QPWholeBodyIK(robot, g1_whole_body_config(), q0)
+    # feet held, palm position targets, CoM over the feet, pelvis orientation, posture
+    config = WholeBodyIKConfig(held_frames=FEET, target_frames=tuple(PALM_SITES), base_frame=PELVIS, com=True)
+    ik = QPWholeBodyIK(robot, config, q0)
     for palm in PALMS:
         ik.set_target_position(palm, targets[palm])
     ik.set_com_target(com_xy)
-    result = ik.solve(q0, tol=IK_TOLERANCE_M, max_iters=MAX_IK_ITERATIONS)
+    result = ik.solve(q0, Tolerance(IK_TOLERANCE_M, 10 * IK_TOLERANCE_M), max_iters=MAX_IK_ITERATIONS)
     print(f"IK: converged {result.converged} in {result.iterations} iterations, "
           f"{1e3 * result.wall_time_s:.1f} ms")
 
@@ -93,7 +96,7 @@ def main() -> int:
     for name in (*PALMS, *FEET):
         residual = float(np.linalg.norm(sites[name] - targets[name]))
         worst = max(worst, residual)
-        own = 1e3 * result.residuals[name]["position [m]"]
+        own = 1e3 * (result.residuals[name].position_m or 0.0)
         print(f"  {name}: target {(np.round(targets[name], 4) + 0.0).tolist()} m, residual in MuJoCo "
               f"{1e3 * residual:.4f} mm (IK's own {own:.4f} mm)")
     com_residual = float(np.linalg.norm(com[:2] - com_xy))

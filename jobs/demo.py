@@ -37,14 +37,11 @@ from mbctl.jobs.choices import CONTROLLERS
 from mbctl.jobs.plots import new_figure
 from mbctl.jobs.recording import LoopRows, PlantSite, command_columns
 from mbctl.jobs.runner import Job, Outcome, RunContext, Work
-from mbctl.planners.cartesian import (
-    CartesianTrajectory,
-    PathLimits,
-    square_path,
-    time_path,
-    to_joint_trajectory,
-)
+from mbctl.limits import check_duration
+from mbctl.planners.cartesian import CartesianTrajectory, PathLimits, time_path, to_joint_trajectory
+from mbctl.planners.paths import square_path
 from mbctl.planners.trajectory import JointTrajectory
+from mbctl.robots.edits import scale_masses
 from mbctl.robots.interface import RobotState
 from mbctl.robots.model_pair import Robot
 from mbctl.robots.registry import load_robot
@@ -103,6 +100,7 @@ class DemoConfig:
             )
         if self.duration_s is not None and not (np.isfinite(self.duration_s) and self.duration_s > 0):
             raise ControllerSetupError(f"duration_s must be > 0 [s]; got {self.duration_s}")
+        check_duration(self.duration_s)
         if not (np.isfinite(self.model_error_pct) and self.model_error_pct > -100):
             raise ControllerSetupError(
                 f"model_error_pct must be a finite percentage > -100; got {self.model_error_pct}"
@@ -167,18 +165,6 @@ class Tracking:
             "saturated_cycles": self.saturated_cycles,
             "saturations": self.saturations,
         }
-
-
-def scale_masses(model: pin.Model, factor: float) -> pin.Model:
-    """A copy of ``model`` with every body's mass and rotational inertia times ``factor``.
-
-    Centres of mass and rotor armature are unchanged (armature is a motor property).
-    """
-    out = model.copy()
-    for i in range(1, len(out.inertias)):
-        inertia = out.inertias[i]
-        out.inertias[i] = pin.Inertia(inertia.mass * factor, inertia.lever, inertia.inertia * factor)
-    return out
 
 
 def square_reference(robot: Robot, config: DemoConfig, dt_s: float) -> SquareReference:

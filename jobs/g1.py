@@ -19,7 +19,9 @@
 Every job runs on the job runner: a CSV streamed one row per control cycle (reference, full q,
 v, command; ``base_z_m`` for the robots on the floor), ``report.json`` with the status and values,
 and a PNG. The verdict (exit 1 when missed): the robot on the floor did not fall (pelvis within
-``FALL_DEVIATION_M`` of the keyframe height) and, when given, the joint RMS error bound.
+``PELVIS_BOUND_M`` of the keyframe height, and not fallen by the G1's fall rule
+(``mbctl.robots.g1.G1_FALL``: pelvis below 0.5 m or a body other than the feet on the floor,
+measured by a ``PlantMonitor``) and, when given, the joint RMS error bound.
 
 Plots: reference dashed, plant solid; at most eight labelled traces per panel. The tracking jobs
 draw one row per limb that moves, coloured by the joint's role in the limb (the knee has one
@@ -44,19 +46,17 @@ from mbctl.control.pd_gravity import PDGravity
 from mbctl.control.position_pd import PositionTargetPD
 from mbctl.jobs.plots import coincident_groups, joint_colors, most_moved, new_figure, tracking_panels
 from mbctl.jobs.recording import LoopRows, command_columns
-from mbctl.jobs.robot_constants import KEYFRAME
 from mbctl.jobs.runner import Job, Outcome, RunContext, Work
+from mbctl.limits import check_duration
 from mbctl.planners.ruckig_planner import JointLimits, plan_ruckig, plan_waypoints
 from mbctl.planners.trajectory import JointTrajectory
 from mbctl.robots.edits import position_to_motor, weld_base
+from mbctl.robots.g1 import G1_FALL, KEYFRAME, LEG_WORDS, joint_role, limb_of
 from mbctl.robots.interface import RobotState
 from mbctl.robots.model_pair import Robot
 from mbctl.robots.registry import load_robot
+from mbctl.sim.monitor import PlantMonitor
 from mbctl.sim.simulator import Simulator
-
-#: Words that put a G1 joint in a leg (leg joints carry the body: stance inertia) or an arm (plots).
-LEG_WORDS = ("hip", "knee", "ankle")
-ARM_WORDS = ("shoulder", "elbow", "wrist")
 
 #: A limb whose reference moves less than this [rad] is left out of the tracking plots.
 MOVED_RAD = 1e-6
@@ -136,8 +136,9 @@ def arm_trajectory(robot: Robot, side: str, dt_s: float) -> JointTrajectory:
 
 
 
-#: Pelvis height change [m] beyond which the standing robot counts as fallen.
-FALL_DEVIATION_M = 0.02
+#: Pelvis height change [m] a standing job must stay within (a bound on standing quality; whether
+#: the robot fell is the G1's one fall rule, ``mbctl.robots.g1.G1_FALL``, measured in the plant).
+PELVIS_BOUND_M = 0.02
 
 
 def _positive(name: str, value: float | None, allow_none: bool = True) -> None:
@@ -157,6 +158,7 @@ class StandParams:
     model_dir: str | None = None
 
     def __post_init__(self) -> None:
+        check_duration(self.duration_s)
         for name in ("duration_s", "omega_rad_s", "zeta"):
             _positive(name, getattr(self, name), allow_none=False)
 
@@ -172,6 +174,7 @@ class TrackParams:
     model_dir: str | None = None
 
     def __post_init__(self) -> None:
+        check_duration(self.duration_s)
         _positive("duration_s", self.duration_s)
         _positive("omega_rad_s", self.omega_rad_s, allow_none=False)
         _positive("zeta", self.zeta, allow_none=False)
@@ -191,6 +194,7 @@ class ArmPDParams:
     def __post_init__(self) -> None:
         if self.side not in ("left", "right"):
             raise ControlError(f"side must be 'left' or 'right'; got {self.side!r}")
+        check_duration(self.duration_s)
         _positive("duration_s", self.duration_s)
         _positive("max_rms_error_rad", self.max_rms_error_rad)
 
@@ -230,29 +234,6 @@ def _loop(ctx: RunContext, sim: Simulator, controller: PDGravity | ComputedTorqu
     ctx.progress.start(max(1, int(round(duration_s / sim.control_period_s))), label)
     rows = LoopRows(ctx.open_csv(header), len(joints), extra, ctx.progress.advance)
     return run(sim, controller, reference, duration_s, rows)
-
-
-def limb_of(joint: str) -> str:
-    """The limb of a G1 joint, for plots: "left leg", "right arm", "waist" (else its first word)."""
-    side = next((s for s in ("left", "right") if joint.startswith(f"{s}_")), None)
-    if any(w in joint for w in LEG_WORDS):
-        part = "leg"
-    elif any(w in joint for w in ARM_WORDS):
-        part = "arm"
-    else:
-        part = joint.removeprefix(f"{side}_").split("_")[0] if side else joint.split("_")[0]
-    return f"{side} {part}" if side else part
-
-
-def joint_role(joint: str) -> str:
-    """A joint's name within its limb: ``left_knee_joint`` -> ``knee``, ``waist_yaw_joint`` -> ``waist_yaw``.
-
-    Args:
-        joint: The joint name.
-    """
-    for side in ("left_", "right_"):
-        joint = joint.removeprefix(side)
-    return joint.removesuffix("_joint")
 
 
 def limb_rows(joints: tuple[str, ...], reference: np.ndarray,
@@ -312,7 +293,7 @@ def _pelvis_panel(ax: Any, t_s: np.ndarray, dz_m: np.ndarray, max_m: float) -> N
     ax.set_xlabel("time (s)")
     ax.set_ylabel("pelvis height - keyframe (mm)")
     ax.set_title(f"pelvis height change (max |change| {max_m * 1e3:.2f} mm; "
-                 f"fall bound {FALL_DEVIATION_M * 1e3:g} mm)", fontsize=9)
+                 f"bound {PELVIS_BOUND_M * 1e3:g} mm)", fontsize=9)
     ax.grid(True, alpha=0.3)
 
 
@@ -364,18 +345,21 @@ def prepare_stand(params: StandParams, robot: Robot | None = None) -> Work:
         }
         z0 = sim.base_z_m
         ctx.values["pelvis_z_keyframe_m"] = float(z0)
+        plant = PlantMonitor(sim, fall_rule=G1_FALL.reason).attach()
         reference = joint_reference(q0[controller.joint_map.idx_q])
         log = _loop(ctx, sim, controller, reference, params.duration_s, "N_m", "g1-stand", base_z=True)
         z = np.append(log.q[:, _base_z_index(robot)], sim.base_z_m)
         dev = z - z0
         joint_err = log.reference - log.q[:, controller.joint_map.idx_q]
-        fell = bool(np.abs(dev).max() > FALL_DEVIATION_M)
+        fell = plant.fall_reason is not None
+        off = bool(np.abs(dev).max() > PELVIS_BOUND_M)
         ctx.values.update({
             "pelvis_z_min_m": float(z.min()),
             "pelvis_z_max_m": float(z.max()),
             "pelvis_z_final_m": float(z[-1]),
             "pelvis_max_deviation_m": float(np.abs(dev).max()),
             "fell": fell,
+            "fall_reason": plant.fall_reason,
             "joint_rms_error_rad": float(np.sqrt(np.mean(joint_err**2))),
             "joint_max_error_rad": float(np.abs(joint_err).max()),
             "saturated_cycles": controller.saturation.saturated_cycles,
@@ -385,12 +369,12 @@ def prepare_stand(params: StandParams, robot: Robot | None = None) -> Work:
         ctx.sections["controller_saturation"] = controller.saturation.summary()
         _stand_plot(ctx, log, dev[:-1], -joint_err, controller.joints, params)
         v = ctx.values
-        return Outcome(not fell, (
+        return Outcome(not (fell or off), (
             f"g1-stand {params.duration_s:g} s, PD + gravity (omega {params.omega_rad_s:g} rad/s, zeta "
-            f"{params.zeta:g}): pelvis max deviation {v['pelvis_max_deviation_m'] * 1e3:.2f} mm "
-            f"({'FELL' if fell else 'stood'}), joint RMS error {v['joint_rms_error_rad']:.3e} rad, "
-            f"saturated cycles {v['saturated_cycles']}",
-        ), f"pelvis within {FALL_DEVIATION_M * 1e3:g} mm of the keyframe height")
+            f"{params.zeta:g}): {'FELL (' + str(plant.fall_reason) + ')' if fell else 'stood'}, pelvis max "
+            f"deviation {v['pelvis_max_deviation_m'] * 1e3:.2f} mm, joint RMS error "
+            f"{v['joint_rms_error_rad']:.3e} rad, saturated cycles {v['saturated_cycles']}",
+        ), f"did not fall; pelvis within {PELVIS_BOUND_M * 1e3:g} mm of the keyframe height")
 
     return work
 
@@ -451,12 +435,13 @@ def prepare_track(params: TrackParams, robot: Robot | None = None) -> Work:
 
 def _tracking_outcome(ctx: RunContext, name: str, log: RunLog, err: np.ndarray, controller: ControllerBase,
                       sim: Simulator, bound: float | None, extra: dict[str, Any], title: str,
-                      body: tuple[np.ndarray, np.ndarray, tuple[str, ...]] | None = None) -> Outcome:
+                      body: tuple[np.ndarray, np.ndarray, tuple[str, ...]] | None = None,
+                      plant: PlantMonitor | None = None) -> Outcome:
     """Tracking values, the plot and the verdict: the RMS bound (if any) met and the robot standing.
 
     With ``body`` (pelvis height change (N,) [m], the other joints' deviation (N, m) [rad], their
-    names), the robot stands on the floor: it fell when the pelvis moved more than
-    ``FALL_DEVIATION_M``, and that fails the run too.
+    names) and ``plant`` (its fall rule), the robot stands on the floor: a fall, or the pelvis
+    moving more than ``PELVIS_BOUND_M``, fails the run too.
     """
     rms_by_joint = np.sqrt(np.mean(err**2, axis=0))
     rms = float(np.sqrt(np.mean(err**2)))
@@ -481,10 +466,12 @@ def _tracking_outcome(ctx: RunContext, name: str, log: RunLog, err: np.ndarray, 
              f"saturated cycles {ctx.values['saturated_cycles']}"]
     if body is not None:
         dz = float(np.abs(body[0]).max())
-        fell = dz > FALL_DEVIATION_M
-        ctx.values.update({"pelvis_max_deviation_m": dz, "fell": fell})
-        bounds.append(f"pelvis within {FALL_DEVIATION_M * 1e3:g} mm of the keyframe height")
-        lines.append(f"pelvis max deviation {dz * 1e3:.2f} mm ({'FELL' if fell else 'stood'})")
+        reason = plant.fall_reason if plant is not None else None
+        fell = reason is not None or dz > PELVIS_BOUND_M
+        ctx.values.update({"pelvis_max_deviation_m": dz, "fell": reason is not None, "fall_reason": reason})
+        bounds.append(f"did not fall; pelvis within {PELVIS_BOUND_M * 1e3:g} mm of the keyframe height")
+        lines.append(f"pelvis max deviation {dz * 1e3:.2f} mm "
+                     f"({'FELL (' + reason + ')' if reason is not None else 'stood'})")
     _tracking_plot(ctx, name, log, controller.joints, err, f"{title}: joint RMS {rms:.3g} rad", body)
     passed = (bound is None or rms <= bound) and not fell
     return Outcome(passed, tuple(lines), "; ".join(bounds) or None)
@@ -508,6 +495,7 @@ def prepare_arm_pd(params: ArmPDParams, robot: Robot | None = None) -> Work:
             "limits": {"max_velocity_rad_s": ARM_LIMITS[0], "max_acceleration_rad_s2": ARM_LIMITS[1],
                        "max_jerk_rad_s3": ARM_LIMITS[2]},
             "actuator_kp_N_m_rad": controller.kp.tolist(), "actuator_kv_N_m_s_rad": controller.kv.tolist()}
+        plant = PlantMonitor(sim, fall_rule=G1_FALL.reason).attach()
         log = _loop(ctx, sim, controller, traj, duration, "rad", f"g1-arm-pd ({params.side} arm)",
                     base_z=True)
         err = log.reference - log.q[:, controller.joint_map.idx_q]
@@ -520,7 +508,7 @@ def prepare_arm_pd(params: ArmPDParams, robot: Robot | None = None) -> Work:
             "other_joints_max_deviation_rad": float(np.abs(deviation).max()),
         }, f"G1 {params.side} arm through the position actuators"
            + (" + gravity feed-forward" if params.gravity_feedforward else ""),
-           (dz, deviation, others))
+           (dz, deviation, others), plant)
 
     return work
 

@@ -1,12 +1,12 @@
 """The ``mbctl ik`` job: solve whole-body IK to convergence, check it on the MuJoCo plant.
 
-Task set. The robot that IS the Menagerie G1 (``robot_constants.is_menagerie_g1``: loaded by the
+Task set. The robot that IS the Menagerie G1 (``mbctl.robots.g1.is_menagerie_g1``: loaded by the
 registry name "g1", told apart by its recorded origin, never by the file stem) gets the G1 set:
 palm sites added at load time, feet held, palm position targets, CoM (x, y), pelvis orientation,
 posture. Any other robot (a user file named g1.xml included) gets the generic set: position
 targets on any of its MuJoCo sites or bodies, optional CoM (x, y), posture, joint limits.
 Both sets run on either backend, ``qp`` (our Pinocchio QP) or ``mink``
-(``mbctl.control.ik.backends``).
+(:func:`mbctl.control.ik.make_whole_body_ik`), through the one IK loop.
 
 Plant check (never a silent wrong answer). After solving, the pose is converted to MuJoCo's
 convention (``robot.converter.q_pin_to_mj``), ``mj_kinematics`` and ``mj_comPos`` run on a scratch
@@ -31,26 +31,20 @@ import numpy as np
 import pinocchio as pin
 
 from mbctl.control.exceptions import IKSetupError
-from mbctl.control.ik.backends import (
+from mbctl.control.ik import (
     BACKENDS,
-    REGULARISERS,
+    IKResult,
     WholeBodyIK,
     WholeBodyIKConfig,
-    WholeBodyIKResult,
     joint_positions_by_name,
     make_whole_body_ik,
     mujoco_frame_type,
 )
+from mbctl.control.tasks import Tolerance, residual_table
 from mbctl.exceptions import unknown_name_message
-from mbctl.jobs.robot_constants import (
-    KEYFRAME,
-    PALM_SITES,
-    g1_whole_body_config,
-    is_menagerie_g1,
-    with_palm_sites,
-)
 from mbctl.jobs.runner import Job, Outcome, RunContext, Work
 from mbctl.robots.exceptions import UnknownNameError
+from mbctl.robots.g1 import FEET, KEYFRAME, PALM_SITES, PELVIS, is_menagerie_g1, with_palm_sites
 from mbctl.robots.model_pair import Robot
 from mbctl.robots.registry import KNOWN_ROBOTS, load_robot
 from mbctl.sim.atomic import write_json_atomic
@@ -127,6 +121,16 @@ class IKParams:
         return RAD_PER_M_TOL * self.tol_m
 
 
+def g1_config(**weights: float) -> WholeBodyIKConfig:
+    """The G1 whole-body task set (mink's humanoid example): feet held, palm targets, CoM, pelvis.
+
+    Args:
+        **weights: Overrides of ``WholeBodyIKConfig``'s weights and limits.
+    """
+    return WholeBodyIKConfig(held_frames=FEET, target_frames=tuple(PALM_SITES), base_frame=PELVIS,
+                             com=True, **weights)  # type: ignore[arg-type]
+
+
 def generic_config(targets: tuple[str, ...], com: bool) -> WholeBodyIKConfig:
     """The generic task set: position targets on ``targets``, optional CoM, posture, limits.
 
@@ -154,7 +158,7 @@ def task_set_for(robot: Robot, params: IKParams) -> tuple[Robot, WholeBodyIKConf
             if name not in PALM_SITES:
                 raise IKSetupError(unknown_name_message("G1 IK target frame", name, PALM_SITES)
                                    + " (the feet are held at their start pose)")
-        return robot, g1_whole_body_config(), "g1"
+        return robot, g1_config(), "g1"
     for name in names:
         mujoco_frame_type(robot, name)
     return robot, generic_config(names, params.com_xy is not None), "generic"
@@ -268,7 +272,7 @@ def prepare(params: IKParams, robot: Robot | None = None) -> Work:
         ik.set_com_target(xy + ik.com()[:2] if params.relative else xy)
 
     def work(ctx: RunContext) -> Outcome:
-        res = ik.solve(q0, tol=params.tol_m, tol_rad=params.tol_rad, max_iters=params.max_iters)
+        res = ik.solve(q0, Tolerance(params.tol_m, params.tol_rad), max_iters=params.max_iters)
         plant = plant_residuals(robot, ik, res.q)
         converged = bool(res.converged and plant.within(params.tol_m, params.tol_rad))
         margins = ik.position_limit.margins(res.q)
@@ -304,7 +308,7 @@ def prepare(params: IKParams, robot: Robot | None = None) -> Work:
             "targets": {name: list(xyz) for name, xyz in params.targets},
             "targets_relative": params.relative,
             "com_xy": list(params.com_xy) if params.com_xy is not None else None,
-            "residuals": res.residuals,
+            "residuals": residual_table(res.residuals),
             "plant_residual_m": plant.position_m,
             "plant_residual_rad": plant.orientation_rad,
             "min_joint_limit_margin": min_margin,
@@ -320,7 +324,7 @@ def prepare(params: IKParams, robot: Robot | None = None) -> Work:
     return work
 
 
-def _summary(name: str, task_set: str, params: IKParams, res: WholeBodyIKResult,
+def _summary(name: str, task_set: str, params: IKParams, res: IKResult,
              plant: PlantResiduals, margins: dict[str, tuple[float, float]],
              converged: bool) -> list[str]:
     if converged:
@@ -336,15 +340,15 @@ def _summary(name: str, task_set: str, params: IKParams, res: WholeBodyIKResult,
              f"{res.iterations} iterations, {res.wall_time_s * 1e3:.1f} ms ({per_it * 1e6:.0f} "
              f"us/iteration median), solver {params.solver}, tol {params.tol_m:g} m",
              "task residuals (IK's own; plant = measured in MuJoCo):"]
-    for task, values in res.residuals.items():
+    for task, residual in res.residuals.items():
         text = ", ".join(f"{k.split(' ')[0]} {v:.3e} {k.split(' ')[1].replace('[', '(').replace(']', ')')}"
-                         for k, v in values.items())
+                         for k, v in residual.as_dict().items())
         plant_text = [f"{plant.position_m[task]:.3e} (m)"] if task in plant.position_m else []
         if task in plant.orientation_rad:
             plant_text.append(f"{plant.orientation_rad[task]:.3e} (rad)")
         if plant_text:
             text += ", plant " + ", ".join(plant_text)
-        note = "  (regulariser, not a target)" if task in REGULARISERS else ""
+        note = "  (regulariser, not a target)" if residual.regularising else ""
         lines.append(f"  {task:20s} {text}{note}")
     closest = sorted(margins.items(), key=lambda kv: min(kv[1]))[:5]
     if closest:

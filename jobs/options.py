@@ -7,7 +7,8 @@ their signatures (names, types, defaults) to parse ``--param NAME=V1,V2``, so th
 the sweep cannot disagree on a name, a unit or a default. ``tests/cli`` checks that every
 command's signature matches its function here.
 
-Only parsing and unit conversion live here; validation stays in the dataclasses.
+Only parsing and unit conversion live here; validation stays in the dataclasses (except the
+duration limit of the G1 jobs, checked here: ``mbctl.limits``).
 """
 
 from __future__ import annotations
@@ -52,7 +53,7 @@ def g1_arm_pd(duration: float | None = None, side: str = "left", gravity_feedfor
     return ArmPDParams(duration, side, gravity_feedforward, max_rms_rad, model_dir)
 
 
-def g1_wbc(scenario: str = "stand", duration: float | None = None, impulse: float = 10.0,
+def g1_wbc(scenario: str = "stand", duration: float | None = None, impulse: float | None = None,
            direction: float | None = None, model_error: float = 0.0,
            model_dir: str | None = None) -> WBCParams:
     """``mbctl g1-wbc``: duration in s, impulse in N s, direction in deg, model_error in %."""

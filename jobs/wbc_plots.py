@@ -7,21 +7,21 @@ from typing import Any
 import numpy as np
 
 from mbctl.jobs.plots import new_figure
-from mbctl.jobs.robot_constants import FEET
 from mbctl.jobs.runner import RunContext
+from mbctl.jobs.wbc_log import WBCLog
+from mbctl.robots.g1 import FEET
 
 
-def wbc_plots(ctx: RunContext, log: dict[str, list[Any]], params: Any, values: dict[str, Any]) -> None:
+def wbc_plots(ctx: RunContext, log: WBCLog, params: Any, values: dict[str, Any]) -> None:
     """Save ``g1_wbc.png`` and ``g1_wbc_contacts.png``.
 
     The first: CoM reference and plant, the CoM error, the total normal force. The second, per
     foot: normal force, tangential force, CoP x and y, QP dashed over MuJoCo solid.
     """
-    if not log["t"]:
+    r = log.record()
+    if not len(r.t):
         return
-    t = np.asarray(log["t"])
-    com, ref = np.asarray(log["com"]), np.asarray(log["com_ref"])
-    fz_qp, fz_mj = np.asarray(log["fz_qp"]), np.asarray(log["fz_mj"])
+    t, com, ref, fz_qp, fz_mj = r.t, r.com, r.com_ref, r.fz_qp, r.fz_mj
     fig, axes = new_figure(2, 2, (13.0, 7.5), layout="constrained")
     for i, (axis, color) in enumerate(zip("xyz", ("C0", "C1", "C2"), strict=True)):
         ax = axes[0][0] if i < 2 else axes[0][1]
@@ -49,9 +49,7 @@ def wbc_plots(ctx: RunContext, log: dict[str, list[Any]], params: Any, values: d
                  f"{values['controller_time_median_us']:.0f} us median")
     ctx.save_figure(fig, "g1_wbc.png")
 
-    ft_qp, ft_mj = np.asarray(log["ft_qp"]), np.asarray(log["ft_mj"])
-    cop_qp = np.asarray(log["cop_qp"]).reshape(len(t), len(FEET), 2)
-    cop_mj = np.asarray(log["cop_mj"]).reshape(len(t), len(FEET), 2)
+    ft_qp, ft_mj, cop_qp, cop_mj = r.ft_qp, r.ft_mj, r.cop_qp, r.cop_mj
     fig, axes = new_figure(len(FEET), 3, (15.0, 3.4 * len(FEET) + 0.8), layout="constrained")
     for i, foot in enumerate(FEET):
         a_n, a_t, a_c = axes[i]

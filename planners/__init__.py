@@ -1,13 +1,8 @@
-"""Trajectory planners: ruckig (jerk-limited), polynomials, Cartesian paths."""
+"""Trajectory planners: ruckig (jerk-limited), polynomials, Cartesian paths and their timing."""
 
 from mbctl.planners.cartesian import (
-    CartesianPath,
     CartesianTrajectory,
-    CirclePath,
-    LinePath,
     PathLimits,
-    PolylinePath,
-    square_path,
     time_path,
     to_joint_trajectory,
 )
@@ -20,8 +15,10 @@ from mbctl.planners.exceptions import (
     PlanningError,
     TrajectoryGenerationFailed,
 )
+from mbctl.planners.paths import CartesianPath, CirclePath, LinePath, PolylinePath, square_path
 from mbctl.planners.polynomial import (
     cubic_trajectory,
+    minimum_jerk_at,
     minimum_jerk_trajectory,
     quintic_trajectory,
 )
@@ -52,6 +49,7 @@ __all__ = [
     "TrajectoryGenerationFailed",
     "concatenate",
     "cubic_trajectory",
+    "minimum_jerk_at",
     "minimum_jerk_trajectory",
     "pass_through_velocities",
     "plan_ruckig",

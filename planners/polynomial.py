@@ -158,6 +158,39 @@ def minimum_jerk_trajectory(
     return quintic_trajectory(current_position, target_position, duration_s, dt_s, names)
 
 
+def minimum_jerk_at(
+    start: npt.ArrayLike, goal: npt.ArrayLike, t_s: float, t0_s: float, duration_s: float
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The minimum-jerk blend from ``start`` to ``goal`` over ``[t0_s, t0_s + duration_s]``, at ``t_s``.
+
+    For evaluating one time per control cycle (a scenario's targets) without sampling a whole
+    trajectory; before ``t0_s`` it holds ``start``, after the end ``goal``, at rest.
+
+    Args:
+        start: Start position (n,) (any unit).
+        goal: Goal position (n,).
+        t_s: Evaluation time [s].
+        t0_s: Start of the motion [s].
+        duration_s: Duration T [s] (> 0).
+
+    Returns:
+        Position (n,), velocity (n,) [unit/s] and acceleration (n,) [unit/s^2] at ``t_s``.
+
+    Raises:
+        InvalidPlanningInput: A non-positive or non-finite duration.
+    """
+    T = check_time("duration_s", duration_s)
+    a, b = np.asarray(start, dtype=float), np.asarray(goal, dtype=float)
+    d = b - a
+    tau = min(max((t_s - t0_s) / T, 0.0), 1.0)
+    s = tau**3 * (10.0 - 15.0 * tau + 6.0 * tau * tau)
+    if t_s < t0_s or t_s > t0_s + T:
+        return a + s * d, np.zeros_like(d), np.zeros_like(d)
+    ds = 30.0 * tau * tau * (1.0 - tau) ** 2
+    dds = 60.0 * tau * (1.0 - tau) * (1.0 - 2.0 * tau)
+    return a + s * d, d * (ds / T), d * (dds / T**2)
+
+
 def _grid(duration_s: float, dt_s: float) -> tuple[np.ndarray, float]:
     """Uniform times ``0..T`` and ``T``: the duration rounded up to whole periods."""
     dt = check_time("dt_s", dt_s)

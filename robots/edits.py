@@ -6,6 +6,7 @@ from collections.abc import Iterable
 
 import mujoco
 import numpy as np
+import pinocchio as pin
 
 from mbctl.robots.model_pair import Robot
 
@@ -172,3 +173,17 @@ def add_site(robot: Robot, site: str, body: str, position_in_body_m: Iterable[fl
         mj_edit,
         pin_edit,
     )
+
+
+def scale_masses(model: pin.Model, factor: float) -> pin.Model:
+    """A copy of the Pinocchio ``model`` with every body's mass and rotational inertia times ``factor``.
+
+    Centres of mass and rotor armature are unchanged (armature is a motor property). The jobs'
+    ``--model-error PCT`` gives a controller this model (``factor = 1 + PCT / 100``) while the
+    plant keeps the true one.
+    """
+    out = model.copy()
+    for i in range(1, len(out.inertias)):
+        inertia = out.inertias[i]
+        out.inertias[i] = pin.Inertia(inertia.mass * factor, inertia.lever, inertia.inertia * factor)
+    return out

@@ -21,6 +21,7 @@ import pinocchio as pin
 
 from mbctl.robots.conventions import JointLayout, StateConverter
 from mbctl.robots.exceptions import ModelFileError, ModelMismatchError, UnknownNameError
+from mbctl.robots.indexing import as_slice
 from mbctl.robots.names import ActuatorInfo, SensorInfo, actuator_infos, names_of, sensor_infos
 from mbctl.robots.pin_from_mj import pin_model_from_mj
 from mbctl.robots.scene import describe_body, robot_bodies, scene_bodies
@@ -188,8 +189,8 @@ class Robot:
         self.converter = StateConverter(layouts, iq, iv)
         #: The robot's coordinates in the plant's qpos and qvel: a slice when they are contiguous
         #: (every robot without interleaved scene joints), else an index array.
-        self.qpos_index = _as_index([k for j in layouts for k in range(j.qposadr, j.qposadr + j.nq)])
-        self.qvel_index = _as_index([k for j in layouts for k in range(j.dofadr, j.dofadr + j.nv)])
+        self.qpos_index = as_slice([k for j in layouts for k in range(j.qposadr, j.qposadr + j.nq)])
+        self.qvel_index = as_slice([k for j in layouts for k in range(j.dofadr, j.dofadr + j.nv)])
         self.actuators: Mapping[str, ActuatorInfo] = MappingProxyType(actuator_infos(m))
         self.sensors: Mapping[str, SensorInfo] = MappingProxyType(sensor_infos(m))
         all_bodies = names_of(m, mujoco.mjtObj.mjOBJ_BODY, m.nbody)
@@ -469,14 +470,6 @@ class Robot:
 
     def __repr__(self) -> str:
         return f"Robot({self.name!r}, nq={self.nq}, nv={self.nv}, nu={self.nu})"
-
-
-def _as_index(indices: list[int]) -> slice | np.ndarray:
-    """``indices`` as a slice when they are contiguous (views, no fancy-index cost), else an array."""
-    if not indices or indices == list(range(indices[0], indices[0] + len(indices))):
-        start = indices[0] if indices else 0
-        return slice(start, start + len(indices))
-    return np.array(indices, dtype=int)
 
 
 def _lookup(kind: str, table: Mapping[str, _T], name: str) -> _T:

@@ -75,7 +75,7 @@ def format_rows(block: np.ndarray) -> bytes:
     return b"\n".join(lines) if len(lines) > 1 else b""
 
 
-def refuse_symlink(path: str | os.PathLike) -> None:
+def _refuse_symlink(path: str | os.PathLike) -> None:
     """Raise OutputPathError if a symbolic link sits at ``path`` (outputs never follow one)."""
     if os.path.islink(path):
         raise OutputPathError(
@@ -90,7 +90,7 @@ def _open_regular(path: Path) -> int:
     try:
         fd = os.open(path, flags, FILE_MODE)
     except OSError as exc:
-        refuse_symlink(path)  # O_NOFOLLOW fails with ELOOP on a link: say so
+        _refuse_symlink(path)  # O_NOFOLLOW fails with ELOOP on a link: say so
         if os.path.lexists(path) and not os.path.isfile(path):
             raise _not_regular(path) from None
         raise OutputPathError(f"cannot create {path}: {exc.strerror or type(exc).__name__}; "

@@ -27,7 +27,14 @@ class Push:
 
 
 class PushSchedule:
-    """Applies pushes as simulated time passes: call ``apply(data)`` before each step.
+    """Applies pushes as simulated time passes: ``apply(data)`` before each step.
+
+    A :class:`~mbctl.sim.simulator.Perturbation`: ``sim.add_perturbation(schedule)`` applies it
+    before every physics step.
+
+    Attributes:
+        pushes: The pushes.
+        force_W: Total force (3,) [N] applied at the last step.
 
     Raises:
         SimError: An unknown body, a non-finite force or a non-positive duration.
@@ -44,6 +51,7 @@ class PushSchedule:
                 raise SimError(f"push {p!r}: force must be finite (3,) [N] and duration > 0 s")
             self._pushes.append((bid, f, p.start_s, p.start_s + p.duration_s))
         self.pushes = list(pushes)
+        self.force_W = np.zeros(3)
 
     def apply(self, data: mujoco.MjData) -> np.ndarray:
         """Set ``xfrc_applied`` for the current time; returns the total applied force (3,) [N]."""
@@ -55,4 +63,5 @@ class PushSchedule:
             if t0 <= t < t1:
                 data.xfrc_applied[bid, :3] += f
                 total += f
+        self.force_W = total
         return total

@@ -9,7 +9,7 @@ a forward pass on every step.
 from __future__ import annotations
 
 from collections.abc import Callable
-from typing import Literal
+from typing import Literal, Protocol
 
 import mujoco
 import numpy as np
@@ -40,6 +40,13 @@ _WARNING_NAMES = {
     for name, w in mujoco.mjtWarning.__members__.items()
     if name != "mjNWARNING"
 }
+
+
+class Perturbation(Protocol):
+    """Acts on the plant before each physics step (e.g. :class:`~mbctl.sim.perturb.PushSchedule`)."""
+
+    def apply(self, data: mujoco.MjData) -> object:
+        """Write this step's external forces into ``data`` (e.g. ``xfrc_applied``)."""
 
 
 class Simulator:
@@ -97,6 +104,9 @@ class Simulator:
         self._warn_numbers = self.data.warning.number
         self._warn_seen = self._warn_numbers.tolist()
         self._observers: tuple[Callable[[Simulator], None], ...] = ()
+        self._perturbations: tuple[Perturbation, ...] = ()
+        #: Commands in which at least one value was outside its actuator's ctrlrange (clamped).
+        self.saturated_commands = 0
         self.reset()
 
     def add_observer(self, observer: Callable[[Simulator], None]) -> None:
@@ -110,6 +120,13 @@ class Simulator:
     def remove_observer(self, observer: Callable[[Simulator], None]) -> None:
         """Stop calling ``observer`` (no-op if it is not registered)."""
         self._observers = tuple(o for o in self._observers if o is not observer)
+
+    def add_perturbation(self, perturbation: Perturbation) -> None:
+        """Call ``perturbation.apply(data)`` before every physics step (external forces, pushes).
+
+        With perturbations, the period's substeps run one by one so each sees its own time.
+        """
+        self._perturbations = (*self._perturbations, perturbation)
 
     # ------------------------------------------------------------------ RobotInterface
     @property
@@ -162,6 +179,7 @@ class Simulator:
                     f"outside its ctrlrange [{b.ctrl_low[i]:g}, {b.ctrl_high[i]:g}]"
                 )
             self.saturation_counts[b.index[hit]] += 1
+            self.saturated_commands += 1
             values = np.clip(values, b.ctrl_low, b.ctrl_high)
         if b.full:
             self._ctrl[:] = values
@@ -176,7 +194,10 @@ class Simulator:
             SimulationDiverged: MuJoCo flagged bad qpos/qvel/qacc/ctrl during the period.
         """
         # step() inlined: this runs once per control cycle
-        mujoco.mj_step(self.model, self.data, self.n_substeps)
+        if self._perturbations:
+            self._perturbed_steps(self.n_substeps)
+        else:
+            mujoco.mj_step(self.model, self.data, self.n_substeps)
         self.n_steps += self.n_substeps
         self._stale = True
         if self._warn_numbers.tolist() != self._warn_seen:  # the check, inlined: once per cycle
@@ -193,17 +214,25 @@ class Simulator:
         """
         if command is not None:
             self.send(command)
-        if n == 1:
-            mujoco.mj_step(self.model, self.data)
-        elif n > 1:
-            mujoco.mj_step(self.model, self.data, n)
-        else:
+        if n < 1:
             raise SimError(f"n must be a positive number of steps; got {n}")
+        if self._perturbations:
+            self._perturbed_steps(n)
+        elif n == 1:
+            mujoco.mj_step(self.model, self.data)
+        else:
+            mujoco.mj_step(self.model, self.data, n)
         self.n_steps += n
         self._stale = True
         self._check_divergence()
         for observer in self._observers:
             observer(self)
+
+    def _perturbed_steps(self, n: int) -> None:
+        for _ in range(n):
+            for perturbation in self._perturbations:
+                perturbation.apply(self.data)
+            mujoco.mj_step(self.model, self.data)
 
     def _check_divergence(self) -> None:
         counts = self._warn_numbers.tolist()  # one call; cheaper than per-warning struct access
@@ -238,6 +267,7 @@ class Simulator:
                 v if v is not None else np.zeros(self._robot.nv),
             )
         self.saturation_counts[:] = 0
+        self.saturated_commands = 0
         self.n_steps = 0
         self._last_command = None
         self._warn_seen = self._warn_numbers.tolist()

@@ -59,7 +59,7 @@ def dask_client():
     pytest.importorskip("dask.distributed")
     from dask.distributed import Client
 
-    from mbctl.jobs.sweep import local_cluster
+    from mbctl.jobs.sweep_cluster import local_cluster
 
     cluster = local_cluster(2)  # as mbctl sweep starts it
     with Client(cluster) as client:

@@ -1,7 +1,10 @@
 """The layer rule, read from the imports: robots <- sim, control, planners <- jobs <- cli.
 
 Every ``import`` and ``from ... import`` in the package (including function-local ones) is
-checked, so a lazy import cannot hide a dependency that points up the stack.
+checked, so a lazy import cannot hide a dependency that points up the stack. Inside control/, the
+task layer sits below differential IK and whole-body inverse dynamics, which are peers (neither
+imports the other). Tests of control/ never import jobs/ or cli/, and the examples use the public
+API only (no jobs/, cli/ or private names; from a package, only the names in its ``__all__``).
 """
 
 from __future__ import annotations
@@ -46,6 +49,17 @@ def _imports(path: Path) -> list[str]:
     return names
 
 
+#: Inside control/: what each subpackage may import from control/ ("" is control/'s own modules:
+#: the controller protocol, the feedback laws, the loop, exceptions).
+CONTROL_ALLOWED = {
+    "tasks": {"tasks"},
+    "ik": {"tasks", "ik"},
+    "wbc": {"tasks", "wbc", ""},
+}
+#: control/'s own modules any subpackage may use.
+CONTROL_COMMON = {"mbctl.control.exceptions"}
+
+
 def _layer(module: str) -> str:
     parts = module.split(".")
     return parts[1] if len(parts) > 1 and parts[1] in ALLOWED else ""
@@ -85,3 +99,85 @@ def test_importing_control_and_planners_loads_no_sim_jobs_or_cli():
             "bad = sorted(m for m in sys.modules if m.startswith(('mbctl.sim', 'mbctl.jobs', 'mbctl.cli'))); "
             "assert not bad, bad")
     subprocess.run([sys.executable, "-c", code], check=True)
+
+
+def _control_violations(root: Path = ROOT) -> list[str]:
+    bad = []
+    for sub, allowed in CONTROL_ALLOWED.items():
+        for path in sorted((root / "control" / sub).rglob("*.py")):
+            for name in _imports(path):
+                parts = name.split(".")
+                if parts[:2] != ["mbctl", "control"] or name in CONTROL_COMMON:
+                    continue
+                target = parts[2] if len(parts) > 2 and parts[2] in CONTROL_ALLOWED else ""
+                if target not in allowed:
+                    bad.append(f"{path.relative_to(root)}: imports {name}")
+    return bad
+
+
+def test_control_task_layer_is_below_ik_and_wbc_which_are_peers():
+    assert _control_violations() == []
+
+
+def test_the_control_check_sees_a_violation(tmp_path):
+    (tmp_path / "control" / "ik").mkdir(parents=True)
+    (tmp_path / "control" / "ik" / "bad.py").write_text("from mbctl.control.wbc import WBCConfig\n")
+    for sub in ("tasks", "wbc"):
+        (tmp_path / "control" / sub).mkdir()
+    assert _control_violations(tmp_path) == ["control/ik/bad.py: imports mbctl.control.wbc"]
+
+
+def test_tests_of_control_import_no_jobs_or_cli():
+    bad = [f"{path.relative_to(ROOT)}: {name}" for path in sorted((ROOT / "tests" / "control").rglob("*.py"))
+           for name in _imports(path) if name.startswith(("mbctl.jobs", "mbctl.cli"))]
+    assert bad == []
+
+
+def _imported_names(path: Path) -> list[tuple[str, str]]:
+    tree = ast.parse(path.read_text(), filename=str(path))
+    out = []
+    for node in ast.walk(tree):
+        if isinstance(node, ast.ImportFrom) and node.module and node.module.startswith("mbctl"):
+            out += [(node.module, a.name) for a in node.names]
+        elif isinstance(node, ast.Import):
+            out += [(a.name, "") for a in node.names if a.name.startswith("mbctl")]
+    return out
+
+
+def _example_violations(folder: Path) -> list[str]:
+    import importlib
+
+    bad = []
+    for path in sorted(folder.glob("*.py")):
+        for module, name in _imported_names(path):
+            parts = module.split(".")
+            where = f"{path.name}: {module}{' ' + name if name else ''}"
+            if len(parts) > 1 and parts[1] in ("jobs", "cli"):
+                bad.append(f"{where} (jobs/ and cli/ are the command line's, not the API)")
+            elif any(p.startswith("_") for p in parts) or name.startswith("_"):
+                bad.append(f"{where} (private)")
+            elif name:
+                mod = importlib.import_module(module)
+                public = getattr(mod, "__all__", None)
+                is_module = hasattr(mod, name) and type(getattr(mod, name)).__name__ == "module"
+                if mod.__file__ and mod.__file__.endswith("__init__.py") and public is not None \
+                        and name not in public and not is_module:
+                    bad.append(f"{where} (not in {module}.__all__)")
+    return bad
+
+
+def test_examples_use_only_the_public_api():
+    assert _example_violations(ROOT / "examples") == []
+
+
+def test_the_example_check_sees_violations(tmp_path):
+    lines = ["from mbctl.jobs.g1_wbc import prepare", "from mbctl.control import _x",
+             "from mbctl.control import presample", "from mbctl.robots import fastmath",
+             "from mbctl.control.tasks import stack", "from mbctl.control.ik import iterate",
+             "from mbctl.control.ik import IKStep", "from mbctl.sim import Perturbation"]
+    (tmp_path / "e.py").write_text("\n".join(lines) + "\n")
+    assert _example_violations(tmp_path) == [
+        "e.py: mbctl.jobs.g1_wbc prepare (jobs/ and cli/ are the command line's, not the API)",
+        "e.py: mbctl.control _x (private)",
+        "e.py: mbctl.sim Perturbation (not in mbctl.sim.__all__)",
+    ]

@@ -1,15 +1,10 @@
-"""Differential inverse kinematics: state, tasks, limits, the QP, whole-body backends, 2-link IK."""
+"""Differential inverse kinematics: the QP, limits, the one IK loop, whole-body backends, 2-link IK.
 
-from mbctl.control.ik.backends import (
-    BACKENDS,
-    MinkWholeBodyIK,
-    QPWholeBodyIK,
-    WholeBodyIK,
-    WholeBodyIKConfig,
-    WholeBodyIKResult,
-    make_whole_body_ik,
-    mujoco_frame_type,
-)
+The tasks themselves live in :mod:`mbctl.control.tasks` (shared with whole-body inverse dynamics).
+"""
+
+from mbctl.control.ik.diff_ik import DiffIK, IKStep, solve_ik
+from mbctl.control.ik.factory import BACKENDS, make_whole_body_ik
 from mbctl.control.ik.limits import (
     BoxLimit,
     Constraint,
@@ -18,55 +13,39 @@ from mbctl.control.ik.limits import (
     JointVelocityLimit,
     Limit,
 )
-from mbctl.control.ik.solve import DiffIK, IKResult, IKStep, solve_ik
-from mbctl.control.ik.state import IKState
-from mbctl.control.ik.tasks import (
-    ComTask,
-    DampingTask,
-    FrameOrientationTask,
-    FramePoseTask,
-    FramePositionTask,
-    PostureTask,
-    Task,
-)
-from mbctl.control.ik.two_link import (
-    ElbowBranch,
-    IterativeIKResult,
-    TwoLinkArm,
-    Workspace,
-    dls_ik,
-    pinv_ik,
+from mbctl.control.ik.loop import IKResult, IKStepper, iterate
+from mbctl.control.ik.mink_backend import MinkWholeBodyIK
+from mbctl.control.ik.two_link import ElbowBranch, TwoLinkArm, Workspace, dls_ik, pinv_ik
+from mbctl.control.ik.whole_body import (
+    QPWholeBodyIK,
+    WholeBodyIK,
+    WholeBodyIKConfig,
+    joint_positions_by_name,
+    mujoco_frame_type,
 )
 
 __all__ = [
     "BACKENDS",
     "BoxLimit",
-    "ComTask",
     "Constraint",
-    "DampingTask",
     "DiffIK",
     "ElbowBranch",
     "FloatingBaseVelocityLimit",
-    "FrameOrientationTask",
-    "FramePoseTask",
-    "FramePositionTask",
     "IKResult",
-    "IKState",
     "IKStep",
-    "IterativeIKResult",
+    "IKStepper",
     "JointPositionLimit",
     "JointVelocityLimit",
     "Limit",
     "MinkWholeBodyIK",
-    "PostureTask",
     "QPWholeBodyIK",
-    "Task",
     "TwoLinkArm",
     "WholeBodyIK",
     "WholeBodyIKConfig",
-    "WholeBodyIKResult",
     "Workspace",
     "dls_ik",
+    "iterate",
+    "joint_positions_by_name",
     "make_whole_body_ik",
     "mujoco_frame_type",
     "pinv_ik",

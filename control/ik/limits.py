@@ -24,8 +24,9 @@ import numpy.typing as npt
 import pinocchio as pin
 
 from mbctl.control.exceptions import IKSetupError
-from mbctl.control.ik.state import IKState
+from mbctl.control.tasks.state import TaskState
 from mbctl.robots.exceptions import UnknownNameError
+from mbctl.robots.indexing import as_slice
 
 
 class Constraint(NamedTuple):
@@ -44,7 +45,7 @@ class Limit(abc.ABC):
     """An inequality on the IK step ``dq``."""
 
     @abc.abstractmethod
-    def compute_qp_inequalities(self, state: IKState, dt: float) -> Constraint:
+    def compute_qp_inequalities(self, state: TaskState, dt: float) -> Constraint:
         """``(G, h)`` with ``G dq <= h`` at ``state`` for a step of duration ``dt`` [s]."""
 
 
@@ -59,11 +60,11 @@ class BoxLimit(Limit):
 
     @abc.abstractmethod
     def intersect_bounds(
-        self, state: IKState, dt: float, lower: np.ndarray, upper: np.ndarray
+        self, state: TaskState, dt: float, lower: np.ndarray, upper: np.ndarray
     ) -> None:
         """Tighten ``lower``/``upper`` (nv,) in place with this limit's box."""
 
-    def compute_qp_inequalities(self, state: IKState, dt: float) -> Constraint:
+    def compute_qp_inequalities(self, state: TaskState, dt: float) -> Constraint:
         """The box as ``[I; -I] dq <= [upper; -lower]`` on its finite entries."""
         nv = state.nv
         lower = np.full(nv, -np.inf)
@@ -73,13 +74,6 @@ class BoxLimit(Limit):
         up = np.isfinite(upper)
         lo = np.isfinite(lower)
         return Constraint(np.vstack([eye[up], -eye[lo]]), np.concatenate([upper[up], -lower[lo]]))
-
-
-def _as_slice(idx: np.ndarray) -> slice | np.ndarray:
-    """A contiguous index array as a slice (cheaper to gather and scatter), else itself."""
-    if idx.size and np.array_equal(idx, np.arange(idx[0], idx[0] + idx.size)):
-        return slice(int(idx[0]), int(idx[0]) + idx.size)
-    return idx
 
 
 def _one_dof_joints(model: pin.Model) -> list[int]:
@@ -129,13 +123,13 @@ class JointPositionLimit(BoxLimit):
             )
         for arr in (self.idx_q, self.idx_v, self.q_min, self.q_max):
             arr.setflags(write=False)
-        self._sq = _as_slice(self.idx_q)
-        self._sv = _as_slice(self.idx_v)
+        self._sq = as_slice(self.idx_q)
+        self._sv = as_slice(self.idx_v)
         self.gain = float(gain)
         self.joint_names = tuple(names)
 
     def intersect_bounds(
-        self, state: IKState, dt: float, lower: np.ndarray, upper: np.ndarray
+        self, state: TaskState, dt: float, lower: np.ndarray, upper: np.ndarray
     ) -> None:
         """Tighten with ``gain (q_min - q)`` and ``gain (q_max - q)`` on the limited dofs."""
         q = state.q[self._sq]
@@ -177,7 +171,7 @@ class _VelocityBox(BoxLimit):
         self.max_velocity.setflags(write=False)
 
     def intersect_bounds(
-        self, state: IKState, dt: float, lower: np.ndarray, upper: np.ndarray
+        self, state: TaskState, dt: float, lower: np.ndarray, upper: np.ndarray
     ) -> None:
         """Tighten with ``-v_max dt <= dq <= v_max dt``."""
         iv = self.idx_v

@@ -31,6 +31,8 @@ import numpy as np
 import numpy.typing as npt
 
 from mbctl.control.exceptions import IKSetupError, KinematicsError, UnreachableTarget
+from mbctl.control.ik.loop import IKResult, iterate
+from mbctl.control.tasks.residuals import TaskResidual, Tolerance
 from mbctl.robots.model_pair import Robot
 
 #: Relative tolerance [-] on the workspace radius within which a target on the boundary is
@@ -65,26 +67,6 @@ class Workspace(NamedTuple):
     r_min: float
     r_max: float
     center: np.ndarray
-
-
-class IterativeIKResult(NamedTuple):
-    """Result of an iterative 2-link IK (pseudo-inverse or damped least squares).
-
-    Attributes:
-        q: Final joint angles (2,) [rad].
-        converged: Whether the position error fell below the tolerance.
-        iterations: Number of steps taken.
-        error_norm: Final position error ``|p_target - p_WS(q)|`` [m].
-        error_history: Error norm before each step and after the last one (iterations + 1,) [m].
-        step_norms: Norm of each joint step ``|dq|`` (iterations,) [rad].
-    """
-
-    q: np.ndarray
-    converged: bool
-    iterations: int
-    error_norm: float
-    error_history: np.ndarray
-    step_norms: np.ndarray
 
 
 @dataclass(frozen=True)
@@ -266,7 +248,7 @@ def pinv_ik(
     tol: float = 1e-10,
     max_iters: int = 100,
     max_task_step: float | None = None,
-) -> IterativeIKResult:
+) -> IKResult:
     """Newton-Raphson IK with the Moore-Penrose pseudo-inverse: ``dq = J^+ e``.
 
     Unbounded near singularities (the step grows like ``1 / sin q2``).
@@ -293,7 +275,7 @@ def dls_ik(
     tol: float = 1e-10,
     max_iters: int = 200,
     max_task_step: float | None = 0.05,
-) -> IterativeIKResult:
+) -> IKResult:
     """Damped least-squares IK: ``dq = J^T (J J^T + lambda^2 I)^-1 e``.
 
     The step is bounded, ``|dq| <= min(|e|, max_task_step) / (2 lambda)``, also at singularities;
@@ -318,6 +300,38 @@ def dls_ik(
     return _iterate(arm, target, q0, tol, max_iters, damping, max_task_step)
 
 
+class _TwoLinkStepper:
+    """Pseudo-inverse or damped least-squares steps on the arm: an :class:`IKStepper`."""
+
+    def __init__(self, arm: TwoLinkArm, target: np.ndarray, damping: float, max_task_step: float | None):
+        self.arm, self.target, self.damping, self.max_task_step = arm, target, damping, max_task_step
+        self._q = np.zeros(2)
+
+    @property
+    def q(self) -> np.ndarray:
+        return self._q.copy()
+
+    def update(self, q: npt.ArrayLike) -> None:
+        self._q = _q2(q).copy()
+
+    def task_residuals(self) -> dict[str, TaskResidual]:
+        error = float(np.linalg.norm(self.target - self.arm.forward_kinematics(self._q)))
+        return {self.arm.site: TaskResidual(position_m=error)}
+
+    def advance(self) -> float:
+        e = self.target - self.arm.forward_kinematics(self._q)
+        norm = float(np.linalg.norm(e))
+        if self.max_task_step is not None and norm > self.max_task_step:
+            e = e * (self.max_task_step / norm)
+        J = self.arm.jacobian(self._q)
+        if self.damping > 0.0:
+            dq = J.T @ np.linalg.solve(J @ J.T + self.damping**2 * np.eye(2), e)
+        else:
+            dq = np.linalg.pinv(J) @ e
+        self._q = self._q + dq
+        return float(np.max(np.abs(dq)))
+
+
 def _iterate(
     arm: TwoLinkArm,
     target: npt.ArrayLike,
@@ -326,44 +340,16 @@ def _iterate(
     max_iters: int,
     damping: float,
     max_task_step: float | None,
-) -> IterativeIKResult:
+) -> IKResult:
     if max_task_step is not None and not (math.isfinite(max_task_step) and max_task_step > 0.0):
         raise IKSetupError(
             f"max_task_step must be a positive finite length [m] or None; got {max_task_step!r}"
         )
     if not (math.isfinite(tol) and tol > 0.0):
         raise IKSetupError(f"tol must be a positive finite error norm [m]; got {tol!r}")
-    if int(max_iters) < 1:
-        raise IKSetupError(f"max_iters must be >= 1; got {max_iters!r}")
-    p_target = _target2(target)
-    q = _q2(q0).copy()
-    errors = []
-    steps = []
-    lam2 = damping * damping
-    for _ in range(int(max_iters)):
-        e = p_target - arm.forward_kinematics(q)
-        errors.append(float(np.linalg.norm(e)))
-        if errors[-1] < tol:
-            break
-        if max_task_step is not None and errors[-1] > max_task_step:
-            e = e * (max_task_step / errors[-1])
-        J = arm.jacobian(q)
-        if damping > 0.0:
-            dq = J.T @ np.linalg.solve(J @ J.T + lam2 * np.eye(2), e)
-        else:
-            dq = np.linalg.pinv(J) @ e
-        steps.append(float(np.linalg.norm(dq)))
-        q = q + dq
-    else:
-        errors.append(float(np.linalg.norm(p_target - arm.forward_kinematics(q))))
-    return IterativeIKResult(
-        q=q,
-        converged=errors[-1] < tol,
-        iterations=len(steps),
-        error_norm=errors[-1],
-        error_history=np.array(errors),
-        step_norms=np.array(steps),
-    )
+    stepper = _TwoLinkStepper(arm, _target2(target), damping, max_task_step)
+    # step_tol 0: iterate to the cap (DLS creeps to the closest point of an unreachable target)
+    return iterate(stepper, q0, Tolerance(position_m=tol), max_iters, step_tol=0.0)
 
 
 # ---------------------------------------------------------------------- helpers

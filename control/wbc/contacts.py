@@ -1,18 +1,22 @@
 """Foot contacts for whole-body inverse dynamics, read from the model's collision geoms.
 
 A foot touches the ground through contact *points*: the lowest points of its collision geoms
-(MuJoCo point contacts, condim 3, as the Menagerie G1's four sole spheres). Each point carries a
+(MuJoCo point contacts, condim 3, e.g. the Menagerie G1's four sole spheres). Each point carries a
 force ``f`` (3,) [N] in the world frame W; the foot's wrench, centre of pressure and friction
 follow from them. With the corners of the sole as points and ``f_z >= 0``, the centre of pressure
 stays inside the sole rectangle by construction (it is a convex combination of the points), so
 no separate CoP constraint is needed.
+
+A foot's contact switches with a force ramp (:class:`ContactState`): its weight ``w_c`` goes from
+1 to 0 (release) or 0 to 1 (touch-down) over ``ramp_s`` of the state's time, while its
+acceleration constraint stays; a released foot's constraint is removed when its weight reaches 0.
 
 Notation: W world, F the foot frame (a Pinocchio frame: the foot site), P a contact point.
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import mujoco
 import numpy as np
@@ -116,3 +120,49 @@ def foot_contact_from_model(robot: Robot, frame: str, body: str | None = None) -
     if not points:
         raise WBCSetupError(f"body {body!r} has no colliding sphere or box geom to stand on")
     return FootContact(frame, frame, np.array(points), min(mus), tuple(geoms))
+
+
+@dataclass
+class ContactState:
+    """One foot in the whole-body QP: its force variables, its ramp and where it was put down.
+
+    Attributes:
+        contact: The foot's contact points and friction.
+        fid: Pinocchio frame id of the foot frame.
+        cols: The foot's force variables in the QP's x.
+        fz: The normal-force variables among them (a strided slice of x).
+        active: The foot-acceleration equality is in force.
+        weight: Force ramp ``w_c`` in [0, 1] (scales the normal-force bounds).
+        target_weight: Where the ramp goes (0: release, 1: load).
+        X_WF0: The foot's pose when it was put down (its slip feedback holds it there).
+    """
+
+    contact: FootContact
+    fid: int
+    cols: slice
+    fz: slice
+    active: bool = True
+    weight: float = 1.0
+    target_weight: float = 1.0
+    X_WF0: pin.SE3 = field(default_factory=pin.SE3.Identity)
+
+    def hold(self, X_WF: pin.SE3) -> None:
+        """In contact at full weight, held at ``X_WF``."""
+        self.active, self.weight, self.target_weight, self.X_WF0 = True, 1.0, 1.0, X_WF
+
+    def touch_down(self, X_WF: pin.SE3) -> None:
+        """Constrained at ``X_WF`` from now on, its force ramping up from zero."""
+        self.active, self.target_weight, self.X_WF0 = True, 1.0, X_WF
+        self.weight = min(self.weight, 0.0)
+
+    def advance_ramp(self, dt_s: float, ramp_s: float) -> None:
+        """Move the weight toward its target by ``dt_s / ramp_s``; free the foot when it reaches 0."""
+        if self.weight == self.target_weight and (self.active or self.target_weight != 0.0):
+            return
+        step = dt_s / ramp_s
+        if self.weight < self.target_weight:
+            self.weight = min(self.target_weight, self.weight + step)
+        elif self.weight > self.target_weight:
+            self.weight = max(self.target_weight, self.weight - step)
+        if self.target_weight == 0.0 and self.weight == 0.0:
+            self.active = False

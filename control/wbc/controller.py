@@ -4,7 +4,7 @@ Formulation (one QP per control cycle; W world, F a foot frame, P a contact poin
 
     x = [vdot (nv); f (3 n_p)]                 f_P: force on point P, in W [N]
 
-    min   sum_tasks w^2 |J vdot - (a_des - Jdot v)|^2 + w_f^2 |f|^2 + w_r^2 |vdot|^2
+    min   sum_tasks |W_t vdot - r_t|^2 + w_f^2 |f|^2 + w_r^2 |vdot|^2
     s.t.  M_u vdot + b_u = sum_P J_Pu^T f_P                 unactuated rows (the base)
           J_F vdot + Jdot_F v = kp S log6(X_F,F0) - kd v_F  each foot in contact (LOCAL; S: x, y, yaw)
           |f_Px|, |f_Py| <= mu/sqrt(2) f_Pz                 friction pyramid, inscribed in the cone
@@ -12,33 +12,37 @@ Formulation (one QP per control cycle; W world, F a foot frame, P a contact poin
           tau_min <= M_a vdot + b_a - sum_P J_Pa^T f_P <= tau_max     torque limits
           vdot_lo(q, v) <= vdot_j <= vdot_hi(q, v)          joint limits reached in T_lim at most
 
-tau is eliminated through the actuated rows (``tau = M_a vdot + b_a - J_a^T f``, the second
-line of the dynamics split by ``S``), so the QP has nv + 3 n_p variables and the torque limits
-become inequalities on x. Contact points are the corners of each sole (the Menagerie G1 stands on
-four spheres per foot), so the centre of pressure stays inside the sole rectangle whenever the
-normal forces are non-negative; friction comes from the foot geoms. Joint-limit bounds keep
-``q + v T + vdot T^2 / 2`` inside the limits over the horizon T.
+The task rows ``W_t``, ``r_t`` are the acceleration level of the task layer
+(:mod:`mbctl.control.tasks`: ``W_t = diag(cost) J``, ``r_t = diag(cost) (a_des - Jdot v)``),
+assembled by its ``TaskStack`` as in differential IK. tau is eliminated through the actuated rows
+(``tau = M_a vdot + b_a - J_a^T f``, the second line of the dynamics split by ``S``), so the QP
+has nv + 3 n_p variables and the torque limits become inequalities on x. Contact points are the
+corners of each sole (e.g. the four spheres per foot the Menagerie G1 stands on), so the centre of
+pressure stays inside the sole rectangle whenever the normal forces are non-negative; friction
+comes from the foot geoms. Joint-limit bounds keep ``q + v T + vdot T^2 / 2`` inside the limits
+over the horizon T.
 
-Contacts switch with force ramps: ``w_c`` goes from 1 to 0 (or back) over ``ramp_s`` while the
-foot's acceleration constraint stays, so the load moves to the other foot before the foot is
-released (then a swing-foot task takes over), and no torque jumps.
+Contacts switch with force ramps (:mod:`mbctl.control.wbc.contacts`): ``w_c`` goes from 1 to 0
+(or back) over ``ramp_s`` of the state's time while the foot's acceleration constraint stays, so
+the load moves to the other foot before the foot is released, and no torque jumps.
 
-Solved with qpsolvers' ``daqp`` (dense dual active set), picked by benchmark
-(``bench/bench_wbc.py``): on the G1's QP (59 variables, 18 equalities, 90 inequality rows and a
-bound on every variable) daqp solves in ~75 us, proxqp in ~245 us (to 4e-6), osqp in ~1,300 us and
-lands 3.3 away at its default tolerances. Each solve starts from the previous solution
-(``WBCConfig.warm_start``); daqp then takes its initial working set from the constraints active
-there. In standing and squatting no inequality is active at the solution and a cold start needs
-one active-set iteration, so warm starting saves nothing measurable there (bench: 82 against 80
-us); it can only pay when friction, torque or force bounds are active.
+Solved in its structure (:mod:`mbctl.control.wbc.qp`): the optimum under the equalities alone
+(a KKT solve through the Schur complement, exploiting the block-diagonal Hessian), accepted when it
+satisfies every inequality (always while standing or squatting: none is active), else daqp (dense
+dual active set, called directly) on the whole problem. daqp was picked by benchmark
+(``bench/bench_wbc.py``): e.g. on the G1's QP (59 variables, 18 equalities, 90 inequality rows, a
+bound on every variable) proxqp took ~3x and osqp ~17x as long, and osqp stopped far from the
+optimum at its default tolerances; ``WBCConfig.solver`` runs those through qpsolvers.
+
+When the QP has no solution, ``WBCConfig.on_infeasible`` decides: raise
+:class:`~mbctl.control.exceptions.WBCInfeasible`, or ("damp") switch for good to joint damping
+``tau = -kd v`` and record when, so a simulation goes on and shows whether the robot falls.
 """
 
 from __future__ import annotations
 
-import functools
 import time
 from collections.abc import Sequence
-from dataclasses import dataclass, field
 
 import numpy as np
 import pinocchio as pin
@@ -46,131 +50,36 @@ import qpsolvers
 
 from mbctl.control.controller import JointMap
 from mbctl.control.exceptions import WBCInfeasible, WBCSetupError
-from mbctl.control.wbc.contacts import FootContact
-from mbctl.control.wbc.tasks import AccelerationTask, DynamicsState
+from mbctl.control.tasks.base import Task
+from mbctl.control.tasks.stack import TaskStack
+from mbctl.control.tasks.state import DynamicsState
+from mbctl.control.wbc.config import WBCConfig, WBCSolution
+from mbctl.control.wbc.contacts import ContactState, FootContact
+from mbctl.control.wbc.qp import WholeBodyQP
 from mbctl.robots.commands import Command, CommandKind
+from mbctl.robots.indexing import as_slice
 from mbctl.robots.interface import RobotState
 from mbctl.robots.model_pair import Robot
-
-
-@dataclass(frozen=True)
-class WBCConfig:
-    """Options of the whole-body QP.
-
-    Attributes:
-        f_min_n: Minimum normal force per contact point at full weight [N] (>= 0).
-        f_max_n: Maximum normal force per contact point at full weight [N] (> f_min_n).
-        contact_omega_rad_s: Natural frequency of the foot-drift feedback [rad/s] (>= 0).
-        force_weight: Regularisation weight on the contact forces [cost]/[N].
-        acceleration_weight: Regularisation weight on vdot [cost]/[rad/s^2].
-        joint_limit_horizon_s: Horizon T [s] of the joint-limit acceleration bounds (> 0).
-        ramp_s: Duration [s] of a contact's force ramp (> 0).
-        solver: qpsolvers backend name.
-        warm_start: Start each solve from the previous cycle's solution (daqp: its nearly
-            active constraints become the initial working set).
-    """
-
-    f_min_n: float = 1.0
-    f_max_n: float = 400.0
-    contact_omega_rad_s: float = 10.0
-    force_weight: float = 1e-4
-    acceleration_weight: float = 1e-3
-    joint_limit_horizon_s: float = 0.1
-    ramp_s: float = 0.3
-    solver: str = "daqp"
-    warm_start: bool = True
-
-    def __post_init__(self) -> None:
-        checks = {
-            "f_min_n": self.f_min_n >= 0, "f_max_n": self.f_max_n > self.f_min_n,
-            "contact_omega_rad_s": self.contact_omega_rad_s >= 0, "force_weight": self.force_weight > 0,
-            "acceleration_weight": self.acceleration_weight > 0,
-            "joint_limit_horizon_s": self.joint_limit_horizon_s > 0, "ramp_s": self.ramp_s > 0,
-        }
-        for name, ok in checks.items():
-            value = getattr(self, name)
-            if not (np.isfinite(value) and ok):
-                raise WBCSetupError(f"WBCConfig.{name}={value!r} is out of range")
-        if self.solver not in qpsolvers.available_solvers:
-            raise WBCSetupError(f"QP solver {self.solver!r} is not installed; available: "
-                                f"{', '.join(sorted(qpsolvers.available_solvers))}")
-
-
-@dataclass
-class _ContactState:
-    contact: FootContact
-    fid: int
-    cols: slice                       # its force variables in x
-    fz: np.ndarray                    # the normal-force variables among them
-    active: bool = True               # foot-acceleration equality in force
-    weight: float = 1.0               # force ramp w_c in [0, 1]
-    target_weight: float = 1.0
-    X_WF0: pin.SE3 = field(default_factory=pin.SE3.Identity)  # where the foot was put down
-
-
-@dataclass(frozen=True)
-class WBCSolution:
-    """What the last QP returned (world frame W).
-
-    Attributes:
-        tau: Joint torques (n_actuated,) [N m], actuator order.
-        vdot: Accelerations (nv,), Pinocchio convention.
-        forces_W: Contact point forces by foot name, (n_points, 3) [N] in W.
-        points_W: Contact point positions by foot name, (n_points, 3) [m] in W.
-        foot_origins_W: Foot frame origins by foot name, (3,) [m] in W.
-        controller_time_s: Wall time of the whole ``compute`` [s].
-        qp_time_s: Wall time of the QP solve alone [s].
-    """
-
-    tau: np.ndarray
-    vdot: np.ndarray
-    forces_W: dict[str, np.ndarray]
-    points_W: dict[str, np.ndarray]
-    foot_origins_W: dict[str, np.ndarray]
-    controller_time_s: float
-    qp_time_s: float
-
-    @functools.cached_property
-    def wrenches_W(self) -> dict[str, np.ndarray]:
-        """Foot wrench about the foot frame origin, in W, [f; m] (6,) [N, N m], by foot name."""
-        out = {}
-        for name, F in self.forces_W.items():
-            r = self.points_W[name] - self.foot_origins_W[name]
-            out[name] = np.concatenate([F.sum(0), np.cross(r, F).sum(0)])
-        return out
-
-    @functools.cached_property
-    def cop_W(self) -> dict[str, np.ndarray]:
-        """Centre of pressure (3,) [m] in W by foot name (NaN for a foot without normal force)."""
-        out = {}
-        for name, F in self.forces_W.items():
-            fz = F[:, 2].sum()
-            out[name] = (F[:, 2] @ self.points_W[name]) / fz if fz > 1e-6 else np.full(3, np.nan)
-        return out
-
 
 #: ``r @ _SKEW`` is ``[r]x`` flattened row-major, for every row r: stacked cross-product matrices.
 _SKEW = np.array([[0, 0, 0, 0, 0, -1, 0, 1, 0], [0, 0, 1, 0, 0, 0, -1, 0, 0], [0, -1, 0, 1, 0, 0, 0, 0, 0]],
                  dtype=float)
 
 
-def _as_slice(idx: np.ndarray) -> slice | np.ndarray:
-    """``idx`` as a slice when it is a contiguous increasing run (indexing then gives views)."""
-    if len(idx) and np.array_equal(idx, np.arange(idx[0], idx[0] + len(idx))):
-        return slice(int(idx[0]), int(idx[0]) + len(idx))
-    return idx
-
-
 class WholeBodyController:
     """Whole-body inverse dynamics on a Pinocchio model; torque commands for every actuated joint.
+
+    A :class:`~mbctl.control.controller.Controller`: ``compute(state, reference)`` takes the
+    robot's state (the task targets are set on the tasks; ``reference`` is ignored) and returns a
+    torque command; contact ramps advance with the state's time.
 
     Example::
 
         ctrl = WholeBodyController(robot, feet=[left, right])
-        ctrl.add_task(ComAcceleration(TaskGains(10.0, omega_rad_s=8.0)))
-        ...
+        com = ctrl.add_task(ComTask(cost=10.0, servo=AccelerationGains(8.0)))
+        com.set_target(p, v, a)
         command = ctrl.compute(state)          # RobotState in, torque Command out
-        ctrl.last.forces_W["left_foot"]        # predicted contact forces [N]
+        ctrl.solution.forces_W["l_sole"]       # predicted contact forces [N]
 
     Args:
         robot: The robot (actuators name the torque outputs; tau limits from their force ranges).
@@ -196,11 +105,11 @@ class WholeBodyController:
         self._act = np.asarray(self.joints.idx_v, dtype=int)
         self._unact = np.setdiff1d(np.arange(nv), self._act)
         self._n_unact = len(self._unact)
-        self._a, self._u = _as_slice(self._act), _as_slice(self._unact)  # views where contiguous
+        self._a, self._u = as_slice(self._act), as_slice(self._unact)  # views where contiguous
         self.tau_low = np.array(self.joints.tau_low, dtype=float)
         self.tau_high = np.array(self.joints.tau_high, dtype=float)
         self._command_names = self.joints.command_names
-        self.contacts: dict[str, _ContactState] = {}
+        self.contacts: dict[str, ContactState] = {}
         col = nv
         for foot in feet:
             if foot.name in self.contacts:
@@ -208,31 +117,40 @@ class WholeBodyController:
             if not self.model.existFrame(foot.frame):
                 raise WBCSetupError(f"unknown foot frame {foot.frame!r}")
             cols = slice(col, col + 3 * foot.n_points)
-            self.contacts[foot.name] = _ContactState(foot, self.model.getFrameId(foot.frame), cols,
-                                                     np.arange(cols.start + 2, cols.stop, 3))
+            self.contacts[foot.name] = ContactState(foot, self.model.getFrameId(foot.frame), cols,
+                                                    slice(cols.start + 2, cols.stop, 3))
             col = cols.stop
         self.n_x = col
-        self.config = self._config  # the setter derives the regularisation diagonal
         n_f = col - nv
         self._n_fric = 4 * n_f // 3
-        self._G = np.zeros((self._n_fric + 2 * len(self._act), col))
-        self._h = np.zeros(self._G.shape[0])
-        self._lb = np.full(col, -np.inf)
-        self._ub = np.full(col, np.inf)
+        n_a = len(self._act)
+        self._qp = WholeBodyQP(nv, n_f, self._n_fric + n_a, self._n_unact + 6 * len(self.contacts),
+                               self._config.force_weight)
+        qp = self._qp
         row = 0
         for cs in self.contacts.values():  # friction pyramid rows: |f_x|, |f_y| <= mu / sqrt(2) f_z
             mu = cs.contact.mu / np.sqrt(2.0)
             for c0 in range(cs.cols.start, cs.cols.stop, 3):
                 for axis in (0, 1):
                     for sign in (1.0, -1.0):
-                        self._G[row, c0 + axis] = sign
-                        self._G[row, c0 + 2] = -mu
+                        qp.G[row, c0 + axis] = sign
+                        qp.G[row, c0 + 2] = -mu
+                        qp.g_up[row] = 0.0
                         row += 1
-        self.tasks: list[AccelerationTask] = []
+        self._T = qp.G[self._n_fric:]  # torque rows: tau = T x + b_a (a view, written each cycle)
+        self._Jc = np.zeros((n_f, nv))
+        self._H_vv_diag = np.einsum("ii->i", qp.H_vv)  # a writable view of its diagonal
+        self.config = self._config  # the setter sets the weights
+        self._stack = TaskStack(nv)
         self._limits = self._joint_limits()
         self.last: WBCSolution | None = None
-        self._x_warm: np.ndarray | None = None
+        #: Cycles solved by the equality-constrained fast path / by daqp (see control/wbc/qp.py).
+        self.fast_path_cycles = 0
+        self.daqp_cycles = 0
+        self._last_time_s: float | None = None
         self.steps = 0
+        self.infeasible_at_s: float | None = None
+        self.infeasible_message: str | None = None
 
     @property
     def config(self) -> WBCConfig:
@@ -242,13 +160,16 @@ class WholeBodyController:
     @config.setter
     def config(self, config: WBCConfig) -> None:
         self._config = config
-        nv = self.model.nv
-        self._regularisation = np.concatenate([np.full(nv, config.acceleration_weight**2),
-                                               np.full(self.n_x - nv, config.force_weight**2)])
+        self._qp.force_weight = config.force_weight
+
+    @property
+    def tasks(self) -> tuple[Task, ...]:
+        """The tasks in the objective, in the order they were added."""
+        return self._stack.tasks
 
     @property
     def solution(self) -> WBCSolution:
-        """The last QP's solution.
+        """The last cycle's solution.
 
         Raises:
             WBCSetupError: ``compute`` has not run yet.
@@ -256,6 +177,11 @@ class WholeBodyController:
         if self.last is None:
             raise WBCSetupError("no solution yet: call compute(state) first")
         return self.last
+
+    @property
+    def fell_back(self) -> bool:
+        """Whether the controller has switched to its damping fallback (``on_infeasible="damp"``)."""
+        return self.infeasible_at_s is not None
 
     # ------------------------------------------------------------------ setup
     def _joint_limits(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
@@ -274,22 +200,34 @@ class WholeBodyController:
                 hi.append(q_hi)
         return np.array(iv, dtype=int), np.array(iq, dtype=int), np.array(lo), np.array(hi)
 
-    def add_task(self, task: AccelerationTask) -> AccelerationTask:
-        """Add a task (kept until ``remove_task``); returns it."""
-        self.tasks.append(task)
+    def add_task(self, task: Task) -> Task:
+        """Add a task (kept until ``remove_task``); returns it.
+
+        Raises:
+            TaskSetupError: The task has no acceleration-level form (found at the next compute).
+        """
+        if task not in self._stack.tasks:
+            self._stack.set_tasks([*self._stack.tasks, task])
         return task
 
-    def remove_task(self, task: AccelerationTask) -> None:
+    def remove_task(self, task: Task) -> None:
         """Remove a task (no-op if absent)."""
-        if task in self.tasks:
-            self.tasks.remove(task)
+        if task in self._stack.tasks:
+            self._stack.set_tasks([t for t in self._stack.tasks if t is not task])
+
+    def reset(self) -> None:
+        """Forget the ramp clock, the fallback and the counters (the tasks and contacts stay)."""
+        self._last_time_s = None
+        self.fast_path_cycles = self.daqp_cycles = 0
+        self.infeasible_at_s = None
+        self.infeasible_message = None
+        self.steps = 0
 
     def reset_contacts(self, state: RobotState) -> None:
         """Every foot in contact at full weight, held where it is at ``state``."""
         self.state.update(state.q, state.v)
-        for c in self.contacts.values():
-            c.active, c.weight, c.target_weight = True, 1.0, 1.0
-            c.X_WF0 = pin.SE3(self.state.frame_pose(c.fid))
+        for contact in self.contacts.values():
+            contact.hold(pin.SE3(self.state.frame_pose(contact.fid)))
 
     def release(self, foot: str) -> None:
         """Ramp ``foot``'s force down to zero; the foot stays constrained until then."""
@@ -298,63 +236,49 @@ class WholeBodyController:
     def touch_down(self, foot: str) -> None:
         """Constrain ``foot`` where it is now and ramp its force up from zero."""
         c = self._contact(foot)
-        c.active, c.target_weight = True, 1.0
-        c.weight = min(c.weight, 0.0)
-        c.X_WF0 = pin.SE3(self.state.frame_pose(c.fid))
+        c.touch_down(pin.SE3(self.state.frame_pose(c.fid)))
 
     def contact_released(self, foot: str) -> bool:
         """Whether ``foot`` is free (its ramp ended and its constraint was removed)."""
         return not self._contact(foot).active
 
-    def _contact(self, foot: str) -> _ContactState:
+    def _contact(self, foot: str) -> ContactState:
         if foot not in self.contacts:
             raise WBCSetupError(f"unknown foot {foot!r}; feet: {', '.join(self.contacts)}")
         return self.contacts[foot]
 
     # ------------------------------------------------------------------ per cycle
-    def _advance_ramps(self, dt_s: float) -> None:
-        step = dt_s / self.config.ramp_s
-        for c in self.contacts.values():
-            if c.weight < c.target_weight:
-                c.weight = min(c.target_weight, c.weight + step)
-            elif c.weight > c.target_weight:
-                c.weight = max(c.target_weight, c.weight - step)
-            if c.target_weight == 0.0 and c.weight == 0.0:
-                c.active = False
+    def compute(self, state: RobotState, reference: object = None) -> Command:
+        """Torques for ``state`` at the tasks' current targets; ramps advance with ``state.time_s``.
 
-    def compute(self, state: RobotState, reference: object = None, dt_s: float = 0.0) -> Command:
-        """Torques for ``state`` (the current task references); ramps advance by ``dt_s`` [s].
+        Args:
+            state: Measured state, Pinocchio convention.
+            reference: Unused (the targets live on the tasks); accepted for the Controller protocol.
 
         Raises:
-            WBCInfeasible: The QP has no solution (carries the problem and the solver result).
+            WBCInfeasible: The QP has no solution and ``on_infeasible`` is "raise" (carries the
+                problem and the solver result).
         """
         t0 = time.perf_counter()
-        self._advance_ramps(dt_s)
+        dt_s = 0.0 if self._last_time_s is None else max(0.0, state.time_s - self._last_time_s)
+        self._last_time_s = state.time_s
+        for contact in self.contacts.values():
+            contact.advance_ramp(dt_s, self._config.ramp_s)
         s = self.state
         s.update(state.q, state.v)
-        nv, n_x = self.model.nv, self.n_x
+        if self.infeasible_at_s is not None:
+            return self._fallback(state, t0)
+        nv = self.model.nv
         cfg = self.config
-        # tasks: one stacked weighted least-squares block, H = Jw^T Jw, c = -Jw^T rw
-        J_rows, r_rows = [], []
-        for task in self.tasks:
-            J, r = task.rows(s)
-            J_rows.append(task.gains.weight * J)
-            r_rows.append(task.gains.weight * r)
-        H = np.zeros((n_x, n_x))
-        c = np.zeros(n_x)
-        if J_rows:
-            Jw = np.vstack(J_rows)
-            H[:nv, :nv] = Jw.T @ Jw
-            c[:nv] = -(Jw.T @ np.concatenate(r_rows))
-        np.einsum("ii->i", H)[:] += self._regularisation  # a writable view of the diagonal
+        qp = self._qp
+        # tasks: H_vv = W^T W + w_r^2 I, c_v = -W^T r (the task layer's stack)
+        self._stack.acceleration_objective(s, qp.H_vv, qp.c_v)
+        self._H_vv_diag += cfg.acceleration_weight**2
 
         # contact Jacobians of the points, in W: J_P = J_lin - [p_WP - p_WF]x J_ang
-        Jc = np.zeros((n_x - nv, nv))
-        eq_rows: list[np.ndarray] = []
-        eq_rhs: list[np.ndarray] = []
-        lb, ub = self._lb, self._ub
-        G, h = self._G, self._h  # friction rows are constant (built once); torque rows below
-        row = self._n_fric
+        Jc = self._Jc
+        lb, ub = qp.lb, qp.ub
+        m_eq = self._n_unact
         kp_c = cfg.contact_omega_rad_s**2
         kd_c = 2.0 * cfg.contact_omega_rad_s
         points_W, origins_W = {}, {}
@@ -370,63 +294,82 @@ class WholeBodyController:
             block[:] = J_lin - ((r_W @ _SKEW).reshape(-1, 3) @ J_ang).reshape(-1, 3, nv)
             lb[cs.fz] = cs.weight * cfg.f_min_n
             ub[cs.fz] = cs.weight * cfg.f_max_n
-            if cs.active:
-                eq = np.zeros((6, n_x))
-                eq[:3, :nv] = R_WF.T @ J_lin  # J_F in LOCAL: the same twist in F's axes
-                eq[3:, :nv] = R_WF.T @ J_ang
+            if cs.active:  # (the force columns of the foot rows stay zero)
+                eq = qp.E[m_eq:m_eq + 6]
+                eq[:, :nv] = s.frame_jacobian(cs.fid, pin.LOCAL)  # J_F: the foot's twist in F
                 drift = s.frame_drift(cs.fid, pin.LOCAL)
                 err = pin.log6(X_WF.actInv(cs.X_WF0)).vector
                 err[2:5] = 0.0  # the ground sets height, roll and pitch; feedback corrects slip only
-                a_fb = kp_c * err - kd_c * (eq[:, :nv] @ s.v)
-                eq_rows.append(eq)
-                eq_rhs.append(a_fb - drift)
+                qp.e[m_eq:m_eq + 6] = kp_c * err - kd_c * (eq[:, :nv] @ s.v) - drift
+                m_eq += 6
         M, b = s.M, s.b
         u, a = self._u, self._a
-        dyn = np.zeros((self._n_unact, n_x))
+        dyn = qp.E[:self._n_unact]
         dyn[:, :nv] = M[u]
         dyn[:, nv:] = -Jc[:, u].T
-        A_eq = np.vstack([dyn, *eq_rows])
-        b_eq = np.concatenate([-b[u], *eq_rhs])
+        np.negative(b[u], out=qp.e[:self._n_unact])
         # torque rows: tau = T x + b_a with T = [M_a, -Jc_a^T]; tau_min <= tau <= tau_max
-        n_a = len(self.tau_low)
-        T = G[row:row + n_a]
+        T = self._T
         T[:, :nv] = M[a]
         T[:, nv:] = -Jc[:, a].T
-        np.negative(T, out=G[row + n_a:row + 2 * n_a])
         b_a = b[a]
-        h[row:row + n_a] = self.tau_high - b_a
-        h[row + n_a:row + 2 * n_a] = b_a - self.tau_low
+        n_fric = self._n_fric
+        np.subtract(self.tau_high, b_a, out=qp.g_up[n_fric:])
+        np.subtract(self.tau_low, b_a, out=qp.g_lo[n_fric:])
         # joint limits: q + v T + vdot T^2/2 within [q_min, q_max]
         iv, iq, q_lo, q_hi = self._limits
         if len(iv):
             Th = cfg.joint_limit_horizon_s
-            q, v = s.q[iq], s.v[iv]
-            lo = 2.0 * (q_lo - q - v * Th) / Th**2
-            hi = 2.0 * (q_hi - q - v * Th) / Th**2
-            lb[iv] = np.minimum(lo, 0.0)
-            ub[iv] = np.maximum(hi, 0.0)
-        problem = qpsolvers.Problem(H, c, G, h, A_eq, b_eq, lb, ub)
+            reach = s.q[iq] + s.v[iv] * Th  # where the joints coast to in Th
+            scale = 2.0 / Th**2
+            lb[iv] = np.minimum((q_lo - reach) * scale, 0.0)
+            ub[iv] = np.maximum((q_hi - reach) * scale, 0.0)
         t_qp = time.perf_counter()
-        initvals = self._x_warm if cfg.warm_start else None
-        result = qpsolvers.solve_problem(problem, solver=cfg.solver, initvals=initvals)
+        if cfg.solver == "daqp":
+            result = qp.solve(m_eq)
+            x = result.x
+            if result.fast_path:
+                self.fast_path_cycles += 1
+            else:
+                self.daqp_cycles += 1
+        else:  # another backend, through qpsolvers (for comparison)
+            solution = qpsolvers.solve_problem(qp.problem(m_eq), solver=cfg.solver)
+            x = solution.x if solution.found and solution.x is not None else None
         qp_time = time.perf_counter() - t_qp
-        if not result.found or result.x is None or not np.isfinite(result.x).all():
-            raise WBCInfeasible(
+        if x is None or not np.isfinite(x).all():
+            message = (
                 f"whole-body QP infeasible at step {self.steps} (solver {cfg.solver}): contacts "
                 + ", ".join(f"{n} weight {cs.weight:.2f}" for n, cs in self.contacts.items())
                 + f"; normal force per point {cfg.f_min_n:g} to {cfg.f_max_n:g} N at full weight; "
                 f"torque limits [{self.tau_low.min():.1f}, {self.tau_high.max():.1f}] N m. Check the "
-                "force bounds and torque limits against the load, the friction and the task targets.",
-                qpsolvers.Problem(H, c, G.copy(), h.copy(), A_eq, b_eq, lb.copy(), ub.copy()), result,
-                cfg.solver)
-        x = result.x
-        self._x_warm = x
+                "force bounds and torque limits against the load, the friction and the task targets.")
+            if cfg.on_infeasible == "raise":
+                problem = qp.problem(m_eq)
+                raise WBCInfeasible(message, problem, qpsolvers.solve_problem(problem, solver="daqp"),
+                                    cfg.solver, state.time_s)
+            self.infeasible_at_s, self.infeasible_message = state.time_s, message
+            return self._fallback(state, t0)
         vdot, f = x[:nv], x[nv:]
         tau = T @ x + b_a
-        np.maximum(tau, self.tau_low, out=tau)  # np.clip costs twice as much at this size
-        np.minimum(tau, self.tau_high, out=tau)
         self.steps += 1
         forces_W = {name: f[cs.cols.start - nv:cs.cols.stop - nv].reshape(-1, 3)
                     for name, cs in self.contacts.items()}
         self.last = WBCSolution(tau, vdot, forces_W, points_W, origins_W, time.perf_counter() - t0, qp_time)
+        return Command(CommandKind.TORQUE, tau, self._command_names)
+
+    def _fallback(self, state: RobotState, t0: float) -> Command:
+        """Joint damping ``tau = -kd v`` within the torque limits (the ``on_infeasible="damp"`` fallback)."""
+        tau = -self._config.fallback_kd_n_m_s_rad * np.asarray(state.v)[self._a]
+        np.maximum(tau, self.tau_low, out=tau)
+        np.minimum(tau, self.tau_high, out=tau)
+        s = self.state
+        points_W, origins_W, forces_W = {}, {}, {}
+        for name, cs in self.contacts.items():
+            X_WF = s.frame_pose(cs.fid)
+            origins_W[name] = X_WF.translation.copy()
+            points_W[name] = cs.contact.points_F @ X_WF.rotation.T + origins_W[name]
+            forces_W[name] = np.zeros((cs.contact.n_points, 3))
+        self.steps += 1
+        self.last = WBCSolution(tau, np.full(self.model.nv, np.nan), forces_W, points_W, origins_W,
+                                time.perf_counter() - t0, 0.0, fallback=True)
         return Command(CommandKind.TORQUE, tau, self._command_names)

@@ -10,8 +10,9 @@ import numpy as np
 import pytest
 
 from mbctl.control.exceptions import ControllerSetupError
-from mbctl.jobs.demo import DEMO, DemoConfig, scale_masses, square_reference, track_square
+from mbctl.jobs.demo import DEMO, DemoConfig, square_reference, track_square
 from mbctl.jobs.runner import run_job
+from mbctl.robots.edits import scale_masses
 from mbctl.sim.recorder import read_csv
 
 

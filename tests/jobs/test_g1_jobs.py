@@ -18,7 +18,6 @@ from mbctl.jobs.g1 import (
     ArmPDParams,
     StandParams,
     TrackParams,
-    limb_of,
     limb_rows,
     prepare_arm_pd,
     prepare_stand,
@@ -27,6 +26,7 @@ from mbctl.jobs.g1 import (
 from mbctl.jobs.plots import coincident_groups
 from mbctl.jobs.recording import q_columns, v_columns
 from mbctl.jobs.runner import LOCK_NAME, Job, run_job
+from mbctl.robots.g1 import limb_of
 from mbctl.sim.recorder import read_csv
 
 
@@ -50,7 +50,7 @@ def test_g1_stands_under_pd_gravity(g1, tmp_path):
     assert v["fell"] is False and v["saturated_cycles"] == 0
     report = json.loads(record.report_path.read_text())
     assert (report["status"], report["passed"]) == ("completed", True)
-    assert report["bound"] == "pelvis within 20 mm of the keyframe height"
+    assert report["bound"] == "did not fall; pelvis within 20 mm of the keyframe height"
     assert report["run"]["warnings"] == {}  # no divergence warning of any kind
     assert report["rows"] == 1500 == record.rows
     # one row per cycle: time, reference, the full q (pelvis pose included), v, torques, base height
@@ -70,12 +70,16 @@ def test_g1_stands_under_pd_gravity(g1, tmp_path):
 
 
 def test_g1_that_falls_exits_1(g1, tmp_path):
-    # gains for 1 rad/s cannot hold the body: it sinks well past the 20 mm bound
-    record = _run(prepare_stand, StandParams(duration_s=1.5, omega_rad_s=1.0), g1, tmp_path)
+    # gains for 1 rad/s cannot hold the body: in 1.5 s it sinks well past the 20 mm bound (exit 1)
+    # without having fallen yet; by 3 s the torso is on the floor (the G1's fall rule)
+    record = _run(prepare_stand, StandParams(duration_s=1.5, omega_rad_s=1.0), g1, tmp_path / "sink")
     assert (record.status, record.exit_code) == ("completed", 1)
-    assert record.values["fell"] is True and record.values["pelvis_max_deviation_m"] > 0.05
+    assert record.values["fell"] is False and record.values["pelvis_max_deviation_m"] > 0.05
+    record = _run(prepare_stand, StandParams(duration_s=3.0, omega_rad_s=1.0), g1, tmp_path / "fall")
+    assert (record.status, record.exit_code) == ("completed", 1)
+    assert record.values["fell"] is True and record.values["fall_reason"] == "torso_link touched the floor"
     report = json.loads(record.report_path.read_text())
-    assert report["passed"] is False and "FELL" in record.summary()
+    assert report["passed"] is False and "FELL (torso_link touched the floor)" in record.summary()
 
 
 def test_g1_welded_computed_torque_tracks_ruckig(g1, tmp_path):
@@ -108,7 +112,8 @@ def test_g1_arm_pd_through_position_targets(g1, tmp_path):
     assert v["pelvis_max_deviation_m"] < 5e-3 and v["fell"] is False
     assert v["other_joints_max_deviation_rad"] < 0.05  # the body held still while the arm moved
     report = json.loads(record.report_path.read_text())
-    assert report["bound"] == ("joint RMS error <= 0.002 rad; pelvis within 20 mm of the keyframe height")
+    assert report["bound"] == ("joint RMS error <= 0.002 rad; did not fall; pelvis within 20 mm of the "
+                               "keyframe height")
     header = _header(record.files["csv"])
     assert header[1] == "q_ref_left_shoulder_pitch_joint_rad" and header[-1] == "base_z_m"
     assert "target_left_elbow_joint_rad" in header
@@ -216,7 +221,7 @@ def test_run_after_a_diverged_run_leaves_none_of_its_files(g1, tmp_path):
 
 def test_second_run_into_a_busy_folder_refuses(g1, tmp_path):
     env = _env(g1)
-    first = _start_stand(tmp_path, env, duration="3600")  # still running whatever the machine's speed
+    first = _start_stand(tmp_path, env, duration="600")  # mbctl's longest run (limits.py): still running
     try:
         _wait_for_rows(tmp_path, n=10)
         second = subprocess.run(

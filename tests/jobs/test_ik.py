@@ -13,9 +13,9 @@ import mbctl
 from mbctl.control import IKSetupError
 from mbctl.control.ik import QPWholeBodyIK, WholeBodyIKConfig
 from mbctl.jobs.ik import IK, IKParams, plant_frames, plant_residuals, prepare
-from mbctl.jobs.robot_constants import FEET, PALM_SITES, PELVIS, is_menagerie_g1
 from mbctl.jobs.runner import Job, run_job
 from mbctl.robots import load_robot
+from mbctl.robots.g1 import FEET, PALM_SITES, PELVIS, is_menagerie_g1
 
 ASSETS = Path(mbctl.__file__).resolve().parent / "robots" / "assets"
 
@@ -51,7 +51,7 @@ def test_mink_and_qp_give_the_same_g1_pose(g1, tmp_path):
     assert set(poses["qp"]["plant_residual_rad"]) == {*FEET, PELVIS}
     q_qp, q_mink = _q(g1, poses["qp"]), _q(g1, poses["mink"])
     frames = (*FEET, *PALM_SITES)
-    from mbctl.jobs.robot_constants import with_palm_sites
+    from mbctl.robots.g1 import with_palm_sites
 
     g1p = with_palm_sites(g1)
     qp, mink = plant_frames(g1p, q_qp, frames), plant_frames(g1p, q_mink, frames)
@@ -119,7 +119,7 @@ def test_plant_check_catches_a_wrong_orientation(tmp_path):
     robot = load_robot("two_link", pin_model_file=turned, check=False)
     q = np.array([0.3, 0.5])
     ik = QPWholeBodyIK(robot, WholeBodyIKConfig(held_frames=("end_effector",)), q)
-    assert ik.residuals()["end_effector"]["orientation [rad]"] < 1e-12
+    assert ik.task_residuals()["end_effector"].orientation_rad < 1e-12
     plant = plant_residuals(robot, ik, q)
     assert plant.position_m["end_effector"] < 1e-12
     assert plant.orientation_rad["end_effector"] == pytest.approx(0.2, abs=1e-6)

@@ -10,7 +10,8 @@ import sys
 import numpy as np
 import pytest
 
-from mbctl.control import IKSetupError, TwoLinkArm
+from mbctl.control import IKSetupError
+from mbctl.control.ik import TwoLinkArm
 from mbctl.jobs.runner import run_job
 from mbctl.jobs.workspace import SUPPORTED_ROBOTS, WORKSPACE, WorkspaceParams, sample_workspace
 

@@ -8,25 +8,27 @@ import pinocchio as pin
 import pytest
 import qpsolvers
 
-from mbctl.control import (
-    ComTask,
+from mbctl.control import IKInfeasible, IKSetupError, TaskSetupError
+from mbctl.control.ik import (
     Constraint,
-    DampingTask,
     DiffIK,
     FloatingBaseVelocityLimit,
-    FrameOrientationTask,
-    FramePoseTask,
-    FramePositionTask,
-    IKInfeasible,
-    IKSetupError,
-    IKState,
     JointPositionLimit,
     JointVelocityLimit,
     Limit,
-    PostureTask,
-    Task,
     TwoLinkArm,
     solve_ik,
+)
+from mbctl.control.tasks import (
+    ComTask,
+    DampingTask,
+    FrameOrientationTask,
+    FramePoseTask,
+    FramePositionTask,
+    KinematicState,
+    PostureTask,
+    Task,
+    Tolerance,
 )
 from mbctl.robots import UnknownNameError
 
@@ -38,7 +40,7 @@ def _random_q(model: pin.Model, rng: np.random.Generator, scale: float = 0.3, q0
     return pin.integrate(model, q0, scale * rng.standard_normal(model.nv))
 
 
-def _fd_jacobian(task, state: IKState, q: np.ndarray, h: float = 1e-6) -> np.ndarray:
+def _fd_jacobian(task, state: KinematicState, q: np.ndarray, h: float = 1e-6) -> np.ndarray:
     """Central differences of e(q ⊕ h e_i) on the manifold."""
     model = state.model
     cols = []
@@ -54,7 +56,7 @@ def _fd_jacobian(task, state: IKState, q: np.ndarray, h: float = 1e-6) -> np.nda
     return np.column_stack(cols)
 
 
-def _tasks_for(model: pin.Model, frame: str, state: IKState, rng: np.random.Generator):
+def _tasks_for(model: pin.Model, frame: str, state: KinematicState, rng: np.random.Generator):
     """Every task type, with targets away from the current pose (rotation included)."""
     X_WF = state.frame_pose(state.frame_id(frame))
     target = X_WF * pin.exp6(pin.Motion(0.05 * rng.standard_normal(6)))
@@ -95,7 +97,7 @@ def test_task_jacobians_match_finite_differences_two_link(two_link, seed):
     rng = np.random.default_rng(seed)
     model = two_link.pin_model
     q = _random_q(model, rng, 1.0)
-    state = IKState(model, q)
+    state = KinematicState(model, q)
     for task in _tasks_for(model, "end_effector", state, rng):
         e, J = task.error_and_jacobian(state)
         np.testing.assert_allclose(e, task.compute_error(state), atol=1e-14, rtol=0)
@@ -110,7 +112,7 @@ def test_task_jacobians_match_finite_differences_g1(g1, seed):
     rng = np.random.default_rng(seed)
     model = g1.pin_model
     q = _random_q(model, rng, 0.3, g1.keyframe_q("stand"))
-    state = IKState(model, q)
+    state = KinematicState(model, q)
     for frame in ("left_foot", "pelvis", "right_wrist_yaw_link"):
         for task in _tasks_for(model, frame, state, rng):
             _check_fast_rows(task, state)
@@ -122,7 +124,7 @@ def test_pose_task_jacobian_at_zero_relative_rotation(g1):
     # Pure-translation error (the palm-target case): Jlog6 keeps its -[p]x/2 block.
     model = g1.pin_model
     q = g1.keyframe_q("stand")
-    state = IKState(model, q)
+    state = KinematicState(model, q)
     task = FramePoseTask("left_wrist_yaw_link", model, 1.0, 0.0)
     X = pin.SE3(state.frame_pose(state.frame_id("left_wrist_yaw_link")))
     X.translation = X.translation + np.array([0.1, 0.0, 0.0])
@@ -151,10 +153,10 @@ def test_two_link_reaches_target_with_each_solver(two_link, solver):
     task.set_target(target)
     ik = DiffIK(model, [task, DampingTask(model, 1e-3)], [JointVelocityLimit(model, {
         "shoulder": 2.0, "elbow": 2.0})], solver=solver)
-    res = ik.solve(np.array([0.1, 0.5]), dt=0.5, tol=1e-8)
+    res = ik.solve(np.array([0.1, 0.5]), dt=0.5, tolerance=Tolerance(1e-8))
     assert res.converged and not res.stalled
     assert res.iterations <= 8
-    assert res.residuals["end_effector position"]["position [m]"] < 1e-8
+    assert res.residuals["end_effector position"].position_m < 1e-8
     np.testing.assert_allclose(arm.forward_kinematics(res.q), target[:2], atol=1e-8)
     # velocity limit: every step within v_max dt = 1 rad
     assert np.all(res.step_norms <= 1.0 + 1e-7)
@@ -164,7 +166,7 @@ def test_daqp_and_osqp_give_the_same_step(g1):
     model = g1.pin_model
     rng = np.random.default_rng(3)
     q = _random_q(model, rng, 0.2, g1.keyframe_q("stand"))
-    state = IKState(model, q)
+    state = KinematicState(model, q)
     tasks = _tasks_for(model, "left_foot", state, rng)
     limits = [JointPositionLimit(model), FloatingBaseVelocityLimit(model, 0.5, 1.0)]
     v = {s: DiffIK(model, tasks, limits, s, damping=1e-3).step(q, 0.1).v for s in SOLVERS}
@@ -182,16 +184,16 @@ def test_unreachable_target_converges_to_closest_pose(two_link):
     task.set_target([0.9, 0.0, 0.0])
     ik = DiffIK(model, [task, DampingTask(model, 1e-2)], [JointVelocityLimit(model, {
         "shoulder": 2.0, "elbow": 2.0})])
-    res = ik.solve(np.array([0.1, 0.5]), dt=0.5, tol=1e-6, max_iters=200)
+    res = ik.solve(np.array([0.1, 0.5]), dt=0.5, tolerance=Tolerance(1e-6), max_iters=200)
     assert not res.converged and res.stalled
-    residual = res.residuals["end_effector position"]["position [m]"]
+    residual = res.residuals["end_effector position"].position_m
     assert residual == pytest.approx(0.9 - arm.r_max, abs=1e-6)
 
 
 def test_joint_position_limits_hold_on_g1(g1):
     model = g1.pin_model
     q0 = g1.keyframe_q("stand")
-    state = IKState(model, q0)
+    state = KinematicState(model, q0)
     task = FramePositionTask("left_wrist_yaw_link", model, cost=1.0, lm_damping=1.0)
     task.set_target(state.frame_pose(state.frame_id("left_wrist_yaw_link")).translation
                     + [0.0, 1.0, 1.0])  # far out of reach: limits must bind
@@ -209,7 +211,7 @@ def test_joint_position_limits_hold_on_g1(g1):
 def test_floating_base_velocity_limit_bounds_local_twist(g1):
     model = g1.pin_model
     q0 = g1.keyframe_q("stand")
-    state = IKState(model, q0)
+    state = KinematicState(model, q0)
     task = FramePoseTask("pelvis", model, 1.0, 1.0)
     task.set_target(state.frame_pose(state.frame_id("pelvis")) * pin.exp6(pin.Motion(
         np.array([0.5, -0.5, 0.2, 0.3, -0.3, 0.4]))))
@@ -265,15 +267,15 @@ def test_setup_errors(two_link):
     model = two_link.pin_model
     with pytest.raises(UnknownNameError, match="Unknown frame 'end_efector'.*end_effector"):
         FramePoseTask("end_efector", model)
-    with pytest.raises(IKSetupError, match="position_cost must be a non-negative"):
+    with pytest.raises(TaskSetupError, match="position_cost must be a non-negative"):
         FramePoseTask("end_effector", model, position_cost=-1.0)
-    with pytest.raises(IKSetupError, match="gain must be in \\[0, 1\\]; got 1.5"):
+    with pytest.raises(TaskSetupError, match="gain must be in \\[0, 1\\]; got 1.5"):
         FramePositionTask("end_effector", model, gain=1.5)
     with pytest.raises(IKSetupError, match="QP solver 'nosuch' is not installed; available:"):
         DiffIK(model, [DampingTask(model)], solver="nosuch")
     with pytest.raises(IKSetupError, match="needs a free-flyer joint"):
         FloatingBaseVelocityLimit(model)
-    with pytest.raises(IKSetupError, match="no target set"):
+    with pytest.raises(TaskSetupError, match="no target set"):
         DiffIK(model, [FramePositionTask("end_effector", model)]).step(np.zeros(2))
     with pytest.raises(UnknownNameError, match="Unknown joint 'wrist'"):
         JointVelocityLimit(model, {"wrist": 1.0})
@@ -320,7 +322,7 @@ def test_any_robot_free_ball_slide_hinge_fd_and_solve(tiny):
     rng = np.random.default_rng(7)
     q = _random_q(model, rng, 0.4)
     q[-2:] = [0.02, 0.3]  # slide and wrist inside their ranges
-    state = IKState(model, q)
+    state = KinematicState(model, q)
     for task in _tasks_for(model, "tip", state, rng):
         _check_fast_rows(task, state)
         err = np.max(np.abs(task.compute_jacobian(state) - _fd_jacobian(task, state, q)))
@@ -329,7 +331,7 @@ def test_any_robot_free_ball_slide_hinge_fd_and_solve(tiny):
     assert limit.joint_names == ("slide", "wrist")  # ball and free joints are not boxes
     # a reachable target: the tip pose at another joint configuration, same base pose
     dq_joints = np.r_[np.zeros(6), 0.3, -0.2, 0.25, 0.05, 0.4]
-    goal = IKState(model, pin.integrate(model, q, dq_joints))
+    goal = KinematicState(model, pin.integrate(model, q, dq_joints))
     target = goal.frame_pose(goal.frame_id("tip"))
     pose = FramePoseTask("tip", model, 1.0, 1.0)
     pose.set_target(target)
@@ -337,7 +339,7 @@ def test_any_robot_free_ball_slide_hinge_fd_and_solve(tiny):
     base.set_target_from_state(state)
     ik = DiffIK(model, [pose, base, DampingTask(model, 1e-3)],
                 [limit, FloatingBaseVelocityLimit(model, 0.5, 1.0)])
-    res = ik.solve(q, dt=1.0, tol=1e-6, tol_rad=1e-6, max_iters=50)
+    res = ik.solve(q, dt=1.0, tolerance=Tolerance(1e-6, 1e-6), max_iters=50)
     assert res.converged, res.residuals
     qj = res.q[limit.idx_q]
     assert np.all(qj >= limit.q_min - 1e-9) and np.all(qj <= limit.q_max + 1e-9)

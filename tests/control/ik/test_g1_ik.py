@@ -11,12 +11,15 @@ import pytest
 
 from mbctl.control.exceptions import IKSetupError
 from mbctl.control.ik import MinkWholeBodyIK, QPWholeBodyIK, WholeBodyIKConfig
-from mbctl.jobs.robot_constants import (
-    PALM_OFFSET_IN_WRIST_YAW_M,
-    PALM_SITES,
-    g1_whole_body_config,
-    with_palm_sites,
-)
+from mbctl.control.tasks import Tolerance
+from mbctl.robots.g1 import FEET, PALM_OFFSET_IN_WRIST_YAW_M, PALM_SITES, PELVIS, with_palm_sites
+
+
+def g1_whole_body_config(**weights):
+    """The G1 task set of ``mbctl ik`` (mink's humanoid example), from the G1's names."""
+    return WholeBodyIKConfig(held_frames=FEET, target_frames=tuple(PALM_SITES), base_frame=PELVIS, com=True,
+                             **weights)
+
 
 #: Agreement of the mink and Pinocchio velocity steps [rad/s, m/s] (inf-norm): both solve the
 #: same strictly convex QP with daqp; the residual is round-off (measured ~1e-15).
@@ -100,10 +103,10 @@ def test_pose_task_jacobian_at_zero_rotation(g1p):
         / (2 * h) for e in np.eye(g1p.nv)
     ])
     assert np.max(np.abs(J_ours - J_fd)) < 1e-7
-    before = theirs.residuals()["left_palm"]["position [m]"]
+    before = theirs.task_residuals()["left_palm"].position_m
     theirs.update(q)
     theirs.configuration.integrate_inplace(theirs.step_mj(), theirs.config.dt)
-    assert theirs.residuals()["left_palm"]["position [m]"] < 0.5 * before
+    assert theirs.task_residuals()["left_palm"].position_m < 0.5 * before
 
 
 def _at(ik, q, dq):
@@ -117,13 +120,13 @@ def test_palms_moved_10cm_converge_to_1mm_in_4_iterations(g1p, offset):
     ours = QPWholeBodyIK(g1p, g1_whole_body_config(), q0)
     for palm in PALM_SITES:
         ours.set_target_position(palm, ours.frame_position(palm) + offset)
-    res = ours.solve(q0, tol=1e-3, max_iters=10)
+    res = ours.solve(q0, Tolerance(1e-3), max_iters=10)
     assert res.converged
     assert res.iterations <= 4
     for palm in PALM_SITES:
-        assert res.residuals[palm]["position [m]"] < 1e-3
+        assert res.residuals[palm].position_m < 1e-3
     for foot in ("left_foot", "right_foot"):
-        assert res.residuals[foot]["position [m]"] < 1e-3
+        assert res.residuals[foot].position_m < 1e-3
     margins = ours.position_limit.margins(res.q)
     assert min(min(m) for m in margins.values()) >= -1e-9
 
@@ -133,13 +136,13 @@ def test_unreachable_palm_target_reports_residual(g1p):
     ours = QPWholeBodyIK(g1p, g1_whole_body_config(), q0)
     far = ours.frame_position("left_palm") + [1.5, 0.0, 0.0]
     ours.set_target_position("left_palm", far)
-    res = ours.solve(q0, tol=1e-3, max_iters=60)  # no exception: closest compromise pose
+    res = ours.solve(q0, Tolerance(1e-3), max_iters=60)  # no exception: closest compromise pose
     assert not res.converged
     assert set(res.residuals) == set(ours.tasks)  # every task reports its residual
-    assert res.residuals["left_palm"]["position [m]"] > 0.5
+    assert res.residuals["left_palm"].position_m > 0.5
     # Feet are soft tasks (cost 10 vs palm 5): the 1.5 m pull drags them a few cm, no more.
-    assert res.residuals["left_foot"]["position [m]"] < 5e-2
-    assert res.residuals["right_palm"]["position [m]"] < 0.1
+    assert res.residuals["left_foot"].position_m < 5e-2
+    assert res.residuals["right_palm"].position_m < 0.1
     margins = ours.position_limit.margins(res.q)
     assert min(min(m) for m in margins.values()) >= -1e-9
 

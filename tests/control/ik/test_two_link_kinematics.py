@@ -11,14 +11,8 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from mbctl.control import (
-    ElbowBranch,
-    IKSetupError,
-    TwoLinkArm,
-    UnreachableTarget,
-    dls_ik,
-    pinv_ik,
-)
+from mbctl.control import IKSetupError, UnreachableTarget
+from mbctl.control.ik import ElbowBranch, TwoLinkArm, dls_ik, pinv_ik
 
 angles = st.floats(-math.pi, math.pi, allow_nan=False)
 
@@ -155,10 +149,10 @@ def test_iterative_ik_converges(arm, solver):
     target = arm.forward_kinematics([0.7, -1.1])
     res = solver(arm, target, [0.1, 0.5], tol=1e-10)
     assert res.converged
-    assert res.error_norm < 1e-10
-    assert len(res.error_history) == res.iterations + 1
+    assert res.residuals["end_effector"].position_m < 1e-10
+    assert len(res.position_history) == res.iterations + 1
     assert len(res.step_norms) == res.iterations
-    assert res.error_history[0] > 0.1
+    assert res.position_history[0] > 0.1
     np.testing.assert_allclose(arm.forward_kinematics(res.q), target, atol=1e-10)
     assert res.iterations <= (10 if solver is pinv_ik else 200)
 
@@ -179,7 +173,7 @@ def test_dls_bounded_where_pinv_blows_up_near_stretched_singularity(arm):
     # ... and DLS still gets there, every step within its bound.
     full = dls_ik(arm, target, q0, damping=lam, tol=1e-9, max_iters=500)
     assert full.converged
-    bound = np.minimum(full.error_history[:-1], 0.05) / (2 * lam)
+    bound = np.minimum(full.position_history[:-1], 0.05) / (2 * lam)  # steps' inf-norms within it
     assert np.all(full.step_norms <= bound + 1e-12)
 
 
@@ -189,7 +183,7 @@ def test_dls_unreachable_converges_to_closest_point(arm):
     assert not res.converged
     # DLS creeps toward the stretched-out singularity (steps shrink like sin q2): within 3 mm
     # of the closest distance after 300 steps, pointing at the target, never diverging.
-    assert 0.0 <= res.error_norm - (1.0 - arm.r_max) < 3e-3
+    assert 0.0 <= res.residuals["end_effector"].position_m - (1.0 - arm.r_max) < 3e-3
     p = arm.forward_kinematics(res.q)
     assert abs(math.atan2(p[1], p[0])) < 1e-3
-    assert res.error_history[-1] <= res.error_history[-50]
+    assert res.position_history[-1] <= res.position_history[-50]

@@ -1,4 +1,9 @@
-"""Whole-body inverse dynamics: task drifts against finite differences, static stance, errors."""
+"""Whole-body inverse dynamics on a biped built in code (conftest.py), and the G1's static stance.
+
+Task drifts against finite differences, static stance (forces under the CoM, friction, torque
+limits), infeasibility (raised or the damping fallback), a closed-loop squat checked in MuJoCo,
+the same torques whatever the actuator order, warm and cold starts, wrenches and CoP, M.
+"""
 
 from __future__ import annotations
 
@@ -6,49 +11,45 @@ import numpy as np
 import pinocchio as pin
 import pytest
 
-from mbctl.control.exceptions import WBCInfeasible, WBCSetupError
-from mbctl.control.wbc import (
-    AngularMomentumDamping,
-    ComAcceleration,
+from mbctl.control import run
+from mbctl.control.exceptions import TaskSetupError, WBCInfeasible, WBCSetupError
+from mbctl.control.tasks import (
+    AccelerationGains,
+    AngularMomentumTask,
+    ComTask,
+    DampingTask,
     DynamicsState,
-    FrameOrientationAcceleration,
-    FramePoseAcceleration,
-    FramePositionAcceleration,
-    PostureAcceleration,
-    TaskGains,
-    WBCConfig,
+    FrameOrientationTask,
+    FramePoseTask,
+    FramePositionTask,
+    PostureTask,
 )
-from mbctl.jobs.g1_wbc import crouched_start, g1_whole_body
-from mbctl.robots.edits import position_to_motor
+from mbctl.control.wbc import Scheduled, WBCConfig, standing_controller
 from mbctl.robots.interface import RobotState
+from mbctl.sim import Simulator
+from mbctl.sim.monitor import PlantMonitor
+
+FEET = ("l_sole", "r_sole")
 
 
-@pytest.fixture(scope="module")
-def g1_motor(g1):
-    from mbctl.jobs.robot_constants import with_palm_sites
-
-    return position_to_motor(with_palm_sites(g1))
-
-
-def _tasks(model, idx_v):
-    gains = TaskGains(1.0)
-    return [ComAcceleration(gains), FrameOrientationAcceleration("torso_link", model, gains),
-            FramePoseAcceleration("right_foot", model, gains),
-            FramePositionAcceleration("left_palm", model, gains),
-            PostureAcceleration(model, idx_v, gains), AngularMomentumDamping(gains)]
+def _tasks(model):
+    targets = [ComTask(), FrameOrientationTask("torso", model), FramePoseTask("r_sole", model),
+               FramePositionTask("chest", model), PostureTask(model)]
+    for task in targets:
+        task.set_target_from_state(DynamicsState(model))
+    return [*targets, AngularMomentumTask()]
 
 
-def test_every_task_drift_is_the_time_derivative_of_its_jacobian_times_v(g1_motor):
-    model = g1_motor.pin_model
+def test_every_task_drift_is_the_time_derivative_of_its_jacobian_times_v(tiny_biped):
+    model = tiny_biped.pin_model
     rng = np.random.default_rng(3)
-    q = pin.randomConfiguration(model, -np.ones(model.nq) * 0 + model.lowerPositionLimit.clip(-3, 3),
-                                model.upperPositionLimit.clip(-3, 3))
+    lower, upper = model.lowerPositionLimit.clip(-3, 3), model.upperPositionLimit.clip(-3, 3)
+    q = pin.randomConfiguration(model, lower, upper)
     v = rng.normal(size=model.nv)
     h = 1e-6
-    for task in _tasks(model, np.arange(6, model.nv)):
+    for task in _tasks(model):
         states = [DynamicsState(model, pin.integrate(model, q, s * h * v), v) for s in (1.0, -1.0)]
-        center = DynamicsState(model, q, v)
-        J, drift = task.jacobian_and_drift(center)
+        J, drift = task.jacobian_and_drift(DynamicsState(model, q, v))
         Jp, _ = task.jacobian_and_drift(states[0])
         Jm, _ = task.jacobian_and_drift(states[1])
         fd = (Jp @ v - Jm @ v) / (2 * h)
@@ -57,45 +58,110 @@ def test_every_task_drift_is_the_time_derivative_of_its_jacobian_times_v(g1_moto
         assert J.shape == (task.k, model.nv)
 
 
-def _stance_controller(robot):
-    wb = g1_whole_body(robot)
-    q = crouched_start(robot)
-    state = RobotState(q, np.zeros(robot.pin_model.nv), 0.0)
+def test_every_fast_acceleration_path_equals_the_generic_rows(tiny_biped):
+    """Each task's own write_acceleration_rows (a fast path) equals Task's generic one."""
+    from mbctl.control.tasks import Task
+
+    model = tiny_biped.pin_model
+    rng = np.random.default_rng(11)
+    q = pin.integrate(model, pin.neutral(model), 0.3 * rng.normal(size=model.nv))
+    state = DynamicsState(model, q, rng.normal(size=model.nv))
+    for task in _tasks(model):
+        if hasattr(task, "set_target") and not isinstance(task, (ComTask, PostureTask)):
+            task.set_target(pin.SE3(pin.exp3(0.2 * rng.normal(size=3)), rng.normal(size=3)))
+        elif isinstance(task, ComTask):
+            task.set_target(rng.normal(size=3), rng.normal(size=3), rng.normal(size=3))
+        task.servo = AccelerationGains(7.0, 0.6)
+        task.set_cost(rng.uniform(0.5, 2.0, task.k))
+        fast = np.zeros((task.k, model.nv)), np.zeros(task.k)
+        generic = np.zeros((task.k, model.nv)), np.zeros(task.k)
+        task.write_acceleration_rows(state, *fast)
+        Task.write_acceleration_rows(task, state, *generic)
+        np.testing.assert_allclose(fast[0], generic[0], atol=1e-12, err_msg=task.name)
+        np.testing.assert_allclose(fast[1], generic[1], atol=1e-10, err_msg=task.name)
+    np.testing.assert_allclose(state.angular_momentum(), state.centroidal_map()[3:] @ state.v, atol=1e-12)
+
+
+def test_a_task_without_an_acceleration_form_is_named(tiny_biped, crouch):
+    wb = standing_controller(tiny_biped, FEET, "pelvis")
+    wb.hold(RobotState(crouch(tiny_biped), np.zeros(tiny_biped.nv), 0.0))
+    wb.controller.add_task(DampingTask(tiny_biped.pin_model))
+    with pytest.raises(TaskSetupError, match="damping: DampingTask has no acceleration-level form"):
+        wb.controller.compute(RobotState(crouch(tiny_biped), np.zeros(tiny_biped.nv), 0.0))
+    with pytest.raises(TaskSetupError, match="angular-momentum task has no velocity-level"):
+        AngularMomentumTask().compute_error(wb.controller.state)
+
+
+def _stance(robot, crouch, torso="torso", **config):
+    wb = standing_controller(robot, FEET, "pelvis", torso, config=WBCConfig(**config))
+    state = RobotState(crouch(robot), np.zeros(robot.nv), 0.0)
     wb.hold(state)
     return wb, state
 
 
-def test_static_stance_forces_carry_the_weight_under_the_com(g1_motor):
-    wb, state = _stance_controller(g1_motor)
+def _check_static_stance(wb, state, mu):
     command = wb.controller.compute(state)
-    sol = wb.controller.solution
-    s = wb.controller.state
-    mg = s.mass * 9.81
+    sol, s = wb.controller.solution, wb.controller.state
     forces = np.vstack(list(sol.forces_W.values()))
-    assert forces[:, 2].sum() == pytest.approx(mg, rel=1e-6)  # measured 2e-8
+    assert forces[:, 2].sum() == pytest.approx(s.mass * 9.81, rel=1e-6)
     # the centre of pressure of both feet together is under the centre of mass
-    points = np.vstack([[s.frame_pose(cs.fid).act(p) for p in cs.contact.points_F]
-                        for cs in wb.controller.contacts.values()])
+    points = np.vstack(list(sol.points_W.values()))
     cop = forces[:, 2] @ points / forces[:, 2].sum()
     assert np.abs(cop[:2] - s.com()[:2]).max() < 1e-6
     # torques within the actuators' limits; every point inside its friction pyramid
     assert np.all(command.values <= wb.controller.tau_high + 1e-9)
-    assert np.all(np.abs(forces[:, :2]) <= 0.6 / np.sqrt(2) * forces[:, 2:3] + 1e-9)
+    assert np.all(command.values >= wb.controller.tau_low - 1e-9)
+    assert np.all(np.abs(forces[:, :2]) <= mu / np.sqrt(2) * forces[:, 2:3] + 1e-9)
 
 
-def test_infeasible_qp_raises_a_named_error_with_the_problem(g1_motor):
-    wb, state = _stance_controller(g1_motor)
-    # 100 N per point (800 N on the ground, 2.4 m g) needs more than the 139 N m the knees have
-    wb.controller.config = WBCConfig(f_min_n=100.0, f_max_n=400.0)
+def test_static_stance_forces_carry_the_weight_under_the_com(tiny_biped, crouch):
+    _check_static_stance(*_stance(tiny_biped, crouch), mu=0.8)
+
+
+def test_g1_static_stance(g1):
+    from mbctl.robots.edits import position_to_motor
+    from mbctl.robots.g1 import FEET as G1_FEET
+    from mbctl.robots.g1 import PELVIS, TORSO, crouched_start
+
+    robot = position_to_motor(g1)
+    wb = standing_controller(robot, G1_FEET, PELVIS, TORSO)
+    state = RobotState(crouched_start(robot), np.zeros(robot.nv), 0.0)
+    wb.hold(state)
+    _check_static_stance(wb, state, mu=0.6)
+
+
+def test_infeasible_qp_raises_a_named_error_with_the_problem(tiny_biped, crouch):
+    # 100 N per point (800 N on the ground, 3.6 m g) needs more than the knees' 120 N m
+    wb, state = _stance(tiny_biped, crouch, f_min_n=100.0, f_max_n=400.0)
     with pytest.raises(WBCInfeasible, match=(r"whole-body QP infeasible at step 0 \(solver daqp\): "
-                                             r"contacts left_foot weight 1.00, right_foot weight 1.00; "
+                                             r"contacts l_sole weight 1.00, r_sole weight 1.00; "
                                              r"normal force per point 100 to 400 N")) as info:
         wb.controller.compute(state)
     assert info.value.problem.P.shape == (wb.controller.n_x, wb.controller.n_x)
     assert info.value.result.found is False
+    assert info.value.time_s == 0.0
     # the same stance with the default bounds is feasible
     wb.controller.config = WBCConfig()
     wb.controller.compute(state)
+
+
+def test_infeasible_qp_falls_back_to_joint_damping_when_asked(tiny_biped, crouch):
+    wb, state = _stance(tiny_biped, crouch, f_min_n=100.0, f_max_n=400.0, on_infeasible="damp",
+                        fallback_kd_n_m_s_rad=3.0)
+    moving = RobotState(state.q, np.linspace(-0.05, 0.05, tiny_biped.nv), 0.25)
+    command = wb.controller.compute(moving)
+    ctrl = wb.controller
+    assert ctrl.fell_back and ctrl.infeasible_at_s == 0.25
+    assert "whole-body QP infeasible at step 0" in ctrl.infeasible_message
+    np.testing.assert_allclose(command.values, -3.0 * moving.v[ctrl.joints.idx_v], atol=1e-12)
+    assert ctrl.solution.fallback and not np.any(np.vstack(list(ctrl.solution.forces_W.values())))
+    # it stays in the fallback (a robot that lost its balance gets no QP torques mid-fall)
+    ctrl.config = WBCConfig()
+    ctrl.compute(state)
+    assert ctrl.solution.fallback
+    ctrl.reset()
+    ctrl.compute(state)
+    assert not ctrl.solution.fallback
 
 
 def test_bad_options_are_named():
@@ -103,46 +169,71 @@ def test_bad_options_are_named():
         WBCConfig(f_min_n=1.0, f_max_n=0.5)
     with pytest.raises(WBCSetupError, match="QP solver 'nope' is not installed"):
         WBCConfig(solver="nope")
-    with pytest.raises(WBCSetupError, match="TaskGains.weight must be finite and > 0"):
-        TaskGains(0.0)
+    with pytest.raises(WBCSetupError, match="on_infeasible must be one of raise, damp; got 'fly'"):
+        WBCConfig(on_infeasible="fly")
+    with pytest.raises(TaskSetupError, match="AccelerationGains.omega_rad_s must be finite and >= 0"):
+        AccelerationGains(-1.0)
 
 
-def test_unknown_foot_is_named(g1_motor):
-    wb, _ = _stance_controller(g1_motor)
-    with pytest.raises(WBCSetupError, match="unknown foot 'hand'; feet: left_foot, right_foot"):
+def test_unknown_foot_is_named(tiny_biped, crouch):
+    wb, _ = _stance(tiny_biped, crouch)
+    with pytest.raises(WBCSetupError, match="unknown foot 'hand'; feet: l_sole, r_sole"):
         wb.controller.release("hand")
 
 
-def _moving_state(robot, seed=5):
+def test_the_biped_squats_in_mujoco(tiny_biped, crouch):
+    """Closed loop on the plant: the CoM follows a 6 cm squat, measured with MuJoCo's CoM."""
+    sim = Simulator(tiny_biped)
+    sim.reset(q=crouch(tiny_biped))
+    wb = standing_controller(tiny_biped, FEET, "pelvis", "torso")
+    wb.hold(sim.read_state())
+    c0 = wb.com.target
+    w = np.pi
+
+    def squat(t):
+        wb.com.set_target(c0 - [0, 0, 0.03 * (1 - np.cos(w * t))], [0, 0, -0.03 * w * np.sin(w * t)],
+                          [0, 0, -0.03 * w * w * np.cos(w * t)])
+
+    plant = PlantMonitor(sim, {n: cs.contact.geoms for n, cs in wb.controller.contacts.items()}).attach()
+    errors, forces, heights = [], [], []
+
+    def measure(k, state, reference, command):
+        errors.append(np.linalg.norm(plant.com_W - wb.com.target))
+        forces.append(sum(c.normal_n for c in plant.contacts.values()))
+        heights.append(plant.com_W[2])
+
+    log = run(sim, Scheduled(wb.controller, squat), None, 2.0, on_step=measure)
+    assert log.cycles == 1000
+    assert np.sqrt(np.mean(np.square(errors))) < 2e-3  # measured 0.5 mm
+    assert min(heights) == pytest.approx(c0[2] - 0.06, abs=2e-3)  # MuJoCo's CoM went 6 cm down
+    assert np.median(forces) == pytest.approx(plant.mass_kg * 9.81, rel=0.05)
+    assert sim.saturated_commands == 0
+
+
+def _moving_state(robot, crouch, seed=5):
     rng = np.random.default_rng(seed)
-    q = crouched_start(robot)
-    return RobotState(q, 0.2 * rng.normal(size=robot.pin_model.nv), 0.0)
+    return RobotState(crouch(robot), 0.2 * rng.normal(size=robot.nv), 0.0)
 
 
-def test_slices_index_arrays_and_warm_start_give_the_same_solution(g1_motor):
-    # the G1's base and actuated columns are contiguous, so the controller indexes with slices;
-    # the index-array path (any actuator order) and a cold start must give the same torques
-    state = _moving_state(g1_motor)
-    wb, _ = _stance_controller(g1_motor)
-    ctrl = wb.controller
-    assert isinstance(ctrl._a, slice) and isinstance(ctrl._u, slice)
-    ctrl.compute(state)
-    ctrl.compute(state)  # warm-started from the first solve
-    warm = ctrl.solution
-    ctrl._a, ctrl._u = ctrl._act, ctrl._unact
-    ctrl.config = WBCConfig(warm_start=False)
-    ctrl.compute(state)
-    cold = ctrl.solution
-    np.testing.assert_allclose(cold.tau, warm.tau, atol=1e-7)
-    np.testing.assert_allclose(cold.vdot, warm.vdot, atol=1e-7)
-    assert np.abs(cold.tau).max() > 1.0  # a loaded, moving state, not a zero solution
+def test_the_actuator_order_does_not_change_the_torques(tiny_biped, tiny_biped_reordered, crouch):
+    # contiguous actuated dofs (slices) against an actuator order with no contiguous run (index
+    # arrays): the same torques, joint by joint
+    state = _moving_state(tiny_biped, crouch)
+    torques = {}
+    for label, robot in (("slices", tiny_biped), ("arrays", tiny_biped_reordered)):
+        wb, _ = _stance(robot, crouch)
+        command = wb.controller.compute(state)
+        torques[label] = dict(zip(wb.controller.joints.joints, command.values, strict=True))
+    assert list(torques["slices"]) != list(torques["arrays"])  # the orders differ
+    for joint, tau in torques["slices"].items():
+        assert torques["arrays"][joint] == pytest.approx(tau, abs=1e-7), joint
+    assert max(abs(t) for t in torques["slices"].values()) > 1.0  # a loaded, moving state
 
 
-def test_wrench_and_cop_agree_with_the_point_forces(g1_motor):
-    wb, state = _stance_controller(g1_motor)
-    wb.controller.compute(_moving_state(g1_motor, seed=7))
-    sol = wb.controller.solution
-    s = wb.controller.state
+def test_wrench_and_cop_agree_with_the_point_forces(tiny_biped, crouch):
+    wb, _ = _stance(tiny_biped, crouch)
+    wb.controller.compute(_moving_state(tiny_biped, crouch, seed=7))
+    sol, s = wb.controller.solution, wb.controller.state
     for name, cs in wb.controller.contacts.items():
         X_WF = s.frame_pose(cs.fid)
         points = np.array([X_WF.act(p) for p in cs.contact.points_F])
@@ -157,9 +248,9 @@ def test_wrench_and_cop_agree_with_the_point_forces(g1_motor):
         assert abs(((points[:, :2] - cop[:2]) * F[:, 2:3]).sum(0)).max() < 1e-9
 
 
-def test_mass_matrix_is_symmetric_and_matches_crba(g1_motor):
-    model = g1_motor.pin_model
-    q = crouched_start(g1_motor)
+def test_mass_matrix_is_symmetric_and_matches_crba(tiny_biped, crouch):
+    model = tiny_biped.pin_model
+    q = crouch(tiny_biped)
     s = DynamicsState(model, q, np.ones(model.nv))
     M = pin.crba(model, model.createData(), q)
     M = np.triu(M) + np.triu(M, 1).T

@@ -9,8 +9,9 @@ Each step solves, for the tangent step ``dq`` (nv,) (``v = dq / dt``)::
     W = [diag(cost_i) J_i]_i (stacked),    r = [-gain_i diag(cost_i) e_i]_i,
     mu_i = lm_damping_i |r_i|^2
 
-which is mink's problem (``mink.solve_ik``) written with Pinocchio quantities. The step is applied
-on the manifold with ``pin.integrate``.
+which is mink's problem (``mink.solve_ik``) written with Pinocchio quantities; the task rows are
+the velocity level of :mod:`mbctl.control.tasks` (assembled by its ``TaskStack``). The step is
+applied on the manifold with ``pin.integrate``.
 
 ``DiffIK`` preallocates W, r, H, c and the bounds for a fixed task/limit set; one step costs one
 ``pin.computeJointJacobians`` + ``pin.updateFramePlacements`` (+ CoM) and one QP.
@@ -18,7 +19,6 @@ on the manifold with ``pin.integrate``.
 
 from __future__ import annotations
 
-import time
 import warnings
 from collections.abc import Sequence
 from typing import NamedTuple
@@ -31,8 +31,12 @@ from qpsolvers.warnings import SparseConversionWarning
 
 from mbctl.control.exceptions import IKInfeasible, IKSetupError
 from mbctl.control.ik.limits import BoxLimit, Limit
-from mbctl.control.ik.state import IKState
-from mbctl.control.ik.tasks import ComTask, DiagonalTask, Task
+from mbctl.control.ik.loop import IKResult, iterate
+from mbctl.control.tasks.base import Task
+from mbctl.control.tasks.com import ComTask
+from mbctl.control.tasks.residuals import TaskResidual, Tolerance
+from mbctl.control.tasks.stack import TaskStack
+from mbctl.control.tasks.state import KinematicState
 
 #: Magnitude standing for "no bound" in the QP (DAQP's and OSQP's infinity).
 QP_INFINITY = 1e30
@@ -50,33 +54,6 @@ class IKStep(NamedTuple):
     v: np.ndarray
     dq: np.ndarray
     solve_time_s: float
-
-
-class IKResult(NamedTuple):
-    """Outcome of iterating differential IK to convergence.
-
-    Attributes:
-        q: Final configuration (nq,), Pinocchio convention.
-        converged: Whether every non-regularising task residual met its tolerance.
-        stalled: Whether iteration stopped because the step became negligible (closest pose to
-            an unreachable target).
-        iterations: Number of steps taken.
-        residuals: Per task name, its residual norms by quantity (``"position [m]"``,
-            ``"orientation [rad]"``, ...), at ``q``.
-        max_position_residual_history: Largest position residual [m] before each step and at
-            the end (iterations + 1,).
-        step_norms: Infinity norm of each step ``dq`` (iterations,).
-        wall_time_s: Total wall-clock time of the loop [s].
-    """
-
-    q: np.ndarray
-    converged: bool
-    stalled: bool
-    iterations: int
-    residuals: dict[str, dict[str, float]]
-    max_position_residual_history: np.ndarray
-    step_norms: np.ndarray
-    wall_time_s: float
 
 
 class DiffIK:
@@ -130,26 +107,12 @@ class DiffIK:
         self.solver_options = dict(solver_options or {})
         if solver == "osqp" and not self.solver_options:
             self.solver_options = {"eps_abs": 1e-9, "eps_rel": 1e-9, "polishing": False}
-        self.state = IKState(model, with_com=any(isinstance(t, ComTask) for t in self.tasks))
+        self.state = KinematicState(model, with_com=any(isinstance(t, ComTask) for t in self.tasks))
         nv = model.nv
-        self._diagonal = tuple(
-            t for t in self.tasks if isinstance(t, DiagonalTask) and t.is_diagonal
-        )
-        self._dense = tuple(t for t in self.tasks if t not in self._diagonal)
-        n_rows = sum(t.k for t in self._dense)
-        self._W = np.zeros((n_rows, nv))
-        self._r = np.zeros(n_rows)
-        # Per dense task: (task, its rows of W, its entries of r) -- views, made once.
-        views = []
-        row = 0
-        for t in self._dense:
-            views.append((t, self._W[row : row + t.k], self._r[row : row + t.k]))
-            row += t.k
-        self._views = tuple(views)
+        self.stack = TaskStack(nv, self.tasks)
         self._H = np.zeros((nv, nv))
         self._H_diag = np.einsum("ii->i", self._H)  # writable view of H's diagonal
         self._c = np.zeros(nv)
-        self._tmp = np.zeros(nv)
         self._box = tuple(lim for lim in self.limits if isinstance(lim, BoxLimit))
         self._box_dynamic = tuple(lim for lim in self._box if lim.state_dependent)
         self._box_static = tuple(lim for lim in self._box if not lim.state_dependent)
@@ -160,7 +123,6 @@ class DiffIK:
         self._static_lb = np.empty(nv)
         self._static_ub = np.empty(nv)
         self._quiet = solver == "osqp"
-        self._cost2_cache: dict[int, tuple[np.ndarray, np.ndarray]] = {}
 
     # ------------------------------------------------------------------ QP
     def update(self, q: npt.ArrayLike) -> None:
@@ -192,41 +154,16 @@ class DiffIK:
         if not dt > 0.0:
             raise IKSetupError(f"dt must be > 0 [s]; got {dt!r}")
         state = self.state
-        mu = self.damping
-        for task, W_t, r_t in self._views:
-            mu += task.write_qp_rows(state, W_t, r_t)
-        H, c = self._H, self._c
-        np.matmul(self._W.T, self._W, out=H)
-        np.matmul(self._r, self._W, out=c)
-        np.negative(c, out=c)
+        H = self._H
+        mu = self.damping + self.stack.velocity_objective(state, H, self._c)
         self._H_diag += mu
-        tmp = self._tmp
-        for task in self._diagonal:
-            # W_t = diag(cost mask), r_t = -gain cost e  =>  H += cost^2 mask, c += gain cost^2 mask e
-            cost2_mask = self._cost2_mask(task)
-            self._H_diag += cost2_mask
-            if task.gain > 0.0:  # with gain 0, r_t and so the LM term are zero too
-                e = task.compute_error(state)
-                np.multiply(cost2_mask, e, out=tmp)
-                tmp *= task.gain
-                c += tmp
-                if task.lm_damping > 0.0:
-                    err = task.gain * task.cost * e
-                    self._H_diag += task.lm_damping * float(err @ err)
         lb, ub = self._bounds(dt)
         G = h = None
         if self._other:
             cons = [lim.compute_qp_inequalities(state, dt) for lim in self._other]
             G = np.vstack([con.G for con in cons])
             h = np.concatenate([con.h for con in cons])
-        return qpsolvers.Problem(H, c, G, h, None, None, lb, ub)
-
-    def _cost2_mask(self, task: DiagonalTask) -> np.ndarray:
-        cached = self._cost2_cache.get(id(task))
-        if cached is None or cached[0] is not task.cost:
-            cached = (task.cost, task.cost * task.cost * task.mask)
-            self._cost2_cache[id(task)] = cached
-        return cached[1]
+        return qpsolvers.Problem(H, self._c, G, h, None, None, lb, ub)
 
     def solve_step(self, dt: float = 1.0) -> IKStep:
         """Solve the QP at the current state.
@@ -282,82 +219,56 @@ class DiffIK:
         return self.solve_step(dt)
 
     # ------------------------------------------------------------------ loop
-    def residuals(self) -> dict[str, dict[str, float]]:
-        """Residual norms of every task at the current state."""
-        return {t.name: t.residuals(self.state) for t in self.tasks}
+    @property
+    def q(self) -> np.ndarray:
+        """Current configuration (nq,), Pinocchio convention (a copy)."""
+        return np.array(self.state.q)
+
+    def task_residuals(self) -> dict[str, TaskResidual]:
+        """Every task's residual at the current state, by task name."""
+        return {t.name: t.residual(self.state) for t in self.tasks}
 
     def solve(
         self,
         q0: npt.ArrayLike,
         dt: float = 1.0,
-        tol: float = 1e-3,
-        tol_rad: float = 1e-2,
+        tolerance: Tolerance | None = None,
         max_iters: int = 50,
         step_tol: float = 1e-6,
     ) -> IKResult:
-        """Iterate steps from ``q0`` until all target tasks meet their tolerance.
-
-        An unreachable target is not an error: iteration stops when the step becomes negligible
-        (``stalled``) and the residuals report how far each task is from its target.
+        """Iterate steps from ``q0`` (nq,) until every target task meets ``tolerance``.
 
         Args:
             q0: Initial configuration (nq,).
             dt: Step duration [s] (velocity limits allow ``v_max dt`` per step).
-            tol: Position tolerance [m] (also used for unit-less "error" residuals).
-            tol_rad: Orientation tolerance [rad].
+            tolerance: Position [m] and orientation [rad] tolerances (default 1 mm, 0.01 rad).
             max_iters: Maximum number of steps.
             step_tol: Stop when ``|dq|_inf`` falls below this [rad or m].
 
         Raises:
-            IKSetupError: Non-positive tolerances or iteration count.
+            IKSetupError: A non-positive ``dt``, negative ``step_tol`` or ``max_iters`` < 1.
             IKInfeasible: A step's QP has no solution.
         """
-        if not (tol > 0.0 and tol_rad > 0.0 and step_tol > 0.0) or int(max_iters) < 1:
-            raise IKSetupError(
-                f"tol, tol_rad, step_tol must be > 0 and max_iters >= 1; got tol={tol!r}, "
-                f"tol_rad={tol_rad!r}, step_tol={step_tol!r}, max_iters={max_iters!r}"
-            )
-        t0 = time.perf_counter()
-        self.state.update(q0)
-        history: list[float] = []
-        steps: list[float] = []
-        converged = stalled = False
-        for it in range(int(max_iters) + 1):
-            res = self.residuals()
-            converged, worst = _check(self.tasks, res, tol, tol_rad)
-            history.append(worst)
-            if converged or stalled or it == int(max_iters):
-                break
-            out = self.solve_step(dt)
-            steps.append(float(np.max(np.abs(out.dq))))
-            self.state.update(pin.integrate(self.model, self.state.q, out.dq))
-            stalled = steps[-1] < step_tol
-        return IKResult(
-            q=np.array(self.state.q),
-            converged=converged,
-            stalled=stalled and not converged,
-            iterations=len(steps),
-            residuals=res,
-            max_position_residual_history=np.array(history),
-            step_norms=np.array(steps),
-            wall_time_s=time.perf_counter() - t0,
-        )
+        return iterate(_Stepper(self, dt), q0, tolerance or Tolerance(), max_iters, step_tol)
 
 
-def _check(
-    tasks: Sequence[Task], res: dict[str, dict[str, float]], tol: float, tol_rad: float
-) -> tuple[bool, float]:
-    ok = True
-    worst = 0.0
-    for t in tasks:
-        if t.regularizing:
-            continue
-        for key, value in res[t.name].items():
-            limit = tol_rad if "[rad]" in key else tol
-            ok = ok and value <= limit
-            if "[m]" in key:
-                worst = max(worst, value)
-    return ok, worst
+class _Stepper:
+    """``DiffIK`` as an :class:`~mbctl.control.ik.loop.IKStepper` with a fixed step duration."""
+
+    def __init__(self, ik: DiffIK, dt: float):
+        self.ik, self.dt = ik, dt
+        self.update = ik.update
+        self.task_residuals = ik.task_residuals
+
+    @property
+    def q(self) -> np.ndarray:
+        return self.ik.q
+
+    def advance(self) -> float:
+        ik = self.ik
+        out = ik.solve_step(self.dt)
+        ik.update(pin.integrate(ik.model, ik.state.q, out.dq))
+        return float(np.max(np.abs(out.dq)))
 
 
 def _copy_problem(p: qpsolvers.Problem) -> qpsolvers.Problem:
@@ -368,7 +279,7 @@ def _copy_problem(p: qpsolvers.Problem) -> qpsolvers.Problem:
 
 
 def solve_ik(
-    state: IKState,
+    state: KinematicState,
     tasks: Sequence[Task],
     dt: float,
     solver: str = "daqp",

@@ -1,4 +1,4 @@
-"""Whole-body differential IK for any robot: one task set, two backends ("qp" and "mink").
+"""Whole-body differential IK for any robot: one task set (a frozen config), two backends.
 
 The task set is named by a frozen :class:`WholeBodyIKConfig` (no robot's names are built in):
 
@@ -12,56 +12,53 @@ The task set is named by a frozen :class:`WholeBodyIKConfig` (no robot's names a
 under joint position limits, optional per-joint speed limits and, for a floating base, base
 speed limits. Two backends build that same set:
 
-* ``"qp"`` (:class:`QPWholeBodyIK`): our Pinocchio QP (``DiffIK``), assembled once in
-  ``mbctl.control.ik.solve``;
-* ``"mink"`` (:class:`MinkWholeBodyIK`): mink over ``robot.mj_model``; frames are MuJoCo sites or
-  bodies. States are converted with the model pair's ``StateConverter`` (MuJoCo's free-joint
-  linear velocity is in the world frame, Pinocchio's in the base frame).
+* ``"qp"`` (:class:`QPWholeBodyIK`, here): our Pinocchio QP (:class:`~mbctl.control.ik.diff_ik.DiffIK`)
+  on the tasks of :mod:`mbctl.control.tasks`;
+* ``"mink"`` (:class:`~mbctl.control.ik.mink_backend.MinkWholeBodyIK`): mink over
+  ``robot.mj_model``; frames are MuJoCo sites or bodies.
 
-The two build the same QP, step for step (round-off), with one deliberate difference: on a ball
-joint our posture Jacobian is the exact ``pin.dDifference`` block while mink's is the identity,
-so with a ball joint away from its posture reference the steps differ by O(cost^2 |e|^2).
+:func:`~mbctl.control.ik.factory.make_whole_body_ik` picks one by name.
+
+The two build the same QP step for step, up to round-off, with two deliberate differences: on a
+ball joint our posture Jacobian is the exact ``pin.dDifference`` block while mink's is the
+identity (the steps differ by O(cost^2 |e|^2)), and at rotation errors below about 1e-6 rad
+mink's ``SE3.jlog`` drops the translation-rotation coupling of the pose Jacobian while
+Pinocchio's ``Jlog6`` (ours) keeps it.
 
 Public states (``q`` (nq,), ``v`` (nv,)) are in Pinocchio's convention for both backends.
 Residuals are computed the same way for both (world positions, rotation angles from each
-backend's own kinematics), so the two are comparable entry by entry.
+backend's own kinematics), so the two are comparable entry by entry; both run the one IK loop
+(:func:`mbctl.control.ik.loop.iterate`) and return its :class:`~mbctl.control.ik.loop.IKResult`.
 """
 
 from __future__ import annotations
 
 import abc
-import time
 from dataclasses import dataclass
-from typing import Any, ClassVar, NamedTuple
+from typing import ClassVar
 
-import mujoco
 import numpy as np
 import numpy.typing as npt
 import pinocchio as pin
 
 from mbctl.control.exceptions import IKSetupError
+from mbctl.control.ik.diff_ik import DiffIK
 from mbctl.control.ik.limits import (
     FloatingBaseVelocityLimit,
     JointPositionLimit,
     JointVelocityLimit,
     Limit,
 )
-from mbctl.control.ik.solve import DiffIK
-from mbctl.control.ik.state import IKState
-from mbctl.control.ik.tasks import (
-    ComTask,
-    FrameOrientationTask,
-    FramePoseTask,
-    PostureTask,
-    Task,
-)
+from mbctl.control.ik.loop import IKResult, iterate
+from mbctl.control.tasks.base import Task
+from mbctl.control.tasks.com import ComTask
+from mbctl.control.tasks.frame_orientation import FrameOrientationTask
+from mbctl.control.tasks.frame_pose import FramePoseTask
+from mbctl.control.tasks.posture import PostureTask
+from mbctl.control.tasks.residuals import TaskResidual, Tolerance
+from mbctl.control.tasks.state import KinematicState
+from mbctl.exceptions import unknown_name_message
 from mbctl.robots.model_pair import Robot
-
-#: Backend names accepted by :func:`make_whole_body_ik`.
-BACKENDS = ("qp", "mink")
-
-#: Residual entries that regularise and never gate convergence.
-REGULARISERS = ("posture",)
 
 
 @dataclass(frozen=True)
@@ -149,32 +146,6 @@ class WholeBodyIKConfig:
         return (*self.held_frames, *self.target_frames, *base)
 
 
-class WholeBodyIKResult(NamedTuple):
-    """Outcome of iterating a whole-body IK backend to convergence.
-
-    Attributes:
-        q: Final configuration (nq,), Pinocchio convention.
-        converged: Every non-regularising residual within its tolerance.
-        stalled: Iteration stopped because the step became negligible before convergence (a
-            local minimum: the target is out of reach, or the pose is singular for it).
-        iterations: Steps taken.
-        residuals: Per task, residual norms by quantity (``"position [m]"``,
-            ``"orientation [rad]"``, ``"deviation [rad]"`` for the posture regulariser), at ``q``.
-        step_norms: Infinity norm of each tangent step (iterations,) [rad or m].
-        iteration_times_s: Wall time of each step (iterations,) [s]: kinematics, QP, integration.
-        wall_time_s: Wall time of the whole loop [s].
-    """
-
-    q: np.ndarray
-    converged: bool
-    stalled: bool
-    iterations: int
-    residuals: dict[str, dict[str, float]]
-    step_norms: np.ndarray
-    iteration_times_s: np.ndarray
-    wall_time_s: float
-
-
 def mujoco_frame_type(robot: Robot, frame: str) -> str:
     """``"site"`` or ``"body"``: what MuJoCo object ``frame`` names (sites first).
 
@@ -185,13 +156,12 @@ def mujoco_frame_type(robot: Robot, frame: str) -> str:
         return "site"
     if frame in robot.bodies:
         return "body"
-    from mbctl.exceptions import unknown_name_message
-
     raise IKSetupError(unknown_name_message("IK frame (a MuJoCo site or body)", frame,
                                             [*robot.sites, *robot.bodies]))
 
 
-def _hinge_names(robot: Robot) -> list[str]:
+def hinge_names(robot: Robot) -> list[str]:
+    """Names of the robot's 1-dof joints (hinge and slide), model order."""
     return [j.name for j in robot.joints.values() if j.kind in ("hinge", "slide")]
 
 
@@ -279,7 +249,7 @@ class WholeBodyIK(abc.ABC):
         """One step at ``q`` (nq,); returns the velocity ``v`` (nv,), Pinocchio convention."""
 
     @abc.abstractmethod
-    def _advance(self) -> float:
+    def advance(self) -> float:
         """Solve one step at the current configuration, integrate it; its inf-norm [rad or m]."""
 
     # ------------------------------------------------------------------ targets
@@ -308,8 +278,6 @@ class WholeBodyIK(abc.ABC):
             IKSetupError: ``frame`` is not one of ``config.target_frames``, or not a finite (3,).
         """
         if frame not in self.config.target_frames:
-            from mbctl.exceptions import unknown_name_message
-
             raise IKSetupError(unknown_name_message("IK target frame", frame,
                                                     self.config.target_frames))
         p = np.array(position, dtype=float)
@@ -350,80 +318,47 @@ class WholeBodyIK(abc.ABC):
         return self._com_target.copy() if self.config.com else None
 
     # ------------------------------------------------------------------ residuals and solve
-    def residuals(self) -> dict[str, dict[str, float]]:
-        """Residual norms of every task at the current configuration (same for both backends)."""
-        out: dict[str, dict[str, float]] = {}
+    def task_residuals(self) -> dict[str, TaskResidual]:
+        """Every task's residual at the current configuration (computed alike for both backends)."""
+        out: dict[str, TaskResidual] = {}
         cfg = self.config
         for frame in cfg.frames:
             R, p = self.frame_transform(frame)
             R_T, p_T = self._targets[frame]
-            entry: dict[str, float] = {}
-            if frame != cfg.base_frame:
-                entry["position [m]"] = float(np.linalg.norm(p - p_T))
+            position = None if frame == cfg.base_frame else float(np.linalg.norm(p - p_T))
+            angle = None
             if frame in cfg.held_frames or frame == cfg.base_frame:
-                entry["orientation [rad]"] = float(np.linalg.norm(pin.log3(R_T.T @ R)))
-            out[frame] = entry
+                angle = float(np.linalg.norm(pin.log3(R_T.T @ R)))
+            out[frame] = TaskResidual(position_m=position, orientation_rad=angle)
         if cfg.com:
-            out["com"] = {"position [m]": float(np.linalg.norm(self.com()[:2] - self._com_target[:2]))}
+            out["com"] = TaskResidual(position_m=float(np.linalg.norm(self.com()[:2] - self._com_target[:2])))
         deviation = pin.difference(self.robot.pin_model, self._q_ref, self.q)
-        out["posture"] = {"deviation [rad]": float(np.linalg.norm(deviation))}
+        out["posture"] = TaskResidual(deviation=float(np.linalg.norm(deviation)))
         return out
 
     def solve(
         self,
         q0: npt.ArrayLike,
-        tol: float = 1e-3,
-        tol_rad: float | None = None,
+        tolerance: Tolerance | None = None,
         max_iters: int = 50,
         step_tol: float = 1e-6,
-    ) -> WholeBodyIKResult:
-        """Iterate from ``q0`` (nq,) until every task meets its tolerance.
+    ) -> IKResult:
+        """Iterate from ``q0`` (nq,) until every task meets ``tolerance`` (the one IK loop).
 
         An unreachable target is not an error: iteration stops when the step becomes negligible
         (``stalled``) and the residuals say how far each task is from its target.
 
         Args:
             q0: Initial configuration (nq,), Pinocchio convention.
-            tol: Position tolerance [m].
-            tol_rad: Orientation tolerance [rad] (default ``10 * tol``).
+            tolerance: Position [m] and orientation [rad] tolerances (default 1 mm, 0.01 rad).
             max_iters: Maximum number of steps.
             step_tol: Stop when the step's inf-norm falls below this [rad or m].
 
         Raises:
-            IKSetupError: Non-positive tolerances or iteration count.
+            IKSetupError: A negative ``step_tol`` or ``max_iters`` < 1.
             IKInfeasible: A step's QP has no solution (qp backend).
         """
-        tol_rad = 10.0 * tol if tol_rad is None else tol_rad
-        if not (tol > 0.0 and tol_rad > 0.0 and step_tol > 0.0) or int(max_iters) < 1:
-            raise IKSetupError(
-                f"tol, tol_rad, step_tol must be > 0 and max_iters >= 1; got tol={tol!r}, "
-                f"tol_rad={tol_rad!r}, step_tol={step_tol!r}, max_iters={max_iters!r}"
-            )
-        t0 = time.perf_counter()
-        self.update(q0)
-        steps: list[float] = []
-        times: list[float] = []
-        converged = stalled = False
-        for it in range(int(max_iters) + 1):
-            res = self.residuals()
-            converged = residuals_within(res, tol, tol_rad)
-            if converged or stalled or it == int(max_iters):
-                break
-            t = time.perf_counter()
-            steps.append(self._advance())
-            times.append(time.perf_counter() - t)
-            stalled = steps[-1] < step_tol
-        return WholeBodyIKResult(self.q, converged, stalled and not converged, len(steps), res,
-                                 np.array(steps), np.array(times), time.perf_counter() - t0)
-
-
-def residuals_within(residuals: dict[str, dict[str, float]], tol: float, tol_rad: float) -> bool:
-    """Every non-regularising residual within ``tol`` [m] (or ``tol_rad`` [rad] for angles)."""
-    return all(
-        value <= (tol_rad if "[rad]" in key else tol)
-        for task, values in residuals.items() if task not in REGULARISERS
-        for key, value in values.items()
-    )
+        return iterate(self, q0, tolerance or Tolerance(), max_iters, step_tol)
 
 
 class QPWholeBodyIK(WholeBodyIK):
@@ -453,7 +388,7 @@ class QPWholeBodyIK(WholeBodyIK):
         self.tasks["posture"] = PostureTask(m, cfg.posture_cost, name="posture")
         limits: list[Limit] = [self.position_limit]
         if cfg.joint_max_velocity is not None:
-            speeds = {n: cfg.joint_max_velocity for n in _hinge_names(self.robot)}
+            speeds = {n: cfg.joint_max_velocity for n in hinge_names(self.robot)}
             limits.append(JointVelocityLimit(m, speeds))
         if self.robot.has_floating_base:
             limits.append(FloatingBaseVelocityLimit(m, cfg.base_max_linear_velocity,
@@ -461,7 +396,7 @@ class QPWholeBodyIK(WholeBodyIK):
         self.ik = DiffIK(m, list(self.tasks.values()), limits, self.solver, cfg.damping)
 
     @property
-    def state(self) -> IKState:
+    def state(self) -> KinematicState:
         """Kinematic state at the last update."""
         return self.ik.state
 
@@ -506,152 +441,11 @@ class QPWholeBodyIK(WholeBodyIK):
         """One step at ``q`` (nq,); ``v`` (nv,) in Pinocchio's convention."""
         return self.ik.step(q, self.config.dt).v
 
-    def _advance(self) -> float:
+    def advance(self) -> float:
+        """Solve one step at the current configuration, integrate it; its inf-norm [rad or m]."""
         out = self.ik.solve_step(self.config.dt)
         self.ik.update(pin.integrate(self.robot.pin_model, self.ik.state.q, out.dq))
         return float(np.max(np.abs(out.dq)))
-
-
-class MinkWholeBodyIK(WholeBodyIK):
-    """The same task set on mink (MuJoCo model); limits built once.
-
-    Attributes:
-        configuration: ``mink.Configuration`` on ``robot.mj_model``.
-        tasks: mink tasks by role (as in :class:`QPWholeBodyIK`).
-        limits: mink limits (configuration, joint velocity, free-joint velocity).
-    """
-
-    backend = "mink"
-
-    def _build(self) -> None:
-        try:
-            import mink
-        except ImportError:
-            raise IKSetupError("backend 'mink' needs the mink package (pip install mink); "
-                               "or use backend 'qp'") from None
-        self._mink = mink
-        cfg, m = self.config, self.robot.mj_model
-        if not self.robot.covers_plant:  # mink's configuration is the whole plant's qpos
-            raise IKSetupError(
-                f"backend 'mink' cannot solve for {self.robot.name!r}: its plant has {m.nq - self.robot.nq} "
-                "coordinates of scene bodies (free objects) that mink would move with the robot; use "
-                "backend 'qp'"
-            )
-        self.configuration = mink.Configuration(m)
-        self._types = {f: mujoco_frame_type(self.robot, f) for f in cfg.frames}
-        self.tasks: dict[str, Any] = {}  # mink task types differ in their target setters
-        for frame in cfg.held_frames:
-            self.tasks[frame] = mink.FrameTask(frame, self._types[frame], cfg.held_position_cost,
-                                               cfg.held_orientation_cost, lm_damping=cfg.lm_damping)
-        for frame in cfg.target_frames:
-            self.tasks[frame] = mink.FrameTask(frame, self._types[frame], cfg.target_position_cost, 0.0,
-                                               lm_damping=cfg.lm_damping)
-        if cfg.base_frame is not None:
-            self.tasks[cfg.base_frame] = mink.FrameTask(cfg.base_frame, self._types[cfg.base_frame], 0.0,
-                                                        cfg.base_orientation_cost)
-        if cfg.com:
-            _check_mink_com(self.robot)
-            self.tasks["com"] = mink.ComTask(cost=[cfg.com_cost, cfg.com_cost, 0.0])
-        self.tasks["posture"] = mink.PostureTask(m, cost=cfg.posture_cost)
-        self._task_list = list(self.tasks.values())
-        self.limits: list[Any] = [mink.ConfigurationLimit(m, gain=cfg.joint_position_gain)]
-        if cfg.joint_max_velocity is not None:
-            self.limits.append(mink.VelocityLimit(
-                m, {n: cfg.joint_max_velocity for n in _hinge_names(self.robot)}))
-        if self.robot.has_floating_base:
-            self.limits.append(mink.FreeJointVelocityLimit(m, cfg.base_max_linear_velocity,
-                                                           cfg.base_max_angular_velocity))
-
-    def update(self, q: npt.ArrayLike) -> None:
-        """Set the configuration from ``q`` (nq,), Pinocchio convention."""
-        self.configuration.update(self.robot.converter.q_pin_to_mj(q))
-
-    @property
-    def q(self) -> np.ndarray:
-        """Current configuration (nq,), Pinocchio convention (a copy)."""
-        return np.array(self.robot.converter.q_mj_to_pin(self.configuration.q))
-
-    def frame_transform(self, frame: str) -> tuple[np.ndarray, np.ndarray]:
-        """``(R_WF (3, 3), p_WF (3,) [m])`` at the current configuration (MuJoCo kinematics)."""
-        X = self.configuration.get_transform_frame_to_world(frame, mujoco_frame_type(self.robot, frame))
-        return X.rotation().as_matrix(), np.array(X.translation())
-
-    def com(self) -> np.ndarray:
-        """Centre of mass p_WC (3,) [m] of the robot's root subtree (what mink's ComTask uses)."""
-        return np.array(self.configuration.data.subtree_com[1])
-
-    def _push_frame_target(self, frame: str, R_WT: np.ndarray, p_WT: np.ndarray) -> None:
-        mink = self._mink
-        self.tasks[frame].set_target(
-            mink.SE3.from_rotation_and_translation(mink.SO3.from_matrix(R_WT), np.array(p_WT)))
-
-    def _push_com_target(self, p: np.ndarray) -> None:
-        self.tasks["com"].set_target(np.array(p))
-
-    def _push_posture_target(self, q: np.ndarray) -> None:
-        self.tasks["posture"].set_target(self.robot.converter.q_pin_to_mj(q))
-
-    def step_mj(self) -> np.ndarray:
-        """One step at the current configuration: MuJoCo qvel-convention velocity (nv,)."""
-        return self._mink.solve_ik(self.configuration, self._task_list, self.config.dt, self.solver,
-                                   damping=self.config.damping, limits=self.limits)
-
-    def step(self, q: npt.ArrayLike) -> np.ndarray:
-        """One step at ``q`` (nq,, Pinocchio); returns ``v`` (nv,) in Pinocchio's convention."""
-        self.update(q)
-        return self.robot.converter.v_mj_to_pin(q, self.step_mj())
-
-    def _advance(self) -> float:
-        v = self.step_mj()
-        self.configuration.integrate_inplace(v, self.config.dt)
-        return float(np.max(np.abs(v))) * self.config.dt
-
-
-def _check_mink_com(robot: Robot) -> None:
-    """Refuse a CoM task mink would get wrong: its ComTask is the subtree CoM of MuJoCo body 1.
-
-    Raises:
-        IKSetupError: Body 1's subtree does not hold the whole model's mass (a scene that puts
-            another body before the robot); the message names the body, the masses and ``"qp"``.
-    """
-    m = robot.mj_model
-    total, first = float(m.body_subtreemass[0]), float(m.body_subtreemass[1])
-    if not np.isclose(first, total, rtol=1e-9, atol=0.0):
-        raise IKSetupError(
-            f"backend 'mink' cannot hold the CoM of {robot.name!r}: mink's ComTask uses the subtree "
-            f"of MuJoCo body 1 ({mujoco.mj_id2name(m, mujoco.mjtObj.mjOBJ_BODY, 1)!r}, {first:.6g} kg), "
-            "but the model's mass is "
-            f"{total:.6g} kg (the scene puts another body before the robot); use backend 'qp', or "
-            "put the robot first in the scene"
-        )
-
-
-#: Backend name -> class.
-BACKEND_CLASSES: dict[str, type[WholeBodyIK]] = {"qp": QPWholeBodyIK, "mink": MinkWholeBodyIK}
-
-
-def make_whole_body_ik(
-    backend: str,
-    robot: Robot,
-    config: WholeBodyIKConfig,
-    q_ref: npt.ArrayLike,
-    solver: str = "daqp",
-) -> WholeBodyIK:
-    """Build the task set ``config`` on ``backend`` ("qp" or "mink").
-
-    Args:
-        backend: "qp" (our Pinocchio QP) or "mink".
-        robot: The model pair.
-        config: Task set, weights and limits.
-        q_ref: Start configuration (nq,), Pinocchio convention: the first targets.
-        solver: qpsolvers backend name.
-
-    Raises:
-        IKSetupError: Unknown backend (the message names the alternatives), or a bad task set.
-    """
-    if backend not in BACKEND_CLASSES:
-        raise IKSetupError(f"IK backend {backend!r} is unknown; choose one of {', '.join(BACKENDS)}")
-    return BACKEND_CLASSES[backend](robot, config, q_ref, solver)
 
 
 def joint_positions_by_name(robot: Robot, q: npt.ArrayLike) -> dict[str, list[float]]:

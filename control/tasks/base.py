@@ -1,0 +1,248 @@
+"""The task: an error ``e(q)`` with its Jacobian, and the least-squares rows it writes at each level.
+
+One task object serves differential IK (velocity level) and whole-body inverse dynamics
+(acceleration level); each task type is a module of this package and owns its error, its
+Jacobians, its drift ``Jdot v`` and its rows.
+
+Velocity level (differential IK, the mink formulation). ``J_e = de/dq`` on the configuration
+manifold: ``e(q ⊕ dq) ≈ e(q) + J_e(q) dq`` with ``⊕`` = ``pin.integrate``. The task's rows are::
+
+    W_t = diag(cost) J_e,   r_t = -gain diag(cost) e,   objective |W_t dq - r_t|^2 + mu |dq|^2
+
+with the Levenberg-Marquardt term ``mu = lm_damping |r_t|^2``.
+
+Acceleration level (inverse dynamics, the TSID formulation). A motion Jacobian ``J`` (k, nv) (for
+frame poses the frame Jacobian J_F rather than the log-map Jacobian: the two agree at the target
+and J_F has an exact drift), its drift ``Jdot v`` (k,), and a desired task acceleration from a PD
+law on the error (:meth:`Task.desired_acceleration`, gains from :class:`AccelerationGains`)::
+
+    W_t = diag(cost) J,   r_t = diag(cost) (a_des - Jdot v),   objective |W_t vdot - r_t|^2
+
+Tasks without an acceleration form (the damping regulariser) raise ``TaskSetupError`` there.
+"""
+
+from __future__ import annotations
+
+import abc
+import math
+from dataclasses import dataclass
+
+import numpy as np
+import numpy.typing as npt
+import pinocchio as pin
+
+from mbctl.control.exceptions import TaskSetupError
+from mbctl.control.tasks.residuals import TaskResidual
+from mbctl.control.tasks.state import DynamicsState, TaskState
+
+
+@dataclass(frozen=True)
+class AccelerationGains:
+    """PD gains of a task's desired acceleration, from a natural frequency and a damping ratio.
+
+    The loop is already normalised by M(q), so ``kp = omega^2`` [1/s^2] and ``kd = 2 zeta omega``
+    [1/s] give the task error the dynamics ``e'' + kd e' + kp e = 0``.
+
+    Attributes:
+        omega_rad_s: Closed-loop natural frequency [rad/s] (>= 0).
+        zeta: Damping ratio [-] (>= 0).
+    """
+
+    omega_rad_s: float = 10.0
+    zeta: float = 1.0
+
+    def __post_init__(self) -> None:
+        for name in ("omega_rad_s", "zeta"):
+            value = getattr(self, name)
+            if not (math.isfinite(value) and value >= 0.0):
+                raise TaskSetupError(f"AccelerationGains.{name} must be finite and >= 0; got {value!r}")
+
+    @property
+    def kp(self) -> float:
+        """Stiffness ``omega^2`` [1/s^2]."""
+        return self.omega_rad_s**2
+
+    @property
+    def kd(self) -> float:
+        """Damping ``2 zeta omega`` [1/s]."""
+        return 2.0 * self.zeta * self.omega_rad_s
+
+
+def cost_vector(cost: npt.ArrayLike, k: int, owner: str, what: str = "cost") -> np.ndarray:
+    """``cost`` as a read-only (k,) vector of weights (a scalar is broadcast).
+
+    Raises:
+        TaskSetupError: A negative, non-finite or misshaped cost (the message names ``what``).
+    """
+    arr = np.atleast_1d(np.asarray(cost, dtype=float))
+    if arr.shape == (1,):
+        arr = np.full(k, arr[0])
+    if arr.shape != (k,) or not np.all(np.isfinite(arr)) or np.any(arr < 0.0):
+        raise TaskSetupError(f"{owner} {what} must be a non-negative scalar or a vector of shape ({k},); "
+                             f"got {np.asarray(cost).tolist()!r}")
+    arr = arr.copy()
+    arr.setflags(write=False)
+    return arr
+
+
+def floating_dofs(model: pin.Model) -> np.ndarray:
+    """Tangent indices of the model's free-flyer joints (left out of posture and damping)."""
+    idx: list[int] = []
+    for j in range(1, model.njoints):
+        if model.joints[j].shortname() == "JointModelFreeFlyer":
+            start = model.joints[j].idx_v
+            idx.extend(range(start, start + 6))
+    return np.array(idx, dtype=int)
+
+
+class Task(abc.ABC):
+    """A least-squares objective on an error ``e(q)`` (k,), at the velocity or acceleration level.
+
+    Subclasses implement ``compute_error``, ``compute_jacobian`` and ``residual``; tasks with an
+    acceleration form also ``jacobian_and_drift`` and ``desired_acceleration``.
+
+    Attributes:
+        name: Label used in residual reports.
+        k: Task dimension.
+        gain: Velocity level: fraction ``alpha`` in [0, 1] of the error corrected per step.
+        lm_damping: Velocity level: Levenberg-Marquardt scale [-] (>= 0).
+        servo: Acceleration level: the PD gains of the desired acceleration.
+        regularizing: True for tasks that never reach zero error (posture, damping); their
+            residuals never gate convergence.
+    """
+
+    regularizing: bool = False
+
+    def __init__(self, name: str, k: int, cost: npt.ArrayLike, gain: float = 1.0, lm_damping: float = 0.0,
+                 servo: AccelerationGains | None = None):
+        """Validate and store the common parameters.
+
+        Raises:
+            TaskSetupError: A negative cost, a gain outside [0, 1] or a negative lm_damping.
+        """
+        if not 0.0 <= gain <= 1.0:
+            raise TaskSetupError(f"{name}: gain must be in [0, 1]; got {gain!r}")
+        if not (math.isfinite(lm_damping) and lm_damping >= 0.0):
+            raise TaskSetupError(f"{name}: lm_damping must be >= 0; got {lm_damping!r}")
+        self.name = name
+        self.k = k
+        self.gain = float(gain)
+        self.lm_damping = float(lm_damping)
+        self.servo = servo if servo is not None else AccelerationGains()
+        self._cost = cost_vector(cost, k, name)
+
+    @property
+    def servo(self) -> AccelerationGains:
+        """Acceleration level: the PD gains (assignable; ``kp`` and ``kd`` are cached from them)."""
+        return self._servo
+
+    @servo.setter
+    def servo(self, gains: AccelerationGains) -> None:
+        self._servo = gains
+        self._kp, self._kd = gains.kp, gains.kd
+
+    # ------------------------------------------------------------------ weights and targets
+    @property
+    def cost(self) -> np.ndarray:
+        """Weights (k,) [cost]/[task unit], read-only."""
+        return self._cost
+
+    def set_cost(self, cost: npt.ArrayLike) -> None:
+        """Replace the weights (scalar or (k,)).
+
+        Raises:
+            TaskSetupError: A negative or misshaped cost.
+        """
+        self._cost = cost_vector(cost, self.k, self.name)
+
+    def set_target_from_state(self, state: TaskState) -> None:  # noqa: B027 - optional hook
+        """Set the target to the current value at ``state``; tasks without a target ignore it."""
+
+    def _no_target(self) -> TaskSetupError:
+        """The error for a task asked for its error before ``set_target``."""
+        return TaskSetupError(f"{self.name}: no target set; call set_target first.")
+
+    def _weights(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """``(cost[:, None], -cost[:, None], -gain cost, gain cost)``, cached.
+
+        The cache is rebuilt when ``cost`` (replaced by ``set_cost``) or ``gain`` change.
+        """
+        cached = self.__dict__.get("_weights_cache")
+        if cached is None or cached[0] is not self._cost or cached[1] != self.gain:
+            col = self._cost[:, None].copy()
+            gain_cost = self.gain * self._cost
+            cached = (self._cost, self.gain, col, -col, -gain_cost, gain_cost)
+            self.__dict__["_weights_cache"] = cached
+        return cached[2], cached[3], cached[4], cached[5]
+
+    # ------------------------------------------------------------------ velocity level
+    @abc.abstractmethod
+    def compute_error(self, state: TaskState) -> np.ndarray:
+        """Task error ``e(q)`` (k,)."""
+
+    @abc.abstractmethod
+    def compute_jacobian(self, state: TaskState) -> np.ndarray:
+        """Task Jacobian ``de/dq`` (k, nv) on the manifold."""
+
+    def error_and_jacobian(self, state: TaskState) -> tuple[np.ndarray, np.ndarray]:
+        """``(e, J_e)`` together (override to share intermediate results)."""
+        return self.compute_error(state), self.compute_jacobian(state)
+
+    def write_qp_rows(self, state: TaskState, W_t: np.ndarray, r_t: np.ndarray) -> float:
+        """Fill this task's velocity-level rows in place and return its LM term.
+
+        Args:
+            state: Kinematic state.
+            W_t: (k, nv) output, ``diag(cost) J_e``.
+            r_t: (k,) output, ``-gain diag(cost) e``.
+
+        Returns:
+            ``mu = lm_damping |r_t|^2`` [cost^2].
+        """
+        e, J = self.error_and_jacobian(state)
+        col, _, neg_gain_cost, _ = self._weights()
+        np.multiply(col, J, out=W_t)
+        np.multiply(neg_gain_cost, e, out=r_t)
+        return self._lm_term(r_t)
+
+    def _lm_term(self, r_t: np.ndarray) -> float:
+        """``mu = lm_damping |r_t|^2`` [cost^2] for the rows ``r_t`` (k,) (0 without LM damping)."""
+        return self.lm_damping * float(r_t @ r_t) if self.lm_damping > 0.0 else 0.0
+
+    # ------------------------------------------------------------------ acceleration level
+    def jacobian_and_drift(self, state: DynamicsState) -> tuple[np.ndarray, np.ndarray]:
+        """``(J (k, nv), Jdot v (k,))`` at ``state`` (tested against finite differences).
+
+        Raises:
+            TaskSetupError: The task has no acceleration-level form.
+        """
+        raise TaskSetupError(f"{self.name}: {type(self).__name__} has no acceleration-level form "
+                             "(use it in differential IK only)")
+
+    def desired_acceleration(self, state: DynamicsState, J: np.ndarray) -> np.ndarray:
+        """``a_des`` (k,): the PD law on the error plus the reference's feed-forward.
+
+        Raises:
+            TaskSetupError: The task has no acceleration-level form.
+        """
+        raise TaskSetupError(f"{self.name}: {type(self).__name__} has no acceleration-level form "
+                             "(use it in differential IK only)")
+
+    def write_acceleration_rows(self, state: DynamicsState, W_t: np.ndarray, r_t: np.ndarray) -> None:
+        """Fill this task's acceleration-level rows in place.
+
+        Args:
+            state: Dynamics state.
+            W_t: (k, nv) output, ``diag(cost) J``.
+            r_t: (k,) output, ``diag(cost) (a_des - Jdot v)``.
+        """
+        J, drift = self.jacobian_and_drift(state)
+        col = self._weights()[0]
+        np.multiply(col, J, out=W_t)
+        np.subtract(self.desired_acceleration(state, J), drift, out=r_t)
+        r_t *= self._cost
+
+    # ------------------------------------------------------------------ reports
+    @abc.abstractmethod
+    def residual(self, state: TaskState) -> TaskResidual:
+        """How far the task is from its target at ``state`` (units in the fields)."""

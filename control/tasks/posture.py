@@ -1,0 +1,121 @@
+"""Joint posture: ``e = q ⊖ q_target`` (nv,) (``pin.difference``), free-flyer entries zero.
+
+Velocity level: ``J_e = de/dq`` (nv, nv): the identity for 1-dof joints and the exact
+``pin.dDifference`` block for ball joints (mink uses the identity there, a first-order
+approximation), free-flyer rows zero (the base is not pulled to a posture), as in mink.
+Acceleration level: ``J = diag(mask)`` (the joint dofs), no drift, ``a_des = -kp e - kd v``
+(the target at rest) on the joint dofs.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import numpy.typing as npt
+import pinocchio as pin
+
+from mbctl.control.exceptions import TaskSetupError
+from mbctl.control.tasks.base import AccelerationGains
+from mbctl.control.tasks.diagonal import DiagonalTask
+from mbctl.control.tasks.residuals import TaskResidual
+from mbctl.control.tasks.state import DynamicsState, TaskState
+from mbctl.robots.indexing import as_slice
+
+
+class PostureTask(DiagonalTask):
+    """Joint posture regulariser: ``e = q ⊖ q_target`` (nv,), ``J = de/dq`` (nv, nv)."""
+
+    regularizing = True
+
+    def __init__(
+        self,
+        model: TaskState | pin.Model,
+        cost: npt.ArrayLike = 1e-2,
+        gain: float = 1.0,
+        lm_damping: float = 0.0,
+        name: str = "posture",
+        servo: AccelerationGains | None = None,
+    ):
+        """Create the task (set a target before solving).
+
+        Args:
+            model: Pinocchio model or task state.
+            cost: Weight(s) [cost]/[rad], scalar or (nv,).
+            gain: Velocity level: fraction of the error corrected per step, in [0, 1].
+            lm_damping: Velocity level: Levenberg-Marquardt scale [-].
+            name: Report label.
+            servo: Acceleration level: PD gains.
+
+        Raises:
+            TaskSetupError: Invalid cost, gain or damping.
+        """
+        super().__init__(name, model, cost, gain, lm_damping, servo)
+        self._free = as_slice(self._free_idx)
+        self.is_diagonal = all(joint.nv == 1 or joint.shortname() == "JointModelFreeFlyer"
+                               for joint in list(self.model.joints)[1:])
+        self._target: np.ndarray | None = None
+        self._zero = np.zeros(self.model.nv)
+        self._zero.setflags(write=False)
+
+    def set_target(self, target_q: npt.ArrayLike) -> None:
+        """Set the target configuration (nq,), Pinocchio convention (at rest).
+
+        Raises:
+            TaskSetupError: Wrong shape or non-finite entries.
+        """
+        q = np.asarray(target_q, dtype=float).copy()
+        if q.shape != (self.model.nq,) or not np.all(np.isfinite(q)):
+            raise TaskSetupError(f"{self.name}: target must be a finite ({self.model.nq},) configuration; "
+                                 f"got shape {q.shape}")
+        self._target = q
+
+    @property
+    def target(self) -> np.ndarray:
+        """The target configuration (nq,) (a copy).
+
+        Raises:
+            TaskSetupError: No target set yet.
+        """
+        if self._target is None:
+            raise self._no_target()
+        return self._target.copy()
+
+    def set_target_from_state(self, state: TaskState) -> None:
+        """Set the target to the current configuration."""
+        self.set_target(state.q)
+
+    def compute_error(self, state: TaskState) -> np.ndarray:
+        """``q ⊖ q_target`` (nv,), free-flyer entries zeroed."""
+        if self._target is None:
+            raise self._no_target()
+        e = pin.difference(self.model, self._target, state.q)
+        e[self._free] = 0.0
+        return e
+
+    def compute_jacobian(self, state: TaskState) -> np.ndarray:
+        """``d(q ⊖ q_target)/dq`` (nv, nv), free-flyer rows zeroed.
+
+        The identity (constant, read-only) unless the model has ball joints.
+        """
+        if self.is_diagonal:
+            return self._jacobian
+        if self._target is None:
+            raise self._no_target()
+        J = pin.dDifference(self.model, self._target, state.q, pin.ArgumentPosition.ARG1)
+        J[self._free_idx, :] = 0.0
+        return J
+
+    def jacobian_and_drift(self, state: DynamicsState) -> tuple[np.ndarray, np.ndarray]:
+        """``(diag(mask), 0)``: the joint dofs' accelerations."""
+        return self._jacobian, self._zero
+
+    def desired_acceleration(self, state: DynamicsState, J: np.ndarray) -> np.ndarray:
+        """``-kp e - kd v`` (nv,) on the joint dofs, 0 on the free flyer's."""
+        a = self.compute_error(state)  # free-flyer entries already zero
+        a *= -self._kp
+        a -= self._kd * state.v
+        a *= self.mask
+        return a
+
+    def residual(self, state: TaskState) -> TaskResidual:
+        """Joint-space distance to the target [rad, or m for slide joints] (a regulariser's)."""
+        return TaskResidual(deviation=float(np.linalg.norm(self.compute_error(state))))

@@ -1,0 +1,238 @@
+"""Task states: one set of Pinocchio passes per configuration, read by every task.
+
+Two states share one read side (:class:`TaskState`: frame poses, frame Jacobians, the centre of
+mass and its Jacobian) and differ in what ``update`` computes:
+
+* :class:`KinematicState` ``update(q)``, for differential IK: ``pin.computeJointJacobians``
+  (forward kinematics and every joint Jacobian), ``pin.updateFramePlacements`` and, when a task
+  needs it, the CoM and its Jacobian (``pin.jacobianCenterOfMass``).
+* :class:`DynamicsState` ``update(q, v)``, for inverse dynamics: ``pin.computeAllTerms`` (M, the
+  bias forces, the joint Jacobians, the CoM and its Jacobian, and the body accelerations at zero
+  vdot, i.e. the drifts ``Jdot v``), the frame placements, and the centroidal map and its time
+  variation (``A_g``, ``dA_g``).
+
+The two are siblings, not parent and child: their ``update`` signatures differ, so neither can
+stand in for the other where an update is called.
+
+Conventions are Pinocchio's (the toolkit's public convention): q stores free-flyer quaternions
+as (x, y, z, w) and v is the base velocity in the base (local) frame. Notation (Drake monograms):
+W world, F a frame, C the centre of mass.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import numpy.typing as npt
+import pinocchio as pin
+
+from mbctl.control.exceptions import TaskSetupError
+from mbctl.robots.exceptions import UnknownNameError
+
+
+class TaskState:
+    """Configuration ``q`` of a Pinocchio model and the kinematic quantities tasks read.
+
+    Attributes:
+        model: The Pinocchio model (not modified).
+        data: Pinocchio data, written by ``update``.
+        oMf: ``data.oMf``, the frame placements ``X_WF`` (bound once for the hot path).
+    """
+
+    def __init__(self, model: pin.Model):
+        self.model = model
+        self.data = model.createData()
+        self._q = pin.neutral(model)
+        self.oMf = self.data.oMf  # a reference into data, stable for its lifetime
+
+    @property
+    def q(self) -> np.ndarray:
+        """Current configuration (nq,) (a read-only view)."""
+        view = self._q.view()
+        view.setflags(write=False)
+        return view
+
+    @property
+    def nq(self) -> int:
+        """Configuration dimension."""
+        return self.model.nq
+
+    @property
+    def nv(self) -> int:
+        """Tangent dimension."""
+        return self.model.nv
+
+    def _set_q(self, q: npt.ArrayLike) -> np.ndarray:
+        """Copy ``q`` into the state's buffer after checking its shape and finiteness.
+
+        Raises:
+            TaskSetupError: ``q`` has the wrong shape or non-finite entries.
+        """
+        q_new = self._q
+        try:
+            q_new[:] = q
+        except (ValueError, TypeError) as exc:
+            raise TaskSetupError(f"q must be a finite vector of shape ({self.model.nq},); got {q!r}") from exc
+        if not math.isfinite(q_new @ q_new):  # any nan/inf (or an absurd magnitude)
+            raise TaskSetupError(f"q must be finite (and of sane magnitude, |q| < 1e150); "
+                                 f"got {q_new.tolist()}")
+        return q_new
+
+    def frame_id(self, name: str) -> int:
+        """Pinocchio frame id of ``name`` (body, site or added operational frame).
+
+        Raises:
+            UnknownNameError: No such frame (the message lists close matches).
+        """
+        if not self.model.existFrame(name):
+            raise UnknownNameError("frame", name, [f.name for f in self.model.frames])
+        return self.model.getFrameId(name)
+
+    def frame_pose(self, frame_id: int) -> pin.SE3:
+        """Pose ``X_WF`` of frame ``frame_id`` in the world."""
+        return self.oMf[frame_id]
+
+    def frame_jacobian(self, frame_id: int, reference: pin.ReferenceFrame = pin.LOCAL) -> np.ndarray:
+        """``J_F`` (6, nv) of frame ``frame_id``, [v; w], expressed in ``reference``."""
+        # reshape: with nv = 1, Pinocchio's bindings return the matrix as a (6,) vector
+        return pin.getFrameJacobian(self.model, self.data, frame_id, reference).reshape(6, -1)
+
+    def com(self) -> np.ndarray:
+        """Centre of mass ``p_WC`` (3,) [m] (a view into the data)."""
+        return self.data.com[0]
+
+    def com_jacobian(self) -> np.ndarray:
+        """CoM Jacobian (3, nv) [m/rad or m/m] in the world frame."""
+        return self.data.Jcom.reshape(3, -1)  # (3,) from the bindings when nv = 1
+
+
+class KinematicState(TaskState):
+    """``q`` with frame placements, joint Jacobians and (optionally) the CoM: the IK state.
+
+    Attributes:
+        with_com: Whether ``update`` also computes the CoM and its Jacobian.
+    """
+
+    def __init__(self, model: pin.Model, q: npt.ArrayLike | None = None, with_com: bool = True):
+        """Create the state at ``q`` (default: the model's neutral configuration).
+
+        Args:
+            model: Pinocchio model.
+            q: Initial configuration (nq,), Pinocchio convention.
+            with_com: Compute the centre of mass and its Jacobian (3, nv) on every update.
+        """
+        super().__init__(model)
+        self.with_com = with_com
+        self.update(self._q if q is None else q)
+
+    def update(self, q: npt.ArrayLike) -> None:
+        """Set ``q`` (nq,) and recompute frame placements, joint Jacobians and (optionally) CoM.
+
+        Raises:
+            TaskSetupError: ``q`` has the wrong shape or non-finite entries.
+        """
+        q_new = self._set_q(q)
+        model, data = self.model, self.data
+        pin.computeJointJacobians(model, data, q_new)
+        pin.updateFramePlacements(model, data)
+        if self.with_com:
+            pin.jacobianCenterOfMass(model, data, False)
+
+    def integrate(self, v: npt.ArrayLike, dt: float) -> np.ndarray:
+        """``pin.integrate(q, v dt)``: the configuration (nq,) after moving along ``v`` for ``dt`` [s]."""
+        return pin.integrate(self.model, self._q, np.asarray(v, dtype=float) * dt)
+
+
+class DynamicsState(TaskState):
+    """``(q, v)`` with every term inverse dynamics needs, from one set of Pinocchio passes.
+
+    Attributes:
+        v: Velocity (nv,), Pinocchio convention (base twist in the base frame).
+        mass: Total mass [kg].
+    """
+
+    def __init__(self, model: pin.Model, q: npt.ArrayLike | None = None, v: npt.ArrayLike | None = None):
+        """Create the state at ``(q, v)`` (defaults: the neutral configuration, at rest)."""
+        super().__init__(model)
+        self.v = np.zeros(model.nv)
+        self._M_buffer = np.zeros((model.nv, model.nv))
+        self._lower = np.tril_indices(model.nv, -1)
+        self._M_view = self._M_buffer.view()
+        self._M_view.setflags(write=False)
+        self._M: np.ndarray | None = None
+        self._centroidal_drift: np.ndarray | None = None
+        self.mass = float(sum(inertia.mass for inertia in model.inertias))
+        self.update(self._q if q is None else q, v)
+
+    def update(self, q: npt.ArrayLike, v: npt.ArrayLike | None = None) -> None:
+        """Set ``q`` (nq,) and ``v`` (nv,) (default: zero) and recompute every term.
+
+        Raises:
+            TaskSetupError: ``q`` or ``v`` of the wrong shape or not finite.
+        """
+        q_new = self._set_q(q)
+        if v is None:
+            self.v[:] = 0.0
+        else:
+            try:
+                self.v[:] = v
+            except (ValueError, TypeError) as exc:
+                raise TaskSetupError(f"v must be a finite vector of shape ({self.model.nv},); "
+                                     f"got {v!r}") from exc
+            if not math.isfinite(self.v @ self.v):
+                raise TaskSetupError(f"v must be finite; got {self.v.tolist()}")
+        model, data = self.model, self.data
+        pin.computeAllTerms(model, data, q_new, self.v)
+        pin.updateFramePlacements(model, data)
+        pin.computeCentroidalMapTimeVariation(model, data, q_new, self.v)
+        self._M = None
+        self._centroidal_drift = None
+
+    @property
+    def M(self) -> np.ndarray:  # noqa: N802 - the mass matrix is M in every text
+        """Joint-space inertia (nv, nv) at q, both triangles filled (read-only, once per update)."""
+        if self._M is None:  # Pinocchio fills the upper triangle (the lower holds other values)
+            M = self._M_buffer
+            np.copyto(M, self.data.M)
+            M[self._lower] = M.T[self._lower]
+            self._M = self._M_view
+        return self._M
+
+    @property
+    def b(self) -> np.ndarray:
+        """Bias forces (nv,) [N m]: Coriolis, centrifugal and gravity, ``C(q, v) v + g(q)``."""
+        return self.data.nle
+
+    def com_drift(self) -> np.ndarray:
+        """``Jdot_com v`` (3,) [m/s^2]: the CoM acceleration at zero vdot."""
+        return self.centroidal_drift()[:3] / self.mass
+
+    def frame_drift(self, frame_id: int, reference: pin.ReferenceFrame) -> np.ndarray:
+        """``d/dt(J_F) v`` (6,) in ``reference``: the frame's acceleration at zero vdot.
+
+        In LOCAL, the derivative of the body twist is the spatial acceleration; in
+        LOCAL_WORLD_ALIGNED (and WORLD-aligned linear rows) it is the classical acceleration of
+        the frame origin.
+        """
+        if reference == pin.LOCAL:
+            return pin.getFrameAcceleration(self.model, self.data, frame_id, reference).vector
+        return pin.getFrameClassicalAcceleration(self.model, self.data, frame_id, reference).vector
+
+    def frame_velocity(self, frame_id: int, reference: pin.ReferenceFrame) -> np.ndarray:
+        """The frame's twist (6,) [m/s, rad/s] in ``reference``."""
+        return pin.getFrameVelocity(self.model, self.data, frame_id, reference).vector
+
+    def centroidal_map(self) -> np.ndarray:
+        """``A_g`` (6, nv): the centroidal momentum ``h_G = A_g v`` [kg m/s; kg m^2/s] (about the CoM)."""
+        return self.data.Ag
+
+    def centroidal_drift(self) -> np.ndarray:
+        """``dA_g v`` (6,): the rate of centroidal momentum at zero vdot [N; N m] (once per update)."""
+        if self._centroidal_drift is None:
+            self._centroidal_drift = self.data.dAg @ self.v
+        return self._centroidal_drift
+
+    def angular_momentum(self) -> np.ndarray:
+        """``h_G`` angular part (3,) [kg m^2/s]: the angular momentum about the CoM, ``A_g[3:] v``."""
+        return self.data.hg.angular

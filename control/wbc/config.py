@@ -1,0 +1,108 @@
+"""Options of the whole-body QP and what one solve returns."""
+
+from __future__ import annotations
+
+import functools
+from dataclasses import dataclass
+
+import numpy as np
+import qpsolvers
+
+from mbctl.control.exceptions import WBCSetupError
+
+#: What the controller does when its QP has no solution.
+ON_INFEASIBLE = ("raise", "damp")
+
+
+@dataclass(frozen=True)
+class WBCConfig:
+    """Options of the whole-body QP.
+
+    Attributes:
+        f_min_n: Minimum normal force per contact point at full weight [N] (>= 0).
+        f_max_n: Maximum normal force per contact point at full weight [N] (> f_min_n).
+        contact_omega_rad_s: Natural frequency of the foot-drift feedback [rad/s] (>= 0).
+        force_weight: Regularisation weight on the contact forces [cost]/[N].
+        acceleration_weight: Regularisation weight on vdot [cost]/[rad/s^2].
+        joint_limit_horizon_s: Horizon T [s] of the joint-limit acceleration bounds (> 0).
+        ramp_s: Duration [s] of a contact's force ramp (> 0).
+        solver: "daqp" (the structured solve of ``control/wbc/qp.py``: an equality-constrained fast
+            path, else daqp) or another qpsolvers backend on the same problem (for comparison).
+        on_infeasible: "raise" (``WBCInfeasible``) or "damp": from the first infeasible QP on, the
+            controller commands joint damping ``tau = -fallback_kd v`` (a safe fallback that lets
+            the plant show whether the robot stands or falls) and records when it switched.
+        fallback_kd_n_m_s_rad: Joint damping of the fallback [N m s/rad] (>= 0).
+    """
+
+    f_min_n: float = 1.0
+    f_max_n: float = 400.0
+    contact_omega_rad_s: float = 10.0
+    force_weight: float = 1e-4
+    acceleration_weight: float = 1e-3
+    joint_limit_horizon_s: float = 0.1
+    ramp_s: float = 0.3
+    solver: str = "daqp"
+    on_infeasible: str = "raise"
+    fallback_kd_n_m_s_rad: float = 5.0
+
+    def __post_init__(self) -> None:
+        checks = {
+            "f_min_n": self.f_min_n >= 0, "f_max_n": self.f_max_n > self.f_min_n,
+            "contact_omega_rad_s": self.contact_omega_rad_s >= 0, "force_weight": self.force_weight > 0,
+            "acceleration_weight": self.acceleration_weight > 0,
+            "joint_limit_horizon_s": self.joint_limit_horizon_s > 0, "ramp_s": self.ramp_s > 0,
+            "fallback_kd_n_m_s_rad": self.fallback_kd_n_m_s_rad >= 0,
+        }
+        for name, ok in checks.items():
+            value = getattr(self, name)
+            if not (np.isfinite(value) and ok):
+                raise WBCSetupError(f"WBCConfig.{name}={value!r} is out of range")
+        if self.solver not in qpsolvers.available_solvers:
+            raise WBCSetupError(f"QP solver {self.solver!r} is not installed; available: "
+                                f"{', '.join(sorted(qpsolvers.available_solvers))}")
+        if self.on_infeasible not in ON_INFEASIBLE:
+            raise WBCSetupError(f"WBCConfig.on_infeasible must be one of {', '.join(ON_INFEASIBLE)}; "
+                                f"got {self.on_infeasible!r}")
+
+
+@dataclass(frozen=True)
+class WBCSolution:
+    """What the last cycle commanded and the QP predicted (world frame W).
+
+    Attributes:
+        tau: Joint torques (n_actuated,) [N m], actuator order.
+        vdot: Accelerations (nv,), Pinocchio convention (NaN under the fallback).
+        forces_W: Contact point forces by foot name, (n_points, 3) [N] in W (zero under the fallback).
+        points_W: Contact point positions by foot name, (n_points, 3) [m] in W.
+        foot_origins_W: Foot frame origins by foot name, (3,) [m] in W.
+        controller_time_s: Wall time of the whole ``compute`` [s].
+        qp_time_s: Wall time of the QP solve alone [s].
+        fallback: The torques are the damping fallback's, not the QP's.
+    """
+
+    tau: np.ndarray
+    vdot: np.ndarray
+    forces_W: dict[str, np.ndarray]
+    points_W: dict[str, np.ndarray]
+    foot_origins_W: dict[str, np.ndarray]
+    controller_time_s: float
+    qp_time_s: float
+    fallback: bool = False
+
+    @functools.cached_property
+    def wrenches_W(self) -> dict[str, np.ndarray]:
+        """Foot wrench about the foot frame origin, in W, [f; m] (6,) [N, N m], by foot name."""
+        out = {}
+        for name, F in self.forces_W.items():
+            r = self.points_W[name] - self.foot_origins_W[name]
+            out[name] = np.concatenate([F.sum(0), np.cross(r, F).sum(0)])
+        return out
+
+    @functools.cached_property
+    def cop_W(self) -> dict[str, np.ndarray]:
+        """Centre of pressure (3,) [m] in W by foot name (NaN for a foot without normal force)."""
+        out = {}
+        for name, F in self.forces_W.items():
+            fz = F[:, 2].sum()
+            out[name] = (F[:, 2] @ self.points_W[name]) / fz if fz > 1e-6 else np.full(3, np.nan)
+        return out

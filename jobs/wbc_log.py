@@ -1,0 +1,186 @@
+"""What ``mbctl g1-wbc`` records each control cycle: the CSV row, the logs, and the report's values.
+
+Each cycle (the control loop's ``on_step``, after the plant ran the command) puts side by side
+what the QP predicted and what MuJoCo did (:class:`~mbctl.sim.monitor.PlantMonitor`): per foot the
+normal and tangential force and the centre of pressure, the CoM against its reference, and the
+slip of each supporting foot. Logs are preallocated arrays; the report's values are refreshed
+every 50 cycles so an interrupted run keeps them.
+"""
+
+from __future__ import annotations
+
+import time
+from typing import Any, NamedTuple
+
+import numpy as np
+
+from mbctl.control.wbc import Standing
+from mbctl.jobs.runner import RunContext
+from mbctl.robots.commands import Command
+from mbctl.robots.g1 import FEET
+from mbctl.robots.interface import RobotState
+from mbctl.sim.monitor import PlantMonitor
+from mbctl.sim.perturb import PushSchedule
+from mbctl.sim.simulator import Simulator
+
+#: A foot supports the robot (its slip counts) when MuJoCo measures at least this fraction of
+#: m g on it at full contact weight.
+SUPPORT_FRACTION = 0.1
+
+#: Cycles between refreshes of the report's values (an interrupted run keeps the last ones).
+VALUES_EVERY = 50
+
+
+class WBCRecord(NamedTuple):
+    """The cycles of a g1-wbc run recorded so far (k of them), feet in :data:`~mbctl.robots.g1.FEET` order.
+
+    Attributes:
+        t: Cycle times (k,) [s].
+        com_ref: CoM reference (k, 3) [m] in W.
+        com: MuJoCo's CoM (k, 3) [m] in W.
+        fz_qp: Normal force per foot predicted by the QP (k, 2) [N].
+        fz_mj: Normal force per foot measured in MuJoCo (k, 2) [N].
+        ft_qp: Tangential force per foot, QP (k, 2) [N].
+        ft_mj: Tangential force per foot, MuJoCo (k, 2) [N].
+        cop_qp: Centre of pressure per foot, QP (k, 2, 2) [m] (x, y in W).
+        cop_mj: Centre of pressure per foot, MuJoCo (k, 2, 2) [m].
+        stance: Both feet in full contact under the QP (k,).
+        slip: Largest slip of a supporting foot (k,) [m].
+        z: Pelvis height (k,) [m].
+        ctrl_us: Controller time per cycle (k,) [us].
+        qp_us: QP solve time per cycle (k,) [us] (0 under the fallback).
+        cycle_us: Wall time of each whole cycle (k,) [us]: state, controller, physics step,
+            plant monitor and this record (the first cycle's is NaN).
+    """
+
+    t: np.ndarray
+    com_ref: np.ndarray
+    com: np.ndarray
+    fz_qp: np.ndarray
+    fz_mj: np.ndarray
+    ft_qp: np.ndarray
+    ft_mj: np.ndarray
+    cop_qp: np.ndarray
+    cop_mj: np.ndarray
+    stance: np.ndarray
+    slip: np.ndarray
+    z: np.ndarray
+    ctrl_us: np.ndarray
+    qp_us: np.ndarray
+    cycle_us: np.ndarray
+
+
+class WBCLog:
+    """Records a g1-wbc run cycle by cycle into preallocated arrays of ``n`` cycles."""
+
+    def __init__(self, ctx: RunContext, wb: Standing, monitor: PlantMonitor, pushes: PushSchedule | None,
+                 n: int, mg_n: float, q_names: list[str]):
+        self.ctx, self.wb, self.monitor, self.pushes, self.mg = ctx, wb, monitor, pushes, mg_n
+        ctrl = wb.controller
+        header = ["time_s", "com_ref_x_m", "com_ref_y_m", "com_ref_z_m", "com_x_m", "com_y_m", "com_z_m",
+                  "base_z_m", "push_fx_N", "push_fy_N"]
+        for f in FEET:
+            header += [f"{f}_fz_qp_N", f"{f}_ft_qp_N", f"{f}_cop_x_qp_m", f"{f}_cop_y_qp_m",
+                       f"{f}_fz_mj_N", f"{f}_ft_mj_N", f"{f}_cop_x_mj_m", f"{f}_cop_y_mj_m", f"{f}_slip_m"]
+        header += [f"tau_{a}_N_m" for a in ctrl.joints.actuators] + q_names
+        self.csv = ctx.open_csv(header)
+        nf = len(FEET)
+        self._buf = WBCRecord(np.zeros(n), np.zeros((n, 3)), np.zeros((n, 3)), np.zeros((n, nf)),
+                              np.zeros((n, nf)), np.zeros((n, nf)), np.zeros((n, nf)), np.zeros((n, nf, 2)),
+                              np.zeros((n, nf, 2)), np.zeros(n, dtype=bool), np.zeros(n), np.zeros(n),
+                              np.zeros(n), np.zeros(n), np.full(n, np.nan))
+        self.k = 0
+        self._last_cycle_end: float | None = None
+        self._home: dict[str, np.ndarray] = {}  # where each foot started to support
+
+    def record(self) -> WBCRecord:
+        """The cycles recorded so far (views of the buffers)."""
+        return WBCRecord(*(a[: self.k] for a in self._buf))
+
+    def on_step(self, k: int, state: RobotState, reference: object, command: Command) -> bool:
+        """Record cycle ``k`` (the loop's ``on_step``); True once the robot has fallen (ends the run)."""
+        ctrl, mon, b = self.wb.controller, self.monitor, self._buf
+        sol = ctrl.solution
+        t = state.time_s
+        com_ref = self.wb.com.target
+        push = self.pushes.force_W if self.pushes is not None else np.zeros(3)
+        row = [t, *com_ref.tolist(), *mon.com_W.tolist(), float(state.q[2]), float(push[0]), float(push[1])]
+        stance = all(cs.active and cs.weight == 1.0 for cs in ctrl.contacts.values())
+        slips = []
+        for i, f in enumerate(FEET):
+            F = sol.forces_W[f]
+            F_sum = F.sum(0)
+            cop = sol.cop_W[f]
+            mc = mon.contacts[f]
+            cs = ctrl.contacts[f]
+            p_site = mon.site_positions_W[f]
+            if cs.active and cs.weight == 1.0 and mc.normal_n >= SUPPORT_FRACTION * self.mg:
+                slip = float(np.hypot(*(p_site - self._home.setdefault(f, p_site))[:2]))
+                slips.append(slip)
+            else:  # unloaded or swinging: slip counts from when it supports again
+                slip = 0.0
+                self._home[f] = p_site
+            ft_qp = float(np.hypot(F_sum[0], F_sum[1]))
+            row += [float(F_sum[2]), ft_qp, float(cop[0]), float(cop[1]), mc.normal_n, mc.tangential_n,
+                    float(mc.cop_W[0]), float(mc.cop_W[1]), slip]
+            b.fz_qp[k, i], b.fz_mj[k, i] = F_sum[2], mc.normal_n
+            b.ft_qp[k, i], b.ft_mj[k, i] = ft_qp, mc.tangential_n
+            b.cop_qp[k, i], b.cop_mj[k, i] = cop[:2], mc.cop_W[:2]
+        row += command.values.tolist() + state.q.tolist()
+        self.csv.write(row)
+        b.t[k] = t
+        b.com_ref[k], b.com[k] = com_ref, mon.com_W
+        b.stance[k] = stance and not sol.fallback
+        b.ctrl_us[k], b.qp_us[k] = sol.controller_time_s * 1e6, sol.qp_time_s * 1e6
+        b.slip[k] = max(slips) if slips else 0.0
+        b.z[k] = state.q[2]
+        self.k = k + 1
+        now = time.perf_counter()
+        if self._last_cycle_end is not None:
+            b.cycle_us[k] = (now - self._last_cycle_end) * 1e6
+        self._last_cycle_end = now
+        self.ctx.progress.advance()
+        if k % VALUES_EVERY == 0:
+            self.values()
+        return mon.fall_reason is not None
+
+    def values(self, sim: Simulator | None = None) -> dict[str, Any]:
+        """Fill ``ctx.values`` from the cycles so far (an interrupted run keeps them) and return them."""
+        ctx = self.ctx
+        if not self.k:
+            return ctx.values
+        r = self.record()
+        com_err = r.com - r.com_ref
+        stance = r.stance
+        rel = np.abs(r.fz_qp.sum(1) - r.fz_mj.sum(1)) / self.mg
+        per_foot = np.abs(r.fz_qp - r.fz_mj) / self.mg
+        ctrl, mon = self.wb.controller, self.monitor
+
+        def stat(x: np.ndarray, how: str) -> float:
+            if not x.size:
+                return float("nan")
+            return float(np.percentile(x, {"median": 50, "p95": 95, "max": 100}[how]))
+
+        ctx.values.update({
+            "fell": mon.fall_reason is not None,
+            "fall_reason": mon.fall_reason,
+            "fall_time_s": mon.fall_time_s,
+            "controller_fallback_at_s": ctrl.infeasible_at_s,
+            "com_error_rms_m": float(np.sqrt(np.mean(np.sum(com_err**2, axis=1)))),
+            "max_foot_slip_m": float(np.max(r.slip)),
+            "contact_force_rel_error": stat(rel[stance], "median"),
+            "contact_force_rel_error_p95": stat(rel[stance], "p95"),
+            "contact_force_rel_error_max": stat(rel[stance], "max"),
+            "controller_time_median_us": float(np.median(r.ctrl_us)),
+            "qp_solve_time_median_us": stat(r.qp_us[r.qp_us > 0], "median"),
+            "cycle_time_median_us": stat(r.cycle_us[np.isfinite(r.cycle_us)], "median"),
+            "qp_fast_path_fraction": ctrl.fast_path_cycles / max(1, ctrl.fast_path_cycles + ctrl.daqp_cycles),
+            "contact_normal_rel_error_per_foot": {f: stat(per_foot[stance, i], "median")
+                                                  for i, f in enumerate(FEET)},
+            "pelvis_z_min_m": float(np.min(r.z)),
+        })
+        if sim is not None:
+            ctx.values["torque_saturation_steps"] = int(sim.saturated_commands)
+        if ctrl.infeasible_message is not None:
+            ctx.values["controller_fallback_reason"] = ctrl.infeasible_message
+        return ctx.values

@@ -1,0 +1,163 @@
+"""Facts about the Menagerie Unitree G1, in one place: names, limbs, the standing start, what "fell" means.
+
+Nothing in control/ names the G1: generic code (whole-body IK, the whole-body controller) takes
+frame names as parameters, and the jobs fill them from here, only for the robot that IS the
+Menagerie G1 (:func:`is_menagerie_g1`: loaded by the registry name "g1", told apart by its recorded
+origin, never by the file stem).
+
+Palm sites. The Menagerie G1 has no palm sites, so the jobs add them at load time with
+:func:`mbctl.robots.edits.add_site` (recorded in ``robot.source.edits``): ``left_palm`` on body
+``left_wrist_yaw_link`` and ``right_palm`` on ``right_wrist_yaw_link``, at
+:data:`PALM_OFFSET_IN_WRIST_YAW_M` = (0.08, 0, 0) m in the body frame, identity orientation. The
+rubber hand mesh starts at x = 0.0415 m on that link and the link's CoM (hand included) is at
+x = 0.0708 m, so 0.08 m is about mid-palm along the hand's long axis.
+
+Falling. The G1 has fallen when its pelvis is below :data:`FALL_HEIGHT_M` or when a body other than
+its feet touches the floor (:data:`G1_FALL`); the plant measures both
+(:class:`mbctl.sim.monitor.FallMonitor`).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+import pinocchio as pin
+
+from mbctl.robots.edits import add_site
+from mbctl.robots.model_pair import Robot
+
+#: Registry name of the Menagerie G1 (``mbctl.robots.registry.KNOWN_ROBOTS``).
+G1_NAME = "g1"
+
+#: Start of ``ModelSource.origin`` for the registry's G1 (``robots.registry._locate_g1``).
+G1_ORIGIN_PREFIX = "MuJoCo Menagerie unitree_g1"
+
+#: Keyframe the G1 jobs start from (standing pose).
+KEYFRAME = "stand"
+
+#: Palm site offset [m] in each wrist-yaw link frame (see the module docstring for the choice).
+PALM_OFFSET_IN_WRIST_YAW_M = (0.08, 0.0, 0.0)
+
+#: Palm site name -> the body it is attached to.
+PALM_SITES = {"left_palm": "left_wrist_yaw_link", "right_palm": "right_wrist_yaw_link"}
+
+#: Foot sites (held by the whole-body IK; the whole-body controller's contact frames).
+FEET = ("left_foot", "right_foot")
+
+#: The bodies that carry the foot sites and touch the ground.
+FOOT_BODIES = ("left_ankle_roll_link", "right_ankle_roll_link")
+
+#: Floating-base body.
+PELVIS = "pelvis"
+
+#: Upper-body link whose orientation the whole-body controller holds.
+TORSO = "torso_link"
+
+#: Words that put a joint in a leg (leg joints carry the body) or an arm.
+LEG_WORDS = ("hip", "knee", "ankle")
+ARM_WORDS = ("shoulder", "elbow", "wrist")
+
+#: Pelvis height [m] below which the G1 has fallen.
+FALL_HEIGHT_M = 0.5
+
+#: Leg joints of the crouched start [rad]: the keyframe's straight knees are a singularity of the
+#: CoM height (its Jacobian row vanishes), so whole-body control starts with bent knees.
+CROUCH_RAD = {"hip_pitch": -0.3, "knee": 0.6, "ankle_pitch": -0.3}
+
+
+@dataclass(frozen=True)
+class FallRule:
+    """When a robot on the floor has fallen: its base too low, or a non-supporting body on the floor.
+
+    Attributes:
+        base_min_z_m: Base (free-joint) height [m] below which it has fallen.
+        support_bodies: Bodies allowed to touch the floor (the feet).
+    """
+
+    base_min_z_m: float
+    support_bodies: tuple[str, ...]
+
+    def reason(self, base_z_m: float, floor_bodies: Sequence[str]) -> str | None:
+        """Why the robot has fallen (None: it has not).
+
+        Args:
+            base_z_m: Height of the floating base [m].
+            floor_bodies: Names of the robot's bodies touching the floor.
+        """
+        if base_z_m < self.base_min_z_m:
+            return f"pelvis at {base_z_m:.3f} m (below {self.base_min_z_m:g} m)"
+        others = sorted(set(floor_bodies) - set(self.support_bodies))
+        if others:
+            return f"{', '.join(others)} touched the floor"
+        return None
+
+
+#: The G1's fall rule.
+G1_FALL = FallRule(FALL_HEIGHT_M, FOOT_BODIES)
+
+
+def is_menagerie_g1(robot: Robot) -> bool:
+    """True when ``robot`` is the registry's Menagerie G1 (a user file named g1.xml is not).
+
+    Args:
+        robot: Any loaded model pair (edits such as palm sites keep the identity).
+    """
+    return robot.source.name == G1_NAME and robot.source.origin.startswith(G1_ORIGIN_PREFIX)
+
+
+def with_palm_sites(robot: Robot) -> Robot:
+    """A copy of the G1 with the ``left_palm``/``right_palm`` sites in both engines (idempotent).
+
+    Raises:
+        UnknownNameError: The robot lacks a wrist-yaw body (not a G1).
+    """
+    for site, body in PALM_SITES.items():
+        if site not in robot.sites:
+            robot = add_site(robot, site, body, PALM_OFFSET_IN_WRIST_YAW_M)
+    return robot
+
+
+def limb_of(joint: str) -> str:
+    """The limb of a G1 joint: "left leg", "right arm", "waist" (else its first word)."""
+    side = next((s for s in ("left", "right") if joint.startswith(f"{s}_")), None)
+    if any(w in joint for w in LEG_WORDS):
+        part = "leg"
+    elif any(w in joint for w in ARM_WORDS):
+        part = "arm"
+    else:
+        part = joint.removeprefix(f"{side}_").split("_")[0] if side else joint.split("_")[0]
+    return f"{side} {part}" if side else part
+
+
+def joint_role(joint: str) -> str:
+    """A joint's name within its limb: ``left_knee_joint`` -> ``knee``, ``waist_yaw_joint`` -> ``waist_yaw``.
+
+    Args:
+        joint: The joint name.
+    """
+    for side in ("left_", "right_"):
+        joint = joint.removeprefix(side)
+    return joint.removesuffix("_joint")
+
+
+def crouched_start(robot: Robot) -> np.ndarray:
+    """The ``stand`` keyframe with bent knees (:data:`CROUCH_RAD`), feet flat where they were (nq,).
+
+    The base moves down and back by the feet's displacement, so the soles keep their keyframe
+    pose (hip + knee + ankle pitch = 0 keeps them flat).
+    """
+    model = robot.pin_model
+    data = model.createData()
+    q = robot.keyframe_q(KEYFRAME).copy()
+    for side in ("left", "right"):
+        for joint, value in CROUCH_RAD.items():
+            q[robot.joint(f"{side}_{joint}_joint").idx_q] = value
+    feet = [model.getFrameId(f) for f in FEET]
+    pin.framesForwardKinematics(model, data, robot.keyframe_q(KEYFRAME))
+    before = np.mean([data.oMf[f].translation for f in feet], axis=0)
+    pin.framesForwardKinematics(model, data, q)
+    after = np.mean([data.oMf[f].translation for f in feet], axis=0)
+    q[:3] += before - after
+    return q

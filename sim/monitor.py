@@ -1,0 +1,93 @@
+"""What the plant did in each control period, sampled without an extra forward pass (a simulator observer).
+
+Right after ``mj_step`` MuJoCo's data holds two times at once: qpos/qvel are the new state
+(t + dt), while everything the step's forward pass computed (body and site positions, the
+subtree CoMs, the contacts and the forces the constraint solver applied during the step) belongs
+to the step's start t. A :class:`PlantMonitor` reads the latter after every ``sync()``, so each
+control cycle gets, for the state its command was computed from (time t): the robot's CoM and
+the sites MuJoCo placed, the contact forces that MuJoCo applied on groups of geoms (e.g. each
+foot) while executing the command, which robot bodies touch the floor, and whether the robot has
+fallen, without a second ``mj_forward`` (that would cost as much as the step itself on the G1).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Iterable, Mapping, Sequence
+
+import numpy as np
+
+from mbctl.sim.contacts import ContactSensor, FloorContacts, MeasuredContact
+from mbctl.sim.exceptions import SimError
+from mbctl.sim.simulator import Simulator
+
+#: ``rule(base_z_m, floor_bodies) -> reason`` or None (e.g. ``mbctl.robots.g1.G1_FALL.reason``).
+FallRule = Callable[[float, Sequence[str]], "str | None"]
+
+
+class PlantMonitor:
+    """Samples the plant after each control period; attach with ``sim.add_observer(monitor)``.
+
+    Args:
+        sim: The plant.
+        contact_groups: Geom ids per name (e.g. a foot's collision geoms) whose contact force is
+            measured each period.
+        sites: Robot sites whose world positions are sampled each period.
+        fall_rule: Decides from the base height and the bodies touching the floor whether the
+            robot has fallen (needs a floating base); the first fall is latched.
+
+    Raises:
+        SimError: A fall rule for a fixed-base robot.
+
+    Attributes:
+        time_s: Start time [s] of the last period sampled (the state its command saw).
+        contacts: Measured contact per group over the last period (world frame).
+        com_W: Robot CoM (3,) [m] at ``time_s`` (MuJoCo's subtree CoMs of the robot's roots).
+        site_positions_W: Position (3,) [m] of each sampled site at ``time_s``.
+        floor_bodies: Robot bodies touching the floor at ``time_s``.
+        fall_reason: Why the robot fell (None while it has not), with ``fall_time_s`` [s].
+    """
+
+    def __init__(self, sim: Simulator, contact_groups: Mapping[str, Iterable[int]] | None = None,
+                 sites: Sequence[str] = (), fall_rule: FallRule | None = None):
+        self.sim = sim
+        m, robot = sim.model, sim.robot
+        self._sensor = ContactSensor(m, contact_groups) if contact_groups else None
+        self._roots = [b for b in robot.robot_body_ids if int(m.body_parentid[b]) == 0]
+        self._root_mass = m.body_subtreemass[self._roots]
+        #: The robot's mass [kg] in the plant.
+        self.mass_kg = float(self._root_mass.sum())
+        self._site_ids = {name: robot.site_id(name) for name in sites}
+        self._floor = FloorContacts(m, np.flatnonzero(m.geom_bodyid == 0), bodies=robot.robot_body_ids)
+        if fall_rule is not None and not robot.has_floating_base:
+            raise SimError(f"a fall rule needs a floating base; {robot.name!r} has a fixed base")
+        self._fall_rule = fall_rule
+        self.time_s = float(sim.data.time)
+        self.contacts: dict[str, MeasuredContact] = {}
+        self.com_W = np.zeros(3)
+        self.site_positions_W: dict[str, np.ndarray] = {}
+        self.floor_bodies: tuple[str, ...] = ()
+        self.fall_reason: str | None = None
+        self.fall_time_s: float | None = None
+        self.base_z_m = float("nan")
+
+    def attach(self) -> PlantMonitor:
+        """Register as the simulator's observer; returns self."""
+        self.sim.add_observer(self)
+        return self
+
+    def __call__(self, sim: Simulator) -> None:
+        """Sample the period that just ran (the simulator calls this after every ``sync``/``step``)."""
+        d = sim.data
+        self.time_s = float(d.time) - sim.control_period_s
+        if self._sensor is not None:
+            self.contacts = self._sensor.measure(d)
+        sub = d.subtree_com[self._roots]
+        self.com_W = self._root_mass @ sub / self.mass_kg
+        self.site_positions_W = {name: d.site_xpos[i].copy() for name, i in self._site_ids.items()}
+        self.floor_bodies = tuple(self._floor.bodies(d))
+        if self._fall_rule is not None and self.fall_reason is None:
+            # the base height at the step's start: the free joint sits at the root body's origin
+            self.base_z_m = float(d.xpos[self._roots[0], 2])
+            reason = self._fall_rule(self.base_z_m, self.floor_bodies)
+            if reason is not None:
+                self.fall_reason, self.fall_time_s = reason, self.time_s
