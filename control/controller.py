@@ -259,6 +259,7 @@ class TorqueSaturation:
         self.counts = np.zeros(len(self.joints), dtype=int)
         self.saturated_cycles = 0
         self.cycles = 0
+        self._small = len(self.joints) <= SMALL_VECTOR_MAX
         self._low_list = self.low.tolist()
         self._high_list = self.high.tolist()
         self._below = np.zeros(len(self.joints), dtype=bool)
@@ -274,7 +275,7 @@ class TorqueSaturation:
         """Clip ``tau`` (n,) in place to [low, high]; count the clipped joints. Returns ``tau``."""
         self.cycles += 1
         if self.enabled:
-            if len(tau) <= SMALL_VECTOR_MAX and not any_outside(
+            if self._small and not any_outside(
                 tau.tolist(), self._low_list, self._high_list
             ):
                 return tau  # few joints, none out of range: plain Python is the cheap check

@@ -32,9 +32,6 @@ DIVERGENCE_WARNINGS = (
     mujoco.mjtWarning.mjWARN_BADCTRL,
 )
 _DIVERGENCE_IDS = tuple(int(w) for w in DIVERGENCE_WARNINGS)
-#: ``RobotState((q, v, time_s))`` without the namedtuple's Python-level ``__new__`` (per cycle).
-_robot_state = RobotState._make
-
 _WARNING_NAMES = {
     int(w): name.removeprefix("mjWARN_")
     for name, w in mujoco.mjtWarning.__members__.items()
@@ -151,7 +148,8 @@ class Simulator:
                                           self.data.qvel[self._vi] if qvel is None else qvel)
         q.setflags(write=False)
         v.setflags(write=False)
-        return _robot_state((q, v, float(self.data.time)))
+        # the namedtuple built as tuple.__new__ does it, without its Python-level __new__ (per cycle)
+        return tuple.__new__(RobotState, (q, v, float(self.data.time)))
 
     @property
     def state(self) -> RobotState:
