@@ -37,11 +37,11 @@ from mbctl.control.loop import run  # noqa: E402
 from mbctl.control.pd_gravity import PDGravity  # noqa: E402
 from mbctl.jobs.g1 import _base_z_index, _loop, stance_inertia  # noqa: E402
 from mbctl.jobs.recording import LoopRows, command_columns  # noqa: E402
-from mbctl.jobs.robot_constants import KEYFRAME  # noqa: E402
 from mbctl.jobs.runner import RunContext  # noqa: E402
 from mbctl.robots import load_robot  # noqa: E402
 from mbctl.robots.commands import Command, CommandKind  # noqa: E402
 from mbctl.robots.edits import position_to_motor  # noqa: E402
+from mbctl.robots.g1 import KEYFRAME  # noqa: E402
 from mbctl.robots.interface import RobotState  # noqa: E402
 from mbctl.sim.recorder import CsvStream  # noqa: E402
 from mbctl.sim.simulator import Simulator  # noqa: E402
@@ -125,6 +125,7 @@ def main() -> None:
     row_us = med["rows"] / cycles * 1e6
     print(f"row (amortised)         : {row_us:7.2f} us   goal <= {GOAL_ROW_US:g} us "
           f"{'ok' if row_us <= GOAL_ROW_US else 'MISSED'}")
+    print(f"ratio row/cycle         : {med['rows'] / med['bare']:7.2f}   (a row in control cycles, same run)")
     ratio = med["job"] / med["bare"]
     print(f"job loop                : {med['job'] / cycles * 1e6:7.2f} us per cycle")
     print(f"ratio job/bare          : {ratio:7.2f}x  goal <= {GOAL_JOB_RATIO:g}x "
