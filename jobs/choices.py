@@ -20,5 +20,8 @@ WBC_SCENARIOS = ("stand", "squat", "one-foot", "reach", "push")
 #: Default simulated time [s] per g1-wbc scenario.
 WBC_DEFAULT_DURATION_S = {"stand": 10.0, "squat": 10.0, "one-foot": 14.0, "reach": 8.0, "push": 17.0}
 
+#: ``mbctl serve --start``: the G1's initial pose.
+SERVE_STARTS = ("stand", "crouched")
+
 #: The jobs ``mbctl sweep`` runs (``mbctl.jobs.catalog.CATALOG``), in its order.
 SWEEP_JOBS = ("demo", "joint-step", "g1-stand", "g1-track", "g1-arm-pd", "g1-wbc", "xcheck", "ik")

@@ -53,6 +53,7 @@ from mbctl.jobs.run_folder import (
 )
 from mbctl.jobs.run_folder import check_output_file as check_output_file
 from mbctl.sim.atomic import write_bytes_atomic, write_json_atomic
+from mbctl.sim.csv_stream import FLUSH_INTERVAL_S
 from mbctl.sim.exceptions import OutputPathError, SimulationDiverged
 from mbctl.sim.recorder import CsvStream
 from mbctl.sim.report import environment, model_section, run_section
@@ -170,14 +171,21 @@ class RunContext:
         self.files[role or name] = path
         return path
 
-    def open_csv(self, header: Sequence[str], name: str | None = None) -> CsvStream:
+    def open_csv(self, header: Sequence[str], name: str | None = None, *,
+                 flush_interval_s: float = FLUSH_INTERVAL_S) -> CsvStream:
         """Open the run's streamed CSV (``<job>.csv`` by default); the runner closes it.
 
         The first CSV opened is the run's main one: its row count and last ``time_s`` go in the
         report and the interruption message.
+
+        Args:
+            header: Column names (with units).
+            name: File name in the run folder (default ``<job>.csv``).
+            flush_interval_s: Longest wait [s] of a row before it is on disk; 0 writes each row
+                through (for a log another process reads while the run goes on).
         """
         stream = CsvStream(self.path(name or csv_name(self.job), "csv" if not
-                                     self._streams else name), header)
+                                     self._streams else name), header, flush_interval_s=flush_interval_s)
         self._streams.append(stream)
         if self.csv is None:
             self.csv = stream

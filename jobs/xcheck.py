@@ -35,6 +35,10 @@ class XcheckParams:
         analytic: "mujoco" (the Pinocchio model built from MuJoCo's compiled model) or "parser"
             (Pinocchio's own parser on the robot file: the independent path).
         roots: Bodies whose trees are the robot (default: the trees the actuators drive).
+        joint_map: (joint in the ``pin_model`` file, joint of the plant) pairs for joints named
+            differently (``--joint-map``).
+        floating_base: Add a free flyer to a fixed-base ``pin_model`` (True), never (False), or
+            when the plant's robot has a free root joint (None).
     """
 
     robot: str
@@ -47,6 +51,8 @@ class XcheckParams:
     model_dir: str | None = None
     analytic: str = "mujoco"
     roots: tuple[str, ...] = ()
+    joint_map: tuple[tuple[str, str], ...] = ()
+    floating_base: bool | None = None
 
     def __post_init__(self) -> None:
         if self.states < 0:
@@ -75,6 +81,8 @@ def prepare(params: XcheckParams) -> Work:
         check=False,
         analytic=params.analytic,
         roots=params.roots,
+        joint_map=dict(params.joint_map),
+        floating_base=params.floating_base,
     )
 
     def work(ctx: RunContext) -> Outcome:

@@ -10,10 +10,12 @@ from mbctl.robots.conventions import (
 )
 from mbctl.robots.edits import position_to_motor, weld_base
 from mbctl.robots.exceptions import (
+    JointMapError,
     ModelFileError,
     ModelMismatchError,
     ModelNotFoundError,
     RobotError,
+    SceneMismatchError,
     StateError,
     UnknownNameError,
 )
@@ -29,6 +31,7 @@ __all__ = [
     "CommandKind",
     "ctrl",
     "JointLayout",
+    "JointMapError",
     "ModelFileError",
     "ModelMismatchError",
     "ModelNotFoundError",
@@ -37,6 +40,7 @@ __all__ = [
     "RobotError",
     "RobotInterface",
     "RobotState",
+    "SceneMismatchError",
     "SensorInfo",
     "StateConverter",
     "StateError",

@@ -65,3 +65,22 @@ def dask_client():
     with Client(cluster) as client:
         yield client
     cluster.close()
+
+
+_DDS_DOMAINS = iter(range(10**9))
+
+
+@pytest.fixture
+def dds_domain() -> int:
+    """A DDS domain id for one test: derived from the pid and a counter, in 1..232.
+
+    Every DDS participant in the tests uses it on the loopback interface ``lo`` (the default of
+    mbctl.robots.unitree.Channel), so tests never share a domain and never leave the machine.
+    """
+    try:
+        import cyclonedds  # noqa: F401
+    except ImportError:
+        if os.environ.get("CI"):
+            pytest.fail("CI must have the hardware extra (pip install -e '.[test]')")
+        pytest.skip("DDS tests need the hardware extra")
+    return 1 + (os.getpid() * 37 + next(_DDS_DOMAINS)) % 232

@@ -316,14 +316,17 @@ class WholeBodyController:
         n_fric = self._n_fric
         np.subtract(self.tau_high, b_a, out=qp.g_up[n_fric:])
         np.subtract(self.tau_low, b_a, out=qp.g_lo[n_fric:])
-        # joint limits: q + v T + vdot T^2/2 within [q_min, q_max]
+        # joint limits: q + v T + vdot T^2/2 within [q_min + margin, q_max - margin]: a joint heading
+        # for a limit must decelerate (the bound turns positive), at most by the accel cap A, so
+        # that lb <= ub and the bounds stay feasible under the torque limits
         iv, iq, q_lo, q_hi = self._limits
         if len(iv):
             Th = cfg.joint_limit_horizon_s
             reach = s.q[iq] + s.v[iv] * Th  # where the joints coast to in Th
             scale = 2.0 / Th**2
-            lb[iv] = np.minimum((q_lo - reach) * scale, 0.0)
-            ub[iv] = np.maximum((q_hi - reach) * scale, 0.0)
+            margin, cap = cfg.joint_limit_margin_rad, cfg.joint_limit_max_accel_rad_s2
+            lb[iv] = np.minimum((q_lo + margin - reach) * scale, cap)
+            ub[iv] = np.maximum((q_hi - margin - reach) * scale, -cap)
         t_qp = time.perf_counter()
         if cfg.solver == "daqp":
             result = qp.solve(m_eq)

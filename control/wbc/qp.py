@@ -15,7 +15,7 @@ Solved in two ways, the first tried first:
   ``lambda = -S^-1 (e + E H^-1 c)`` and ``x = -H^-1 (c + E^T lambda)``. If that point satisfies
   every inequality and bound (to :data:`FEASIBILITY_TOL`), it is the QP's optimum (the problem is
   convex and no inequality is active). This is the first iteration of any active-set method,
-  written here because daqp's setup with 18 equality rows costs ~60 us on the G1 (measured,
+  written here because daqp's setup with 18 equality rows costs ~60 us (e.g. on the G1; measured,
   ``bench/bench_wbc.py``) while this costs a Cholesky of the 35 x 35 block and an 18 x 18 solve.
   Standing and squatting never leave it (no inequality is active there).
 * **daqp** (the dual active-set solver) on the whole problem, called directly with preallocated

@@ -71,3 +71,6 @@ def test_the_help_s_choices_are_the_jobs():
     assert SCENARIOS == choices.WBC_SCENARIOS
     assert DEFAULT_DURATION_S == choices.WBC_DEFAULT_DURATION_S
     assert tuple(CATALOG) == choices.SWEEP_JOBS
+    from mbctl.jobs.serve import STARTS
+
+    assert STARTS == choices.SERVE_STARTS

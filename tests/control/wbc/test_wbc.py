@@ -256,3 +256,21 @@ def test_mass_matrix_is_symmetric_and_matches_crba(tiny_biped, crouch):
     M = np.triu(M) + np.triu(M, 1).T
     np.testing.assert_allclose(s.M, M, atol=1e-10)
     assert not s.M.flags.writeable
+
+
+def test_a_joint_heading_for_its_limit_is_made_to_decelerate(tiny_biped, crouch):
+    """The joint-limit bound demands deceleration before the limit (not only no acceleration toward it)."""
+    wb, state = _stance(tiny_biped, crouch)
+    ctrl = wb.controller
+    knee = tiny_biped.joint("l_knee")
+    q = np.array(state.q)
+    q_lo = tiny_biped.pin_model.lowerPositionLimit[knee.idx_q]
+    q[knee.idx_q] = q_lo + 0.06  # 0.06 rad above the lower limit, closing at 1 rad/s
+    v = np.zeros(tiny_biped.nv)
+    v[knee.idx_v] = -1.0
+    ctrl.compute(RobotState(q, v, 0.0))
+    cfg = ctrl.config
+    Th = cfg.joint_limit_horizon_s
+    required = 2.0 * (q_lo + cfg.joint_limit_margin_rad - (q[knee.idx_q] + v[knee.idx_v] * Th)) / Th**2
+    assert required > 0.0  # coasting would cross the limit within the horizon
+    assert ctrl.solution.vdot[knee.idx_v] >= min(required, cfg.joint_limit_max_accel_rad_s2) - 1e-6
