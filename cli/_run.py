@@ -1,14 +1,19 @@
-"""Run a job from the command line: the runner, the summary, the exit code."""
+"""Run a job from the command line: the runner, the summary, the exit code.
+
+The command modules import their jobs inside the command (``mbctl --help`` loads no engine), then
+call :func:`execute`.
+"""
 
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Annotated, Any
+from typing import TYPE_CHECKING, Annotated, Any
 
 import typer
 
-from mbctl.jobs.runner import Job, RunRecord, run_job
-from mbctl.sim.video import VideoSpec, parse_size
+if TYPE_CHECKING:
+    from mbctl.jobs.runner import Job, RunRecord
+    from mbctl.sim.video import VideoSpec
 
 #: ``--output`` for every job: the run folder (default out/<command>).
 OutputOpt = Annotated[
@@ -26,6 +31,8 @@ VideoSizeOpt = Annotated[str, typer.Option("--video-size", help="Video frame siz
 
 def video_spec(video: bool, size: str) -> VideoSpec | None:
     """The ``--video`` / ``--video-size`` options as a VideoSpec (None when not filming)."""
+    from mbctl.sim.video import VideoSpec, parse_size
+
     width, height = parse_size(size)  # checked even without --video: a typo is an error
     return VideoSpec(width, height) if video else None
 
@@ -39,6 +46,8 @@ def execute(
     Bad input and unusable output folders raise toolkit errors, which the entry point turns into
     exit 2.
     """
+    from mbctl.jobs.runner import run_job
+
     record = run_job(job, params, output, quiet=quiet, video=video)
     typer.echo(record.summary(), err=record.status != "completed")
     if record.exit_code:

@@ -7,8 +7,7 @@ from typing import Annotated
 import typer
 
 from mbctl.cli._run import OutputOpt, QuietOpt, VideoOpt, VideoSizeOpt, execute, video_spec
-from mbctl.jobs import options
-from mbctl.jobs.demo import CONTROLLERS, DEMO
+from mbctl.jobs.choices import CONTROLLERS
 
 
 def demo(
@@ -37,6 +36,9 @@ def demo(
     video_size: VideoSizeOpt = "640x480",
 ) -> None:
     """Track a Cartesian square on the 2-link torque arm; print RMS and max Cartesian error."""
+    from mbctl.jobs import options
+    from mbctl.jobs.demo import DEMO
+
     config = options.demo(controller=controller, compare=compare, model_error=model_error, duration=duration,
                           side=side, speed=speed, omega=omega, gravity=gravity, max_rms_mm=max_rms_mm)
     execute(DEMO, config, output, quiet, video_spec(video, video_size))

@@ -22,8 +22,6 @@ from mbctl.cli.plant_options import (
     WatchdogOpt,
 )
 from mbctl.cli.robots import ModelDirOpt
-from mbctl.jobs import options
-from mbctl.jobs.g1 import G1_ARM_PD, G1_STAND, G1_TRACK
 
 Omega = Annotated[float, typer.Option("--omega", help="Closed-loop natural frequency (rad/s).")]
 Zeta = Annotated[float, typer.Option("--zeta", help="Damping ratio (-).")]
@@ -61,6 +59,9 @@ def stand(
 
     --interface dds runs the same controller on the G1's low-level DDS (a robot, or `mbctl serve g1`).
     """
+    from mbctl.jobs import options
+    from mbctl.jobs.g1 import G1_STAND
+
     params = options.g1_stand(duration=duration, omega=omega, zeta=zeta, model_dir=model_dir,
                               interface=interface, domain=domain, network_interface=network_interface,
                               latency_ms=latency_ms, jitter_ms=jitter_ms, drop=drop, imu_noise=imu_noise,
@@ -84,6 +85,9 @@ def track(
 
     In-process only: the welded base is a simulation edit no real robot has.
     """
+    from mbctl.jobs import options
+    from mbctl.jobs.g1 import G1_TRACK
+
     params = options.g1_track(duration=duration, omega=omega, zeta=zeta, max_rms_rad=max_rms_rad,
                               model_dir=model_dir)
     execute(G1_TRACK, params, output, quiet, video_spec(video, video_size))
@@ -119,6 +123,9 @@ def arm_pd(
 
     Over DDS (--interface dds) the targets go out as position commands with the actuators' kp and kv.
     """
+    from mbctl.jobs import options
+    from mbctl.jobs.g1 import G1_ARM_PD
+
     params = options.g1_arm_pd(duration=duration, side=side, gravity_feedforward=gravity_feedforward,
                                max_rms_rad=max_rms_rad, model_dir=model_dir, interface=interface,
                                domain=domain,

@@ -22,16 +22,15 @@ from mbctl.cli.plant_options import (
     WatchdogOpt,
 )
 from mbctl.cli.robots import ModelDirOpt
-from mbctl.jobs import options
-from mbctl.jobs.g1_wbc import DEFAULT_DURATION_S, G1_WBC, SCENARIOS
+from mbctl.jobs.choices import WBC_DEFAULT_DURATION_S, WBC_SCENARIOS
 
 
 def g1_wbc(
-    scenario: Annotated[str, typer.Argument(help=f"One of: {', '.join(SCENARIOS)}.")] = "stand",
+    scenario: Annotated[str, typer.Argument(help=f"One of: {', '.join(WBC_SCENARIOS)}.")] = "stand",
     duration: Annotated[
         float | None,
         typer.Option("--duration", help="Simulated time (s) (default per scenario: " + ", ".join(
-            f"{k} {v:g}" for k, v in DEFAULT_DURATION_S.items()) + ")."),
+            f"{k} {v:g}" for k, v in WBC_DEFAULT_DURATION_S.items()) + ")."),
     ] = None,
     impulse: Annotated[
         float | None,
@@ -69,6 +68,9 @@ def g1_wbc(
     --interface dds runs the same controller on the G1's low-level DDS (a robot, or `mbctl serve g1
     --start crouched`); the push scenario is in-process only.
     """
+    from mbctl.jobs import options
+    from mbctl.jobs.g1_wbc import G1_WBC
+
     params = options.g1_wbc(scenario=scenario, duration=duration, impulse=impulse, direction=direction,
                             model_error=model_error, model_dir=model_dir, interface=interface, domain=domain,
                             network_interface=network_interface, latency_ms=latency_ms, jitter_ms=jitter_ms,

@@ -17,9 +17,7 @@ import typer
 
 from mbctl.cli._run import OutputOpt, QuietOpt, execute
 from mbctl.cli.robots import ModelDirOpt, RootOpt, SceneOpt
-from mbctl.jobs import options
-from mbctl.jobs.ik import IK
-from mbctl.jobs.workspace import SUPPORTED_ROBOTS, WORKSPACE
+from mbctl.jobs.choices import TWO_LINK_ROBOTS
 
 
 def ik(
@@ -53,6 +51,9 @@ def ik(
     quiet: QuietOpt = False,
 ) -> None:
     """Solve IK to convergence, check the pose in MuJoCo, write ik_pose.json; exit 1 if not converged."""
+    from mbctl.jobs import options
+    from mbctl.jobs.ik import IK
+
     params = options.ik(robot=robot, target=target, com=com, backend=backend, tol=tol, max_iters=max_iters,
                         solver=solver, relative=relative, keyframe=keyframe, scene=scene, model_dir=model_dir,
                         root=root)
@@ -61,7 +62,7 @@ def ik(
 
 def workspace(
     robot: Annotated[str, typer.Argument(
-        help=f"The 2-link arm only: {' or '.join(SUPPORTED_ROBOTS)}; other robots are refused."),
+        help=f"The 2-link arm only: {' or '.join(TWO_LINK_ROBOTS)}; other robots are refused."),
     ] = "two_link",
     samples: Annotated[int, typer.Option("--samples", min=2, help="Grid samples per joint.")] = 121,
     output: OutputOpt = None,
@@ -71,6 +72,9 @@ def workspace(
 
     Supports only the planar 2-link arm (two_link, two_link_torque); other robots are refused.
     """
+    from mbctl.jobs import options
+    from mbctl.jobs.workspace import WORKSPACE
+
     execute(WORKSPACE, options.workspace(robot=robot, samples=samples), output, quiet)
 
 

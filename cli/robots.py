@@ -2,13 +2,13 @@
 
 from __future__ import annotations
 
-from typing import Annotated
+import math
+from typing import TYPE_CHECKING, Annotated
 
-import mujoco
-import numpy as np
 import typer
 
-from mbctl.robots import KNOWN_ROBOTS, Robot, load_robot
+if TYPE_CHECKING:
+    from mbctl.robots import Robot
 
 ModelDirOpt = Annotated[
     str | None,
@@ -28,6 +28,8 @@ RootOpt = Annotated[
 
 def robots() -> None:
     """List the known robots and where each model comes from."""
+    from mbctl.robots import KNOWN_ROBOTS
+
     for known in KNOWN_ROBOTS.values():
         typer.echo(f"{known.name:16s} {known.description}")
         typer.echo(f"{'':16s} source: {known.origin}")
@@ -35,11 +37,14 @@ def robots() -> None:
 
 
 def _range(lo: float, hi: float) -> str:
-    return "unlimited" if not (np.isfinite(lo) and np.isfinite(hi)) else f"[{lo:g}, {hi:g}]"
+    return "unlimited" if not (math.isfinite(lo) and math.isfinite(hi)) else f"[{lo:g}, {hi:g}]"
 
 
 def describe(robot: Robot) -> str:
     """A side-by-side text description of both engines' view of ``robot``."""
+    import mujoco
+    import numpy as np
+
     pm, m = robot.pin_model, robot.mj_model
     lines = [
         f"robot: {robot.name}  ({robot.source.origin})",
@@ -99,6 +104,8 @@ def inspect(
     robot: RobotArg, scene: SceneOpt = None, model_dir: ModelDirOpt = None, root: RootOpt = None
 ) -> None:
     """Show nq, nv, nu, joints, actuators, sensors, keyframes and the scene in both engines."""
+    from mbctl.robots import load_robot
+
     typer.echo(describe(load_robot(robot, scene, model_dir=model_dir, roots=root or ())))
 
 

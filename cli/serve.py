@@ -17,13 +17,12 @@ from mbctl.cli.plant_options import (
     SeedOpt,
 )
 from mbctl.cli.robots import ModelDirOpt
-from mbctl.jobs import options
-from mbctl.jobs.serve import SERVE, STARTS
+from mbctl.jobs.choices import SERVE_STARTS
 
 
 def serve(
     robot: Annotated[str, typer.Argument(help="The robot to serve (g1).")] = "g1",
-    start: Annotated[str, typer.Option("--start", help=f"Initial pose: {' or '.join(STARTS)} "
+    start: Annotated[str, typer.Option("--start", help=f"Initial pose: {' or '.join(SERVE_STARTS)} "
                                                        "(g1-wbc starts crouched).")] = "stand",
     domain: DomainOpt = 0,
     network_interface: NetworkOpt = "lo",
@@ -45,6 +44,9 @@ def serve(
 
     The physics waits for the first valid command. Ctrl-C stops it (exit 130, every row kept).
     """
+    from mbctl.jobs import options
+    from mbctl.jobs.serve import SERVE
+
     params = options.serve(robot=robot, start=start, domain=domain, network_interface=network_interface,
                            latency_ms=latency_ms, jitter_ms=jitter_ms, drop=drop, imu_noise=imu_noise,
                            seed=seed, duration=duration, idle_timeout=idle_timeout, model_dir=model_dir)

@@ -8,15 +8,17 @@ import typer
 
 from mbctl.cli._run import OutputOpt, QuietOpt, VideoOpt, VideoSizeOpt, execute, video_spec
 from mbctl.cli.robots import ModelDirOpt, SceneOpt
-from mbctl.jobs import options
-from mbctl.jobs.joint_step import JOINT_STEP
-from mbctl.jobs.verify import SUPPORTED, verify_robot
+from mbctl.jobs.choices import TWO_LINK_ROBOTS
 
 
 def verify(
-    robot: Annotated[str, typer.Argument(help=f"Robot to check: {' or '.join(SUPPORTED)}.")] = "two_link",
+    robot: Annotated[
+        str, typer.Argument(help=f"Robot to check: {' or '.join(TWO_LINK_ROBOTS)}.")
+    ] = "two_link",
 ) -> None:
     """Run the 2-link arm's setup checks (two_link or two_link_torque); exit 1 if any fails."""
+    from mbctl.jobs.verify import verify_robot
+
     checks = verify_robot(robot)
     for c in checks:
         typer.echo(f"[{'PASS' if c.passed else 'FAIL'}] {c.name}: {c.detail}")
@@ -41,6 +43,9 @@ def joint_step(
     video_size: VideoSizeOpt = "640x480",
 ) -> None:
     """Reset, raise one joint's position target by DELTA, step N times, record, summarize."""
+    from mbctl.jobs import options
+    from mbctl.jobs.joint_step import JOINT_STEP
+
     params = options.joint_step(robot=robot, joint=joint, delta=delta, steps=steps, keyframe=keyframe,
                                 sensor=sensor, scene=scene, model_dir=model_dir)
     execute(JOINT_STEP, params, output, quiet, video_spec(video, video_size))

@@ -9,14 +9,12 @@ from typing import Annotated
 import typer
 
 from mbctl.cli._run import QuietOpt
-from mbctl.jobs.catalog import CATALOG, parse_grid
-from mbctl.jobs.runner import Progress
-from mbctl.jobs.sweep import CSV_NAME, SweepConfig, run_sweep
+from mbctl.jobs.choices import SWEEP_JOBS
 from mbctl.limits import MAX_SWEEP_TASKS
 
 
 def sweep(
-    job: Annotated[str, typer.Argument(help=f"The job to sweep: {', '.join(CATALOG)}.")],
+    job: Annotated[str, typer.Argument(help=f"The job to sweep: {', '.join(SWEEP_JOBS)}.")],
     param: Annotated[
         list[str] | None,
         typer.Option("--param", help="NAME=V1,V2,... : the job's option (dashes as underscores, the "
@@ -53,6 +51,10 @@ def sweep(
     ] = False,
 ) -> None:
     """Run JOB for every combination of the values (times the seeds); exit 1 if a row failed."""
+    from mbctl.jobs.catalog import parse_grid
+    from mbctl.jobs.runner import Progress
+    from mbctl.jobs.sweep import CSV_NAME, SweepConfig, run_sweep
+
     grid = parse_grid(job, param or [], seeds)
     folder = output or Path("out") / f"sweep-{job}"
     config = SweepConfig(job, grid, folder, workers, scheduler, dashboard, resume, metric, connect_timeout,

@@ -5,18 +5,17 @@ from __future__ import annotations
 import os
 import time
 from pathlib import Path
-from typing import Annotated, BinaryIO, cast
+from typing import TYPE_CHECKING, Annotated, BinaryIO, cast
 
-import mujoco
 import typer
 
 from mbctl.cli.robots import ModelDirOpt, RobotArg, SceneOpt
-from mbctl.jobs.runner import OutputError, check_output_file
-from mbctl.robots import load_robot
-from mbctl.robots.model_pair import Robot
-from mbctl.sim.atomic import write_bytes_atomic
-from mbctl.sim.trajectory import TRAJECTORY_NAME, base_body, load_trajectory
-from mbctl.sim.video import VideoError, VideoSpec, film_trajectory, parse_size, still
+
+if TYPE_CHECKING:  # the commands import MuJoCo and the jobs when they run, not for --help
+    import mujoco
+
+    from mbctl.robots.model_pair import Robot
+    from mbctl.sim.video import VideoError
 
 SizeOpt = Annotated[str, typer.Option("--size", help="Image or video frame size WIDTHxHEIGHT (px).")]
 KeyframeOpt = Annotated[
@@ -29,6 +28,8 @@ def _display() -> bool:
 
 
 def _no_display(what: str) -> VideoError:
+    from mbctl.sim.video import VideoError
+
     return VideoError(
         f"{what} needs a display (DISPLAY or WAYLAND_DISPLAY is not set here); headless, use "
         "`mbctl render ROBOT --output FILE.png` for a still or `mbctl replay RUN_DIR --video` for an MP4"
@@ -36,6 +37,8 @@ def _no_display(what: str) -> VideoError:
 
 
 def _posed(robot: Robot, keyframe: str | None) -> mujoco.MjData:
+    import mujoco
+
     data = mujoco.MjData(robot.mj_model)
     if keyframe is not None:
         mujoco.mj_resetDataKeyframe(robot.mj_model, data, robot.keyframe_id(keyframe))
@@ -53,6 +56,12 @@ def render(
 ) -> None:
     """Render one still image of ROBOT headless (camera on the base, or framing a fixed robot)."""
     from matplotlib import image
+
+    from mbctl.jobs.runner import OutputError, check_output_file
+    from mbctl.robots import load_robot
+    from mbctl.sim.atomic import write_bytes_atomic
+    from mbctl.sim.trajectory import base_body
+    from mbctl.sim.video import VideoSpec, parse_size, still
 
     if output.suffix.lower() != ".png":
         raise OutputError(f"--output must be a .png file; got {str(output)!r}")
@@ -77,6 +86,10 @@ def replay(
     size: SizeOpt = "640x480",
 ) -> None:
     """Play a recorded run back: in MuJoCo's viewer, or to an MP4 with --video."""
+    from mbctl.jobs.runner import OutputError, check_output_file
+    from mbctl.sim.trajectory import TRAJECTORY_NAME, load_trajectory
+    from mbctl.sim.video import VideoSpec, film_trajectory, parse_size
+
     if not (run_dir / TRAJECTORY_NAME).is_file():
         raise OutputError(
             f"{str(run_dir)!r} holds no {TRAJECTORY_NAME}: not a run folder of a simulating job"
@@ -93,6 +106,7 @@ def replay(
         return
     if not _display():
         raise _no_display("replay without --video")
+    import mujoco
     import mujoco.viewer
 
     data = mujoco.MjData(model)
@@ -113,6 +127,8 @@ def view(robot: RobotArg, keyframe: KeyframeOpt = None, scene: SceneOpt = None,
     if not _display():
         raise _no_display("mbctl view")
     import mujoco.viewer
+
+    from mbctl.robots import load_robot
 
     loaded = load_robot(robot, scene, model_dir=model_dir)
     mujoco.viewer.launch(loaded.mj_model, _posed(loaded, keyframe))

@@ -9,8 +9,6 @@ import typer
 
 from mbctl.cli._run import OutputOpt, QuietOpt, execute
 from mbctl.cli.robots import ModelDirOpt, RootOpt, SceneOpt
-from mbctl.jobs import options
-from mbctl.jobs.xcheck import XCHECK
 
 
 def xcheck(
@@ -49,6 +47,9 @@ def xcheck(
     quiet: QuietOpt = False,
 ) -> None:
     """Compare kinematics and dynamics of Pinocchio and MuJoCo; exit 1 if any quantity fails."""
+    from mbctl.jobs import options
+    from mbctl.jobs.xcheck import XCHECK
+
     params = options.xcheck(robot=robot, scene=scene, states=states, seed=seed, json_path=json_path,
                             pin_model=pin_model, gravity=gravity, model_dir=model_dir, analytic=analytic,
                             root=root, joint_map=joint_map, floating_base=floating_base)

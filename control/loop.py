@@ -185,7 +185,7 @@ def run(
         for arr in sampled:
             arr.setflags(write=False)
         ref_q, ref_v, ref_a = sampled
-        refs = [JointReference(ref_q[k], ref_v[k], ref_a[k]) for k in range(n_cycles)]
+        refs = list(map(JointReference._make, zip(ref_q, ref_v, ref_a, strict=True)))  # row views
     first: Reference | None
     if no_reference:
         first = None

@@ -33,6 +33,7 @@ from mbctl.control.loop import RunLog, presample, run
 from mbctl.control.pd import JointPD
 from mbctl.control.pd_gravity import PDGravity
 from mbctl.control.task_space import TaskSpaceComputedTorque
+from mbctl.jobs.choices import CONTROLLERS
 from mbctl.jobs.plots import new_figure
 from mbctl.jobs.recording import LoopRows, PlantSite, command_columns
 from mbctl.jobs.runner import Job, Outcome, RunContext, Work
@@ -47,7 +48,6 @@ from mbctl.robots.registry import load_robot
 from mbctl.sim.simulator import Simulator
 from mbctl.sim.video import add_markers
 
-CONTROLLERS = ("pd", "pd_gravity", "ct", "task_ct")
 #: Full names for plots and summaries.
 LABELS = {"pd": "joint PD", "pd_gravity": "PD + gravity", "ct": "computed torque",
           "task_ct": "task-space computed torque"}

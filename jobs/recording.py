@@ -52,6 +52,9 @@ Extra = Callable[[RobotState], Sequence[float]]
 class LoopRows:
     """Streams control-loop cycles into a CSV: the ``on_step`` callback of ``control.loop.run``.
 
+    Each row is assembled in one preallocated buffer (slices for the reference, q, v, command and
+    extras) and handed to the stream, which copies it: no per-value Python work in the loop.
+
     Args:
         stream: The open CSV (created by :meth:`header` columns).
         reference_width: Entries of the reference position written per row (0: none).
@@ -65,6 +68,8 @@ class LoopRows:
         self.reference_width = reference_width
         self.extra = extra
         self.tick = tick
+        self._row = np.empty(len(stream.header))
+        self._slices: tuple[slice, slice, slice, slice, slice] | None = None
 
     @staticmethod
     def header(robot: Robot, reference_names: Sequence[str], command_names: Sequence[str],
@@ -73,16 +78,33 @@ class LoopRows:
         return ["time_s", *reference_names, *q_columns(robot), *v_columns(robot), *command_names,
                 *extra_names]
 
+    def _layout(self, state: RobotState, command: Command) -> tuple[slice, slice, slice, slice, slice]:
+        """Where the reference, q, v, command and extras go in a row (from the first cycle's sizes)."""
+        ends = np.cumsum([1, self.reference_width, state.q.size, state.v.size, command.values.size])
+        n_extra = len(self._row) - int(ends[-1])
+        if n_extra < 0 or (n_extra > 0) != (self.extra is not None):
+            raise ValueError(
+                f"{self.stream.path.name} has {len(self._row)} columns; a row has 1 time + "
+                f"{self.reference_width} reference + {state.q.size} q + {state.v.size} v + "
+                f"{command.values.size} command values{' + extras' if self.extra else ''}"
+            )
+        bounds = [int(e) for e in ends] + [len(self._row)]
+        return tuple(slice(a, b) for a, b in zip(bounds[:-1], bounds[1:], strict=True))  # type: ignore[return-value]
+
     def __call__(self, k: int, state: RobotState, reference: Any, command: Command) -> None:
         """Write cycle ``k``'s row (the loop's ``on_step``)."""
-        row = [state.time_s]
+        if self._slices is None:
+            self._slices = self._layout(state, command)
+        ref, q, v, cmd, extra = self._slices
+        row = self._row
+        row[0] = state.time_s
         if self.reference_width:
-            row += np.asarray(reference[0], dtype=float).ravel().tolist()
-        row += state.q.tolist()
-        row += state.v.tolist()
-        row += command.values.tolist()
+            row[ref] = reference[0]
+        row[q] = state.q
+        row[v] = state.v
+        row[cmd] = command.values
         if self.extra is not None:
-            row += list(self.extra(state))
+            row[extra] = self.extra(state)
         self.stream.write(row)
         if self.tick is not None:
             self.tick()

@@ -49,10 +49,12 @@ from mbctl.jobs.run_folder import (
     clear_previous_run,
     folder_lock,
     output_hashes,
+    refuse_link,
 )
 from mbctl.jobs.run_folder import check_output_file as check_output_file
 from mbctl.sim.atomic import write_bytes_atomic, write_json_atomic
-from mbctl.sim.exceptions import SimulationDiverged
+from mbctl.sim.csv_stream import FLUSH_INTERVAL_S
+from mbctl.sim.exceptions import OutputPathError, SimulationDiverged
 from mbctl.sim.recorder import CsvStream
 from mbctl.sim.report import environment, model_section, run_section
 from mbctl.sim.simulator import Simulator
@@ -169,14 +171,21 @@ class RunContext:
         self.files[role or name] = path
         return path
 
-    def open_csv(self, header: Sequence[str], name: str | None = None) -> CsvStream:
+    def open_csv(self, header: Sequence[str], name: str | None = None, *,
+                 flush_interval_s: float = FLUSH_INTERVAL_S) -> CsvStream:
         """Open the run's streamed CSV (``<job>.csv`` by default); the runner closes it.
 
         The first CSV opened is the run's main one: its row count and last ``time_s`` go in the
         report and the interruption message.
+
+        Args:
+            header: Column names (with units).
+            name: File name in the run folder (default ``<job>.csv``).
+            flush_interval_s: Longest wait [s] of a row before it is on disk; 0 writes each row
+                through (for a log another process reads while the run goes on).
         """
         stream = CsvStream(self.path(name or csv_name(self.job), "csv" if not
-                                     self._streams else name), header)
+                                     self._streams else name), header, flush_interval_s=flush_interval_s)
         self._streams.append(stream)
         if self.csv is None:
             self.csv = stream
@@ -261,7 +270,8 @@ class RunRecord:
 
     Attributes:
         status: completed | interrupted | diverged | failed.
-        exit_code: 0, 1 or 130 (see the module docstring).
+        exit_code: 0, 1, 2 (an output the work opened cannot be written safely) or 130 (see the
+            module docstring).
         values: The job's values (partial unless completed).
         files: Written files by role (the report included).
         rows: Rows in the main CSV.
@@ -404,7 +414,8 @@ def run_job(
         The RunRecord (status, exit code, values, files).
 
     Raises:
-        OutputError: The folder is not usable or another run holds it (nothing written).
+        OutputError: The folder is not usable or another run holds it, or a symbolic link sits at
+            the job's CSV path (nothing written).
         ToolkitError: ``prepare`` found bad input (nothing written).
         BaseException: A programming error in the work is re-raised after the report is written
             (status ``failed``).
@@ -412,6 +423,7 @@ def run_job(
     folder = check_output_dir(Path(output_dir) if output_dir is not None else default_output(job.name))
     check_output_names(folder, [REPORT_NAME, TRAJECTORY_NAME, MODEL_NAME, csv_name(job.name),
                                 *([VIDEO_NAME] if video is not None else [])])
+    refuse_link(folder / csv_name(job.name))  # the streamed CSV is opened in place: never via a link
     work = job.prepare(params)
     progress = Progress(enabled=not quiet and sys.stdout.isatty())
     ctx = RunContext(folder, job.name, progress=progress, video=video)
@@ -431,6 +443,8 @@ def run_job(
             status, message, code = "interrupted", "interrupted by the user (Ctrl-C or SIGTERM)", 130
         except SimulationDiverged as exc:
             status, message = "diverged", str(exc)
+        except OutputPathError as exc:  # an output the work opened cannot be written safely
+            status, message, code = "failed", str(exc), EXIT_BAD_INPUT
         except ToolkitError as exc:
             status, message = "failed", str(exc)
         except BaseException as exc:  # a bug: report it, then let the traceback show

@@ -15,6 +15,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from mbctl.jobs.choices import SERVE_STARTS
 from mbctl.jobs.runner import Job, JobError, Outcome, RunContext, Work
 from mbctl.robots.g1 import KEYFRAME, crouched_start
 from mbctl.robots.registry import load_robot
@@ -22,7 +23,7 @@ from mbctl.sim.dds_bridge import TRUTH_COLUMNS, BridgeOptions, G1Bridge
 from mbctl.sim.link import LinkSpec
 
 #: Where the bridge's robot starts: the keyframe (g1-stand, g1-arm-pd) or g1-wbc's crouch.
-STARTS = ("stand", "crouched")
+STARTS = SERVE_STARTS
 #: How often [cycles] the report's values are refreshed while serving.
 _REFRESH = 500
 
@@ -73,7 +74,8 @@ def prepare(params: ServeParams) -> Work:
 
     def work(ctx: RunContext) -> Outcome:
         ctx.attach(bridge.sim)
-        csv = ctx.open_csv(TRUTH_COLUMNS, "truth.csv")
+        # each row through at once: a client reads the log for its own last ticks as soon as it ends
+        csv = ctx.open_csv(TRUTH_COLUMNS, "truth.csv", flush_interval_s=0.0)
         ctx.sections["inputs"] = {"start": params.start, "mode_machine": bridge.options.mode_machine,
                                   "robot_edits": list(bridge.robot.source.edits)}
         print(f"mbctl serve g1: serving on DDS domain {params.domain}, network interface "

@@ -6,6 +6,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from mbctl.jobs.choices import TWO_LINK_ROBOTS
 from mbctl.robots.commands import position_target, torque
 from mbctl.robots.exceptions import RobotError
 from mbctl.robots.model_pair import Robot
@@ -13,7 +14,7 @@ from mbctl.robots.registry import load_robot
 from mbctl.sim.simulator import Simulator
 
 #: The robots these checks are written for (the 2-link arm, either actuation).
-SUPPORTED = ("two_link", "two_link_torque")
+SUPPORTED = TWO_LINK_ROBOTS
 
 #: A joint angle change [rad] below this counts as "no measurable motion".
 MIN_MOTION_RAD = 1e-3

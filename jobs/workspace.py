@@ -16,6 +16,7 @@ import numpy as np
 
 from mbctl.control.exceptions import IKSetupError
 from mbctl.control.ik.two_link import TwoLinkArm
+from mbctl.jobs.choices import TWO_LINK_ROBOTS
 from mbctl.jobs.plots import new_figure
 from mbctl.jobs.runner import Job, Outcome, RunContext, Work
 from mbctl.limits import MAX_WORKSPACE_SAMPLES, check_limit
@@ -23,7 +24,7 @@ from mbctl.robots.model_pair import Robot
 from mbctl.robots.registry import load_robot
 
 #: Robots ``mbctl workspace`` knows the workspace of (registry names of the 2-link arm).
-SUPPORTED_ROBOTS = ("two_link", "two_link_torque")
+SUPPORTED_ROBOTS = TWO_LINK_ROBOTS
 
 
 @dataclass(frozen=True)

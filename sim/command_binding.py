@@ -52,6 +52,7 @@ class CommandBinder:
         self.robot = robot
         self._by_joint = joint_actuators(robot.actuators)
         self._cache: dict[tuple, Binding] = {}
+        self._last: tuple[object, object, int, Binding | None] = (None, None, -1, None)
 
     def bind(self, command: Command) -> Binding:
         """The binding of ``command``.
@@ -62,10 +63,14 @@ class CommandBinder:
                 named twice (by its name and by its joint's).
             UnknownNameError: A name that is neither an actuator nor an actuated joint.
         """
+        kind, names, size, binding = self._last
+        if command.kind is kind and command.names is names and command.values.size == size:
+            return binding  # type: ignore[return-value]  # a loop's commands: the last binding again
         key = (command.kind, command.names, command.values.size)
-        binding = self._cache.get(key)
+        binding = self._cache.get(key)  # (hashing the key calls the enum's Python-level __hash__)
         if binding is None:
             binding = self._cache[key] = self._resolve(command)
+        self._last = (command.kind, command.names, command.values.size, binding)
         return binding
 
     def _resolve(self, command: Command) -> Binding:

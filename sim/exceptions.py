@@ -9,6 +9,14 @@ class SimError(ToolkitError):
     """Base class of simulator errors."""
 
 
+class OutputPathError(SimError):
+    """An output file cannot be created safely at its path.
+
+    A symbolic link sits there (outputs never follow one), or a directory or another non-regular
+    file, or the OS refuses to create it.
+    """
+
+
 class SimulationDiverged(SimError):
     """MuJoCo flagged a diverging state (bad qpos, qvel or qacc) and reset its data.
 

@@ -1,9 +1,9 @@
-"""Per-step CSV recording with named columns, streamed row by row.
+"""Per-step CSV recording with named columns, streamed through a :class:`CsvStream`.
 
 Columns are named with units where they are ambiguous (``time_s``, ``base_z_m``,
-``q_<joint>_rad``, ``target_<actuator>``, ``<sensor>[i]``). Every row is written whole and
-flushed as it is produced, so an error, a divergence or Ctrl-C leaves every completed row on
-disk, never a torn one (the job's report says whether the run completed).
+``q_<joint>_rad``, ``target_<actuator>``, ``<sensor>[i]``). Every row is written whole; an
+error, a divergence or Ctrl-C leaves every completed row on disk, never a torn one (the job's
+report says whether the run completed). See :mod:`mbctl.sim.csv_stream` for the flushing.
 """
 
 from __future__ import annotations
@@ -17,7 +17,7 @@ from pathlib import Path
 
 import numpy as np
 
-from mbctl.sim.atomic import FILE_MODE
+from mbctl.sim.csv_stream import CsvStream
 from mbctl.sim.simulator import Simulator
 
 
@@ -82,99 +82,28 @@ def sensor_columns(sim: Simulator, sensors: Iterable[str]) -> list[Column]:
     return cols
 
 
-class CsvStream:
-    """A CSV file written one whole row at a time, each row flushed to the OS as it is written.
-
-    The header is written on open. A row is one ``write`` of a complete line followed by a flush:
-    an interruption (an exception, Ctrl-C, SIGTERM handled as an exception) between rows leaves
-    only complete rows. Use as a context manager or call ``close()``.
-
-    Args:
-        path: CSV file to create (replaces an existing file).
-        header: Column names (with units, e.g. ``time_s``).
-    """
-
-    def __init__(self, path: str | os.PathLike, header: Sequence[str]):
-        self.path = Path(path)
-        self.header = tuple(header)
-        if len(set(self.header)) != len(self.header):
-            dup = sorted({h for h in self.header if self.header.count(h) > 1})
-            raise ValueError(f"CSV columns must be unique; repeated: {dup}")
-        self.path.parent.mkdir(parents=True, exist_ok=True)
-        self._file = open(self.path, "w", newline="", encoding="utf-8")  # noqa: SIM115 - close()
-        os.chmod(self.path, FILE_MODE)
-        head = ",".join(self.header) + "\n"
-        self._file.write(head)
-        self._file.flush()
-        # (rows, bytes on disk, last row), replaced in one assignment after each row is on disk,
-        # so an interruption anywhere leaves it either before or after that row (see close()).
-        self._state: tuple[int, int, Sequence[float]] = (0, len(head.encode()), ())
-        self._pending: Sequence[float] = ()
-
-    @property
-    def rows(self) -> int:
-        """Complete rows on disk."""
-        return self._state[0]
-
-    @property
-    def last(self) -> Sequence[float]:
-        """The last row written (empty before the first)."""
-        return self._state[2]
-
-    @property
-    def closed(self) -> bool:
-        """True once ``close()`` ran."""
-        return self._file.closed
-
-    def write(self, values: Sequence[float]) -> None:
-        """Append one row (as many values as columns; floats written exactly with ``repr``).
-
-        Raises:
-            ValueError: The row has another length than the header.
-        """
-        if len(values) != len(self.header):
-            raise ValueError(f"a row of {self.path.name} has {len(self.header)} values; got {len(values)}")
-        line = ",".join([repr(float(x)) for x in values]) + "\n"  # ASCII: len is the byte count
-        rows, size, _ = self._state
-        self._pending = values
-        self._file.write(line)
-        self._file.flush()
-        self._state = (rows + 1, size + len(line), values)
-
-    def close(self) -> Path:
-        """Flush and close (idempotent); returns the path."""
-        if not self._file.closed:
-            self._file.flush()
-            os.fsync(self._file.fileno())
-            rows, size, _ = self._state
-            if os.fstat(self._file.fileno()).st_size > size:  # interrupted after the row's write
-                self._state = (rows + 1, os.fstat(self._file.fileno()).st_size, self._pending)
-            self._file.close()
-        return self.path
-
-    def __enter__(self) -> CsvStream:
-        return self
-
-    def __exit__(self, *exc: object) -> None:
-        self.close()
-
-
 class Recorder:
     """Streams one CSV row per ``record()`` call, read from the simulator by ``columns``.
 
     Args:
         path: CSV file to create, or an open CsvStream whose header is the columns' names.
         columns: The columns, in order.
+        flush_interval_s: For a file created here: how long [s] a row may wait in memory. The
+            default 0 writes each row through at once (a script reading the file while it runs
+            sees every row); the job runner's streams wait up to 50 ms and format in bulk.
 
     Raises:
         ValueError: An open stream's header does not match the columns.
+        OutputPathError: A symlink or a non-regular file at ``path``.
     """
 
-    def __init__(self, path: str | os.PathLike | CsvStream, columns: Sequence[Column]):
+    def __init__(self, path: str | os.PathLike | CsvStream, columns: Sequence[Column], *,
+                 flush_interval_s: float = 0.0):
         self.columns = list(columns)
         self._reads = [c.read for c in self.columns]
         names = tuple(c.name for c in self.columns)
-        self.stream = path if isinstance(path, CsvStream) else CsvStream(path, names)
+        self.stream = (path if isinstance(path, CsvStream)
+                       else CsvStream(path, names, flush_interval_s=flush_interval_s))
         if self.stream.header != names:
             raise ValueError(f"the stream's header {self.stream.header} is not the columns' {names}")
 

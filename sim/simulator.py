@@ -94,6 +94,10 @@ class Simulator:
         self._last_command: Command | None = None
         self._stale = True
         self._ctrl = self.data.ctrl  # views into MjData, bound once for the hot path
+        # the robot's qpos and qvel as views when its coordinates are contiguous (the usual
+        # case; slicing MjData on each read costs as much as the conversion), else None: gathered
+        self._qpos_view = self.data.qpos[self._qi] if isinstance(self._qi, slice) else None
+        self._qvel_view = self.data.qvel[self._vi] if isinstance(self._vi, slice) else None
         self._warn_numbers = self.data.warning.number
         self._warn_seen = self._warn_numbers.tolist()
         self._observers: tuple[Callable[[Simulator], None], ...] = ()
@@ -139,10 +143,13 @@ class Simulator:
 
     def read_state(self) -> RobotState:
         """Current state (q, v in Pinocchio's convention, time) as read-only copies."""
-        q, v = self._conv.state_mj_to_pin(self.data.qpos[self._qi], self.data.qvel[self._vi])
+        qpos, qvel = self._qpos_view, self._qvel_view
+        q, v = self._conv.state_mj_to_pin(self.data.qpos[self._qi] if qpos is None else qpos,
+                                          self.data.qvel[self._vi] if qvel is None else qvel)
         q.setflags(write=False)
         v.setflags(write=False)
-        return RobotState(q, v, float(self.data.time))
+        # the namedtuple built as tuple.__new__ does it, without its Python-level __new__ (per cycle)
+        return tuple.__new__(RobotState, (q, v, float(self.data.time)))
 
     @property
     def state(self) -> RobotState:
@@ -191,7 +198,8 @@ class Simulator:
             mujoco.mj_step(self.model, self.data, self.n_substeps)
         self.n_steps += self.n_substeps
         self._stale = True
-        self._check_divergence()
+        if self._warn_numbers.tolist() != self._warn_seen:  # the check, inlined: once per cycle
+            self._check_divergence()
         for observer in self._observers:
             observer(self)
 

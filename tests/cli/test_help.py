@@ -37,3 +37,40 @@ def test_every_job_has_output_and_quiet():
     for command in jobs & set(COMMANDS):
         out = CliRunner().invoke(app, [command, "--help"], terminal_width=200, env={"COLUMNS": "200"})
         assert "--output" in out.output and "--quiet" in out.output, command
+
+
+def test_help_loads_no_engine():
+    """``mbctl --help`` and every command's help import no engine, plotting or cluster library.
+
+    Each command imports its job when it runs: the help is shown at typer's speed (bench/bench_cli.py).
+    """
+    import subprocess
+    import sys
+
+    code = (
+        "import sys\n"
+        "from typer.testing import CliRunner\n"
+        "from mbctl.cli import _register_commands, app\n"
+        "_register_commands()\n"
+        "for args in [['--help']] + [[c.name, '--help'] for c in app.registered_commands]:\n"
+        "    assert CliRunner().invoke(app, args).exit_code == 0, args\n"
+        "heavy = ('mujoco', 'pinocchio', 'numpy', 'matplotlib', 'dask', 'imageio', 'qpsolvers', 'mink')\n"
+        "print(' '.join(m for m in heavy if m in sys.modules))\n"
+    )
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
+    assert out.returncode == 0, out.stderr
+    assert out.stdout.strip() == "", f"--help imported {out.stdout.strip()}"
+
+
+def test_the_help_s_choices_are_the_jobs():
+    """The names the help lists (jobs/choices.py, light to import) are the ones the jobs accept."""
+    from mbctl.jobs import choices
+    from mbctl.jobs.catalog import CATALOG
+    from mbctl.jobs.g1_wbc import DEFAULT_DURATION_S, SCENARIOS
+
+    assert SCENARIOS == choices.WBC_SCENARIOS
+    assert DEFAULT_DURATION_S == choices.WBC_DEFAULT_DURATION_S
+    assert tuple(CATALOG) == choices.SWEEP_JOBS
+    from mbctl.jobs.serve import STARTS
+
+    assert STARTS == choices.SERVE_STARTS

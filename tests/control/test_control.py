@@ -280,3 +280,16 @@ def test_loop_rejects_a_reference_of_the_wrong_kind(two_link_torque):
     pd = JointPD(two_link_torque, gains_from_frequency(10.0, 1.0, 0.1))
     with pytest.raises(ReferenceMismatch, match="takes a JointReference"):
         run(sim, pd, task_reference([0.1, 0.2]), 0.01)
+
+
+def test_a_reference_of_the_wrong_length_is_refused_by_name(two_link_torque):
+    """Few joints take the scalar feedback path (no numpy broadcasting to catch a bad length)."""
+    from mbctl.robots.interface import RobotState
+
+    state = RobotState(np.zeros(2), np.zeros(2), 0.0)
+    for controller in (JointPD(two_link_torque, gains_from_frequency(10.0)),
+                       ComputedTorque(two_link_torque, gains_from_frequency(10.0))):
+        for bad in (JointReference(np.zeros(3), np.zeros(3), np.zeros(3)),  # one joint too many
+                    JointReference(np.zeros(2), np.zeros(1), np.zeros(2))):
+            with pytest.raises(ReferenceMismatch, match=r"controls 2 joints \['shoulder', 'elbow'\]"):
+                controller.compute(state, bad)

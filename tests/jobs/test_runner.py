@@ -6,6 +6,7 @@ import json
 import os
 import subprocess
 import sys
+import time
 from dataclasses import dataclass
 
 import pytest
@@ -160,6 +161,62 @@ def test_cli_bad_output_exits_2_with_one_line_before_any_work():
 def test_cli_version():
     out = _cli("--version")
     assert out.returncode == 0 and out.stdout.startswith("mbctl 0.")
+
+
+def test_rows_are_on_disk_while_the_run_goes_on(tmp_path):
+    seen = {}
+
+    def prepare(params):
+        def work(ctx: RunContext) -> Outcome:
+            csv = ctx.open_csv(["time_s", "x_m"])
+            for k in range(3):
+                csv.write([0.002 * k, float(k)])
+            path, t0 = tmp_path / "toy.csv", time.monotonic()
+            while path.read_text().count("\n") < 4 and time.monotonic() - t0 < 5.0:
+                time.sleep(0.005)  # the work is still running: the flush thread writes the rows
+            seen["lines"], seen["waited_s"] = path.read_text().splitlines(), time.monotonic() - t0
+            return Outcome()
+
+        return work
+
+    assert run_job(Job("toy", prepare), None, tmp_path).status == "completed"
+    assert seen["lines"] == ["time_s,x_m", "0.0,0.0", "0.002,1.0", "0.004,2.0"]
+    assert seen["waited_s"] < 1.0  # flushed every 50 ms; 1 s of slack for a busy machine
+
+
+def test_a_symlink_at_the_csv_path_exits_2_and_its_target_is_untouched(tmp_path):
+    """The streamed CSV never follows a link planted at its path (issue 22)."""
+    victim = tmp_path / "victim.txt"
+    victim.write_text("precious")
+    folder = tmp_path / "D"
+    folder.mkdir()
+    (folder / "joint_step.csv").symlink_to("../victim.txt")
+    out = _cli("joint-step", "two_link", "--joint", "shoulder", "--delta", "0.1", "--output", str(folder))
+    assert out.returncode == 2, out.stderr
+    assert victim.read_text() == "precious"
+    assert "joint_step.csv is a symbolic link" in out.stderr and "Traceback" not in out.stderr
+    assert sorted(os.listdir(folder)) == ["joint_step.csv"]  # refused before anything was written
+
+
+def test_a_symlink_at_another_csv_the_work_opens_fails_the_run_with_exit_2(tmp_path):
+    victim = tmp_path / "victim.txt"
+    victim.write_text("precious")
+    folder = tmp_path / "run"
+    folder.mkdir()
+    (folder / "extra.csv").symlink_to(victim)
+
+    def prepare(params):
+        def work(ctx: RunContext) -> Outcome:
+            ctx.open_csv(["time_s"]).write([0.0])
+            ctx.open_csv(["time_s"], "extra.csv")
+            return Outcome()
+
+        return work
+
+    record = run_job(Job("toy", prepare), None, folder)
+    assert (record.status, record.exit_code, record.rows) == ("failed", 2, 1)
+    assert "extra.csv is a symbolic link" in (record.message or "")
+    assert victim.read_text() == "precious"
 
 
 def _filmed(params: None):
