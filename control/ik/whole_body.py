@@ -336,6 +336,12 @@ class WholeBodyIK(abc.ABC):
         out["posture"] = TaskResidual(deviation=float(np.linalg.norm(deviation)))
         return out
 
+    @property
+    def levels(self) -> tuple[tuple[str, ...], ...]:
+        """Task names (as in :meth:`task_residuals`) by priority level, level 0 first."""
+        names = [*self.config.frames, *(("com",) if self.config.com else ()), "posture"]
+        return (tuple(names),)
+
     def solve(
         self,
         q0: npt.ArrayLike,

@@ -61,6 +61,18 @@ class FrameOrientationTask(FrameTask):
         J = pin.Jlog3(R_TF) @ state.frame_jacobian(self.frame_id)[3:]
         return -pin.log3(R_TF), np.negative(J, out=J)
 
+    def write_velocity_rows(self, state: TaskState, J_out: np.ndarray, e_out: np.ndarray) -> None:
+        """The active rows of ``(-J_e, -e) = (Jlog3(R_TF) J_F[3:], log3(R_TF))`` (both negated)."""
+        R_TF = self._X_TF(state).rotation
+        rows = self.active_rows()
+        J_w = state.frame_jacobian(self.frame_id)[3:]
+        if len(rows) == 3:
+            np.matmul(pin.Jlog3(R_TF), J_w, out=J_out)
+            e_out[:] = pin.log3(R_TF)
+        else:
+            np.matmul(pin.Jlog3(R_TF)[rows], J_w, out=J_out)
+            e_out[:] = pin.log3(R_TF)[rows]
+
     def jacobian_and_drift(self, state: DynamicsState) -> tuple[np.ndarray, np.ndarray]:
         """``(J_F[3:], (Jdot_F v)[3:])`` in F."""
         fid = self.frame_id

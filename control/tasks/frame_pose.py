@@ -83,6 +83,26 @@ class FramePoseTask(FrameTask):
         np.multiply(gain_cost, pin.log6(X_TF).vector, out=r_t)
         return self._lm_term(r_t)
 
+    def write_velocity_rows(self, state: TaskState, J_out: np.ndarray, e_out: np.ndarray) -> None:
+        """The active rows of ``(-J_e, -e) = (Jlog6(X_TF) J_F, log6(X_TF))`` (both negated).
+
+        A position-only task (orientation cost 0) multiplies the top half of
+        ``Jlog6`` only: 3 rows of 35 instead of 6.
+        """
+        X_TF = self._X_TF(state)
+        rows = self.active_rows()
+        Jlog = pin.Jlog6(X_TF)
+        J_F = state.frame_jacobian(self.frame_id)
+        if len(rows) == 6:
+            np.matmul(Jlog, J_F, out=J_out)
+            e_out[:] = pin.log6(X_TF).vector
+        elif len(rows) == 3 and rows[0] == 0 and rows[2] == 2:
+            np.matmul(Jlog[:3], J_F, out=J_out)
+            e_out[:] = pin.log6(X_TF).linear
+        else:
+            np.matmul(Jlog[rows], J_F, out=J_out)
+            e_out[:] = pin.log6(X_TF).vector[rows]
+
     def jacobian_and_drift(self, state: DynamicsState) -> tuple[np.ndarray, np.ndarray]:
         """``(J_F, Jdot_F v)`` in F (LOCAL)."""
         return state.frame_jacobian(self.frame_id, pin.LOCAL), state.frame_drift(self.frame_id, pin.LOCAL)
