@@ -127,20 +127,24 @@ class JointPositionLimit(BoxLimit):
         self._sv = as_slice(self.idx_v)
         self.gain = float(gain)
         self.joint_names = tuple(names)
+        # scratch and gain-scaled limits for the hot path (intersect_bounds runs every step)
+        self._gq_min, self._gq_max = self.gain * self.q_min, self.gain * self.q_max
+        self._gq, self._lo, self._hi = np.empty(len(iq)), np.empty(len(iq)), np.empty(len(iq))
 
     def intersect_bounds(
         self, state: TaskState, dt: float, lower: np.ndarray, upper: np.ndarray
     ) -> None:
         """Tighten with ``gain (q_min - q)`` and ``gain (q_max - q)`` on the limited dofs."""
-        q = state.q[self._sq]
+        gq = self._gq
+        np.multiply(state.q[self._sq], self.gain, out=gq)
+        lo, hi = self._lo, self._hi
+        np.subtract(self._gq_min, gq, out=lo)
+        np.subtract(self._gq_max, gq, out=hi)
         iv = self._sv
-        lo = self.q_min - q
-        lo *= self.gain
-        hi = self.q_max - q
-        hi *= self.gain
         if isinstance(iv, slice):  # contiguous dofs: tighten the views in place
-            np.maximum(lower[iv], lo, out=lower[iv])
-            np.minimum(upper[iv], hi, out=upper[iv])
+            low, up = lower[iv], upper[iv]
+            np.maximum(low, lo, out=low)
+            np.minimum(up, hi, out=up)
         else:
             lower[iv] = np.maximum(lower[iv], lo)
             upper[iv] = np.minimum(upper[iv], hi)

@@ -36,6 +36,7 @@ import pinocchio as pin
 from mbctl.control.exceptions import TaskSetupError
 from mbctl.control.tasks.residuals import TaskResidual
 from mbctl.control.tasks.state import DynamicsState, TaskState
+from mbctl.robots.indexing import as_slice
 
 
 @dataclass(frozen=True)
@@ -139,7 +140,7 @@ class Task(abc.ABC):
         self.lm_damping = lm_damping
         self.servo = servo if servo is not None else AccelerationGains()
         self._cost = cost_vector(cost, k, name)
-        self._active: tuple[np.ndarray, np.ndarray] | None = None
+        self._active: tuple[np.ndarray, np.ndarray, slice | np.ndarray] | None = None
 
     @property
     def gain(self) -> float:
@@ -180,15 +181,22 @@ class Task(abc.ABC):
         self._cost = cost_vector(cost, self.k, self.name)
         _WEIGHTS_EPOCH[0] += 1
 
-    def active_rows(self) -> np.ndarray:
-        """Indices of the rows with a non-zero cost (read-only; the only rows the IK stacks)."""
+    def _active_rows(self) -> tuple[np.ndarray, np.ndarray, slice | np.ndarray]:
         cached = self._active
         if cached is None or cached[0] is not self._cost:
             rows = np.flatnonzero(self._cost > 0.0)
             rows.setflags(write=False)
-            cached = (self._cost, rows)
+            cached = (self._cost, rows, as_slice(rows))
             self._active = cached
-        return cached[1]
+        return cached
+
+    def active_rows(self) -> np.ndarray:
+        """Indices of the rows with a non-zero cost (read-only; the only rows the IK stacks)."""
+        return self._active_rows()[1]
+
+    def active_index(self) -> slice | np.ndarray:
+        """The active rows as a slice when they are contiguous (indexing is then a view)."""
+        return self._active_rows()[2]
 
     def set_target_from_state(self, state: TaskState) -> None:  # noqa: B027 - optional hook
         """Set the target to the current value at ``state``; tasks without a target ignore it."""
@@ -247,13 +255,9 @@ class Task(abc.ABC):
         QP, are the same); the stack weighs every task's rows in one product afterwards.
         """
         e, J = self.error_and_jacobian(state)
-        rows = self.active_rows()
-        if len(rows) == self.k:
-            J_out[:] = J
-            e_out[:] = e
-        else:
-            J_out[:] = J[rows]
-            e_out[:] = e[rows]
+        rows = self.active_index()
+        J_out[:] = J[rows]
+        e_out[:] = e[rows]
 
     def _lm_term(self, r_t: np.ndarray) -> float:
         """``mu = lm_damping |r_t|^2`` [cost^2] for the rows ``r_t`` (k,) (0 without LM damping)."""

@@ -100,13 +100,9 @@ class ComTask(Task):
         """The active rows of ``(J_com, p_WC - p_target)`` (a zero-cost axis, e.g. z, is left out)."""
         if self._target is None:
             raise self._no_target()
-        rows = self.active_rows()
-        if len(rows) == 3:
-            J_out[:] = state.com_jacobian()
-            np.subtract(state.com(), self._target, out=e_out)
-        else:
-            J_out[:] = state.com_jacobian()[rows]
-            e_out[:] = state.com()[rows] - self._target[rows]
+        rows = self.active_index()
+        J_out[:] = state.com_jacobian()[rows]
+        np.subtract(state.com()[rows], self._target[rows], out=e_out)
 
     def jacobian_and_drift(self, state: DynamicsState) -> tuple[np.ndarray, np.ndarray]:
         """``(J_com, Jdot_com v)``."""

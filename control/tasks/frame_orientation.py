@@ -16,6 +16,9 @@ from mbctl.control.tasks.frame import FrameTask
 from mbctl.control.tasks.residuals import TaskResidual
 from mbctl.control.tasks.state import DynamicsState, TaskState
 
+#: Every row of the task: the active index of a task with no zero cost.
+_ALL = slice(0, 3)
+
 
 class FrameOrientationTask(FrameTask):
     """Orientation of a frame: ``e = log3(R_FT)`` (3,) [rad], ``J_e = -Jlog3(R_TF) J_F[3:]``."""
@@ -63,10 +66,12 @@ class FrameOrientationTask(FrameTask):
 
     def write_velocity_rows(self, state: TaskState, J_out: np.ndarray, e_out: np.ndarray) -> None:
         """The active rows of ``(-J_e, -e) = (Jlog3(R_TF) J_F[3:], log3(R_TF))`` (both negated)."""
-        R_TF = self._X_TF(state).rotation
-        rows = self.active_rows()
+        if self._X_TW is None:
+            raise self._no_target()
+        R_TF = (self._X_TW * state.oMf[self.frame_id]).rotation
+        rows = self.active_index()
         J_w = state.frame_jacobian(self.frame_id)[3:]
-        if len(rows) == 3:
+        if rows == _ALL:
             np.matmul(pin.Jlog3(R_TF), J_w, out=J_out)
             e_out[:] = pin.log3(R_TF)
         else:

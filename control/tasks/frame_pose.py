@@ -20,6 +20,9 @@ from mbctl.control.tasks.frame import FrameTask
 from mbctl.control.tasks.residuals import TaskResidual
 from mbctl.control.tasks.state import DynamicsState, TaskState
 
+#: Every row of the task: the active index of a task with no zero cost.
+_ALL = slice(0, 6)
+
 
 class FramePoseTask(FrameTask):
     """Pose of a frame: ``e = log6(X_FT)`` (6,) [m, rad] in F; cost is (position [3], orientation [3])."""
@@ -86,21 +89,18 @@ class FramePoseTask(FrameTask):
     def write_velocity_rows(self, state: TaskState, J_out: np.ndarray, e_out: np.ndarray) -> None:
         """The active rows of ``(-J_e, -e) = (Jlog6(X_TF) J_F, log6(X_TF))`` (both negated).
 
-        A position-only task (orientation cost 0) multiplies the top half of
-        ``Jlog6`` only: 3 rows of 35 instead of 6.
+        A position-only task (orientation cost 0) multiplies the top half of ``Jlog6`` only.
         """
-        X_TF = self._X_TF(state)
-        rows = self.active_rows()
-        Jlog = pin.Jlog6(X_TF)
+        if self._X_TW is None:
+            raise self._no_target()
+        X_TF = self._X_TW * state.oMf[self.frame_id]
+        rows = self.active_index()
         J_F = state.frame_jacobian(self.frame_id)
-        if len(rows) == 6:
-            np.matmul(Jlog, J_F, out=J_out)
+        if rows == _ALL:
+            np.matmul(pin.Jlog6(X_TF), J_F, out=J_out)
             e_out[:] = pin.log6(X_TF).vector
-        elif len(rows) == 3 and rows[0] == 0 and rows[2] == 2:
-            np.matmul(Jlog[:3], J_F, out=J_out)
-            e_out[:] = pin.log6(X_TF).linear
-        else:
-            np.matmul(Jlog[rows], J_F, out=J_out)
+        else:  # e.g. position only: 3 rows of Jlog6 (a view), not 6
+            np.matmul(pin.Jlog6(X_TF)[rows], J_F, out=J_out)
             e_out[:] = pin.log6(X_TF).vector[rows]
 
     def jacobian_and_drift(self, state: DynamicsState) -> tuple[np.ndarray, np.ndarray]:

@@ -62,6 +62,7 @@ class TaskStack:
         rows = [t.active_rows() for t in dense]
         n_rows = sum(len(a) for a in rows)
         self._Wv = np.zeros((n_rows, self.nv))
+        self._WvT = np.zeros((self.nv, n_rows))  # W^T contiguous: W^T W is ~1 us faster from it
         self._rv = np.zeros(n_rows)
         views, row = [], 0
         col, r_scale, lm = [], [], []
@@ -70,7 +71,7 @@ class TaskStack:
                 views.append((t, self._Wv[row:row + len(a)], self._rv[row:row + len(a)]))
                 row += len(a)
                 col.append(t.cost[a])
-                r_scale.append(-t.gain * t.cost[a])
+                r_scale.append(t.gain * t.cost[a])  # the rows hold -r (c = W^T (-r) with no negation)
                 lm.append(np.full(len(a), t.lm_damping))
         self._vviews = tuple(views)
         self._col = np.concatenate(col)[:, None] if col else np.zeros((0, 1))
@@ -84,10 +85,10 @@ class TaskStack:
     def velocity_rows(self) -> tuple[np.ndarray, np.ndarray]:
         """The weighted rows ``(W (m, nv), r (m,))`` written by the last :meth:`velocity_objective`.
 
-        Active rows of the dense tasks only (diagonal tasks go straight onto H); views into the
-        stack's buffers, overwritten by the next call.
+        Active rows of the dense tasks only (diagonal tasks go straight onto H); ``W`` is a view
+        into the stack's buffer (overwritten by the next call), ``r`` a copy.
         """
-        return self._Wv, self._rv
+        return self._Wv, -self._rv
 
     def _hessian(self, H: np.ndarray, c: np.ndarray) -> np.ndarray:
         """``H = W^T W``, ``c = -W^T r`` from the filled rows; returns H's diagonal (a writable view)."""
@@ -111,29 +112,31 @@ class TaskStack:
             self._velocity_layout()
         for task, J_t, e_t in self._vviews:
             task.write_velocity_rows(state, J_t, e_t)
-        W, r = self._Wv, self._rv
+        W, r_neg = self._Wv, self._rv
         W *= self._col
-        r *= self._r_scale
-        mu = 0.0 if self._lm_rows is None else float((r * r) @ self._lm_rows)
+        r_neg *= self._r_scale
+        mu = 0.0 if self._lm_rows is None else float((r_neg * r_neg) @ self._lm_rows)
         if W.shape[0]:
-            np.matmul(W.T, W, out=H)
-            np.matmul(r, W, out=c)
-            np.negative(c, out=c)
+            WT = self._WvT
+            WT[:] = W.T
+            np.matmul(WT, W, out=H)
+            np.dot(r_neg, W, out=c)
         else:
             H.fill(0.0)
             c.fill(0.0)
-        diag = np.einsum("ii->i", H)
-        tmp = self._tmp
-        for task, cost2_mask, gain_cost2_mask, gain_cost in self._diag_terms:
-            # W_t = diag(cost mask), r_t = -gain cost e  =>  H += cost^2 mask, c += gain cost^2 mask e
-            diag += cost2_mask
-            if task.gain > 0.0:  # with gain 0, r_t and so the LM term are zero too
-                e = task.compute_error(state)
-                np.multiply(gain_cost2_mask, e, out=tmp)
-                c += tmp
-                if task.lm_damping > 0.0:
-                    err = gain_cost * e
-                    mu += task.lm_damping * float(err @ err)
+        if self._diag_terms:
+            diag = np.einsum("ii->i", H)
+            tmp = self._tmp
+            for task, cost2_mask, gain_cost2_mask, gain_cost in self._diag_terms:
+                # W_t = diag(cost mask), r_t = -gain cost e  =>  H += cost^2 mask, c += gain cost^2 mask e
+                diag += cost2_mask
+                if task.gain > 0.0:  # with gain 0, r_t and so the LM term are zero too
+                    e = task.masked_error(state)
+                    np.multiply(gain_cost2_mask, e, out=tmp)
+                    c += tmp
+                    if task.lm_damping > 0.0:
+                        err = gain_cost * e
+                        mu += task.lm_damping * float(err @ err)
         return mu
 
     def acceleration_objective(self, state: DynamicsState, H: np.ndarray, c: np.ndarray) -> None:
