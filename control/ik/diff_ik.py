@@ -142,6 +142,7 @@ class DiffIK:
         self._box_dynamic = tuple(lim for lim in self._box if lim.state_dependent)
         self._box_static = tuple(lim for lim in self._box if not lim.state_dependent)
         self._other = tuple(lim for lim in self.limits if not isinstance(lim, BoxLimit))
+        self._guards = tuple(lim for lim in self.limits if type(lim).guard_step is not Limit.guard_step)
         self._lb = np.empty(nv)
         self._ub = np.empty(nv)
         self._static_dt: float | None = None
@@ -263,6 +264,20 @@ class DiffIK:
         self.state.update(q)
         return self.solve_step(dt)
 
+    def advance(self, dt: float = 1.0) -> float:
+        """Solve a step at the current state, let the limits guard it, move there; its ``|dq|_inf``.
+
+        Raises:
+            IKSetupError: ``dt`` not positive; a task without a target.
+            IKInfeasible: The QP has no solution.
+        """
+        dq = self.solve_step(dt).dq
+        q = self.state.q
+        for lim in self._guards:
+            dq = lim.guard_step(self.model, q, dq)
+        self.state.update(pin.integrate(self.model, q, dq))
+        return float(np.max(np.abs(dq)))
+
     # ------------------------------------------------------------------ loop
     @property
     def q(self) -> np.ndarray:
@@ -316,10 +331,7 @@ class _Stepper:
         return self.ik.q
 
     def advance(self) -> float:
-        ik = self.ik
-        out = ik.solve_step(self.dt)
-        ik.update(pin.integrate(ik.model, ik.state.q, out.dq))
-        return float(np.max(np.abs(out.dq)))
+        return self.ik.advance(self.dt)
 
 
 def _check_dt(dt: float) -> None:

@@ -48,6 +48,14 @@ class Limit(abc.ABC):
     def compute_qp_inequalities(self, state: TaskState, dt: float) -> Constraint:
         """``(G, h)`` with ``G dq <= h`` at ``state`` for a step of duration ``dt`` [s]."""
 
+    def guard_step(self, model: pin.Model, q: np.ndarray, dq: np.ndarray) -> np.ndarray:
+        """The step to take from ``q`` (nq,) instead of ``dq`` (nv,), checked beyond the linearisation.
+
+        The QP keeps the linearised limit; a limit on a curved quantity (collision distances)
+        may shorten the step here so that the limit holds at ``q (+) dq`` itself. Default: ``dq``.
+        """
+        return dq
+
 
 class BoxLimit(Limit):
     """A limit of the form ``lower <= dq <= upper`` on some tangent indices.

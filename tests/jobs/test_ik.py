@@ -135,8 +135,8 @@ def test_generic_com_on_a_scene_qp_converges_and_mink_says_why_it_cannot(tmp_pat
         '<include file="arm.xml"/></mujoco>')
     params = {"robot": str(tmp_path / "arm.xml"), "scene": str(tmp_path / "scene.xml"),
               "com_xy": (0.1, 0.2), "tol_m": 1e-4}
-    with pytest.raises(IKSetupError, match="mink's ComTask uses the subtree of MuJoCo body 1 "
-                                           r"\('marker', 0 kg\).* use backend 'qp'"):
+    with pytest.raises(IKSetupError, match="mink's ComTask uses the subtree of MuJoCo body 1, and MuJoCo "
+                                           r"body 1 \('marker', 0 kg\) is not the robot's.* use backend 'qp'"):
         prepare(IKParams(**params, backend="mink"))
     # (without the per-joint trust region, the first step from the straight arm spun the
     # unlimited joints by ~150 rad and the posture regulariser left the CoM 2 mm off)

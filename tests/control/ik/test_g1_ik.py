@@ -178,7 +178,7 @@ def test_cli_ik_g1_converges_and_writes_pose(g1, tmp_path):
                  "--relative", "--com", "0,0", "--output", str(tmp_path), "--tol", "1e-3",
                  "--max-iters", "10", "--solver", "osqp")
     assert out.returncode == 0, out.stderr
-    assert "converged in" in out.stdout and "us/iteration" in out.stdout
+    assert "result: converged" in out.stdout and "us/iteration" in out.stdout
     assert "left_palm" in out.stdout and "joint-limit margins" in out.stdout
     pose = json.loads((tmp_path / "ik_pose.json").read_text())
     assert pose["converged"] is True and pose["iterations"] <= 10
@@ -192,9 +192,9 @@ def test_cli_ik_g1_converges_and_writes_pose(g1, tmp_path):
     ("args", "message"),
     [
         (["--target", "left_plam=0.1,0.3,0.9"], "Did you mean 'left_palm'"),
-        (["--target", "left_palm=0.1,0.3"], "must be 3 finite numbers in metres as X,Y,Z"),
+        (["--target", "left_palm=0.1,0.3"], "must be 3 or 7 finite numbers as X,Y,Z or X,Y,Z,QW,QX,QY,QZ"),
         (["--target", "left_palm"], "--target must look like FRAME=X,Y,Z"),
-        (["--target", "left_palm=0.1,0.3,0.9", "--com", "0.1"], "--com must be 2 finite numbers"),
+        (["--target", "left_palm=0.1,0.3,0.9", "--com", "0.1"], "--com (m) must be 2 or 3 finite numbers"),
     ],
 )
 def test_cli_ik_bad_input_exits_2_with_message(g1, tmp_path, args, message):
