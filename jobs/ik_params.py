@@ -141,7 +141,7 @@ class IKParams:
         """Every frame's target, one per frame (positions, orientations and references merged).
 
         Raises:
-            IKSetupError: Two positions, orientations or references for one frame.
+            IKSetupError: Two different positions, orientations or references for one frame.
         """
         given = [TargetSpec(name, (float(xyz[0]), float(xyz[1]), float(xyz[2])) if len(xyz) == 3 else None)
                  for name, xyz in self.targets]
@@ -165,7 +165,7 @@ def _merge(specs: list[TargetSpec]) -> tuple[TargetSpec, ...]:
     """One spec per frame: a position and an orientation given separately are merged.
 
     Raises:
-        IKSetupError: Two positions, two orientations or two references for one frame.
+        IKSetupError: Two different positions, orientations or references for one frame.
     """
     out: dict[str, TargetSpec] = {}
     for spec in specs:
@@ -174,7 +174,7 @@ def _merge(specs: list[TargetSpec]) -> tuple[TargetSpec, ...]:
             out[spec.frame] = spec
             continue
         for part in ("position", "quat_wxyz", "reference"):
-            if getattr(old, part) is not None and getattr(spec, part) is not None:
+            if getattr(old, part) is not None and getattr(spec, part) not in (None, getattr(old, part)):
                 what = part.replace("quat_wxyz", "orientation")
                 raise IKSetupError(f"frame {spec.frame!r} has more than one {what} target; give one each")
         out[spec.frame] = TargetSpec(spec.frame, old.position or spec.position,

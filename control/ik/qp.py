@@ -60,7 +60,7 @@ class QPData(NamedTuple):
         def cp(x: np.ndarray | None) -> np.ndarray | None:
             return None if x is None else np.array(x, copy=True)
 
-        return qpsolvers.Problem(cp(self.H), cp(self.c), cp(self.G), cp(self.h), cp(self.A), cp(self.b),
+        return qpsolvers.Problem(self.H.copy(), self.c.copy(), cp(self.G), cp(self.h), cp(self.A), cp(self.b),
                                  cp(self.lb), cp(self.ub))
 
 

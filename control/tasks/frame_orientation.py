@@ -71,7 +71,7 @@ class FrameOrientationTask(FrameTask):
         R_TF = (self._X_TW * state.oMf[self.frame_id]).rotation
         rows = self.active_index()
         J_w = state.frame_jacobian(self.frame_id)[3:]
-        if rows == _ALL:
+        if isinstance(rows, slice) and rows == _ALL:
             np.matmul(pin.Jlog3(R_TF), J_w, out=J_out)
             e_out[:] = pin.log3(R_TF)
         else:

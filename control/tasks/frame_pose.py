@@ -96,7 +96,7 @@ class FramePoseTask(FrameTask):
         X_TF = self._X_TW * state.oMf[self.frame_id]
         rows = self.active_index()
         J_F = state.frame_jacobian(self.frame_id)
-        if rows == _ALL:
+        if isinstance(rows, slice) and rows == _ALL:
             np.matmul(pin.Jlog6(X_TF), J_F, out=J_out)
             e_out[:] = pin.log6(X_TF).vector
         else:  # e.g. position only: 3 rows of Jlog6 (a view), not 6
