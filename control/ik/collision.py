@@ -50,6 +50,10 @@ from mbctl.robots.model_pair import Robot
 #: How many times :meth:`CollisionAvoidanceLimit.guard_step` may halve a step.
 MAX_HALVINGS = 6
 
+# a x b row-wise = a[:, _Y_Z_X] * b[:, _Z_X_Y] - a[:, _Z_X_Y] * b[:, _Y_Z_X] (np.cross has ~8 us of overhead)
+_Y_Z_X = np.array([1, 2, 0])
+_Z_X_Y = np.array([2, 0, 1])
+
 
 def body_dof_masks(robot: Robot) -> np.ndarray:
     """(nbody, nv) 0/1: the tangent dofs that move each MuJoCo body (zero rows for scene bodies).
@@ -172,26 +176,26 @@ class CollisionAvoidanceLimit(Limit):
         nv, k = state.nv, len(idx)
         if not k:
             return Constraint(np.zeros((0, nv)), np.zeros(0))
-        p1, p2 = seg[:, :3], seg[:, 3:]
-        n = p2 - p1
-        norm = np.sqrt((n * n).sum(axis=1))
-        touching = norm < 1e-12  # witness points coincide: use the line between the geoms' centres
-        if np.any(touching):
+        points = seg.reshape(2 * k, 3)  # p1 and p2 of each pair, interleaved
+        n = seg[:, 3:] - seg[:, :3]
+        norm = np.sqrt(np.einsum("ij,ij->i", n, n))
+        if norm.min() < 1e-12:  # witness points coincide: use the line between the geoms' centres
+            touching = norm < 1e-12
             xpos = self._cache[2] if self._cache is not None else self._data.geom_xpos
-            centres = xpos[self._g2[idx]] - xpos[self._g1[idx]]
-            n[touching] = centres[touching]
-            norm[touching] = np.sqrt((n[touching] ** 2).sum(axis=1))
-        n *= (np.where(dists >= 0.0, 1.0, -1.0) / np.maximum(norm, 1e-300))[:, None]
+            n[touching] = xpos[self._g2[idx[touching]]] - xpos[self._g1[idx[touching]]]
+            norm = np.sqrt(np.einsum("ij,ij->i", n, n))
+        n *= np.copysign(1.0 / np.maximum(norm, 1e-300), dists)[:, None]  # separating direction
+        normals = np.repeat(n, 2, axis=0)
         # n^T J_p = [n; p x n]^T J_B: one (2k, 6) @ (6, nv) product for every witness point
-        w = np.empty((2 * k, 6))
-        w[:k, :3] = n
-        w[k:, :3] = n
-        _cross(p1, n, w[:k, 3:])
-        _cross(p2, n, w[k:, 3:])
+        moments = points[:, _Y_Z_X] * normals[:, _Z_X_Y]
+        moments -= points[:, _Z_X_Y] * normals[:, _Y_Z_X]
+        w = np.hstack([normals, moments])
         rows = w @ state.data.J
-        G = rows[:k] * self._mask1[idx]
-        G -= rows[k:] * self._mask2[idx]  # -d'(dq) = n^T J_p1 dq - n^T J_p2 dq
-        h = self.gain * np.maximum(dists - self.min_distance_m, 0.0)
+        G = rows[0::2] * self._mask1[idx]
+        G -= rows[1::2] * self._mask2[idx]  # -d'(dq) = n^T J_p1 dq - n^T J_p2 dq
+        h = dists - self.min_distance_m
+        np.maximum(h, 0.0, out=h)
+        h *= self.gain
         return Constraint(G, h)
 
     def guard_step(self, model: pin.Model, q: np.ndarray, dq: np.ndarray) -> np.ndarray:
@@ -210,10 +214,3 @@ class CollisionAvoidanceLimit(Limit):
             dq = 0.5 * dq
         self._measure(q)  # no step: keep the rows of where we stay
         return np.zeros_like(dq)
-
-
-def _cross(a: np.ndarray, b: np.ndarray, out: np.ndarray) -> None:
-    """Row-wise ``a x b`` of (k, 3) arrays into ``out`` (k, 3) (np.cross costs ~8 us of overhead)."""
-    out[:, 0] = a[:, 1] * b[:, 2] - a[:, 2] * b[:, 1]
-    out[:, 1] = a[:, 2] * b[:, 0] - a[:, 0] * b[:, 2]
-    out[:, 2] = a[:, 0] * b[:, 1] - a[:, 1] * b[:, 0]
