@@ -117,7 +117,8 @@ class StepQP:
 
     def _daqp(self, qp: QPData) -> QPOutcome:
         n_box = 0 if qp.ub is None else self._nv
-        rows = [m for m in (qp.G, qp.A) if m is not None and m.shape[0]]
+        rows = ([] if qp.G is None and qp.A is None
+                else [m for m in (qp.G, qp.A) if m is not None and m.shape[0]])
         if not rows:
             A = self._no_rows
             if n_box:

@@ -139,8 +139,7 @@ class Task(abc.ABC):
         self.gain = gain
         self.lm_damping = lm_damping
         self.servo = servo if servo is not None else AccelerationGains()
-        self._cost = cost_vector(cost, k, name)
-        self._active: tuple[np.ndarray, np.ndarray, slice | np.ndarray] | None = None
+        self._set_cost_vector(cost_vector(cost, k, name))
 
     @property
     def gain(self) -> float:
@@ -178,25 +177,26 @@ class Task(abc.ABC):
         Raises:
             TaskSetupError: A negative or misshaped cost.
         """
-        self._cost = cost_vector(cost, self.k, self.name)
+        self._set_cost_vector(cost_vector(cost, self.k, self.name))
         _WEIGHTS_EPOCH[0] += 1
 
-    def _active_rows(self) -> tuple[np.ndarray, np.ndarray, slice | np.ndarray]:
-        cached = self._active
-        if cached is None or cached[0] is not self._cost:
-            rows = np.flatnonzero(self._cost > 0.0)
-            rows.setflags(write=False)
-            cached = (self._cost, rows, as_slice(rows))
-            self._active = cached
-        return cached
+    def _set_cost_vector(self, cost: np.ndarray) -> None:
+        """Store a checked cost and the active rows it implies (read on every IK step)."""
+        self._cost = cost
+        rows = np.flatnonzero(cost > 0.0)
+        rows.setflags(write=False)
+        self._rows = rows
+        self._index = as_slice(rows)
+        #: Every row active: the hot paths then index nothing.
+        self._all_active = len(rows) == self.k
 
     def active_rows(self) -> np.ndarray:
         """Indices of the rows with a non-zero cost (read-only; the only rows the IK stacks)."""
-        return self._active_rows()[1]
+        return self._rows
 
     def active_index(self) -> slice | np.ndarray:
         """The active rows as a slice when they are contiguous (indexing is then a view)."""
-        return self._active_rows()[2]
+        return self._index
 
     def set_target_from_state(self, state: TaskState) -> None:  # noqa: B027 - optional hook
         """Set the target to the current value at ``state``; tasks without a target ignore it."""

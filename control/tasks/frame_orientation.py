@@ -16,9 +16,6 @@ from mbctl.control.tasks.frame import FrameTask
 from mbctl.control.tasks.residuals import TaskResidual
 from mbctl.control.tasks.state import DynamicsState, TaskState
 
-#: Every row of the task: the active index of a task with no zero cost.
-_ALL = slice(0, 3)
-
 
 class FrameOrientationTask(FrameTask):
     """Orientation of a frame: ``e = log3(R_FT)`` (3,) [rad], ``J_e = -Jlog3(R_TF) J_F[3:]``."""
@@ -69,9 +66,9 @@ class FrameOrientationTask(FrameTask):
         if self._X_TW is None:
             raise self._no_target()
         R_TF = (self._X_TW * state.oMf[self.frame_id]).rotation
-        rows = self.active_index()
+        rows = self._index
         J_w = state.frame_jacobian(self.frame_id)[3:]
-        if isinstance(rows, slice) and rows == _ALL:
+        if self._all_active:
             np.matmul(pin.Jlog3(R_TF), J_w, out=J_out)
             e_out[:] = pin.log3(R_TF)
         else:

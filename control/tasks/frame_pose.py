@@ -20,9 +20,6 @@ from mbctl.control.tasks.frame import FrameTask
 from mbctl.control.tasks.residuals import TaskResidual
 from mbctl.control.tasks.state import DynamicsState, TaskState
 
-#: Every row of the task: the active index of a task with no zero cost.
-_ALL = slice(0, 6)
-
 
 class FramePoseTask(FrameTask):
     """Pose of a frame: ``e = log6(X_FT)`` (6,) [m, rad] in F; cost is (position [3], orientation [3])."""
@@ -94,9 +91,9 @@ class FramePoseTask(FrameTask):
         if self._X_TW is None:
             raise self._no_target()
         X_TF = self._X_TW * state.oMf[self.frame_id]
-        rows = self.active_index()
+        rows = self._index
         J_F = state.frame_jacobian(self.frame_id)
-        if isinstance(rows, slice) and rows == _ALL:
+        if self._all_active:
             np.matmul(pin.Jlog6(X_TF), J_F, out=J_out)
             e_out[:] = pin.log6(X_TF).vector
         else:  # e.g. position only: 3 rows of Jlog6 (a view), not 6
