@@ -208,8 +208,8 @@ def _pair_costs(robot, ik, q0, steps, verbose) -> None:
     ranked = sorted(((statistics.median(v), k, len(v)) for k, v in cost.items()), reverse=True)
     total = sum(c for c, _, _ in ranked)
     print(f"  per pair: {len(ranked)} of {len(limit.pairs)} pairs came within 0.1 m on our path; their "
-          f"distance query (mj_geomDistance, median, cache warm): sum {total * 1e6:.1f} us, "
-          f"median {statistics.median([c for c, _, _ in ranked]) * 1e6:.2f} us")
+          f"distance query (mj_geomDistance, one call each, median over the configurations): sum "
+          f"{total * 1e6:.1f} us, median {statistics.median([c for c, _, _ in ranked]) * 1e6:.2f} us")
     for c, label, n in ranked if verbose else ranked[:8]:
         print(f"    {label:46s} {c * 1e6:6.2f} us  (detected at {n} of {len(res.q_path)} configurations)")
 
