@@ -15,8 +15,8 @@ import numpy as np
 import numpy.typing as npt
 import pinocchio as pin
 
-from mbctl.control.tasks.base import AccelerationGains, cost_vector
-from mbctl.control.tasks.frame import FrameTask
+from mbctl.control.tasks.base import AccelerationGains
+from mbctl.control.tasks.frame import FrameTask, pose_cost
 from mbctl.control.tasks.residuals import TaskResidual
 from mbctl.control.tasks.state import DynamicsState, TaskState
 
@@ -51,10 +51,8 @@ class FramePoseTask(FrameTask):
             UnknownNameError: No frame called ``frame``.
             TaskSetupError: Invalid costs, gain or damping.
         """
-        pos = cost_vector(position_cost, 3, frame, "position_cost")
-        rot = cost_vector(orientation_cost, 3, frame, "orientation_cost")
-        super().__init__(name or f"{frame} pose", frame, model, 6, np.concatenate([pos, rot]), gain,
-                         lm_damping, servo)
+        cost = pose_cost(frame, position_cost, orientation_cost)
+        super().__init__(name or f"{frame} pose", frame, model, 6, cost, gain, lm_damping, servo)
 
     def compute_error(self, state: TaskState) -> np.ndarray:
         """``log6(X_FT)`` (6,) [m, rad]: the twist from F to the target, in F."""

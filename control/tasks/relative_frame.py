@@ -15,8 +15,7 @@ import numpy as np
 import numpy.typing as npt
 import pinocchio as pin
 
-from mbctl.control.tasks.base import cost_vector
-from mbctl.control.tasks.frame import FrameTask
+from mbctl.control.tasks.frame import FrameTask, pose_cost
 from mbctl.control.tasks.residuals import TaskResidual
 from mbctl.control.tasks.state import TaskState
 from mbctl.robots.exceptions import UnknownNameError
@@ -57,10 +56,8 @@ class RelativeFrameTask(FrameTask):
             UnknownNameError: No frame called ``frame`` or ``reference``.
             TaskSetupError: Invalid costs, gain or damping.
         """
-        pos = cost_vector(position_cost, 3, frame, "position_cost")
-        rot = cost_vector(orientation_cost, 3, frame, "orientation_cost")
-        super().__init__(name or f"{frame} in {reference}", frame,
-                         model, 6, np.concatenate([pos, rot]), gain, lm_damping, None)
+        super().__init__(name or f"{frame} in {reference}", frame, model, 6,
+                         pose_cost(frame, position_cost, orientation_cost), gain, lm_damping, None)
         pin_model = model.model if isinstance(model, TaskState) else model
         if not pin_model.existFrame(reference):
             raise UnknownNameError("frame", reference, [f.name for f in pin_model.frames])
