@@ -7,6 +7,20 @@ from typing import Annotated
 import typer
 
 from mbctl.cli._run import OutputOpt, QuietOpt, VideoOpt, VideoSizeOpt, execute, video_spec
+from mbctl.cli.plant_options import (
+    DomainOpt,
+    DropOpt,
+    DryRunOpt,
+    EstimateOpt,
+    ImuNoiseOpt,
+    InterfaceOpt,
+    JitterOpt,
+    LatencyOpt,
+    LinkSeedOpt,
+    NetworkOpt,
+    TruthOpt,
+    WatchdogOpt,
+)
 from mbctl.cli.robots import ModelDirOpt
 from mbctl.jobs import options
 from mbctl.jobs.g1_wbc import DEFAULT_DURATION_S, G1_WBC, SCENARIOS
@@ -33,14 +47,33 @@ def g1_wbc(
         float, typer.Option("--model-error", help="Controller model link masses off by PCT (%).")
     ] = 0.0,
     model_dir: ModelDirOpt = None,
+    interface: InterfaceOpt = "sim",
+    domain: DomainOpt = 0,
+    network_interface: NetworkOpt = "lo",
+    latency_ms: LatencyOpt = 0.0,
+    jitter_ms: JitterOpt = 0.0,
+    drop: DropOpt = 0.0,
+    imu_noise: ImuNoiseOpt = 0.0,
+    estimate: EstimateOpt = False,
+    link_seed: LinkSeedOpt = 0,
+    truth: TruthOpt = None,
+    watchdog_periods: WatchdogOpt = 3,
+    dry_run: DryRunOpt = False,
     output: OutputOpt = None,
     quiet: QuietOpt = False,
     video: VideoOpt = False,
     video_size: VideoSizeOpt = "640x480",
 ) -> None:
-    """Whole-body inverse dynamics (QP) on the G1 in torque mode; exit 1 if it fell or missed a bound."""
+    """Whole-body inverse dynamics (QP) on the G1 in torque mode; exit 1 if it fell or missed a bound.
+
+    --interface dds runs the same controller on the G1's low-level DDS (a robot, or `mbctl serve g1
+    --start crouched`); the push scenario is in-process only.
+    """
     params = options.g1_wbc(scenario=scenario, duration=duration, impulse=impulse, direction=direction,
-                            model_error=model_error, model_dir=model_dir)
+                            model_error=model_error, model_dir=model_dir, interface=interface, domain=domain,
+                            network_interface=network_interface, latency_ms=latency_ms, jitter_ms=jitter_ms,
+                            drop=drop, imu_noise=imu_noise, estimate=estimate, link_seed=link_seed,
+                            truth=truth, watchdog_periods=watchdog_periods, dry_run=dry_run)
     execute(G1_WBC, params, output, quiet, video_spec(video, video_size))
 
 

@@ -33,13 +33,25 @@ def xcheck(
         str, typer.Option("--analytic", help="Pinocchio model: mujoco (from the compiled plant) or parser.")
     ] = "mujoco",
     root: RootOpt = None,
+    joint_map: Annotated[
+        str | None,
+        typer.Option("--joint-map", metavar="FILE|A=B,...",
+                     help="With --pin-model: joints named differently, PIN_FILE_JOINT=MJCF_JOINT (inline, "
+                          "comma-separated, or a file of such lines)."),
+    ] = None,
+    floating_base: Annotated[
+        bool | None,
+        typer.Option("--floating-base/--fixed-base",
+                     help="With --pin-model: add a free flyer to a fixed-base file, or never; default: "
+                          "added when the MJCF's robot has a free root joint."),
+    ] = None,
     output: OutputOpt = None,
     quiet: QuietOpt = False,
 ) -> None:
     """Compare kinematics and dynamics of Pinocchio and MuJoCo; exit 1 if any quantity fails."""
     params = options.xcheck(robot=robot, scene=scene, states=states, seed=seed, json_path=json_path,
                             pin_model=pin_model, gravity=gravity, model_dir=model_dir, analytic=analytic,
-                            root=root)
+                            root=root, joint_map=joint_map, floating_base=floating_base)
     execute(XCHECK, params, output, quiet)
 
 

@@ -29,16 +29,19 @@ import pinocchio as pin
 from mbctl.control.exceptions import WBCSetupError
 from mbctl.control.loop import run
 from mbctl.control.wbc import Scheduled, Standing, WBCConfig, standing_controller
+from mbctl.hardware import UnitreeG1
+from mbctl.jobs.plant import Plant, PlantOptions, dry_run, plant_lines, prepare_plant, report_plant
 from mbctl.jobs.recording import q_columns
 from mbctl.jobs.runner import Job, Outcome, RunContext, Work
+from mbctl.jobs.truth import truth_com
 from mbctl.jobs.wbc_log import WBCLog
 from mbctl.jobs.wbc_scenarios import PUSH_PERIOD_S, scenario
+from mbctl.limits import check_duration
 from mbctl.robots.edits import position_to_motor, scale_masses
 from mbctl.robots.g1 import FEET, G1_FALL, KEYFRAME, PELVIS, TORSO, crouched_start, with_palm_sites
 from mbctl.robots.model_pair import Robot
 from mbctl.robots.registry import load_robot
 from mbctl.sim.monitor import PlantMonitor
-from mbctl.sim.simulator import Simulator
 
 SCENARIOS = ("stand", "squat", "one-foot", "reach", "push")
 #: Default simulated time [s] per scenario.
@@ -88,6 +91,8 @@ class WBCParams:
             +y, its left); None: eight directions 45 deg apart, 2 s apart (push scenario only).
         model_error: The controller model's link masses and inertias off by this [%].
         model_dir: Explicit G1 folder (else MENAGERIE_ROOT, the package cache).
+        plant: In-process (with an optional link model: latency, jitter, drops, IMU noise, the
+            estimator) or the G1 over DDS (no pushes there: the bridge has no push input).
     """
 
     scenario: str = "stand"
@@ -96,10 +101,12 @@ class WBCParams:
     direction: float | None = None
     model_error: float = 0.0
     model_dir: str | None = None
+    plant: PlantOptions = PlantOptions()
 
     def __post_init__(self) -> None:
         if self.scenario not in SCENARIOS:
             raise WBCSetupError(f"unknown scenario {self.scenario!r}; choose one of {', '.join(SCENARIOS)}")
+        check_duration(self.duration)
         if self.duration is not None and not (np.isfinite(self.duration) and self.duration > 0):
             raise WBCSetupError(f"duration must be a positive number of seconds; got {self.duration}")
         if self.scenario != "push" and (self.impulse is not None or self.direction is not None):
@@ -112,6 +119,9 @@ class WBCParams:
             raise WBCSetupError(f"direction must be a finite angle in degrees; got {self.direction}")
         if not (np.isfinite(self.model_error) and -50 < self.model_error < 100):
             raise WBCSetupError(f"model_error must be a percentage in (-50, 100); got {self.model_error}")
+        if self.plant.interface == "dds" and self.scenario == "push":
+            raise WBCSetupError("the push scenario needs the in-process plant (--interface sim): over DDS "
+                                "nothing can push the robot")
 
     @property
     def duration_s(self) -> float:
@@ -139,46 +149,59 @@ def prepare(params: WBCParams, robot: Robot | None = None) -> Work:
     robot = position_to_motor(with_palm_sites(robot or load_robot("g1", model_dir=params.model_dir)))
     factor = 1.0 + params.model_error / 100.0
     pin_model = scale_masses(robot.pin_model, factor) if params.model_error else None
+    # over DDS this connects now: no robot, or one outside its limits, is bad input (exit 2)
+    plant = prepare_plant(params.plant, robot, KEYFRAME, start_q=crouched_start(robot), contact_forces=True)
 
     def work(ctx: RunContext) -> Outcome:
-        return _run(ctx, params, robot, pin_model)
+        with plant(ctx) as p:
+            if p.options.dry_run:
+                return dry_run(ctx, p, params.duration_s)
+            return _run(ctx, params, robot, pin_model, p)
 
     return work
 
 
-def _run(ctx: RunContext, params: WBCParams, robot: Robot, pin_model: pin.Model | None) -> Outcome:
-    sim = ctx.attach(Simulator(robot), contact_forces=True)
-    sim.reset(KEYFRAME)
-    sim.set_state(crouched_start(robot), np.zeros(robot.nv))
+def _run(ctx: RunContext, params: WBCParams, robot: Robot, pin_model: pin.Model | None, p: Plant) -> Outcome:
+    iface, sim = p.interface, p.sim  # sim: the in-process plant (None over DDS)
     wb = g1_whole_body(robot, pin_model, WBCConfig(on_infeasible="damp"))
-    wb.hold(sim.read_state())
-    schedule, pushes = scenario(params.scenario, wb, sim, params.impulse_n_s, params.direction)
-    if pushes is not None:
-        sim.add_perturbation(pushes)
-    feet = {name: cs.contact.geoms for name, cs in wb.controller.contacts.items()}
-    monitor = PlantMonitor(sim, feet, sites=FEET, fall_rule=G1_FALL.reason).attach()
-    n = max(1, int(round(params.duration_s / sim.control_period_s)))
+    wb.hold(iface.read_state())
+    schedule, pushes = scenario(params.scenario, wb, robot.mj_model, params.impulse_n_s, params.direction)
+    monitor = None
+    if sim is not None:  # the plant's own measurements: in-process only
+        if pushes is not None:
+            sim.add_perturbation(pushes)
+        feet = {name: cs.contact.geoms for name, cs in wb.controller.contacts.items()}
+        monitor = PlantMonitor(sim, feet, sites=FEET, fall_rule=G1_FALL.reason).attach()
+    n = max(1, int(round(params.duration_s / iface.control_period_s)))
     # the plant's weight m g [N]: the robot's true mass, whatever the controller's model says
-    mg = monitor.mass_kg * float(np.linalg.norm(robot.mj_model.opt.gravity))
-    log = WBCLog(ctx, wb, monitor, pushes, n, mg, q_columns(robot))
+    mass_kg = monitor.mass_kg if monitor is not None else float(robot.mj_model.body_subtreemass[1])
+    log = WBCLog(ctx, wb, monitor, pushes, n, mass_kg * float(np.linalg.norm(robot.mj_model.opt.gravity)),
+                 q_columns(robot))
     ctx.sections["inputs"] = {"scenario": params.scenario, "keyframe": KEYFRAME,
                               "controller": "whole-body inverse dynamics QP (control/wbc)",
                               "model_error_pct": params.model_error,
                               "tasks": [t.name for t in wb.controller.tasks]}
     ctx.progress.start(n, f"g1-wbc {params.scenario}")
-    run(sim, Scheduled(wb.controller, schedule), None, params.duration_s, on_step=log.on_step)
+    run_log = run(iface, Scheduled(wb.controller, schedule), None, params.duration_s, on_step=log.on_step)
     values = log.values(sim)
+    truth_fell = report_plant(ctx, p, run_log, G1_FALL.base_min_z_m)
+    if p.options.truth is not None and isinstance(iface, UnitreeG1):
+        ticks = np.asarray(iface.state_ticks[:run_log.cycles])
+        com_W = truth_com(p.options.truth, ticks, run_log.q[:run_log.cycles])
+        values = log.with_truth(com_W, bool(truth_fell))
     from mbctl.jobs.wbc_plots import wbc_plots
 
     wbc_plots(ctx, log, params, values)
     bounds = BOUNDS[params.scenario]
     fell = values["fell"]
+    if "truth_max_foot_slip_m" in values:  # over DDS with the bridge's truth log
+        values["max_foot_slip_m"] = values["truth_max_foot_slip_m"]
     ok = (not fell and values["com_error_rms_m"] < bounds.com_rms_m
           and values["max_foot_slip_m"] < bounds.foot_slip_m)
     controller = ("QP throughout" if values["controller_fallback_at_s"] is None else
                   f"QP infeasible at t={values['controller_fallback_at_s']:.3f} s, then joint damping")
     summary = (
-        f"g1-wbc {params.scenario} {sim.time_s:.2f} s: "
+        f"g1-wbc {params.scenario} {iface.time_s:.2f} s: "
         f"{'FELL (' + str(values['fall_reason']) + ')' if fell else 'stood'}; controller: {controller}; "
         f"CoM RMS {values['com_error_rms_m'] * 1e3:.2f} mm, max foot slip "
         f"{values['max_foot_slip_m'] * 1e3:.3f} mm, contact force error "
@@ -186,7 +209,7 @@ def _run(ctx: RunContext, params: WBCParams, robot: Robot, pin_model: pin.Model 
         f"(95th percentile {values['contact_force_rel_error_p95'] * 100:.2f} %, max "
         f"{values['contact_force_rel_error_max'] * 100:.2f} %), controller "
         f"{values['controller_time_median_us']:.0f} us (QP {values['qp_solve_time_median_us']:.0f} us) "
-        f"median, saturated steps {values['torque_saturation_steps']}",)
+        f"median, saturated steps {values.get('torque_saturation_steps', 'n/a')}", *plant_lines(values))
     return Outcome(ok, summary, f"{bounds.describe()}; did not fall")
 
 

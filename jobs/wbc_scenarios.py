@@ -1,7 +1,7 @@
 """The g1-wbc scenarios: task targets as functions of time, and the pushes on the plant.
 
 ``stand``    CoM over the middle of the feet.
-``squat``    CoM height ``z0 - A (1 - cos 2 pi f t)``, A = 0.08 m, f = 0.5 Hz.
+``squat``    CoM height ``z0 - A (1 - cos 2 pi f t)``, A = 0.06 m, f = 0.5 Hz.
 ``one-foot`` CoM over the left sole, right foot released (force ramp), lifted 5 cm, held 5 s,
              put back, CoM back to the middle.
 ``reach``    both palms 0.20 m forward and back (min-jerk) while balancing.
@@ -16,6 +16,7 @@ from __future__ import annotations
 
 from collections.abc import Callable
 
+import mujoco
 import numpy as np
 import pinocchio as pin
 
@@ -24,9 +25,11 @@ from mbctl.control.wbc import Standing
 from mbctl.planners.polynomial import minimum_jerk_at
 from mbctl.robots.g1 import FEET, PALM_SITES, PELVIS
 from mbctl.sim.perturb import Push, PushSchedule
-from mbctl.sim.simulator import Simulator
 
-SQUAT_AMPLITUDE_M = 0.08
+#: CoM drop [m] at the bottom of the squat is twice this. The G1's ankle pitch (range down to
+#: -0.873 rad) reaches its limit near 7 cm from the crouched start with flat feet; 6 cm keeps it
+#: clear (at 8 cm the ankle ran into MuJoCo's joint limit once per cycle: a contact-force spike).
+SQUAT_AMPLITUDE_M = 0.06
 SQUAT_FREQUENCY_HZ = 0.5
 LIFT_HEIGHT_M = 0.05
 REACH_M = 0.20
@@ -43,14 +46,14 @@ def sole_center_W(wb: Standing, foot: str) -> np.ndarray:
     return wb.controller.state.frame_pose(cs.fid).act(cs.contact.points_F.mean(axis=0))
 
 
-def scenario(name: str, wb: Standing, sim: Simulator, impulse_n_s: float = 10.0,
+def scenario(name: str, wb: Standing, model: mujoco.MjModel, impulse_n_s: float = 10.0,
              direction_deg: float | None = None) -> tuple[Schedule, PushSchedule | None]:
     """Set the initial targets of scenario ``name``; return its schedule and its pushes (or None).
 
     Args:
         name: One of ``stand``, ``squat``, ``one-foot``, ``reach``, ``push``.
         wb: The standing controller, held at the start state (``wb.hold``).
-        sim: The plant (pushes are built on its model).
+        model: The plant's model (pushes are built on its bodies).
         impulse_n_s: Push impulse [N s] (push).
         direction_deg: Push direction [deg] in the world x-y plane, or None for eight.
     """
@@ -96,7 +99,7 @@ def scenario(name: str, wb: Standing, sim: Simulator, impulse_n_s: float = 10.0,
     if name == "push":
         force = impulse_n_s / PUSH_HOLD_S
         angles = [k * 45.0 for k in range(8)] if direction_deg is None else [direction_deg]
-        pushes = PushSchedule(sim.model, [
+        pushes = PushSchedule(model, [
             Push(PELVIS, (force * np.cos(np.radians(a)), force * np.sin(np.radians(a)), 0.0),
                  1.0 + PUSH_PERIOD_S * k, PUSH_HOLD_S) for k, a in enumerate(angles)])
         return hold_com, pushes

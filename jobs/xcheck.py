@@ -12,6 +12,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from mbctl.jobs.runner import Job, Outcome, RunContext, Work, check_output_file
+from mbctl.limits import MAX_XCHECK_STATES, check_limit
 from mbctl.robots.crosscheck import crosscheck
 from mbctl.robots.exceptions import RobotError
 from mbctl.robots.registry import load_robot
@@ -34,6 +35,10 @@ class XcheckParams:
         analytic: "mujoco" (the Pinocchio model built from MuJoCo's compiled model) or "parser"
             (Pinocchio's own parser on the robot file: the independent path).
         roots: Bodies whose trees are the robot (default: the trees the actuators drive).
+        joint_map: (joint in the ``pin_model`` file, joint of the plant) pairs for joints named
+            differently (``--joint-map``).
+        floating_base: Add a free flyer to a fixed-base ``pin_model`` (True), never (False), or
+            when the plant's robot has a free root joint (None).
     """
 
     robot: str
@@ -46,10 +51,14 @@ class XcheckParams:
     model_dir: str | None = None
     analytic: str = "mujoco"
     roots: tuple[str, ...] = ()
+    joint_map: tuple[tuple[str, str], ...] = ()
+    floating_base: bool | None = None
 
     def __post_init__(self) -> None:
         if self.states < 0:
             raise RobotError(f"states must be >= 0; got {self.states}")
+        check_limit("--states", self.states, MAX_XCHECK_STATES, advice="split the states over seeds "
+                    "(`mbctl sweep xcheck --param states=N --seeds K`)")
         if self.seed < 0:
             raise RobotError(f"seed must be >= 0; got {self.seed}")
 
@@ -72,6 +81,8 @@ def prepare(params: XcheckParams) -> Work:
         check=False,
         analytic=params.analytic,
         roots=params.roots,
+        joint_map=dict(params.joint_map),
+        floating_base=params.floating_base,
     )
 
     def work(ctx: RunContext) -> Outcome:

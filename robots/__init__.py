@@ -1,5 +1,6 @@
 """Robot descriptions and the model pair (Pinocchio model + MuJoCo model) with conventions."""
 
+from mbctl.robots import mjlog  # noqa: F401 - MuJoCo's log file stays out of the cwd
 from mbctl.robots.commands import Command, CommandKind, ctrl, position_target, torque, velocity_target
 from mbctl.robots.conventions import (
     JointLayout,
@@ -9,10 +10,12 @@ from mbctl.robots.conventions import (
 )
 from mbctl.robots.edits import position_to_motor, weld_base
 from mbctl.robots.exceptions import (
+    JointMapError,
     ModelFileError,
     ModelMismatchError,
     ModelNotFoundError,
     RobotError,
+    SceneMismatchError,
     StateError,
     UnknownNameError,
 )
@@ -28,6 +31,7 @@ __all__ = [
     "CommandKind",
     "ctrl",
     "JointLayout",
+    "JointMapError",
     "ModelFileError",
     "ModelMismatchError",
     "ModelNotFoundError",
@@ -36,6 +40,7 @@ __all__ = [
     "RobotError",
     "RobotInterface",
     "RobotState",
+    "SceneMismatchError",
     "SensorInfo",
     "StateConverter",
     "StateError",

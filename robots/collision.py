@@ -37,6 +37,7 @@ import numpy.typing as npt
 
 from mbctl.robots.exceptions import CollisionPairError, UnknownNameError
 from mbctl.robots.model_pair import Robot
+from mbctl.robots.names import mj_name
 
 #: Distance cap [m] of a full measurement (the plant check): pairs farther apart read as this.
 FAR_M = 10.0
@@ -189,7 +190,7 @@ def geom_label(m: mujoco.MjModel, g: int) -> str:
     if name:
         return name
     b = int(m.geom_bodyid[g])
-    body = mujoco.mj_id2name(m, mujoco.mjtObj.mjOBJ_BODY, b) or ("world" if b == 0 else f"body{b}")
+    body = mj_name(m, mujoco.mjtObj.mjOBJ_BODY, b)
     same = [k for k in collision_geoms(m) if int(m.geom_bodyid[k]) == b]
     return body if len(same) <= 1 or g not in same else f"{body}[{same.index(g)}]"
 

@@ -11,15 +11,16 @@ finiteness; the simulator checks names, shape and actuator kind when it first se
 
 from __future__ import annotations
 
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from enum import Enum
 
 import numpy as np
 import numpy.typing as npt
 
-from mbctl.robots.exceptions import CommandError
+from mbctl.robots.exceptions import CommandError, UnknownNameError
 from mbctl.robots.fastmath import all_finite
+from mbctl.robots.names import ActuatorInfo
 
 
 class CommandKind(str, Enum):
@@ -117,3 +118,54 @@ def ctrl(values: npt.ArrayLike | Mapping[str, float]) -> Command:
     says explicitly that the caller knows each actuator's units.
     """
     return _make(CommandKind.CTRL, values)
+
+
+def joint_actuators(actuators: Mapping[str, ActuatorInfo]) -> dict[str, ActuatorInfo]:
+    """The actuator a joint name addresses in a command: the first actuator driving that joint."""
+    return {a.joint: a for a in reversed(list(actuators.values())) if a.joint}
+
+
+def actuators_named(
+    names: Sequence[str],
+    actuators: Mapping[str, ActuatorInfo],
+    by_joint: Mapping[str, ActuatorInfo],
+    kind: str = "command",
+) -> list[ActuatorInfo]:
+    """The actuators a command's names address: an actuator's name, or the name of its joint.
+
+    Called once per command layout (the simulator caches the result), not per step.
+
+    Args:
+        names: Actuator or actuated-joint names, one per command value.
+        actuators: The robot's actuators by name.
+        by_joint: Actuators by the joint they drive (``joint_actuators``); an actuator name wins
+            over a joint of the same name.
+        kind: What is resolved, for messages (e.g. "torque command").
+
+    Returns:
+        One actuator per name, in the order of ``names``.
+
+    Raises:
+        UnknownNameError: A name that is neither an actuator nor an actuated joint.
+        CommandError: Two names addressing the same actuator (e.g. a joint and its actuator):
+            one of the two values would be dropped silently.
+    """
+    out: list[ActuatorInfo] = []
+    first_name: dict[str, str] = {}
+    for name in names:
+        info = actuators.get(name) or by_joint.get(name)
+        if info is None:
+            known = list(actuators) + [j for j in by_joint if j not in actuators]
+            raise UnknownNameError("actuator or actuated joint", name, known)
+        if info.name in first_name:
+            raise CommandError(
+                f"The {kind} names actuator {info.name!r} twice: as {_as_named(first_name[info.name], info)} "
+                f"and as {_as_named(name, info)}; one value would be dropped. Name each actuator once."
+            )
+        first_name[info.name] = name
+        out.append(info)
+    return out
+
+
+def _as_named(name: str, info: ActuatorInfo) -> str:
+    return f"{name!r}" if name == info.name else f"{name!r} (its joint)"

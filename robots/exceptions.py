@@ -44,6 +44,14 @@ class ModelMismatchError(RobotError):
     """The Pinocchio and MuJoCo models of one robot disagree (names, sizes, mass, armature)."""
 
 
+class SceneMismatchError(ModelMismatchError):
+    """A scene whose robot is not the robot file's robot (other trees, joints or inertias)."""
+
+
+class JointMapError(RobotError, ValueError):
+    """A joint map (Pinocchio file joint -> plant joint) that is malformed or maps a name twice."""
+
+
 class StateError(RobotError, ValueError):
     """A configuration or velocity vector with the wrong shape or non-finite entries."""
 

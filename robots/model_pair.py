@@ -22,7 +22,7 @@ import pinocchio as pin
 from mbctl.robots.conventions import JointLayout, StateConverter
 from mbctl.robots.exceptions import ModelFileError, ModelMismatchError, UnknownNameError
 from mbctl.robots.indexing import as_slice
-from mbctl.robots.names import ActuatorInfo, SensorInfo, actuator_infos, names_of, sensor_infos
+from mbctl.robots.names import ActuatorInfo, SensorInfo, actuator_infos, mj_name, names_of, sensor_infos
 from mbctl.robots.pin_from_mj import pin_model_from_mj
 from mbctl.robots.scene import describe_body, robot_bodies, scene_bodies
 
@@ -154,16 +154,17 @@ class Robot:
         pin_model: pin.Model | None,
         mj_spec: mujoco.MjSpec,
         check: bool = True,
+        mj_model: mujoco.MjModel | None = None,
     ):
         """Build the pair.
 
         ``pin_model=None`` builds the analytic model from the compiled MjModel. ``check=False``
         skips the agreement check (for cross-checking a deliberately different Pinocchio model
-        against the plant).
+        against the plant). ``mj_model``: ``mj_spec`` already compiled by the caller.
         """
         self.source = source
         self.mj_spec = mj_spec
-        self.mj_model = compile_spec(mj_spec, source.scene_file)
+        self.mj_model = compile_spec(mj_spec, source.scene_file) if mj_model is None else mj_model
         m = self.mj_model
         # The robot is a set of whole trees; the rest of the plant is scene (robots/scene.py).
         in_robot = robot_bodies(m, source.roots)
@@ -181,7 +182,7 @@ class Robot:
             kind = _MJ_JOINT_KIND[mujoco.mjtJoint(int(m.jnt_type[j]))]
             nq = {"free": 7, "ball": 4}.get(kind, 1)
             nv = {"free": 6, "ball": 3}.get(kind, 1)
-            name = mujoco.mj_id2name(m, mujoco.mjtObj.mjOBJ_JOINT, j) or self._pin_joint_name(len(layouts))
+            name = mj_name(m, mujoco.mjtObj.mjOBJ_JOINT, j)  # as pin_from_mj
             plant_q, plant_v = int(m.jnt_qposadr[j]), int(m.jnt_dofadr[j])
             layouts.append(JointLayout(name, kind, iq, iv, nq, nv, plant_q, plant_v))
             iq, iv = iq + nq, iv + nv
@@ -235,9 +236,6 @@ class Robot:
     def timestep_s(self) -> float:
         """MuJoCo physics timestep [s]."""
         return float(self.mj_model.opt.timestep)
-
-    def _pin_joint_name(self, robot_joint: int) -> str:
-        return self.pin_model.names[robot_joint + 1] if robot_joint + 1 < self.pin_model.njoints else ""
 
     @property
     def covers_plant(self) -> bool:

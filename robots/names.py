@@ -63,6 +63,20 @@ class SensorInfo:
         return slice(self.adr, self.adr + self.dim)
 
 
+_PREFIX = {mujoco.mjtObj.mjOBJ_BODY: "body", mujoco.mjtObj.mjOBJ_JOINT: "joint",
+           mujoco.mjtObj.mjOBJ_SITE: "site", mujoco.mjtObj.mjOBJ_ACTUATOR: "actuator",
+           mujoco.mjtObj.mjOBJ_SENSOR: "sensor", mujoco.mjtObj.mjOBJ_KEY: "key"}
+
+
+def mj_name(m: mujoco.MjModel, objtype: mujoco.mjtObj, i: int) -> str:
+    """The name of MuJoCo object ``i``; an unnamed one is ``<kind><id>`` (``body3``, ``joint0``).
+
+    The one naming rule of the toolkit: the Pinocchio model built from ``m`` uses it for its
+    joints and frames, so both engines address unnamed objects alike.
+    """
+    return mujoco.mj_id2name(m, objtype, i) or f"{_PREFIX[objtype]}{i}"
+
+
 def _name(m: mujoco.MjModel, objtype: mujoco.mjtObj, i: int) -> str:
     return mujoco.mj_id2name(m, objtype, i) or ""
 
@@ -152,5 +166,5 @@ def sensor_infos(m: mujoco.MjModel) -> dict[str, SensorInfo]:
 
 
 def names_of(m: mujoco.MjModel, objtype: mujoco.mjtObj, count: int) -> tuple[str, ...]:
-    """Names of all objects of one type, in id order ("" for unnamed ones)."""
-    return tuple(_name(m, objtype, i) for i in range(count))
+    """Names of all objects of one type, in id order (unnamed ones as :func:`mj_name` names them)."""
+    return tuple(mj_name(m, objtype, i) for i in range(count))

@@ -43,6 +43,8 @@ import numpy as np
 import pinocchio as pin
 
 from mbctl.robots.exceptions import ModelMismatchError
+from mbctl.robots.model_size import check_robot_dof
+from mbctl.robots.names import mj_name
 from mbctl.robots.scene import tree_roots
 
 #: Tolerance on a unit joint axis for using Pinocchio's axis-aligned joint types (RX, PY, ...):
@@ -83,8 +85,10 @@ def pin_model_from_mj(m: mujoco.MjModel, bodies: Iterable[int] | None = None) ->
             without its parent; or the model uses what Pinocchio cannot represent with the same
             q: a hinge or slide joint with a non-zero reference position (``ref``, so that
             ``qpos0`` is not zero), or a free joint that is not its body's first joint.
+        SizeLimitError: The included bodies have more than ``MAX_ROBOT_DOF`` degrees of freedom.
     """
     included = _checked_bodies(m, bodies)
+    check_robot_dof(sum(int(m.body_dofnum[b]) for b in included), _model_name(m))
     model = pin.Model()
     model.name = _model_name(m)
     model.gravity = pin.Motion(np.array(m.opt.gravity, dtype=float), np.zeros(3))
@@ -97,7 +101,7 @@ def pin_model_from_mj(m: mujoco.MjModel, bodies: Iterable[int] | None = None) ->
 
     for b in sorted(included):
         p = int(m.body_parentid[b])
-        body_name = _name(m, mujoco.mjtObj.mjOBJ_BODY, b, "body")
+        body_name = mj_name(m, mujoco.mjtObj.mjOBJ_BODY, b)
         parent_joint = joint_of_body[p]
         X_JB = X_JB_of_body[p] * _se3(m.body_pos[b], m.body_quat[b])  # pre-joint body frame
         previous_frame = frame_of_body[p]
@@ -107,7 +111,7 @@ def pin_model_from_mj(m: mujoco.MjModel, bodies: Iterable[int] | None = None) ->
             if kind == mujoco.mjtJoint.mjJNT_FREE:
                 if j != first_jnt or parent_joint != 0:
                     raise ModelMismatchError(
-                        f"Free joint {_name(m, mujoco.mjtObj.mjOBJ_JOINT, j, 'joint')!r} of body "
+                        f"Free joint {mj_name(m, mujoco.mjtObj.mjOBJ_JOINT, j)!r} of body "
                         f"{body_name!r} must be its body's first joint, in a body fixed to the world; "
                         "move the other joints to a child body."
                     )
@@ -135,7 +139,7 @@ def pin_model_from_mj(m: mujoco.MjModel, bodies: Iterable[int] | None = None) ->
         joint_of_body[b] = parent_joint
         X_JB_of_body[b] = X_JB
         for s in np.flatnonzero(m.site_bodyid == b):
-            site_name = _name(m, mujoco.mjtObj.mjOBJ_SITE, int(s), "site")
+            site_name = mj_name(m, mujoco.mjtObj.mjOBJ_SITE, int(s))
             X_JS = X_JB * _se3(m.site_pos[s], m.site_quat[s])
             model.addFrame(
                 pin.Frame(site_name, parent_joint, frame_of_body[b], X_JS, pin.FrameType.OP_FRAME),
@@ -179,8 +183,8 @@ def _checked_bodies(m: mujoco.MjModel, bodies: Iterable[int] | None) -> set[int]
     orphans = sorted(b for b in included if int(m.body_parentid[b]) not in included | {0})
     if orphans:
         names = [
-            f"{_name(m, mujoco.mjtObj.mjOBJ_BODY, b, 'body')} (parent "
-            f"{_name(m, mujoco.mjtObj.mjOBJ_BODY, int(m.body_parentid[b]), 'body')})"
+            f"{mj_name(m, mujoco.mjtObj.mjOBJ_BODY, b)} (parent "
+            f"{mj_name(m, mujoco.mjtObj.mjOBJ_BODY, int(m.body_parentid[b]))})"
             for b in orphans[:5]
         ]
         raise ModelMismatchError(
@@ -195,8 +199,6 @@ def _model_name(m: mujoco.MjModel) -> str:
     return raw[: raw.index(b"\0")].decode() if b"\0" in raw else raw.decode()
 
 
-def _name(m: mujoco.MjModel, obj: mujoco.mjtObj, i: int, prefix: str) -> str:
-    return mujoco.mj_id2name(m, obj, i) or f"{prefix}{i}"
 
 
 def _rotation(quat_wxyz: np.ndarray) -> np.ndarray:
@@ -237,7 +239,7 @@ def _add_joint(
     X_parent_joint: pin.SE3,
 ) -> int:
     """Add MuJoCo joint ``j`` to ``model`` with its limits, damping and friction; its id."""
-    name = _name(m, mujoco.mjtObj.mjOBJ_JOINT, j, "joint")
+    name = mj_name(m, mujoco.mjtObj.mjOBJ_JOINT, j)
     if kind == mujoco.mjtJoint.mjJNT_FREE:
         joint_model: pin.JointModel = pin.JointModelFreeFlyer()
     elif kind == mujoco.mjtJoint.mjJNT_BALL:
@@ -296,7 +298,7 @@ def _add_reference_configurations(model: pin.Model, m: mujoco.MjModel, included:
             parts.append((int(m.jnt_qposadr[j]), nq, nq > 1))
     configurations = {"qpos0": np.array(m.qpos0)}
     for k in range(int(m.nkey)):
-        configurations[_name(m, mujoco.mjtObj.mjOBJ_KEY, k, "key")] = np.array(m.key_qpos[k])
+        configurations[mj_name(m, mujoco.mjtObj.mjOBJ_KEY, k)] = np.array(m.key_qpos[k])
     for name, qpos in configurations.items():
         q = []
         for adr, nq, has_quat in parts:

@@ -3,16 +3,21 @@
 from __future__ import annotations
 
 import os
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 import pinocchio as pin
 
-from mbctl.robots.exceptions import ModelFileError, ModelNotFoundError, UnknownNameError
+from mbctl.robots.exceptions import ModelFileError, ModelNotFoundError, RobotError, UnknownNameError
+from mbctl.robots.joint_pairing import pair_joints
 from mbctl.robots.menagerie import resolve_menagerie_dir
-from mbctl.robots.model_pair import ModelSource, Robot, load_mj_spec, load_pin_model
+from mbctl.robots.model_pair import ModelSource, Robot, compile_spec, load_mj_spec, load_pin_model
+from mbctl.robots.model_size import check_model_file_size, check_robot_dof
+from mbctl.robots.pin_from_mj import pin_model_from_mj
+from mbctl.robots.scene import robot_bodies
+from mbctl.robots.scene_match import robot_in_scene
 
 ASSETS = Path(__file__).parent / "assets"
 
@@ -90,6 +95,8 @@ def load_robot(
     check: bool = True,
     analytic: str = "mujoco",
     roots: Sequence[str] = (),
+    joint_map: Mapping[str, str] | None = None,
+    floating_base: bool | None = None,
 ) -> Robot:
     """Load a known robot by name, or any MJCF robot by path, as a checked model pair.
 
@@ -97,7 +104,8 @@ def load_robot(
         name_or_path: A known robot name (see ``KNOWN_ROBOTS``) or an MJCF robot file.
         scene: A scene file for MuJoCo that includes the robot (default: the robot file, or the
             known robot's scene). Bodies the scene adds (a floor, a wall, a mocap target, a free
-            box) are scene, not robot: see ``roots``.
+            box) are scene, not robot: see ``roots``. The scene's robot must be the robot
+            file's (``robots/scene_match.py``); its root bodies select it in the scene.
         gravity: None keeps the model's gravity; True switches on the robot's gravity (for the
             2-link arm: -y in its plane); False sets gravity to zero in both engines.
         model_dir: Explicit model directory for Menagerie robots (overrides $MENAGERIE_ROOT).
@@ -109,14 +117,23 @@ def load_robot(
             path; ``pin_model_file`` implies it).
         roots: Body names whose trees are the robot; default: the trees whose joints the
             actuators drive (``robots/scene.py``). Everything else in the plant is scene.
+        joint_map: With the parser: ``{joint in the Pinocchio file: joint of the plant}`` for
+            joints named differently. Joints are paired by name and put in the plant's order
+            (``robots/joint_pairing.py``); the edits are recorded in ``source.edits``.
+        floating_base: With the parser: True adds a free flyer to a fixed-base file, False never
+            does, None (default) adds one when the plant's robot has a free root joint.
 
     Raises:
-        UnknownNameError: Not a known robot and not an existing file.
+        UnknownNameError: Not a known robot and not an existing file; a joint map name that
+            neither model has.
         ModelNotFoundError: A Menagerie model that is not on this machine.
         ModelFileError: A file that is missing, corrupt, or fails its hash.
+        SceneMismatchError: The scene's robot is not the robot file's.
         ModelMismatchError: The two engines disagree.
+        RobotError: ``joint_map`` or ``floating_base`` without the parser.
     """
     key = str(name_or_path)
+    user_scene = scene is not None
     if key in KNOWN_ROBOTS:
         known = KNOWN_ROBOTS[key]
         robot_file, scene_file, origin = known.locate(model_dir)
@@ -140,13 +157,15 @@ def load_robot(
         gravity_on = None
     if analytic not in ANALYTIC:
         raise UnknownNameError("analytic model path", analytic, ANALYTIC)
-    spec = load_mj_spec(scene_file)
-    pin_file = Path(pin_model_file).expanduser().resolve() if pin_model_file else robot_file
-    if pin_model_file or analytic == "parser":
+    if pin_model_file:
         analytic = "parser"
-        pin_model: pin.Model | None = load_pin_model(pin_file)
-    else:
-        pin_model = None  # built by Robot from the compiled MjModel (robots/pin_from_mj.py)
+    if analytic != "parser" and (joint_map or floating_base is not None):
+        raise RobotError(
+            "joint_map (--joint-map) and floating_base (--floating-base) pair a Pinocchio model read "
+            "from a file with the plant: use them with pin_model_file (--pin-model) or analytic='parser'"
+        )
+    check_model_file_size(scene_file)
+    spec = load_mj_spec(scene_file)
     edits: tuple[str, ...] = ()
     if gravity is True and gravity_on is not None:
         spec.option.gravity = np.array(gravity_on)
@@ -154,10 +173,23 @@ def load_robot(
     elif gravity is False:
         spec.option.gravity = np.zeros(3)
         edits = ("gravity set to zero",)
-    if pin_model_file:
-        edits = (*edits, f"Pinocchio model from {pin_file}")
+    mj_model = compile_spec(spec, scene_file)
+    if user_scene and scene_file != robot_file:
+        roots = robot_in_scene(robot_file, scene_file, mj_model, roots)
+    pin_file = Path(pin_model_file).expanduser().resolve() if pin_model_file else robot_file
+    pin_model: pin.Model | None = None  # built by Robot from the compiled MjModel (robots/pin_from_mj.py)
+    if analytic == "parser":
+        parsed = load_pin_model(pin_file)
+        check_robot_dof(parsed.nv, name)
+        plant = pin_model_from_mj(mj_model, robot_bodies(mj_model, roots))
+        unnamed = [f"joint{j}" for j in range(mj_model.njnt) if not mj_model.joint(j).name]
+        pairing = pair_joints(parsed, plant, joint_map, floating_base, unnamed)
+        pin_model = pairing.model
+        if pin_model_file:
+            edits = (*edits, f"Pinocchio model from {pin_file}")
+        edits = (*edits, *pairing.edits)
     source = ModelSource(name, pin_file, scene_file, origin, edits, analytic, tuple(roots))
-    return Robot(source, pin_model, spec, check=check)
+    return Robot(source, pin_model, spec, check=check, mj_model=mj_model)
 
 
 def _existing_file(path: str | os.PathLike, role: str) -> Path:

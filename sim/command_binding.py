@@ -10,8 +10,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from mbctl.robots.commands import Command, CommandKind
-from mbctl.robots.exceptions import CommandError, UnknownNameError
+from mbctl.robots.commands import Command, CommandKind, actuators_named, joint_actuators
+from mbctl.robots.exceptions import CommandError
 from mbctl.robots.fastmath import SMALL_VECTOR_MAX, any_outside
 from mbctl.robots.model_pair import Robot
 
@@ -50,15 +50,16 @@ class CommandBinder:
 
     def __init__(self, robot: Robot):
         self.robot = robot
-        self._by_joint = {a.joint: a for a in reversed(list(robot.actuators.values())) if a.joint}
+        self._by_joint = joint_actuators(robot.actuators)
         self._cache: dict[tuple, Binding] = {}
 
     def bind(self, command: Command) -> Binding:
         """The binding of ``command``.
 
         Raises:
-            CommandError: Wrong number of values, or an actuator of another kind (e.g. a torque
-                sent to a position actuator — never silently reinterpreted).
+            CommandError: Wrong number of values, an actuator of another kind (e.g. a torque
+                sent to a position actuator — never silently reinterpreted), or one actuator
+                named twice (by its name and by its joint's).
             UnknownNameError: A name that is neither an actuator nor an actuated joint.
         """
         key = (command.kind, command.names, command.values.size)
@@ -77,13 +78,7 @@ class CommandBinder:
                 )
             infos = list(actuators.values())
         else:
-            infos = []
-            for name in command.names:
-                info = actuators.get(name) or self._by_joint.get(name)
-                if info is None:
-                    known = list(actuators) + [j for j in self._by_joint if j not in actuators]
-                    raise UnknownNameError("actuator or actuated joint", name, known)
-                infos.append(info)
+            infos = actuators_named(command.names, actuators, self._by_joint, f"{command.kind.value} command")
         wrong = [] if command.kind is CommandKind.CTRL else [a for a in infos if a.kind != command.kind.value]
         if wrong:
             listing = ", ".join(f"{a.name} ({a.kind})" for a in wrong[:6])

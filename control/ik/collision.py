@@ -46,6 +46,7 @@ from mbctl.control.ik.limits import Constraint, Limit
 from mbctl.control.tasks.state import TaskState
 from mbctl.robots.collision import CollisionPair, GeomPairs, resolve_pairs
 from mbctl.robots.model_pair import Robot
+from mbctl.robots.names import mj_name
 
 #: How many times :meth:`CollisionAvoidanceLimit.guard_step` may halve a step.
 MAX_HALVINGS = 6
@@ -64,7 +65,7 @@ def body_dof_masks(robot: Robot) -> np.ndarray:
     m, model = robot.mj_model, robot.pin_model
     masks = np.zeros((m.nbody, model.nv))
     for b in robot.robot_body_ids:
-        name = mujoco.mj_id2name(m, mujoco.mjtObj.mjOBJ_BODY, b) or f"body{b}"
+        name = mj_name(m, mujoco.mjtObj.mjOBJ_BODY, b)
         if not model.existFrame(name, pin.FrameType.BODY):
             raise IKSetupError(f"MuJoCo body {name!r} has no Pinocchio BODY frame of that name; "
                                "collision avoidance needs the model pair's body frames")

@@ -165,6 +165,16 @@ class Task(abc.ABC):
         self._lm_damping = float(value)
         _WEIGHTS_EPOCH[0] += 1
 
+    @property
+    def servo(self) -> AccelerationGains:
+        """Acceleration level: the PD gains (assignable; ``kp`` and ``kd`` are cached from them)."""
+        return self._servo
+
+    @servo.setter
+    def servo(self, gains: AccelerationGains) -> None:
+        self._servo = gains
+        self._kp, self._kd = gains.kp, gains.kd
+
     # ------------------------------------------------------------------ weights and targets
     @property
     def cost(self) -> np.ndarray:

@@ -33,8 +33,8 @@ class QuantityResult(NamedTuple):
         worst_state: Index of the state with the largest absolute error (-1 if not compared).
         worst_state_kind: What kind of state that is ("random", "zero velocity", ...).
         status: "pass", "fail" or "not compared".
-        note: Why a quantity was not compared or failed structurally, or what it covers; ""
-            otherwise.
+        note: Why a quantity was not compared or failed structurally, or what it covers or how
+            each side computes it (``Tolerance.method``); "" otherwise.
         worst_entry: For a failing quantity, where in the worst state the largest error is
             (frame, joint of the velocity coordinate, axis), e.g. "body 'link2', axis z";
             "" when it passed, is a scalar, or the place is unknown.
@@ -112,6 +112,9 @@ class Report:
         features: Model features outside the rigid-body comparison and their handling.
         notes: Other findings (load-time agreement check, frames without a counterpart).
         elapsed_s: Wall-clock time of the evaluation [s] (sampling and model preparation excluded).
+        edits: Load-time edits of the models (``ModelSource.edits``): gravity, the Pinocchio
+            file, and how its joints were paired with the plant's (renamed, reordered, a free
+            flyer added).
     """
 
     robot: str
@@ -124,6 +127,7 @@ class Report:
     features: tuple[FeatureNote, ...] = field(default=())
     notes: tuple[str, ...] = field(default=())
     elapsed_s: float = 0.0
+    edits: tuple[str, ...] = field(default=())
 
     @property
     def passed(self) -> bool:
@@ -207,6 +211,7 @@ class Report:
             ],
             "features": [f._asdict() for f in self.features],
             "notes": list(self.notes),
+            "edits": list(self.edits),
             "elapsed_s": self.elapsed_s,
             "states_per_second": _json_float(self.states_per_second),
         }
@@ -243,9 +248,14 @@ class Report:
             )
             if q.status == FAIL:
                 lines.append(f"    -> {q.reason}")
+            elif q.note and q.worst_state >= 0:  # how a compared quantity is computed
+                lines.append(f"    ({q.note})")
         if self.features:
             lines += ["", "model features outside the rigid-body comparison:"]
             lines += [f"  {f.feature:22s} {f.handling.upper():13s} {f.detail}" for f in self.features]
+        if self.edits:
+            lines += ["", "load-time edits:"]
+            lines += [f"  - {e}" for e in self.edits]
         if self.notes:
             lines += ["", "notes:"]
             lines += [f"  - {n}" for n in self.notes]

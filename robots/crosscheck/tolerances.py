@@ -25,12 +25,15 @@ class Tolerance:
         floor: Magnitude [unit] below which the quantity counts as zero.
         unit: SI unit of the quantity.
         description: What is compared, with the frame.
+        method: How each engine's value is computed, where it is not simply the engine's own
+            function of that name ("" otherwise); printed in the report under the quantity.
     """
 
     rtol: float
     floor: float
     unit: str
     description: str
+    method: str = ""
 
     def __post_init__(self) -> None:
         """Reject non-positive or non-finite tolerances."""
@@ -72,7 +75,14 @@ TOLERANCES: Mapping[str, Tolerance] = MappingProxyType(
         "bias": Tolerance(RTOL, 1e-3, "N m", "b(q, v) = C(q, v) v + g(q)"),
         "forward_dynamics": Tolerance(RTOL, 1e-3, "rad/s^2", "a = FD(q, v, tau): ABA vs qacc"),
         "inverse_dynamics": Tolerance(RTOL, 1e-3, "N m", "tau = ID(q, v, a): RNEA vs mj_inverse"),
-        "kinetic_energy": Tolerance(RTOL, 1e-6, "J", "kinetic energy 0.5 v^T M v (armature included)"),
+        "kinetic_energy": Tolerance(
+            RTOL,
+            1e-6,
+            "J",
+            "kinetic energy 1/2 v^T M v, armature included",
+            "Pinocchio: computeKineticEnergy of the rigid bodies + 1/2 v^T diag(armature) v; "
+            "MuJoCo: energy[1] = 1/2 v^T M v, armature in M",
+        ),
         "potential_energy": Tolerance(RTOL, 1e-6, "J", "gravitational energy of the moving bodies"),
         "momentum_linear": Tolerance(RTOL, 1e-6, "kg m/s", "centroidal linear momentum, world axes"),
         "momentum_angular": Tolerance(

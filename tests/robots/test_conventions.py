@@ -115,3 +115,30 @@ def test_two_link_is_identity(two_link):
 def test_bad_state_vectors_are_named(two_link, value, message):
     with pytest.raises(StateError, match=message):
         two_link.converter.check_q(value)
+
+
+def test_batched_velocity_maps_match_the_per_state_conversions(g1):
+    """VelocityMaps (the cross-check's batches) against the per-state methods, state by state."""
+    rng = np.random.default_rng(4)
+    states = [random_state(g1, rng) for _ in range(5)]
+    q, v = np.array([s[0] for s in states]), np.array([s[1] for s in states])
+    x, J = rng.normal(size=v.shape), rng.normal(size=(5, 4, 6, g1.nv))
+    M = rng.normal(size=(5, g1.nv, g1.nv))
+    conv = g1.converter
+    maps = conv.velocity_maps(q)
+    np.testing.assert_array_equal(conv.qs_pin_to_mj(q)[2], conv.q_pin_to_mj(q[2]))
+    to_mj, dot_v = maps.to_mj(x), maps.dot_v(v)
+    to_pin, right, congruence = maps.to_pin(x.copy()), maps.right(J.copy()), maps.congruence(M.copy())
+    for k in range(5):
+        T = conv.velocity_map(q[k])
+        np.testing.assert_allclose(to_mj[k], conv.v_pin_to_mj(q[k], x[k]), atol=1e-14)
+        np.testing.assert_allclose(to_pin[k], conv.v_mj_to_pin(q[k], x[k]), atol=1e-14)
+        np.testing.assert_allclose(dot_v[k], conv.velocity_map_dot_v(q[k], v[k]), atol=1e-14)
+        np.testing.assert_allclose(right[k], J[k] @ T, atol=1e-14)
+        np.testing.assert_allclose(congruence[k], T.T @ M[k] @ T, atol=1e-13)
+    # packed: the free joint's x, y, z columns of 4 frames first, then two other entries
+    iv = conv.free_v[0]
+    frames = np.r_[np.tile(np.arange(4), 3), 0, 2]
+    cols = np.r_[np.repeat([iv, iv + 1, iv + 2], 4), 10, 20]
+    packed = maps.right_packed(J[:, :, :, :].transpose(0, 2, 1, 3)[:, :, frames, cols].copy(), [(0, 4)])
+    np.testing.assert_allclose(packed, right.transpose(0, 2, 1, 3)[:, :, frames, cols], atol=1e-14)

@@ -154,8 +154,12 @@ def test_scene_for_a_known_robot_is_used_not_ignored(tmp_path):
     robot = load_robot("two_link_torque", scene)
     assert robot.source.scene_file == scene.resolve() and robot.mj_model.nq == robot.nq + 7
     assert "scene" in robot.source.origin
-    # a passive model (no actuators): every tree with a joint is the robot, the prop included
+    # a passive scene (no actuators): the robot file's trees are the robot, the prop stays scene
     scene.write_text(scene.read_text().replace('<actuator><motor joint="shoulder"/><motor joint="elbow"/>'
                                                '</actuator>', ""))
     passive = load_robot("two_link", scene)
-    assert passive.covers_plant and list(passive.joints)[-1] == "prop_free"
+    assert list(passive.joints) == ["shoulder", "elbow"] and passive.source.roots == ("link1",)
+    assert passive.scene_bodies == ("prop (free, 2 kg)",)
+    # the same file loaded as the robot (no robot file beside it): every tree with a joint
+    alone = load_robot(scene)
+    assert alone.covers_plant and list(alone.joints)[-1] == "prop_free"

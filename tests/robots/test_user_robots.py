@@ -77,6 +77,14 @@ ROBOTS = {
       <body name="mount" pos="-0.5 0 0">{ARM}</body></worldbody>
       <actuator><motor joint="shoulder"/><motor joint="elbow"/><motor joint="b_shoulder"/>
         <motor joint="b_elbow"/></actuator></mujoco>""",
+    # no names on bodies, on a joint, on a site: both engines call them body<id>, joint<id>, site<id>
+    "unnamed_parts": f"""<mujoco>{DEFAULTS}<worldbody>
+      <body pos="0 0 0.5" euler="10 0 25"><joint axis="0 1 0"/>
+        <geom type="capsule" fromto="0 0 0 0.3 0 0" size="0.03" mass="1"/>
+        <body pos="0.3 0 0"><joint name="elbow" axis="0 1 0"/>
+          <geom type="capsule" fromto="0 0 0 0.25 0 0" size="0.03" mass="0.6"/>
+          <site pos="0.25 0 0"/><site name="tool" pos="0.25 0 0.02"/></body></body></worldbody>
+      <actuator><motor joint="elbow"/></actuator></mujoco>""",
 }
 
 
@@ -91,8 +99,17 @@ def test_loads_and_cross_checks_at_1e9(robot_file):
     robot = load_robot(robot_file)  # the load-time agreement check (mass, FK of every body and site)
     assert robot.source.analytic == "mujoco"
     report = crosscheck(robot, n_states=30, seed=1)
-    assert report.passed, report.to_text()
+    assert report.passed and report.complete, report.to_text()
     assert max(q.max_rel_error for q in report.quantities) < 1e-9
+
+
+def test_unnamed_parts_are_named_alike_in_both_engines(tmp_path):
+    path = tmp_path / "unnamed.xml"
+    path.write_text(ROBOTS["unnamed_parts"])
+    robot = load_robot(path)
+    assert list(robot.joints) == ["joint0", "elbow"]
+    assert {"body1", "body2"} <= set(robot.bodies) and "site0" in robot.sites
+    assert all(robot.pin_model.existFrame(n) for n in ("body1", "body2", "site0", "tool"))
 
 
 def test_ik_solution_lands_in_mujoco(robot_file, tmp_path):

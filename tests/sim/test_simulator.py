@@ -148,6 +148,35 @@ def test_partial_command_by_joint_name_holds_the_rest(two_link):
     np.testing.assert_array_equal(sim.ctrl, [0.5, 1.0])
 
 
+# Motors named apart from their joints, so one actuator has two names: "m_shoulder" and "shoulder".
+RENAMED_MOTORS_XML = """<mujoco><worldbody><body name="upper">
+  <joint name="shoulder" axis="0 0 1"/><geom type="capsule" fromto="0 0 0 0.3 0 0" size="0.03"/>
+  <body name="fore" pos="0.3 0 0"><joint name="elbow" axis="0 0 1"/>
+    <geom type="capsule" fromto="0 0 0 0.3 0 0" size="0.03"/></body></body></worldbody>
+  <actuator><motor name="m_shoulder" joint="shoulder"/><motor name="m_elbow" joint="elbow"/></actuator>
+</mujoco>"""
+
+
+@pytest.mark.parametrize(
+    "values, message",
+    [
+        ({"shoulder": 0.3, "m_shoulder": 0.7},
+         r"names actuator 'm_shoulder' twice: as 'shoulder' \(its joint\) and as 'm_shoulder'"),
+        ({"m_elbow": 0.1, "elbow": 0.2},
+         r"names actuator 'm_elbow' twice: as 'm_elbow' and as 'elbow' \(its joint\)"),
+    ],
+)
+def test_one_actuator_named_twice_is_an_error(tmp_path, values, message):
+    path = tmp_path / "arm.xml"
+    path.write_text(RENAMED_MOTORS_XML)
+    sim = Simulator(load_robot(path))
+    with pytest.raises(CommandError, match=message):
+        sim.send(torque(values))
+    np.testing.assert_array_equal(sim.ctrl, [0.0, 0.0])  # nothing was written
+    sim.send(torque({"shoulder": 0.3, "m_elbow": 0.7}))  # a joint name and another actuator's name
+    np.testing.assert_array_equal(sim.ctrl, [0.3, 0.7])
+
+
 def test_out_of_range_is_clamped_and_counted(two_link_torque):
     sim = Simulator(two_link_torque)
     sim.step(torque([100.0, -5.0]), 3)

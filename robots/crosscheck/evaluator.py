@@ -1,0 +1,503 @@
+"""Both engines over the cross-check's states: per state the engine calls, per chunk the rest.
+
+Per state only what an engine must do for that state runs: Pinocchio's ``computeAllTerms`` (its
+joint placements ``oMi`` and joint Jacobians ``J`` fetched), kinetic energy, ABA and RNEA;
+MuJoCo's ``mj_forward``, one ``mj_jacBody`` / ``mj_jacSite`` per compared frame, ``mj_fullM``,
+the subtree quantities, ``mj_inverse`` and ``mj_rne`` at zero velocity. Their outputs are copied
+into buffers of ``chunk`` states. Everything else is done once per chunk with batched numpy: the
+MuJoCo inputs in MuJoCo's convention, the outputs back into Pinocchio's
+(``StateConverter.velocity_maps``: ``T(q)`` block by block), and the error reduction, in place in
+preallocated buffers (a fresh temporary per operation costs more than the operation).
+
+Pinocchio's frame placements and frame Jacobians are formed per chunk the way Pinocchio forms
+them, because Pinocchio has no call for many frames and 50 calls per state cost more than the
+rest of its work: ``X_WF = X_WJ X_JF`` from the joint placements (``updateFramePlacements``), and
+for LOCAL_WORLD_ALIGNED the columns of the joints that support the frame with the linear rows
+shifted to the frame's origin, ``v_F = v_O - p_WF x w`` (``getFrameJacobian``); the test suite
+checks both against those functions. MuJoCo's frame Jacobians stay its own calls, so the
+comparison still checks one engine's Jacobian routine against the other's.
+
+The Jacobians are most of the data (G1: 50 frames x 6 x 35 per state and engine) but mostly
+zeros: a column is non-zero only for the joints that move the frame. Both engines write exact
+zeros elsewhere (Pinocchio outside the joint's support, MuJoCo's ``mj_jac`` outside the body's
+dof chain), so only the union of the two supports is kept, packed (31 % of the entries on the
+G1; MuJoCo's per state, right after its calls), which gives the same maxima as the full arrays.
+"""
+
+from __future__ import annotations
+
+from collections import deque
+from collections.abc import Callable
+from itertools import starmap
+from operator import attrgetter
+from typing import NamedTuple
+
+import mujoco
+import numpy as np
+import pinocchio as pin
+
+from mbctl.robots.conventions import VelocityMaps
+from mbctl.robots.crosscheck.plant import static_bodies, top_moving_bodies
+from mbctl.robots.crosscheck.sampling import States
+from mbctl.robots.crosscheck.tolerances import TOLERANCES
+from mbctl.robots.model_pair import Robot
+
+
+class Frames(NamedTuple):
+    """The compared frames: bodies then sites that both engines have, by name.
+
+    Attributes:
+        pin_ids: Pinocchio frame ids (nf,), bodies first.
+        mj_body_ids: MuJoCo body ids of the body frames.
+        mj_site_ids: MuJoCo site ids of the site frames.
+        names: Frame names (nf,).
+        missing: MuJoCo bodies and sites without a Pinocchio frame of their name, in words.
+    """
+
+    pin_ids: list[int]
+    mj_body_ids: np.ndarray
+    mj_site_ids: np.ndarray
+    names: list[str]
+    missing: list[str]
+
+
+def match_frames(robot: Robot) -> Frames:
+    """The robot's MuJoCo bodies and sites paired with the Pinocchio frames of the same names."""
+    pm = robot.pin_model
+    pin_ids, body_ids, site_ids, names, missing = [], [], [], [], []
+    for b, name in zip(robot.robot_body_ids, robot.bodies, strict=True):
+        if name and pm.existFrame(name, pin.FrameType.BODY):
+            pin_ids.append(pm.getFrameId(name, pin.FrameType.BODY))
+            body_ids.append(b)
+            names.append(name)
+        else:
+            missing.append(f"body {name or f'#{b}'}")
+    for s, name in zip(robot.robot_site_ids, robot.sites, strict=True):
+        if name and pm.existFrame(name, pin.FrameType.OP_FRAME):
+            pin_ids.append(pm.getFrameId(name, pin.FrameType.OP_FRAME))
+        elif name and pm.existFrame(name):
+            pin_ids.append(pm.getFrameId(name))
+        else:
+            missing.append(f"site {name or f'#{s}'}")
+            continue
+        site_ids.append(s)
+        names.append(name)
+    return Frames(pin_ids, np.array(body_ids, dtype=int), np.array(site_ids, dtype=int), names, missing)
+
+
+def support_mask(pm: pin.Model, frame_ids: list[int]) -> np.ndarray:
+    """(nf, nv) ones on the velocity coordinates of the joints that move each frame, else zeros."""
+    mask = np.zeros((len(frame_ids), pm.nv))
+    for k, f in enumerate(frame_ids):
+        for j in pm.supports[pm.frames[f].parentJoint]:
+            if j > 0:
+                mask[k, pm.idx_vs[j] : pm.idx_vs[j] + pm.nvs[j]] = 1.0
+    return mask
+
+
+def mj_support_mask(robot: Robot, m: mujoco.MjModel, frames: Frames) -> np.ndarray:
+    """(nf, nv) ones on the robot's velocity coordinates in each frame's MuJoCo dof chain."""
+    robot_col = {int(p): k for k, p in enumerate(np.arange(m.nv)[robot.qvel_index])}
+    bodies = [int(b) for b in frames.mj_body_ids] + [int(m.site_bodyid[s]) for s in frames.mj_site_ids]
+    mask = np.zeros((len(bodies), robot.nv))
+    for k, b in enumerate(bodies):
+        while b > 0 and m.body_dofnum[b] == 0:  # the nearest body at or above b with dofs
+            b = int(m.body_parentid[b])
+        dof = int(m.body_dofadr[b] + m.body_dofnum[b] - 1) if b > 0 else -1
+        while dof >= 0:
+            if dof in robot_col:
+                mask[k, robot_col[dof]] = 1.0
+            dof = int(m.dof_parentid[dof])
+    return mask
+
+
+def _packing(union: np.ndarray, free_v: list[int]) -> tuple[np.ndarray, np.ndarray, list[tuple[int, int]]]:
+    """The order of the compared Jacobian entries (frame, column) of ``union`` (nf, nv).
+
+    Each free joint's linear columns come first, as three runs (x, y, z) over the same frames, so
+    that ``T`` acts on contiguous blocks (``VelocityMaps.right_packed``); then every other entry.
+
+    Returns:
+        Frame (L,) and column (L,) of each entry, and per free joint (start, number of frames).
+    """
+    union = union.copy()
+    frames: list[np.ndarray] = []
+    cols: list[np.ndarray] = []
+    blocks: list[tuple[int, int]] = []
+    for iv in free_v:
+        f = np.flatnonzero(union[:, iv : iv + 3].any(axis=1))
+        blocks.append((int(sum(x.size for x in frames)), int(f.size)))
+        for i in range(3):
+            frames.append(f)
+            cols.append(np.full(f.size, iv + i))
+        union[:, iv : iv + 3] = False
+    rest_f, rest_c = np.nonzero(union)
+    frames.append(rest_f)
+    cols.append(rest_c)
+    return np.concatenate(frames).astype(int), np.concatenate(cols).astype(int), blocks
+
+
+def frame_jacobians(J_world: np.ndarray, p_WF: np.ndarray, mask: np.ndarray, out: np.ndarray) -> np.ndarray:
+    """LOCAL_WORLD_ALIGNED frame Jacobians from Pinocchio's world-frame joint Jacobians.
+
+    Args:
+        J_world: ``data.J`` of each state (c, 6, nv): spatial velocity at the world origin.
+        p_WF: Frame origins in the world (c, nf, 3) [m].
+        mask: ``support_mask`` (nf, nv).
+        out: Where to write (c, nf, 6, nv).
+
+    Returns:
+        ``out``: rows 0-2 the velocity of each frame's origin, rows 3-5 its angular velocity.
+    """
+    np.multiply(J_world[:, None], mask[None, :, None, :], out=out)
+    lin, ang = out[:, :, :3], out[:, :, 3:]
+    p = p_WF[..., None]  # (c, nf, 3, 1)
+    # v_F = v_O + w x p_WF = v_O - p_WF x w, column by column (the operations of Evaluator._packed_pin)
+    for a, b, e in ((0, 1, 2), (1, 2, 0), (2, 0, 1)):
+        lin[:, :, a] -= p[:, :, b] * ang[:, :, e]
+        lin[:, :, a] += p[:, :, e] * ang[:, :, b]
+    return out
+
+
+_HOMOGENEOUS = attrgetter("homogeneous")
+
+#: States evaluated between two batched conversions and error reductions: long enough to spread
+#: the cost of the numpy calls per chunk, short enough that the chunk's buffers stay in cache
+#: (measured on the G1: 32 beats 16 and 24; 48 and more are much slower).
+CHUNK_SIZE = 32
+
+#: Quantities kept side by side in one buffer, so that each group costs one set of numpy calls:
+#: generalized forces and accelerations (c, 4, nv), energies (c, 2) and 3-vectors (c, 3, 3).
+GROUPS = {
+    "vectors": ("bias", "gravity", "forward_dynamics", "inverse_dynamics"),
+    "energies": ("kinetic_energy", "potential_energy"),
+    "points": ("com", "momentum_linear", "momentum_angular"),
+}
+#: The other quantities, each in a buffer of its own.
+SINGLES = ("mass_matrix", "com_jacobian")
+
+
+class Evaluator:
+    """Buffers and engine data, allocated once and reused for every chunk of states."""
+
+    def __init__(self, robot: Robot, m: mujoco.MjModel, frames: Frames, chunk: int):
+        """Prepare both engines for ``robot``: ``m`` is MuJoCo's comparison model (a copy)."""
+        self.robot, self.m, self.frames, self.chunk = robot, m, frames, chunk
+        self.pm = robot.pin_model
+        self.pd = self.pm.createData()
+        self.d = mujoco.MjData(m)
+        nv, nvp, nf = robot.nv, m.nv, len(frames.pin_ids)
+        # Kinetic energy like with like: MuJoCo's 1/2 v^T M v has the armature in M, while
+        # Pinocchio 4.1's computeKineticEnergy leaves out the armature of revolute joints with an
+        # unaligned axis. So Pinocchio's energy of the rigid bodies alone (the same model without
+        # armature, on the same data) plus 1/2 v^T diag(armature) v.
+        self._pm_rigid = self.pm.copy()
+        self._pm_rigid.armature = np.zeros(nv)
+        self._half_armature = 0.5 * np.asarray(self.pm.armature, dtype=float)
+        # The robot's coordinates in the plant; the scene's (a free box) stay at qpos0, at rest.
+        self.qi, self.vi = robot.qpos_index, robot.qvel_index
+        self.vv = np.ix_(self.vi, self.vi) if isinstance(self.vi, np.ndarray) else (self.vi, self.vi)
+        in_robot = set(robot.robot_body_ids)
+        self.tops = np.array([b for b in top_moving_bodies(m) if b in in_robot], dtype=int)
+        self.top_mass = np.array(m.body_subtreemass[self.tops])
+        # Bodies that do not move in the comparison: welded to the world, or scene.
+        self.static = np.array(sorted(set(static_bodies(m).tolist()) | set(robot.scene_body_ids)), dtype=int)
+        self._pe_static = 0.0
+        self._pe_static_known = False
+        # Frame placements as updateFramePlacements forms them, X_WF = X_WJ X_JF, batched per
+        # chunk: one placement per joint (31 on the G1) is fetched per state, not one per frame (50).
+        self._frame_joint = np.array([self.pm.frames[f].parentJoint for f in frames.pin_ids], dtype=int)
+        X_JF = [self.pm.frames[f].placement.homogeneous for f in frames.pin_ids]
+        self._X_JF = np.array(X_JF).reshape(nf, 4, 4)
+        self._mask = support_mask(self.pm, frames.pin_ids)
+        # The (frame, column) entries the Jacobians are compared on: the union of both supports.
+        union = (self._mask + mj_support_mask(robot, m, frames)) > 0
+        self._pk_frame, self._pk_col, self._pk_free = _packing(union, robot.converter.free_v)
+        self._pk_in_pin = self._mask[self._pk_frame, self._pk_col]  # 0 where only MuJoCo's chain has it
+        self._pk_pin_all = bool(np.all(self._pk_in_pin))
+        # Flat indices of the compared entries in MuJoCo's (nf, 6, nvp) Jacobians (plant columns).
+        plant_col = np.arange(nvp)[self.vi][self._pk_col]
+        self._pk_mj = self._pk_frame * 6 * nvp + np.arange(6)[:, None] * nvp + plant_col  # (6, L)
+        self._tril = np.tril_indices(nv, -1)
+        # Pinocchio's outputs per state, in its convention.
+        self._p_vectors = np.zeros((chunk, 4, nv))  # nle, g, aba, rnea (GROUPS["vectors"] order)
+        self._p_energies = np.zeros((chunk, 2))
+        self._p_points = np.zeros((chunk, 3, 3))  # com, then hg (linear, angular)
+        self._p_M = np.zeros((chunk, nv, nv))
+        self._p_Jcom = np.zeros((chunk, 3, nv))
+        self._X_WJ = np.zeros((chunk, self.pm.njoints, 4, 4))
+        self._J_world = np.zeros((chunk, 6, nv))
+        # Pinocchio returns (6, nv) and (3, nv) matrices as vectors when nv = 1: write through views.
+        self._J_world_out = self._J_world[..., 0] if nv == 1 else self._J_world
+        self._Jcom_out = self._p_Jcom[..., 0] if nv == 1 else self._p_Jcom
+        self._hg_out = self._p_points[:, 1:].reshape(chunk, 6)
+        # MuJoCo's raw outputs per state, in its convention and the plant's size.
+        self._xbody, self._xbody_mat = np.zeros((chunk, m.nbody, 3)), np.zeros((chunk, m.nbody, 9))
+        self._xsite, self._xsite_mat = np.zeros((chunk, m.nsite, 3)), np.zeros((chunk, m.nsite, 9))
+        self._J_mj = np.zeros((nf, 6, nvp))  # one state's, packed into _J_mj_packed right away
+        self._J_mj_packed = np.zeros((chunk, 6, self._pk_col.size))
+        self._M_mj = np.zeros((chunk, nvp, nvp))
+        self._m_vectors = np.zeros((chunk, 4, nvp))  # qfrc_bias, rne at v = 0, qacc, qfrc_inverse
+        self._energy = np.zeros((chunk, 2))
+        self._X_mj = np.zeros((chunk, nf, 3, 4))
+        self._m_points = np.zeros((chunk, 3, 3))  # p_WC, momentum: linear, angular about C
+        nt = self.tops.size
+        self._Jsub = np.zeros((chunk, nt, 3, nvp))
+        self._sub = np.zeros((chunk, 3, m.nbody, 3))  # subtree com, linear velocity, angular momentum
+        # The arguments of every Jacobian call, with output views, made once per slot:
+        # (m, d, jacp (3, nvp), jacr (3, nvp), body or site id), bodies then sites.
+        nb = frames.mj_body_ids.size
+        J = self._J_mj
+        self._jac_body_args = [(m, self.d, J[k, :3], J[k, 3:], int(b))
+                               for k, b in enumerate(frames.mj_body_ids)]
+        self._jac_site_args = [(m, self.d, J[k, :3], J[k, 3:], int(s))
+                               for k, s in enumerate(frames.mj_site_ids, start=nb)]
+        self._J_diff = np.zeros((chunk, 6, self._pk_col.size))
+        L = self._pk_col.size
+        self._pk_tmp, self._pk_J = np.zeros((chunk, L)), np.zeros((chunk, 6, L))
+        self._pk_p = np.zeros((chunk, 3, L))
+        self._pk_pT = np.zeros((chunk, 3, nf))
+
+    # ------------------------------------------------------------------ per state
+    def _pin_state(self, i: int, q: np.ndarray, v: np.ndarray, tau: np.ndarray, a: np.ndarray) -> None:
+        pm, pd, vec = self.pm, self.pd, self._p_vectors[i]
+        pin.computeAllTerms(pm, pd, q, v)
+        self._X_WJ[i] = list(map(_HOMOGENEOUS, pd.oMi.tolist()))
+        self._J_world_out[i] = pd.J
+        self._p_M[i] = pd.M  # upper triangle; symmetrized per chunk
+        vec[0] = pd.nle
+        vec[1] = pd.g
+        self._p_points[i, 0] = pd.com[0]
+        self._Jcom_out[i] = pd.Jcom
+        self._hg_out[i] = pd.hg.vector
+        # the rigid bodies' energy from pd.v (the armature's is added per chunk)
+        self._p_energies[i] = pin.computeKineticEnergy(self._pm_rigid, pd), pd.potential_energy
+        vec[2] = pin.aba(pm, pd, q, v, tau)
+        vec[3] = pin.rnea(pm, pd, q, v, a)
+
+    def _mj_state(
+        self, i: int, qpos: np.ndarray, qvel: np.ndarray, qfrc: np.ndarray, qacc: np.ndarray
+    ) -> None:
+        m, d, vec = self.m, self.d, self._m_vectors[i]
+        d.qpos[self.qi] = qpos
+        d.qvel[self.vi] = qvel
+        d.qfrc_applied[self.vi] = qfrc
+        mujoco.mj_forward(m, d)
+        self._xbody[i] = d.xpos  # whole arrays: a plain copy costs less than picking the frames
+        self._xbody_mat[i] = d.xmat
+        self._xsite[i] = d.site_xpos
+        self._xsite_mat[i] = d.site_xmat
+        deque(starmap(mujoco.mj_jacBody, self._jac_body_args), maxlen=0)  # the loops in C
+        deque(starmap(mujoco.mj_jacSite, self._jac_site_args), maxlen=0)
+        # only the compared entries are kept (the rest are zeros in both engines): small buffers
+        np.take(self._J_mj.reshape(-1), self._pk_mj, out=self._J_mj_packed[i])
+        mujoco.mj_fullM(m, d, self._M_mj[i])
+        vec[0] = d.qfrc_bias
+        vec[2] = d.qacc
+        self._energy[i] = d.energy
+        for k, r in enumerate(self.tops):
+            mujoco.mj_jacSubtreeCom(m, d, self._Jsub[i, k], r)
+        mujoco.mj_subtreeVel(m, d)
+        sub = self._sub[i]
+        sub[0] = d.subtree_com
+        sub[1] = d.subtree_linvel
+        sub[2] = d.subtree_angmom
+        if not self._pe_static_known:  # bodies welded to the world and the scene do not move
+            s = self.static
+            self._pe_static = float(-np.sum(m.body_mass[s] * (d.xipos[s] @ m.opt.gravity)))
+            self._pe_static_known = True
+        # Inverse dynamics at the same (q, v): the position and velocity stages are current.
+        if not self.robot.covers_plant:
+            d.qacc[:] = 0.0  # the scene's dofs at rest
+        d.qacc[self.vi] = qacc
+        mujoco.mj_inverseSkip(m, d, mujoco.mjtStage.mjSTAGE_VEL, 1)
+        vec[3] = d.qfrc_inverse
+        # Gravity: the bias force at zero velocity (mj_rne reads cvel, so recompute it).
+        d.qvel[:] = 0.0
+        mujoco.mj_comVel(m, d)
+        mujoco.mj_rne(m, d, 0, vec[1])
+
+    # ------------------------------------------------------------------ per chunk
+    def _evaluate(self, states: States, start: int, stop: int) -> None:
+        """Evaluate states ``start:stop`` (at most ``chunk``) into buffer slots 0 .. stop - start."""
+        conv = self.robot.converter
+        q, v, tau, a = (x[start:stop] for x in (states.q, states.v, states.tau, states.a))
+        self._maps = maps = conv.velocity_maps(q)
+        self._Tdot_v = maps.dot_v(v)
+        # MuJoCo's inputs: qpos, qvel = T v, qfrc = T tau, qacc = T a + Tdot v (batched)
+        mj_in = (conv.qs_pin_to_mj(q), maps.to_mj(v), maps.to_mj(tau), maps.to_mj(a) + self._Tdot_v)
+        pin_state, mj_state = self._pin_state, self._mj_state
+        rows = zip(zip(q, v, tau, a, strict=True), zip(*mj_in, strict=True), strict=True)
+        for i, (pin_args, mj_args) in enumerate(rows):
+            pin_state(i, *pin_args)
+            mj_state(i, *mj_args)
+        self._v = v
+
+    def aligned(self, c: int, full: bool = False) -> tuple[dict[str, np.ndarray], dict[str, np.ndarray]]:
+        """Pinocchio's and MuJoCo's values of the first ``c`` slots, in Pinocchio's convention.
+
+        Keys: the groups of ``GROUPS`` (quantities side by side on axis 1), the ``SINGLES``,
+        "frames": the placements ``[R_WF | p_WF]`` (c, nf, 3, 4), and "jacobian", all 6 rows:
+        (c, 6, L) on the compared entries, or with ``full=True`` (c, nf, 6, nv) for Pinocchio and
+        (1, nf, 6, nv) for MuJoCo, whose dense Jacobians are kept for the last state only.
+        MuJoCo's buffers are converted in place.
+        """
+        maps, vi, Tdot_v = self._maps, self.vi, self._Tdot_v
+        M = self._p_M[:c]
+        M[:, self._tril[0], self._tril[1]] = M[:, self._tril[1], self._tril[0]]  # crba: upper triangle
+        energies = self._p_energies[:c].copy()
+        energies[:, 0] += (self._v * self._v) @ self._half_armature
+        X_WF = np.matmul(np.take(self._X_WJ[:c, :, :3], self._frame_joint, axis=1), self._X_JF)  # 3 x 4
+        P = {"vectors": self._p_vectors[:c], "energies": energies, "points": self._p_points[:c],
+             "mass_matrix": M, "com_jacobian": self._p_Jcom[:c], "frames": X_WF}
+        if full:
+            nf = len(self.frames.pin_ids)
+            P["jacobian"] = frame_jacobians(
+                self._J_world[:c], X_WF[..., 3], self._mask, np.zeros((c, nf, 6, self.robot.nv))
+            )
+        else:
+            P["jacobian"] = self._packed_pin(c, X_WF[..., 3])
+        M_mj = maps.congruence(self._M_mj[:c][(slice(None), *self.vv)])  # the robot's block: T^T M T
+        vectors = self._m_vectors[:c][..., vi]  # bias, gravity, qacc, inverse (MuJoCo's convention)
+        vectors[:, 2] -= Tdot_v  # a_pin = T^T (a_mj - Tdot v)
+        maps.to_pin(vectors)
+        # b_pin = T^T (b_mj + M_mj Tdot v) = T^T b_mj + M_pin T^T Tdot v
+        vectors[:, 0] += np.einsum("nij,nj->ni", M_mj, maps.to_pin(Tdot_v.copy()))
+        # Centre of mass and momentum of the moving bodies, from the subtrees that hold them.
+        w = self.top_mass / np.sum(self.top_mass)
+        com, linvel, angmom = (self._sub[:c, k][:, self.tops] for k in range(3))
+        points = self._m_points[:c]
+        p_WC = points[:, 0] = np.einsum("k,nkj->nj", w, com)
+        lin = linvel * self.top_mass[:, None]
+        points[:, 1] = lin.sum(axis=1)
+        points[:, 2] = angmom.sum(axis=1)
+        r = com - p_WC[:, None]  # each subtree's CoM from the robot's: h_C = sum h_k + r_k x m_k v_k
+        for a, b, e in ((0, 1, 2), (1, 2, 0), (2, 0, 1)):  # (np.cross costs more than the rest)
+            points[:, 2, a] += (r[..., b] * lin[..., e] - r[..., e] * lin[..., b]).sum(axis=1)
+        energy = self._energy[:c]  # MuJoCo's order: potential, kinetic
+        Q = {"vectors": vectors, "energies": np.stack([energy[:, 1], energy[:, 0] - self._pe_static], axis=1),
+             "points": points, "mass_matrix": M_mj,
+             "com_jacobian": maps.right(np.einsum("k,nkij->nij", w, self._Jsub[:c][..., vi])),
+             "frames": self._mj_frames(c)}
+        if full:  # MuJoCo's dense Jacobians are kept for the last state only: c = 1 (worst_entry)
+            last = VelocityMaps(maps.free_v, maps.R[c - 1 :])
+            Q["jacobian"] = last.right(np.array(self._J_mj[None][..., vi]))
+        else:
+            Q["jacobian"] = maps.right_packed(self._J_mj_packed[:c], self._pk_free)  # J_mj T
+        return P, Q
+
+    def _mj_frames(self, c: int) -> np.ndarray:
+        """MuJoCo's placements ``[R_WF | p_WF]`` (c, nf, 3, 4) of the compared bodies and sites."""
+        fr, X = self.frames, self._X_mj[:c]
+        nb, ns = fr.mj_body_ids.size, fr.mj_site_ids.size
+        X[:, :nb, :, :3] = np.take(self._xbody_mat[:c], fr.mj_body_ids, axis=1).reshape(c, nb, 3, 3)
+        X[:, nb:, :, :3] = np.take(self._xsite_mat[:c], fr.mj_site_ids, axis=1).reshape(c, ns, 3, 3)
+        X[:, :nb, :, 3] = np.take(self._xbody[:c], fr.mj_body_ids, axis=1)
+        X[:, nb:, :, 3] = np.take(self._xsite[:c], fr.mj_site_ids, axis=1)
+        return X
+
+    def _packed_pin(self, c: int, p_WF: np.ndarray) -> np.ndarray:
+        """Pinocchio's frame Jacobians (c, 6, L) on the compared entries (``frame_jacobians``)."""
+        # np.take into C-ordered buffers: fancy indexing on the last axis returns strided arrays,
+        # on which the arithmetic below runs several times slower.
+        J = np.take(self._J_world[:c], self._pk_col, axis=2, out=self._pk_J[:c])  # (c, 6, L)
+        p_T = self._pk_pT[:c]
+        np.copyto(p_T, p_WF.transpose(0, 2, 1))
+        p = np.take(p_T, self._pk_frame, axis=2, out=self._pk_p[:c])  # (c, 3, L)
+        tmp = self._pk_tmp[:c]
+        for a, b, e in ((0, 1, 2), (1, 2, 0), (2, 0, 1)):  # v_F = v_O - p_WF x w, without temporaries
+            np.multiply(p[:, b], J[:, 3 + e], out=tmp)
+            J[:, a] -= tmp
+            np.multiply(p[:, e], J[:, 3 + b], out=tmp)
+            J[:, a] += tmp
+        if not self._pk_pin_all:  # entries of MuJoCo's chain outside Pinocchio's support
+            J *= self._pk_in_pin
+        return J
+
+    @staticmethod
+    def quantities(P: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
+        """The values of ``aligned`` by quantity name (views into the groups)."""
+        out = {k: P[k] for k in SINGLES}
+        out["fk_position"], out["fk_rotation"] = P["frames"][..., 3], P["frames"][..., :3]
+        for group, names in GROUPS.items():
+            out.update({name: P[group][:, k] for k, name in enumerate(names)})
+        return out
+
+    def run(
+        self, states: States, progress: Callable[[int, int], None] | None = None
+    ) -> dict[str, tuple[np.ndarray, float]]:
+        """Per quantity: (abs error per state (n,), largest MuJoCo magnitude over all states).
+
+        ``progress(done, n)`` is called after each chunk, if given.
+        """
+        n = len(states.kinds)
+        err = {k: np.zeros(n) for k in TOLERANCES}
+        scale = dict.fromkeys(TOLERANCES, 0.0)
+        for start in range(0, n, self.chunk):
+            stop = min(start + self.chunk, n)
+            c = stop - start
+            self._evaluate(states, start, stop)
+            P, Q = self.aligned(c)
+            for k, (diff, mag) in self._reduced(P, Q, c).items():
+                err[k][start:stop] = diff
+                scale[k] = max(scale[k], mag)
+            if progress is not None:
+                progress(stop, n)
+        for e in err.values():  # a NaN (propagated through max) is an infinite error
+            e[np.isnan(e)] = np.inf
+        return {k: (err[k], scale[k]) for k in TOLERANCES}
+
+    def _reduced(
+        self, P: dict[str, np.ndarray], Q: dict[str, np.ndarray], c: int
+    ) -> dict[str, tuple[np.ndarray, float]]:
+        """Per quantity: the largest |Pinocchio - MuJoCo| per state (c,) and the largest |MuJoCo|."""
+        out: dict[str, tuple[np.ndarray, float]] = {}
+        for group, names in GROUPS.items():
+            diff, mag = np.abs(P[group] - Q[group]), np.abs(Q[group])
+            axes = tuple(range(2, diff.ndim))
+            worst = diff.max(axis=axes) if axes else diff  # (c, k)
+            scale = mag.max(axis=(0, *axes))  # (k,)
+            out.update({name: (worst[:, k], float(scale[k])) for k, name in enumerate(names)})
+        for k in SINGLES:
+            if Q[k].size == 0:  # no frames
+                out[k] = (np.zeros(c), 0.0)
+                continue
+            diff = np.abs(P[k] - Q[k]).reshape(c, -1)  # one reduction axis: several cost far more
+            out[k] = (diff.max(axis=1), float(np.abs(Q[k]).max()))
+        D = np.abs(P["frames"] - Q["frames"])  # positions and rotations at once
+        for name, cols in (("fk_position", 3), ("fk_rotation", slice(0, 3))):
+            if D.size == 0:
+                out[name] = (np.zeros(c), 0.0)
+                continue
+            dx, mag = D[..., cols], Q["frames"][..., cols]
+            out[name] = (dx.reshape(c, -1).max(axis=1), float(max(mag.max(), -mag.min())))
+        # The Jacobians are the bulk of the data: in place, on the compared entries (c, 6, L).
+        D = self._J_diff[:c]
+        Jm = Q["jacobian"]
+        np.subtract(P["jacobian"], Jm, out=D)
+        np.abs(D, out=D)
+        np.abs(Jm, out=Jm)
+        for name, rows in (("jacobian_linear", slice(0, 3)), ("jacobian_angular", slice(3, 6))):
+            if D.shape[2] == 0:
+                out[name] = (np.zeros(c), 0.0)
+                continue
+            out[name] = (D[:, rows].max(axis=(1, 2)), float(Jm[:, rows].max()))
+        return out
+
+    def worst_entry(self, states: States, s: int, quantity: str) -> tuple[int, ...]:
+        """Index of the largest error of ``quantity`` within state ``s`` (first NaN if any).
+
+        Evaluates state ``s`` again (into slot 0), so it costs one state; called for failing
+        quantities only.
+        """
+        self._evaluate(states, s, s + 1)
+        P, Q = self.aligned(1, full=True)
+        rows = {"jacobian_linear": slice(0, 3), "jacobian_angular": slice(3, 6)}
+        if quantity in rows:
+            diff = np.abs(P["jacobian"][0] - Q["jacobian"][0])[:, rows[quantity]]
+        else:
+            diff = np.abs(self.quantities(P)[quantity][0] - self.quantities(Q)[quantity][0])
+        if diff.ndim == 0:
+            return ()
+        flat = int(np.argmax(diff))  # NaN counts as the maximum
+        return tuple(int(i) for i in np.unravel_index(flat, diff.shape))
