@@ -13,14 +13,13 @@ duration limit of the G1 jobs, checked here: ``mbctl.limits``).
 
 from __future__ import annotations
 
-import math
 from pathlib import Path
 
-from mbctl.control.exceptions import IKSetupError
+from mbctl.jobs import ik_params
 from mbctl.jobs.demo import DemoConfig
 from mbctl.jobs.g1 import ArmPDParams, StandParams, TrackParams
 from mbctl.jobs.g1_wbc import WBCParams
-from mbctl.jobs.ik import IKParams
+from mbctl.jobs.ik_params import IKParams
 from mbctl.jobs.joint_step import JointStepParams
 from mbctl.jobs.plant import PlantOptions
 from mbctl.jobs.serve import ServeParams
@@ -126,45 +125,25 @@ def workspace(robot: str = "two_link", samples: int = 121) -> WorkspaceParams:
     return WorkspaceParams(robot, samples)
 
 
-def parse_vector(text: str, n: int, what: str) -> tuple[float, ...]:
-    """``"X,Y,Z"`` -> floats; IKSetupError naming ``what`` and the expected form otherwise."""
-    parts = [p.strip() for p in text.split(",")]
-    form = ",".join("XYZ"[:n]) if n <= 3 else f"{n} numbers"
-    try:
-        values = tuple(float(p) for p in parts)
-    except ValueError:
-        values = ()
-    if len(values) != n or not all(math.isfinite(v) for v in values):
-        raise IKSetupError(
-            f"{what} must be {n} finite numbers in metres as {form} (e.g. "
-            f"{','.join(['0.3'] * n)}); got {text!r}"
-        )
-    return values
-
-
-def parse_target(text: str) -> tuple[str, tuple[float, float, float]]:
-    """``"frame=X,Y,Z"`` -> (frame, (x, y, z)); IKSetupError if malformed."""
-    name, sep, vec = text.partition("=")
-    if not sep or not name.strip():
-        raise IKSetupError(f"--target must look like FRAME=X,Y,Z (e.g. left_palm=0.3,0.2,0.9); "
-                           f"got {text!r}")
-    xyz = parse_vector(vec, 3, f"--target {name.strip()}")
-    return name.strip(), (xyz[0], xyz[1], xyz[2])
-
-
 def ik(robot: str, target: list[str] | None = None, com: str | None = None, backend: str = "qp",
        tol: float = 1e-3, max_iters: int = 50, solver: str = "daqp", relative: bool = False,
        keyframe: str | None = None, scene: str | None = None, model_dir: str | None = None,
-       root: list[str] | None = None) -> IKParams:
-    """``mbctl ik``: each target FRAME=X,Y,Z in m, com X,Y in m, tol in m.
+       root: list[str] | None = None, orientation: list[str] | None = None,
+       priority: list[str] | None = None, avoid_collisions: bool = False,
+       collision_pair: list[str] | None = None, min_distance: float = 0.005,
+       max_velocity: list[str] | None = None, damping: float = 0.0, clip_start: bool = False) -> IKParams:
+    """``mbctl ik``: targets in m (and quaternions), com in m, tol and min_distance in m.
+
+    Targets FRAME[@REF]=X,Y,Z[,QW,QX,QY,QZ], com X,Y[,Z], max_velocity JOINT=SPEED in rad/s,
+    priority NAME=LEVEL, damping a weight.
 
     Raises:
-        IKSetupError: A malformed target or CoM.
+        IKSetupError: A malformed target, orientation, CoM, priority or velocity.
     """
+    specs = [ik_params.parse_target(t) for t in (target or [])]
     return IKParams(
         robot=robot,
-        targets=tuple(parse_target(t) for t in (target or [])),
-        com_xy=tuple(parse_vector(com, 2, "--com")) if com is not None else None,  # type: ignore[arg-type]
+        com_xy=ik_params.parse_numbers(com, (2, 3), "--com (m)", "X,Y or X,Y,Z") if com is not None else None,
         relative=relative,
         tol_m=tol,
         max_iters=max_iters,
@@ -174,4 +153,12 @@ def ik(robot: str, target: list[str] | None = None, com: str | None = None, back
         scene=scene,
         model_dir=model_dir,
         roots=tuple(root or ()),
+        poses=(*specs, *(ik_params.parse_orientation(o) for o in (orientation or []))),
+        priorities=tuple(ik_params.parse_priority(p) for p in (priority or [])),
+        avoid_collisions=avoid_collisions,
+        collision_pairs=tuple(collision_pair or ()),
+        min_distance_m=min_distance,
+        max_velocities=tuple(ik_params.parse_velocity(v) for v in (max_velocity or [])),
+        damping_cost=damping,
+        clip_start=clip_start,
     )

@@ -62,3 +62,7 @@ class CommandError(RobotError, ValueError):
 
 class CommandOutOfRange(CommandError):
     """A command outside an actuator's ctrlrange, where out-of-range commands are rejected."""
+
+
+class CollisionPairError(RobotError, ValueError):
+    """A collision pair that is malformed or leaves no geom pair to keep apart."""

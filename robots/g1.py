@@ -59,6 +59,23 @@ TORSO = "torso_link"
 LEG_WORDS = ("hip", "knee", "ankle")
 ARM_WORDS = ("shoulder", "elbow", "wrist")
 
+#: Forearm and hand bodies of each arm (elbow link = forearm; the wrist links carry the hand).
+FOREARM_HAND = {side: (f"{side}_elbow_link", f"{side}_wrist_roll_link", f"{side}_wrist_pitch_link",
+                       f"{side}_wrist_yaw_link") for side in ("left", "right")}
+
+#: The trunk (torso and pelvis) and the thighs (hip roll and hip yaw links), which hands reach.
+TRUNK = ("torso_link", "pelvis")
+THIGHS = ("left_hip_roll_link", "left_hip_yaw_link", "right_hip_roll_link", "right_hip_yaw_link")
+
+#: The G1's default self-collision set, by body name (``mbctl.robots.collision.CollisionPair``
+#: sides): the forearms and hands against each other, against the trunk and against the thighs;
+#: foot against foot. Each name stands for the body's collision geoms.
+SELF_COLLISION_PAIRS: tuple[tuple[tuple[str, ...], tuple[str, ...]], ...] = (
+    (FOREARM_HAND["left"], FOREARM_HAND["right"]),
+    ((*FOREARM_HAND["left"], *FOREARM_HAND["right"]), (*TRUNK, *THIGHS)),
+    ((FOOT_BODIES[0],), (FOOT_BODIES[1],)),
+)
+
 #: Pelvis height [m] below which the G1 has fallen.
 FALL_HEIGHT_M = 0.5
 

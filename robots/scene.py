@@ -109,3 +109,14 @@ def describe_body(m: mujoco.MjModel, b: int) -> str:
         kinds = {int(m.jnt_type[j]) for j in range(first, first + int(m.body_jntnum[b]))}
         kind = "free" if int(mujoco.mjtJoint.mjJNT_FREE) in kinds else "jointed"
     return f"{name} ({kind}, {float(m.body_mass[b]):.4g} kg)"
+
+
+def bodies_com(m: mujoco.MjModel, d: mujoco.MjData, bodies: Iterable[int]) -> np.ndarray:
+    """Centre of mass (3,) [m], world frame, of ``bodies`` (ids) at ``d``'s kinematics.
+
+    From ``body_mass`` and ``xipos`` (set by ``mj_kinematics``): the robot's CoM when ``bodies`` are
+    the robot's, whatever else the scene holds (``subtree_com[0]`` is the whole plant's).
+    """
+    ids = np.fromiter(bodies, dtype=int)
+    mass = m.body_mass[ids]
+    return mass @ d.xipos[ids] / float(mass.sum())

@@ -3,6 +3,8 @@
 The tasks themselves live in :mod:`mbctl.control.tasks` (shared with whole-body inverse dynamics).
 """
 
+from mbctl.control.ik.collision import CollisionAvoidanceLimit
+from mbctl.control.ik.config import WholeBodyIKConfig
 from mbctl.control.ik.diff_ik import DiffIK, IKStep, solve_ik
 from mbctl.control.ik.factory import BACKENDS, make_whole_body_ik
 from mbctl.control.ik.limits import (
@@ -17,9 +19,9 @@ from mbctl.control.ik.loop import IKResult, IKStepper, iterate
 from mbctl.control.ik.mink_backend import MinkWholeBodyIK
 from mbctl.control.ik.two_link import ElbowBranch, TwoLinkArm, Workspace, dls_ik, pinv_ik
 from mbctl.control.ik.whole_body import (
+    FrameTarget,
     QPWholeBodyIK,
     WholeBodyIK,
-    WholeBodyIKConfig,
     joint_positions_by_name,
     mujoco_frame_type,
 )
@@ -27,10 +29,12 @@ from mbctl.control.ik.whole_body import (
 __all__ = [
     "BACKENDS",
     "BoxLimit",
+    "CollisionAvoidanceLimit",
     "Constraint",
     "DiffIK",
     "ElbowBranch",
     "FloatingBaseVelocityLimit",
+    "FrameTarget",
     "IKResult",
     "IKStep",
     "IKStepper",

@@ -1,4 +1,4 @@
-"""Differential IK as a QP on Pinocchio Jacobians, solved through ``qpsolvers.solve_problem``.
+"""Differential IK as a QP on Pinocchio Jacobians, with optional strict task priorities.
 
 Each step solves, for the tangent step ``dq`` (nv,) (``v = dq / dt``)::
 
@@ -11,15 +11,27 @@ Each step solves, for the tangent step ``dq`` (nv,) (``v = dq / dt``)::
 
 which is mink's problem (``mink.solve_ik``) written with Pinocchio quantities; the task rows are
 the velocity level of :mod:`mbctl.control.tasks` (assembled by its ``TaskStack``). The step is
-applied on the manifold with ``pin.integrate``.
+applied on the manifold with ``pin.integrate``. The QP is solved by :mod:`mbctl.control.ik.qp`
+(daqp directly, other backends through qpsolvers).
+
+Priorities. Tasks may be given levels (0 highest). The step is then a lexicographic solve: one QP
+per level, level k minimising its own tasks' least squares under the limits AND the equality
+``W_j dq = W_j dq_{k-1}`` for every level j above, i.e. the task velocities the levels above
+achieved. Equality on achieved task velocities, not null-space projection, because the limits
+are inequalities: a projector ``N`` of the upper levels' Jacobians would turn every joint bound
+into a dense inequality in the projected variable and, used without re-solving, lets a lower
+level push a joint through its bound; with the equality every level keeps the same variable,
+the same bounds, the same collision rows, and the upper levels' optimum exactly. The equality
+rows are an orthonormal basis of the upper rows' span (an SVD), so dependent tasks add no
+redundant rows for the solver to trip on. Regularisers (posture, damping) belong to the last
+level. One level is the weighted QP above.
 
 ``DiffIK`` preallocates W, r, H, c and the bounds for a fixed task/limit set; one step costs one
-``pin.computeJointJacobians`` + ``pin.updateFramePlacements`` (+ CoM) and one QP.
+``pin.computeJointJacobians`` + ``pin.updateFramePlacements`` (+ CoM) and one QP per level.
 """
 
 from __future__ import annotations
 
-import warnings
 from collections.abc import Sequence
 from typing import NamedTuple
 
@@ -27,19 +39,22 @@ import numpy as np
 import numpy.typing as npt
 import pinocchio as pin
 import qpsolvers
-from qpsolvers.warnings import SparseConversionWarning
 
 from mbctl.control.exceptions import IKInfeasible, IKSetupError
 from mbctl.control.ik.limits import BoxLimit, Limit
 from mbctl.control.ik.loop import IKResult, iterate
+from mbctl.control.ik.qp import QP_INFINITY, QPData, QPOutcome, StepQP
 from mbctl.control.tasks.base import Task
 from mbctl.control.tasks.com import ComTask
 from mbctl.control.tasks.residuals import TaskResidual, Tolerance
 from mbctl.control.tasks.stack import TaskStack
 from mbctl.control.tasks.state import KinematicState
 
-#: Magnitude standing for "no bound" in the QP (DAQP's and OSQP's infinity).
-QP_INFINITY = 1e30
+#: Singular values of the upper levels' rows below this fraction of the largest are not frozen
+#: (directions those tasks do not really constrain).
+RANK_RTOL = 1e-9
+
+__all__ = ["QP_INFINITY", "DiffIK", "IKStep", "solve_ik"]
 
 
 class IKStep(NamedTuple):
@@ -48,7 +63,7 @@ class IKStep(NamedTuple):
     Attributes:
         v: Tangent velocity (nv,) = dq / dt, Pinocchio convention (base twist in the base frame).
         dq: Tangent step (nv,).
-        solve_time_s: Time spent in the QP backend [s] (as reported by qpsolvers).
+        solve_time_s: Time spent in the QP backend [s], every level's solve summed.
     """
 
     v: np.ndarray
@@ -76,6 +91,7 @@ class DiffIK:
         solver: str = "daqp",
         damping: float = 1e-12,
         solver_options: dict | None = None,
+        levels: Sequence[int] | None = None,
     ):
         """Allocate the QP buffers.
 
@@ -84,11 +100,14 @@ class DiffIK:
             tasks: Tasks (non-empty).
             limits: Limits; box limits become QP bounds, others inequality rows.
             solver: Any backend in ``qpsolvers.available_solvers``.
-            damping: Global LM damping (>= 0) on all dofs, floating base included.
+            damping: Global LM damping (>= 0) on all dofs, floating base included, every level.
             solver_options: Keyword arguments for the backend (e.g. OSQP tolerances).
+            levels: Priority level of each task (0 highest; the levels used must be 0..L-1);
+                None puts every task in one weighted level.
 
         Raises:
-            IKSetupError: No tasks, an unavailable solver, or negative damping.
+            IKSetupError: No tasks, an unavailable solver, negative damping, or levels that do not
+                match the tasks (a gap, a negative level, a regulariser above the last level).
         """
         if not tasks:
             raise IKSetupError("DiffIK needs at least one task.")
@@ -109,7 +128,13 @@ class DiffIK:
             self.solver_options = {"eps_abs": 1e-9, "eps_rel": 1e-9, "polishing": False}
         self.state = KinematicState(model, with_com=any(isinstance(t, ComTask) for t in self.tasks))
         nv = model.nv
-        self.stack = TaskStack(nv, self.tasks)
+        level_of = _check_levels(self.tasks, levels)
+        n_levels = max(level_of) + 1
+        #: Tasks by priority level, level 0 first.
+        self.levels: tuple[tuple[Task, ...], ...] = tuple(
+            tuple(t for t, k in zip(self.tasks, level_of, strict=True) if k == level)
+            for level in range(n_levels))
+        self.stacks = tuple(TaskStack(nv, level) for level in self.levels)
         self._H = np.zeros((nv, nv))
         self._H_diag = np.einsum("ii->i", self._H)  # writable view of H's diagonal
         self._c = np.zeros(nv)
@@ -117,12 +142,13 @@ class DiffIK:
         self._box_dynamic = tuple(lim for lim in self._box if lim.state_dependent)
         self._box_static = tuple(lim for lim in self._box if not lim.state_dependent)
         self._other = tuple(lim for lim in self.limits if not isinstance(lim, BoxLimit))
+        self._guards = tuple(lim for lim in self.limits if type(lim).guard_step is not Limit.guard_step)
         self._lb = np.empty(nv)
         self._ub = np.empty(nv)
         self._static_dt: float | None = None
         self._static_lb = np.empty(nv)
         self._static_ub = np.empty(nv)
-        self._quiet = solver == "osqp"
+        self._qp = StepQP(nv, solver, self.solver_options)
 
     # ------------------------------------------------------------------ QP
     def update(self, q: npt.ArrayLike) -> None:
@@ -132,7 +158,7 @@ class DiffIK:
     def _bounds(self, dt: float) -> tuple[np.ndarray, np.ndarray] | tuple[None, None]:
         if not self._box:
             return None, None
-        if self._static_dt != dt:
+        if self._static_dt != dt:  # boxes that depend on dt only: once per dt
             self._static_lb.fill(-QP_INFINITY)
             self._static_ub.fill(QP_INFINITY)
             for lim in self._box_static:
@@ -145,59 +171,74 @@ class DiffIK:
             lim.intersect_bounds(self.state, dt, lb, ub)
         return lb, ub
 
+    def _inequalities(self, dt: float) -> tuple[np.ndarray, np.ndarray] | tuple[None, None]:
+        if not self._other:
+            return None, None
+        cons = [con for con in (lim.compute_qp_inequalities(self.state, dt) for lim in self._other)
+                if con.G.shape[0]]
+        if not cons:
+            return None, None
+        if len(cons) == 1:
+            return cons[0].G, cons[0].h
+        return np.vstack([con.G for con in cons]), np.concatenate([con.h for con in cons])
+
+    def _objective(self, level: int) -> tuple[np.ndarray, np.ndarray]:
+        H = self._H
+        mu = self.damping + self.stacks[level].velocity_objective(self.state, H, self._c)
+        self._H_diag += mu
+        return H, self._c
+
     def build_problem(self, dt: float) -> qpsolvers.Problem:
-        """The QP at the current state for a step of ``dt`` [s] (buffers are reused: copy to keep).
+        """The (first level's) QP at the current state for a step of ``dt`` [s], as copies.
 
         Raises:
             IKSetupError: ``dt`` not positive; a task without a target.
         """
-        if not dt > 0.0:
-            raise IKSetupError(f"dt must be > 0 [s]; got {dt!r}")
-        state = self.state
-        H = self._H
-        mu = self.damping + self.stack.velocity_objective(state, H, self._c)
-        self._H_diag += mu
+        _check_dt(dt)
         lb, ub = self._bounds(dt)
-        G = h = None
-        if self._other:
-            cons = [lim.compute_qp_inequalities(state, dt) for lim in self._other]
-            G = np.vstack([con.G for con in cons])
-            h = np.concatenate([con.h for con in cons])
-        return qpsolvers.Problem(H, self._c, G, h, None, None, lb, ub)
+        G, h = self._inequalities(dt)
+        H, c = self._objective(0)
+        return QPData(H, c, lb, ub, G, h, None, None).problem()
 
     def solve_step(self, dt: float = 1.0) -> IKStep:
-        """Solve the QP at the current state.
+        """Solve the QP (one per priority level) at the current state.
 
         Args:
             dt: Step duration [s] (scales velocity limits; ``v = dq / dt``).
 
         Raises:
+            IKSetupError: ``dt`` not positive; a task without a target.
             IKInfeasible: The backend found no solution (carries the QP and the result).
         """
-        problem = self.build_problem(dt)
-        if self._quiet and problem.lb is not None and (problem.lb > problem.ub).any():
-            # Contradictory boxes (q outside its limits): OSQP refuses such data outright
-            # (daqp reports them as infeasible, which _infeasible then diagnoses).
-            result = qpsolvers.Solution(problem)
-            result.found = False
-            raise self._infeasible(problem, result)
-        if self._quiet:
-            with warnings.catch_warnings():
-                # OSQP wants a sparse P; qpsolvers converts our dense one and says so each call.
-                warnings.simplefilter("ignore", SparseConversionWarning)
-                # osqp 1.x announces a future default; a failed solve raises IKInfeasible.
-                warnings.filterwarnings("ignore", message="The default value of raise_error")
-                warnings.filterwarnings("ignore", message="OSQP exited with status")
-                result = qpsolvers.solve_problem(problem, solver=self.solver, **self.solver_options)
-        else:
-            result = qpsolvers.solve_problem(problem, solver=self.solver, **self.solver_options)
-        if not result.found or result.x is None:
-            raise self._infeasible(problem, result)
-        dq = result.x
-        return IKStep(dq / dt, dq, float(result.solve_time or 0.0))
+        _check_dt(dt)
+        lb, ub = self._bounds(dt)
+        G, h = self._inequalities(dt)
+        A = b = None
+        solve_time = 0.0
+        last = len(self.stacks) - 1
+        for level in range(last + 1):
+            H, c = self._objective(level)
+            qp = QPData(H, c, lb, ub, G, h, A, b)
+            out = self._qp.solve(qp)
+            solve_time += out.solve_time_s
+            if out.x is None:
+                raise self._infeasible(qp, out, level)
+            dq = out.x
+            if level < last:
+                A, b = self._freeze(level, dq)
+        return IKStep(dq / dt, dq, solve_time)
 
-    def _infeasible(self, problem: qpsolvers.Problem, result: qpsolvers.Solution) -> IKInfeasible:
-        lb, ub = problem.lb, problem.ub
+    def _freeze(self, level: int, dq: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Equality rows keeping the task velocities of levels 0..level at what ``dq`` achieves."""
+        W = np.vstack([self.stacks[k].velocity_rows()[0] for k in range(level + 1)])
+        if not W.shape[0]:
+            return np.zeros((0, self.model.nv)), np.zeros(0)
+        _, s, Vt = np.linalg.svd(W, full_matrices=False)
+        basis = Vt[: int(np.sum(s > RANK_RTOL * s[0]))] if s[0] > 0.0 else Vt[:0]
+        return basis, basis @ dq
+
+    def _infeasible(self, qp: QPData, out: QPOutcome, level: int) -> IKInfeasible:
+        lb, ub = qp.lb, qp.ub
         if lb is not None and ub is not None and np.any(lb > ub):
             bad = np.flatnonzero(lb > ub)
             message = (
@@ -207,16 +248,35 @@ class DiffIK:
                 "Move q inside its limits or relax the limits."
             )
         else:
+            where = f" at priority level {level}" if len(self.stacks) > 1 else ""
             message = (
-                f"QP solver {self.solver!r} found no IK step (the limits may be infeasible); "
-                "inspect .problem and .result."
+                f"QP solver {self.solver!r} found no IK step{where} (status {out.status!r}; the limits "
+                "may be infeasible); inspect .problem and .result."
             )
-        return IKInfeasible(message, _copy_problem(problem), result, self.solver)
+        problem = qp.problem()
+        result = qpsolvers.Solution(problem)
+        result.found = False
+        result.extras = {"status": out.status}
+        return IKInfeasible(message, problem, result, self.solver)
 
     def step(self, q: npt.ArrayLike, dt: float = 1.0) -> IKStep:
         """Update the state to ``q`` (nq,) and solve one step."""
         self.state.update(q)
         return self.solve_step(dt)
+
+    def advance(self, dt: float = 1.0) -> float:
+        """Solve a step at the current state, let the limits guard it, move there; its ``|dq|_inf``.
+
+        Raises:
+            IKSetupError: ``dt`` not positive; a task without a target.
+            IKInfeasible: The QP has no solution.
+        """
+        dq = self.solve_step(dt).dq
+        q = self.state.q
+        for lim in self._guards:
+            dq = lim.guard_step(self.model, q, dq)
+        self.state.update(pin.integrate(self.model, q, dq))
+        return float(np.max(np.abs(dq)))
 
     # ------------------------------------------------------------------ loop
     @property
@@ -227,6 +287,11 @@ class DiffIK:
     def task_residuals(self) -> dict[str, TaskResidual]:
         """Every task's residual at the current state, by task name."""
         return {t.name: t.residual(self.state) for t in self.tasks}
+
+    @property
+    def level_names(self) -> tuple[tuple[str, ...], ...]:
+        """Task names by priority level, level 0 first."""
+        return tuple(tuple(t.name for t in level) for level in self.levels)
 
     def solve(
         self,
@@ -259,23 +324,42 @@ class _Stepper:
         self.ik, self.dt = ik, dt
         self.update = ik.update
         self.task_residuals = ik.task_residuals
+        self.levels = ik.level_names
 
     @property
     def q(self) -> np.ndarray:
         return self.ik.q
 
     def advance(self) -> float:
-        ik = self.ik
-        out = ik.solve_step(self.dt)
-        ik.update(pin.integrate(ik.model, ik.state.q, out.dq))
-        return float(np.max(np.abs(out.dq)))
+        return self.ik.advance(self.dt)
 
 
-def _copy_problem(p: qpsolvers.Problem) -> qpsolvers.Problem:
-    def cp(x):
-        return None if x is None else np.array(x, copy=True)
+def _check_dt(dt: float) -> None:
+    if not dt > 0.0:
+        raise IKSetupError(f"dt must be > 0 [s]; got {dt!r}")
 
-    return qpsolvers.Problem(cp(p.P), cp(p.q), cp(p.G), cp(p.h), cp(p.A), cp(p.b), cp(p.lb), cp(p.ub))
+
+def _check_levels(tasks: tuple[Task, ...], levels: Sequence[int] | None) -> list[int]:
+    """Each task's level, checked: 0..L-1 all used, regularisers in the last level.
+
+    Raises:
+        IKSetupError: The levels do not fit the tasks (the message names the task).
+    """
+    if levels is None:
+        return [0] * len(tasks)
+    level_of = [int(k) for k in levels]
+    if len(level_of) != len(tasks) or any(k < 0 or k != levels[i] for i, k in enumerate(level_of)):
+        raise IKSetupError(f"levels must be one non-negative integer per task ({len(tasks)}); got "
+                           f"{list(levels)!r}")
+    used = sorted(set(level_of))
+    if used != list(range(len(used))):
+        raise IKSetupError(f"priority levels must be 0, 1, ... without gaps; got {used}")
+    last = used[-1]
+    for task, k in zip(tasks, level_of, strict=True):
+        if task.regularizing and k != last:
+            raise IKSetupError(f"{task.name!r} is a regulariser: it belongs to the last level ({last}), "
+                               f"not level {k} (it would fix every dof for the levels below)")
+    return level_of
 
 
 def solve_ik(

@@ -48,6 +48,14 @@ class Limit(abc.ABC):
     def compute_qp_inequalities(self, state: TaskState, dt: float) -> Constraint:
         """``(G, h)`` with ``G dq <= h`` at ``state`` for a step of duration ``dt`` [s]."""
 
+    def guard_step(self, model: pin.Model, q: np.ndarray, dq: np.ndarray) -> np.ndarray:
+        """The step to take from ``q`` (nq,) instead of ``dq`` (nv,), checked beyond the linearisation.
+
+        The QP keeps the linearised limit; a limit on a curved quantity (collision distances)
+        may shorten the step here so that the limit holds at ``q (+) dq`` itself. Default: ``dq``.
+        """
+        return dq
+
 
 class BoxLimit(Limit):
     """A limit of the form ``lower <= dq <= upper`` on some tangent indices.
@@ -127,20 +135,24 @@ class JointPositionLimit(BoxLimit):
         self._sv = as_slice(self.idx_v)
         self.gain = float(gain)
         self.joint_names = tuple(names)
+        # scratch and gain-scaled limits for the hot path (intersect_bounds runs every step)
+        self._gq_min, self._gq_max = self.gain * self.q_min, self.gain * self.q_max
+        self._gq, self._lo, self._hi = np.empty(len(iq)), np.empty(len(iq)), np.empty(len(iq))
 
     def intersect_bounds(
         self, state: TaskState, dt: float, lower: np.ndarray, upper: np.ndarray
     ) -> None:
         """Tighten with ``gain (q_min - q)`` and ``gain (q_max - q)`` on the limited dofs."""
-        q = state.q[self._sq]
+        gq = self._gq
+        np.multiply(state.q[self._sq], self.gain, out=gq)
+        lo, hi = self._lo, self._hi
+        np.subtract(self._gq_min, gq, out=lo)
+        np.subtract(self._gq_max, gq, out=hi)
         iv = self._sv
-        lo = self.q_min - q
-        lo *= self.gain
-        hi = self.q_max - q
-        hi *= self.gain
         if isinstance(iv, slice):  # contiguous dofs: tighten the views in place
-            np.maximum(lower[iv], lo, out=lower[iv])
-            np.minimum(upper[iv], hi, out=upper[iv])
+            low, up = lower[iv], upper[iv]
+            np.maximum(low, lo, out=low)
+            np.minimum(up, hi, out=up)
         else:
             lower[iv] = np.maximum(lower[iv], lo)
             upper[iv] = np.minimum(upper[iv], hi)

@@ -6,13 +6,17 @@ the whole-body backends, the 2-link pseudo-inverse and damped least squares) is 
 convergence rule (:func:`mbctl.control.tasks.residuals.converged`).
 
 An unreachable target is not an error: iteration stops when the step becomes negligible
-(``stalled``) and the residuals say how far each task is from its target.
+(``stalled``) and the residuals say how far each task is from its target. The result keeps every
+configuration visited (``q_path``), so a caller can check the whole path, not only its end (the
+``mbctl ik`` job measures every step's collision distances in MuJoCo), and, for a solve with
+priorities, each level's residual.
 """
 
 from __future__ import annotations
 
 import math
 import time
+from collections.abc import Sequence
 from typing import NamedTuple, Protocol
 
 import numpy as np
@@ -35,6 +39,10 @@ class IKStepper(Protocol):
     def task_residuals(self) -> dict[str, TaskResidual]:
         """Every task's residual at the current configuration, by task name."""
 
+    @property
+    def levels(self) -> tuple[tuple[str, ...], ...]:
+        """Task names by priority level, level 0 first (one level: a weighted solve)."""
+
     def advance(self) -> float:
         """Take one step from the current configuration; return its size ``|dq|_inf`` [rad or m]."""
 
@@ -54,6 +62,10 @@ class IKResult(NamedTuple):
         step_norms: Infinity norm of each tangent step (iterations,) [rad or m].
         iteration_times_s: Wall time of each step (iterations,) [s].
         wall_time_s: Wall time of the whole loop [s].
+        q_path: Every configuration visited, ``q0`` first and ``q`` last (iterations + 1, nq).
+        levels: Task names by priority level, level 0 first.
+        level_residuals: Each level's residual at ``q``: the largest position [m] and orientation
+            [rad] residual of its tasks (a level of regularisers only: their largest deviation).
     """
 
     q: np.ndarray
@@ -65,6 +77,9 @@ class IKResult(NamedTuple):
     step_norms: np.ndarray
     iteration_times_s: np.ndarray
     wall_time_s: float
+    q_path: np.ndarray
+    levels: tuple[tuple[str, ...], ...]
+    level_residuals: tuple[TaskResidual, ...]
 
 
 def iterate(stepper: IKStepper, q0: npt.ArrayLike, tolerance: Tolerance, max_iters: int = 50,
@@ -87,6 +102,7 @@ def iterate(stepper: IKStepper, q0: npt.ArrayLike, tolerance: Tolerance, max_ite
                            f"max_iters={max_iters!r}")
     t0 = time.perf_counter()
     stepper.update(q0)
+    path = [stepper.q]
     history: list[float] = []
     steps: list[float] = []
     times: list[float] = []
@@ -100,6 +116,21 @@ def iterate(stepper: IKStepper, q0: npt.ArrayLike, tolerance: Tolerance, max_ite
         t = time.perf_counter()
         steps.append(stepper.advance())
         times.append(time.perf_counter() - t)
+        path.append(stepper.q)
         stalled = steps[-1] < step_tol
-    return IKResult(stepper.q, done, stalled and not done, len(steps), residuals, np.array(history),
-                    np.array(steps), np.array(times), time.perf_counter() - t0)
+    levels = stepper.levels
+    return IKResult(path[-1], done, stalled and not done, len(steps), residuals, np.array(history),
+                    np.array(steps), np.array(times), time.perf_counter() - t0, np.array(path), levels,
+                    tuple(largest_of([residuals[name] for name in level if name in residuals])
+                          for level in levels))
+
+
+def largest_of(residuals: Sequence[TaskResidual]) -> TaskResidual:
+    """The largest position [m] and orientation [rad] among ``residuals`` (regularisers: deviation)."""
+    positions = [r.position_m for r in residuals if r.position_m is not None]
+    angles = [r.orientation_rad for r in residuals if r.orientation_rad is not None]
+    if positions or angles:
+        return TaskResidual(position_m=max(positions, default=None),
+                            orientation_rad=max(angles, default=None))
+    deviations = [r.deviation for r in residuals if r.deviation is not None]
+    return TaskResidual(deviation=max(deviations, default=None))

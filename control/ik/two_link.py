@@ -318,6 +318,10 @@ class _TwoLinkStepper:
         error = float(np.linalg.norm(self.target - self.arm.forward_kinematics(self._q)))
         return {self.arm.site: TaskResidual(position_m=error)}
 
+    @property
+    def levels(self) -> tuple[tuple[str, ...], ...]:
+        return ((self.arm.site,),)
+
     def advance(self) -> float:
         e = self.target - self.arm.forward_kinematics(self._q)
         norm = float(np.linalg.norm(e))

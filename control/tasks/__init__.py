@@ -15,6 +15,7 @@ from mbctl.control.tasks.frame_orientation import FrameOrientationTask
 from mbctl.control.tasks.frame_pose import FramePoseTask
 from mbctl.control.tasks.frame_position import FramePositionTask
 from mbctl.control.tasks.posture import PostureTask
+from mbctl.control.tasks.relative_frame import RelativeFrameTask
 from mbctl.control.tasks.residuals import TaskResidual, Tolerance, converged, residual_table
 from mbctl.control.tasks.stack import TaskStack
 from mbctl.control.tasks.state import DynamicsState, KinematicState, TaskState
@@ -32,6 +33,7 @@ __all__ = [
     "FrameTask",
     "KinematicState",
     "PostureTask",
+    "RelativeFrameTask",
     "Task",
     "TaskResidual",
     "TaskStack",

@@ -9,7 +9,9 @@ manifold: ``e(q ⊕ dq) ≈ e(q) + J_e(q) dq`` with ``⊕`` = ``pin.integrate``.
 
     W_t = diag(cost) J_e,   r_t = -gain diag(cost) e,   objective |W_t dq - r_t|^2 + mu |dq|^2
 
-with the Levenberg-Marquardt term ``mu = lm_damping |r_t|^2``.
+with the Levenberg-Marquardt term ``mu = lm_damping |r_t|^2``. Rows whose cost is zero add nothing
+to the objective, so the IK stack asks each task for its active rows only
+(:meth:`Task.write_velocity_rows`, unweighted) and weighs the whole stack in one product.
 
 Acceleration level (inverse dynamics, the TSID formulation). A motion Jacobian ``J`` (k, nv) (for
 frame poses the frame Jacobian J_F rather than the log-map Jacobian: the two agree at the target
@@ -34,6 +36,7 @@ import pinocchio as pin
 from mbctl.control.exceptions import TaskSetupError
 from mbctl.control.tasks.residuals import TaskResidual
 from mbctl.control.tasks.state import DynamicsState, TaskState
+from mbctl.robots.indexing import as_slice
 
 
 @dataclass(frozen=True)
@@ -85,6 +88,17 @@ def cost_vector(cost: npt.ArrayLike, k: int, owner: str, what: str = "cost") -> 
     return arr
 
 
+#: Bumped whenever any task's cost, gain or LM damping changes, so that stacks built on cached
+#: weights (:class:`~mbctl.control.tasks.stack.TaskStack`) know to re-read them (one int to compare
+#: per solve instead of every task's weights).
+_WEIGHTS_EPOCH = [0]
+
+
+def weights_epoch() -> int:
+    """A counter that changes whenever any task's cost, gain or LM damping changes."""
+    return _WEIGHTS_EPOCH[0]
+
+
 def floating_dofs(model: pin.Model) -> np.ndarray:
     """Tangent indices of the model's free-flyer joints (left out of posture and damping)."""
     idx: list[int] = []
@@ -120,16 +134,36 @@ class Task(abc.ABC):
         Raises:
             TaskSetupError: A negative cost, a gain outside [0, 1] or a negative lm_damping.
         """
-        if not 0.0 <= gain <= 1.0:
-            raise TaskSetupError(f"{name}: gain must be in [0, 1]; got {gain!r}")
-        if not (math.isfinite(lm_damping) and lm_damping >= 0.0):
-            raise TaskSetupError(f"{name}: lm_damping must be >= 0; got {lm_damping!r}")
         self.name = name
         self.k = k
-        self.gain = float(gain)
-        self.lm_damping = float(lm_damping)
+        self.gain = gain
+        self.lm_damping = lm_damping
         self.servo = servo if servo is not None else AccelerationGains()
-        self._cost = cost_vector(cost, k, name)
+        self._set_cost_vector(cost_vector(cost, k, name))
+
+    @property
+    def gain(self) -> float:
+        """Velocity level: fraction ``alpha`` in [0, 1] of the error corrected per step."""
+        return self._gain
+
+    @gain.setter
+    def gain(self, value: float) -> None:
+        if not 0.0 <= value <= 1.0:
+            raise TaskSetupError(f"{self.name}: gain must be in [0, 1]; got {value!r}")
+        self._gain = float(value)
+        _WEIGHTS_EPOCH[0] += 1
+
+    @property
+    def lm_damping(self) -> float:
+        """Velocity level: Levenberg-Marquardt scale [-] (>= 0)."""
+        return self._lm_damping
+
+    @lm_damping.setter
+    def lm_damping(self, value: float) -> None:
+        if not (math.isfinite(value) and value >= 0.0):
+            raise TaskSetupError(f"{self.name}: lm_damping must be >= 0; got {value!r}")
+        self._lm_damping = float(value)
+        _WEIGHTS_EPOCH[0] += 1
 
     @property
     def servo(self) -> AccelerationGains:
@@ -153,7 +187,26 @@ class Task(abc.ABC):
         Raises:
             TaskSetupError: A negative or misshaped cost.
         """
-        self._cost = cost_vector(cost, self.k, self.name)
+        self._set_cost_vector(cost_vector(cost, self.k, self.name))
+        _WEIGHTS_EPOCH[0] += 1
+
+    def _set_cost_vector(self, cost: np.ndarray) -> None:
+        """Store a checked cost and the active rows it implies (read on every IK step)."""
+        self._cost = cost
+        rows = np.flatnonzero(cost > 0.0)
+        rows.setflags(write=False)
+        self._rows = rows
+        self._index = as_slice(rows)
+        #: Every row active: the hot paths then index nothing.
+        self._all_active = len(rows) == self.k
+
+    def active_rows(self) -> np.ndarray:
+        """Indices of the rows with a non-zero cost (read-only; the only rows the IK stacks)."""
+        return self._rows
+
+    def active_index(self) -> slice | np.ndarray:
+        """The active rows as a slice when they are contiguous (indexing is then a view)."""
+        return self._index
 
     def set_target_from_state(self, state: TaskState) -> None:  # noqa: B027 - optional hook
         """Set the target to the current value at ``state``; tasks without a target ignore it."""
@@ -204,6 +257,17 @@ class Task(abc.ABC):
         np.multiply(col, J, out=W_t)
         np.multiply(neg_gain_cost, e, out=r_t)
         return self._lm_term(r_t)
+
+    def write_velocity_rows(self, state: TaskState, J_out: np.ndarray, e_out: np.ndarray) -> None:
+        """Write the unweighted rows ``J_e[a]`` (len(a), nv) and ``e[a]`` (len(a),), ``a = active_rows()``.
+
+        A task may write ``(-J_e[a], -e[a])`` instead (both negated: the least squares, and so the
+        QP, are the same); the stack weighs every task's rows in one product afterwards.
+        """
+        e, J = self.error_and_jacobian(state)
+        rows = self.active_index()
+        J_out[:] = J[rows]
+        e_out[:] = e[rows]
 
     def _lm_term(self, r_t: np.ndarray) -> float:
         """``mu = lm_damping |r_t|^2`` [cost^2] for the rows ``r_t`` (k,) (0 without LM damping)."""

@@ -96,6 +96,14 @@ class ComTask(Task):
         r_t *= neg_gain_cost
         return self._lm_term(r_t)
 
+    def write_velocity_rows(self, state: TaskState, J_out: np.ndarray, e_out: np.ndarray) -> None:
+        """The active rows of ``(J_com, p_WC - p_target)`` (a zero-cost axis, e.g. z, is left out)."""
+        if self._target is None:
+            raise self._no_target()
+        rows = self.active_index()
+        J_out[:] = state.com_jacobian()[rows]
+        np.subtract(state.com()[rows], self._target[rows], out=e_out)
+
     def jacobian_and_drift(self, state: DynamicsState) -> tuple[np.ndarray, np.ndarray]:
         """``(J_com, Jdot_com v)``."""
         return state.com_jacobian(), state.com_drift()

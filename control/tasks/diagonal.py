@@ -40,6 +40,10 @@ class DiagonalTask(Task):
         self.mask.setflags(write=False)
         self._cost2_mask: tuple[np.ndarray, np.ndarray] | None = None
 
+    def masked_error(self, state: TaskState) -> np.ndarray:
+        """The error (nv,) where ``mask`` is 1 (entries where it is 0 may hold anything)."""
+        return self.compute_error(state)
+
     def cost2_mask(self) -> np.ndarray:
         """``cost^2 mask`` (nv,): this task's contribution to H's diagonal (cached per cost)."""
         cached = self._cost2_mask

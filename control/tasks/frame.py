@@ -11,7 +11,7 @@ import numpy.typing as npt
 import pinocchio as pin
 
 from mbctl.control.exceptions import TaskSetupError
-from mbctl.control.tasks.base import AccelerationGains, Task
+from mbctl.control.tasks.base import AccelerationGains, Task, cost_vector
 from mbctl.control.tasks.state import TaskState
 from mbctl.robots.exceptions import UnknownNameError
 
@@ -31,6 +31,16 @@ def world_vector(label: str, value: npt.ArrayLike) -> np.ndarray:
     if arr.shape != (3,) or not np.all(np.isfinite(arr)):
         raise TaskSetupError(f"{label} must be a finite (3,) vector in the world frame; got {value!r}")
     return arr
+
+
+def pose_cost(frame: str, position_cost: npt.ArrayLike, orientation_cost: npt.ArrayLike) -> np.ndarray:
+    """The (6,) cost of a pose task: position [cost]/[m] then orientation [cost]/[rad], each scalar or (3,).
+
+    Raises:
+        TaskSetupError: A negative, non-finite or misshaped cost (the message names which).
+    """
+    return np.concatenate([cost_vector(position_cost, 3, frame, "position_cost"),
+                           cost_vector(orientation_cost, 3, frame, "orientation_cost")])
 
 
 class FrameTask(Task):

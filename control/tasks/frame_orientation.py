@@ -61,6 +61,20 @@ class FrameOrientationTask(FrameTask):
         J = pin.Jlog3(R_TF) @ state.frame_jacobian(self.frame_id)[3:]
         return -pin.log3(R_TF), np.negative(J, out=J)
 
+    def write_velocity_rows(self, state: TaskState, J_out: np.ndarray, e_out: np.ndarray) -> None:
+        """The active rows of ``(-J_e, -e) = (Jlog3(R_TF) J_F[3:], log3(R_TF))`` (both negated)."""
+        if self._X_TW is None:
+            raise self._no_target()
+        R_TF = (self._X_TW * state.oMf[self.frame_id]).rotation
+        rows = self._index
+        J_w = state.frame_jacobian(self.frame_id)[3:]
+        if self._all_active:
+            np.matmul(pin.Jlog3(R_TF), J_w, out=J_out)
+            e_out[:] = pin.log3(R_TF)
+        else:
+            np.matmul(pin.Jlog3(R_TF)[rows], J_w, out=J_out)
+            e_out[:] = pin.log3(R_TF)[rows]
+
     def jacobian_and_drift(self, state: DynamicsState) -> tuple[np.ndarray, np.ndarray]:
         """``(J_F[3:], (Jdot_F v)[3:])`` in F."""
         fid = self.frame_id

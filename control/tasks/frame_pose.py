@@ -2,7 +2,8 @@
 
 Velocity level: ``J_e = -Jlog6(X_TF) J_F`` with ``J_F`` the body Jacobian of F (its twist in F,
 [v; w]), the exact derivative of the error (mink's ``SE3.jlog`` drops the translation-rotation
-coupling at rotation errors below about 1e-6 rad; Pinocchio's ``Jlog6`` is exact).
+coupling at rotation errors below 1e-5 rad, where it tests ``theta^2 < 1e-10``; Pinocchio's ``Jlog6``
+is exact: tests/control/ik/test_g1_ik.py shows the first steps differing by percents there).
 
 Acceleration level (TSID): ``J = J_F`` (LOCAL), drift ``Jdot_F v`` (the spatial acceleration of F
 at zero vdot), ``a_des = a_ref + kp log6(X_FT) + kd (v_ref - J_F v)``, with the linear references
@@ -15,8 +16,8 @@ import numpy as np
 import numpy.typing as npt
 import pinocchio as pin
 
-from mbctl.control.tasks.base import AccelerationGains, cost_vector
-from mbctl.control.tasks.frame import FrameTask
+from mbctl.control.tasks.base import AccelerationGains
+from mbctl.control.tasks.frame import FrameTask, pose_cost
 from mbctl.control.tasks.residuals import TaskResidual
 from mbctl.control.tasks.state import DynamicsState, TaskState
 
@@ -51,10 +52,8 @@ class FramePoseTask(FrameTask):
             UnknownNameError: No frame called ``frame``.
             TaskSetupError: Invalid costs, gain or damping.
         """
-        pos = cost_vector(position_cost, 3, frame, "position_cost")
-        rot = cost_vector(orientation_cost, 3, frame, "orientation_cost")
-        super().__init__(name or f"{frame} pose", frame, model, 6, np.concatenate([pos, rot]), gain,
-                         lm_damping, servo)
+        cost = pose_cost(frame, position_cost, orientation_cost)
+        super().__init__(name or f"{frame} pose", frame, model, 6, cost, gain, lm_damping, servo)
 
     def compute_error(self, state: TaskState) -> np.ndarray:
         """``log6(X_FT)`` (6,) [m, rad]: the twist from F to the target, in F."""
@@ -82,6 +81,23 @@ class FramePoseTask(FrameTask):
         W_t *= neg_col
         np.multiply(gain_cost, pin.log6(X_TF).vector, out=r_t)
         return self._lm_term(r_t)
+
+    def write_velocity_rows(self, state: TaskState, J_out: np.ndarray, e_out: np.ndarray) -> None:
+        """The active rows of ``(-J_e, -e) = (Jlog6(X_TF) J_F, log6(X_TF))`` (both negated).
+
+        A position-only task (orientation cost 0) multiplies the top half of ``Jlog6`` only.
+        """
+        if self._X_TW is None:
+            raise self._no_target()
+        X_TF = self._X_TW * state.oMf[self.frame_id]
+        rows = self._index
+        J_F = state.frame_jacobian(self.frame_id)
+        if self._all_active:
+            np.matmul(pin.Jlog6(X_TF), J_F, out=J_out)
+            e_out[:] = pin.log6(X_TF).vector
+        else:  # e.g. position only: 3 rows of Jlog6 (a view), not 6
+            np.matmul(pin.Jlog6(X_TF)[rows], J_F, out=J_out)
+            e_out[:] = pin.log6(X_TF).vector[rows]
 
     def jacobian_and_drift(self, state: DynamicsState) -> tuple[np.ndarray, np.ndarray]:
         """``(J_F, Jdot_F v)`` in F (LOCAL)."""

@@ -91,6 +91,12 @@ class PostureTask(DiagonalTask):
         e[self._free] = 0.0
         return e
 
+    def masked_error(self, state: TaskState) -> np.ndarray:
+        """``q ⊖ q_target`` (nv,) with the free-flyer entries left as they are (the mask drops them)."""
+        if self._target is None:
+            raise self._no_target()
+        return pin.difference(self.model, self._target, state.q)
+
     def compute_jacobian(self, state: TaskState) -> np.ndarray:
         """``d(q ⊖ q_target)/dq`` (nv, nv), free-flyer rows zeroed.
 

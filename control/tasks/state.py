@@ -44,14 +44,14 @@ class TaskState:
         self.model = model
         self.data = model.createData()
         self._q = pin.neutral(model)
+        self._q_view = self._q.view()  # _q is only ever written in place: one view serves
+        self._q_view.setflags(write=False)
         self.oMf = self.data.oMf  # a reference into data, stable for its lifetime
 
     @property
     def q(self) -> np.ndarray:
-        """Current configuration (nq,) (a read-only view)."""
-        view = self._q.view()
-        view.setflags(write=False)
-        return view
+        """Current configuration (nq,) (a read-only view, updated in place by ``update``)."""
+        return self._q_view
 
     @property
     def nq(self) -> int:
@@ -95,8 +95,9 @@ class TaskState:
 
     def frame_jacobian(self, frame_id: int, reference: pin.ReferenceFrame = pin.LOCAL) -> np.ndarray:
         """``J_F`` (6, nv) of frame ``frame_id``, [v; w], expressed in ``reference``."""
-        # reshape: with nv = 1, Pinocchio's bindings return the matrix as a (6,) vector
-        return pin.getFrameJacobian(self.model, self.data, frame_id, reference).reshape(6, -1)
+        J = pin.getFrameJacobian(self.model, self.data, frame_id, reference)
+        # with nv = 1, Pinocchio's bindings return the matrix as a (6,) vector
+        return J if J.ndim == 2 else J.reshape(6, -1)
 
     def com(self) -> np.ndarray:
         """Centre of mass ``p_WC`` (3,) [m] (a view into the data)."""

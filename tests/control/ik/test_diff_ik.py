@@ -27,6 +27,7 @@ from mbctl.control.tasks import (
     FramePositionTask,
     KinematicState,
     PostureTask,
+    RelativeFrameTask,
     Task,
     Tolerance,
 )
@@ -345,3 +346,51 @@ def test_any_robot_free_ball_slide_hinge_fd_and_solve(tiny):
     assert np.all(qj >= limit.q_min - 1e-9) and np.all(qj <= limit.q_max + 1e-9)
     quat = res.q[3:7]  # manifold integration keeps the free-flyer quaternion unit
     assert abs(np.linalg.norm(quat) - 1.0) < 1e-12
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_relative_frame_task_jacobian_matches_finite_differences_on_a_floating_base(g1, seed):
+    """The palm's pose in the torso frame (both move, the base floats): J_e = Jlog6 (J_F - Ad J_R)."""
+    rng = np.random.default_rng(seed)
+    model = g1.pin_model
+    q = _random_q(model, rng, 0.3, g1.keyframe_q("stand"))
+    state = KinematicState(model, q)
+    task = RelativeFrameTask("left_wrist_yaw_link", "torso_link", model, 1.0, [0.5, 1.0, 2.0])
+    task.set_target(pin.exp6(pin.Motion(0.2 * rng.standard_normal(6))))
+    J = task.compute_jacobian(state)
+    assert np.max(np.abs(J - _fd_jacobian(task, state, q))) < 1e-7
+    # the frame and the reference moving together (the base alone) leave the error unchanged
+    np.testing.assert_allclose(J[:, :6], 0.0, atol=1e-12)
+    # the residual is the pose error in the reference frame; no acceleration-level form
+    X_RF = state.frame_pose(state.frame_id("torso_link")).actInv(state.frame_pose(state.frame_id(
+        "left_wrist_yaw_link")))
+    res = task.residual(state)
+    assert res.position_m == pytest.approx(np.linalg.norm(task.transform_target_to_world.actInv(
+        X_RF).translation))
+    with pytest.raises(TaskSetupError, match="no acceleration-level form"):
+        task.jacobian_and_drift(state)
+
+
+@pytest.mark.parametrize("seed", [0, 1])
+def test_velocity_rows_are_the_active_rows_of_the_task(g1, seed):
+    """Every task's unweighted velocity rows are its active rows of ``(J_e, e)``, or both negated."""
+    rng = np.random.default_rng(seed)
+    model = g1.pin_model
+    q = _random_q(model, rng, 0.3, g1.keyframe_q("stand"))
+    state = KinematicState(model, q)
+    tasks = _tasks_for(model, "left_foot", state, rng)
+    partial = FramePoseTask("left_foot", model, [1.0, 0.0, 2.0], 0.0)  # zero-cost rows dropped
+    partial.set_target(tasks[0].transform_target_to_world)
+    relative = RelativeFrameTask("left_foot", "pelvis", model, 1.0, 0.0)
+    relative.set_target_from_state(state)
+    com = ComTask([1.0, 1.0, 0.0])
+    com.set_target(state.com() + 0.01)
+    for task in [*tasks[:3], partial, relative, com]:
+        rows = task.active_rows()
+        J_out, e_out = np.zeros((len(rows), model.nv)), np.zeros(len(rows))
+        task.write_velocity_rows(state, J_out, e_out)
+        e, J = task.error_and_jacobian(state)
+        sign = 1.0 if np.allclose(e_out, e[rows], atol=1e-14) else -1.0
+        np.testing.assert_allclose(e_out, sign * e[rows], atol=1e-14, err_msg=task.name)
+        np.testing.assert_allclose(J_out, sign * J[rows], atol=1e-12, err_msg=task.name)
+    assert partial.active_rows().tolist() == [0, 2] and com.active_rows().tolist() == [0, 1]

@@ -1,0 +1,217 @@
+"""Collision avoidance as an IK limit: a velocity damper on the distance of geom pairs.
+
+For each pair (geoms 1 and 2, :mod:`mbctl.robots.collision`) closer than the detection distance,
+MuJoCo gives the signed distance d and the witness points p1, p2 (``mj_geomDistance`` on a scratch
+``MjData`` at the state's q); the separating direction is ``n = s (p2 - p1)/|p2 - p1|`` with
+``s = sign(d)`` (MuJoCo's segment points inwards when the geoms overlap). The distance's rate
+along the step is ``d' = n^T (J_p2 - J_p1) dq`` with ``J_p`` the world-frame Jacobian of the
+point p moving with its body, from the model pair's Pinocchio Jacobians::
+
+    J_p dq = v_O + w x p  =>  n^T J_p = [n; p x n]^T J_B
+
+with ``J_B = [v_O; w]`` the WORLD-frame Jacobian of the body's joint (``data.J`` after
+``pin.computeJointJacobians``, restricted to the joints that move the body). The limit is the
+velocity damper (Kanoun et al.; mink's ``CollisionAvoidanceLimit``)::
+
+    -d'(dq) <= gain (d - d_min)    if d > d_min,    -d'(dq) <= 0  otherwise
+
+so a pair approaches its minimum distance geometrically and a pair already inside it does not
+close further. One difference from mink, which bounds ``-d'`` by ``gain (d - d_min) / dt``: the
+QP's variable is the step ``dq``, so the bound on the step's approach is not divided by ``dt``
+(the two agree at ``dt = 1 s``, the whole-body IK's default); with mink's bound a step of
+``dt = 0.01 s`` may close 100 times the gap.
+
+A broad phase skips pairs whose bounding spheres (``geom_rbound``, 0 for planes: never skipped)
+are farther apart than the detection distance, before any ``mj_geomDistance``.
+
+The damper is a linearisation, and whole-body IK steps are large (centimetres, tenths of a radian),
+so a pair may close faster than its row predicts, or come from beyond the detection distance in
+one step. :meth:`CollisionAvoidanceLimit.guard_step` therefore measures the pairs at the step's end
+(MuJoCo again) and halves the step while any pair ends below the minimum distance and closer than
+it started (at most :data:`MAX_HALVINGS` times; then the step is zero and the solve stalls where
+it is, collision-free). The measurement is kept for the next step's rows, so a step that needs no
+halving costs no extra distance query. mink has no such guard.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+import mujoco
+import numpy as np
+import pinocchio as pin
+
+from mbctl.control.exceptions import IKSetupError
+from mbctl.control.ik.limits import Constraint, Limit
+from mbctl.control.tasks.state import TaskState
+from mbctl.robots.collision import CollisionPair, GeomPairs, resolve_pairs
+from mbctl.robots.model_pair import Robot
+from mbctl.robots.names import mj_name
+
+#: How many times :meth:`CollisionAvoidanceLimit.guard_step` may halve a step.
+MAX_HALVINGS = 6
+
+# a x b row-wise = a[:, _Y_Z_X] * b[:, _Z_X_Y] - a[:, _Z_X_Y] * b[:, _Y_Z_X] (np.cross has ~8 us of overhead)
+_Y_Z_X = np.array([1, 2, 0])
+_Z_X_Y = np.array([2, 0, 1])
+
+
+def body_dof_masks(robot: Robot) -> np.ndarray:
+    """(nbody, nv) 0/1: the tangent dofs that move each MuJoCo body (zero rows for scene bodies).
+
+    Raises:
+        IKSetupError: A robot body that is not a Pinocchio body frame of the same name.
+    """
+    m, model = robot.mj_model, robot.pin_model
+    masks = np.zeros((m.nbody, model.nv))
+    for b in robot.robot_body_ids:
+        name = mj_name(m, mujoco.mjtObj.mjOBJ_BODY, b)
+        if not model.existFrame(name, pin.FrameType.BODY):
+            raise IKSetupError(f"MuJoCo body {name!r} has no Pinocchio BODY frame of that name; "
+                               "collision avoidance needs the model pair's body frames")
+        joint = model.frames[model.getFrameId(name, pin.FrameType.BODY)].parentJoint
+        for j in model.supports[joint]:
+            if j > 0:
+                start = model.joints[j].idx_v
+                masks[b, start:start + model.joints[j].nv] = 1.0
+    return masks
+
+
+class CollisionAvoidanceLimit(Limit):
+    """Keep geom pairs at least ``min_distance_m`` apart: ``-d'(dq) <= gain max(d - d_min, 0)``.
+
+    Attributes:
+        robot: The model pair (MuJoCo measures, Pinocchio differentiates).
+        pairs: The geom pairs.
+        min_distance_m: Minimum distance d_min [m] (negative: allowed penetration).
+        detection_distance_m: Pairs farther apart than this [m] add no row.
+        gain: Fraction in (0, 1] of the remaining gap a step may close.
+        distances_m: Each pair's distance [m] at the last call (``detection_distance_m`` for
+            pairs beyond it or skipped by the broad phase).
+    """
+
+    def __init__(self, robot: Robot, pairs: GeomPairs | Sequence[CollisionPair],
+                 min_distance_m: float = 0.005, detection_distance_m: float = 0.1, gain: float = 0.85):
+        """Resolve the pairs and precompute each body's dofs.
+
+        Args:
+            robot: The model pair.
+            pairs: Resolved geom pairs, or named pairs to resolve.
+            min_distance_m: Minimum distance [m].
+            detection_distance_m: Detection distance [m] (> ``min_distance_m``). A step may move a
+                pair by several centimetres, so keep it above the largest approach per step:
+                a pair first seen inside its minimum distance can only be held there.
+            gain: Fraction in (0, 1] of the gap a step may close.
+
+        Raises:
+            IKSetupError: Bad distances or gain, or an empty pair set.
+        """
+        if not 0.0 < gain <= 1.0:
+            raise IKSetupError(f"collision avoidance gain must be in (0, 1]; got {gain!r}")
+        if not (np.isfinite(min_distance_m) and np.isfinite(detection_distance_m)
+                and detection_distance_m > min_distance_m):
+            raise IKSetupError(f"collision detection distance ({detection_distance_m!r} m) must exceed the "
+                               f"minimum distance ({min_distance_m!r} m), both finite")
+        self.robot = robot
+        self.pairs = pairs if isinstance(pairs, GeomPairs) else resolve_pairs(robot, pairs)
+        if not len(self.pairs):
+            raise IKSetupError("collision avoidance needs at least one geom pair")
+        self.min_distance_m = float(min_distance_m)
+        self.detection_distance_m = float(detection_distance_m)
+        self.gain = float(gain)
+        m = robot.mj_model
+        self._data = mujoco.MjData(m)
+        ids = self.pairs.ids
+        self._g1, self._g2 = ids[:, 0].copy(), ids[:, 1].copy()
+        rbound = np.asarray(m.geom_rbound)
+        self._rsum = rbound[self._g1] + rbound[self._g2]
+        self._unbounded = (rbound[self._g1] <= 0.0) | (rbound[self._g2] <= 0.0)  # planes: always kept
+        self._pair_list = [(int(a), int(b)) for a, b in ids]
+        self._seg = np.zeros((len(ids), 6))  # witness points of each pair's last measurement
+        masks = body_dof_masks(robot)
+        self._mask1 = masks[m.geom_bodyid[self._g1]]
+        self._mask2 = masks[m.geom_bodyid[self._g2]]
+        self.distances_m = np.full(len(self.pairs), self.detection_distance_m)
+        self._fromto = np.empty(6)
+        self._cache: tuple[bytes, tuple[np.ndarray, np.ndarray, np.ndarray], np.ndarray] | None = None
+
+    def candidates(self) -> np.ndarray:
+        """Indices of the pairs the broad phase keeps at the last synced kinematics."""
+        xpos = self._data.geom_xpos
+        diff = xpos[self._g1]
+        diff -= xpos[self._g2]
+        diff *= diff
+        reach = self._rsum + self.detection_distance_m
+        return np.flatnonzero((diff.sum(axis=1) <= reach * reach) | self._unbounded)
+
+    def sync(self, q: np.ndarray) -> None:
+        """Put MuJoCo's scratch data at ``q`` (nq,), Pinocchio convention (geom poses only)."""
+        self.robot.plant_qpos(q, self._data.qpos)
+        mujoco.mj_kinematics(self.robot.mj_model, self._data)
+
+    def _measure(self, q: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Pairs within the detection distance at ``q``: (indices (k,), distances (k,), fromto (k, 6)).
+
+        Also fills ``distances_m``. The last measurement is kept and reused for the same ``q``.
+        """
+        key = q.tobytes()
+        if self._cache is not None and self._cache[0] == key:
+            return self._cache[1]
+        self.sync(q)
+        m, d = self.robot.mj_model, self._data
+        dmax = self.detection_distance_m
+        dist, seg, pairs = self.distances_m, self._seg, self._pair_list
+        dist.fill(dmax)
+        candidates = self.candidates()
+        for k in candidates.tolist():
+            geom_a, geom_b = pairs[k]
+            dist[k] = mujoco.mj_geomDistance(m, d, geom_a, geom_b, dmax, seg[k])
+        idx = candidates[dist[candidates] < dmax]
+        out = (idx, dist[idx], seg[idx])
+        self._cache = (key, out, d.geom_xpos.copy())
+        return out
+
+    def compute_qp_inequalities(self, state: TaskState, dt: float) -> Constraint:
+        """One row per pair within the detection distance (possibly none) at ``state``."""
+        idx, dists, seg = self._measure(state.q)
+        nv, k = state.nv, len(idx)
+        if not k:
+            return Constraint(np.zeros((0, nv)), np.zeros(0))
+        points = seg.reshape(2 * k, 3)  # p1 and p2 of each pair, interleaved
+        n = seg[:, 3:] - seg[:, :3]
+        norm = np.sqrt(np.einsum("ij,ij->i", n, n))
+        if norm.min() < 1e-12:  # witness points coincide: use the line between the geoms' centres
+            touching = norm < 1e-12
+            xpos = self._cache[2] if self._cache is not None else self._data.geom_xpos
+            n[touching] = xpos[self._g2[idx[touching]]] - xpos[self._g1[idx[touching]]]
+            norm = np.sqrt(np.einsum("ij,ij->i", n, n))
+        n *= np.copysign(1.0 / np.maximum(norm, 1e-300), dists)[:, None]  # separating direction
+        normals = np.repeat(n, 2, axis=0)
+        # n^T J_p = [n; p x n]^T J_B: one (2k, 6) @ (6, nv) product for every witness point
+        moments = points[:, _Y_Z_X] * normals[:, _Z_X_Y]
+        moments -= points[:, _Z_X_Y] * normals[:, _Y_Z_X]
+        w = np.hstack([normals, moments])
+        rows = w @ state.data.J
+        G = rows[0::2] * self._mask1[idx]
+        G -= rows[1::2] * self._mask2[idx]  # -d'(dq) = n^T J_p1 dq - n^T J_p2 dq
+        h = dists - self.min_distance_m
+        np.maximum(h, 0.0, out=h)
+        h *= self.gain
+        return Constraint(G, h)
+
+    def guard_step(self, model: pin.Model, q: np.ndarray, dq: np.ndarray) -> np.ndarray:
+        """``dq`` halved until no pair ends below the minimum distance closer than it started.
+
+        A pair already below the minimum at ``q`` may stay there but not close further. After
+        :data:`MAX_HALVINGS` halvings the step is zero.
+        """
+        self._measure(q)
+        before = self.distances_m.copy()
+        for _ in range(MAX_HALVINGS + 1):
+            self._measure(pin.integrate(model, q, dq))
+            after = self.distances_m
+            if not np.any((after < self.min_distance_m) & (after < before - 1e-12)):
+                return dq
+            dq = 0.5 * dq
+        self._measure(q)  # no step: keep the rows of where we stay
+        return np.zeros_like(dq)
