@@ -5,6 +5,7 @@ from __future__ import annotations
 import csv
 import json
 import sys
+import time
 from pathlib import Path
 
 import pytest
@@ -37,7 +38,9 @@ def demo_sweep(tmp_path: Path, *params: str, resume: bool = False) -> SweepConfi
 
 
 def test_csv_columns_rows_json_and_plot(client, tmp_path):
+    t0 = time.perf_counter()
     result = run_sweep(demo_sweep(tmp_path, "model_error=0,10", "controller=ct,pd"), client=client)
+    elapsed_s = time.perf_counter() - t0
     assert result.status == "completed" and result.exit_code == 0
     header, rows = read_rows(result.files["csv"])
     assert header[:3] == ["duration", "model_error", "controller"]
@@ -50,7 +53,12 @@ def test_csv_columns_rows_json_and_plot(client, tmp_path):
     meta = json.loads(result.files["json"].read_text())
     assert {"mbctl", "dask", "mujoco", "pin"} <= set(meta["versions"])
     assert meta["cluster"]["workers"] == 2 and meta["cluster"]["threads"] == 2
-    assert meta["failures"] == [] and meta["wall_time_s"] > 0
+    assert meta["failures"] == []
+    # the sweep's wall time spans its tasks: no shorter than the longest task, nor than the tasks'
+    # total shared by the 2 one-thread workers, and no longer than the call that ran it
+    task_s = [json.loads(Path(r["run_dir"], "report.json").read_text())["wall_time_s"] for r in rows]
+    assert max(task_s) <= meta["wall_time_s"] <= elapsed_s
+    assert sum(task_s) / 2 <= meta["wall_time_s"]
     assert result.files["plot"].stat().st_size > 1000
 
 
