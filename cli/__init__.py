@@ -55,6 +55,8 @@ def fail(message: str, code: int = 2) -> typer.Exit:
 
 
 def _wants_rendering(argv: list[str]) -> bool:
+    if "--web" in argv:  # the browser draws: no OpenGL here
+        return False
     return "--video" in argv or bool(argv) and argv[0] in ("render", "replay")
 
 

@@ -191,6 +191,12 @@ def square_reference(robot: Robot, config: DemoConfig, dt_s: float) -> SquareRef
     return SquareReference(cart, q_traj)
 
 
+def path_points(reference: SquareReference, n: int = 80) -> np.ndarray:
+    """About ``n`` points (k, 3) [m] in W along the reference square, corners included."""
+    p = reference.cartesian.p
+    return np.vstack([p[:: max(1, len(p) // n)], p[-1:]])
+
+
 def make_controller(
     name: str, robot: Robot, config: DemoConfig, q0: np.ndarray, pin_model: pin.Model | None = None
 ):  # noqa: ANN201 - one of the controller classes
@@ -242,8 +248,10 @@ def track_square(
     p_ref = cart.p[idx, :2]
     on_step = None
     if ctx is not None:
-        path_points = cart.p[:: max(1, len(cart.p) // 80)]  # the reference square, drawn in the video
-        ctx.attach(sim, overlay=lambda scene: add_markers(scene, path_points, 0.004, (0.1, 0.8, 0.2, 1.0)))
+        points = path_points(reference)  # the reference square, drawn in the video
+        planned = np.array([robot.plant_qpos(q) for q in q_traj.q[:: max(1, len(q_traj.q) // 100)]])
+        ctx.attach(sim, overlay=lambda scene: add_markers(scene, points, 0.004, (0.1, 0.8, 0.2, 1.0)),
+                   frame_qpos=planned, frame_points_W=points)
         site = PlantSite(robot, SITE)
         t_start = sim.time_s
 
@@ -335,6 +343,8 @@ def prepare(config: DemoConfig, robot: Robot | None = None) -> Work:
             "samples": len(reference.cartesian.t_s),
             "corners_m": [list(map(float, reference.cartesian.p[i, :2]))
                           for i in reference.cartesian.corner_indices],
+            # the square in W (x, y, z in the arm's plane), as the video and the web replay draw it
+            "path_m": path_points(reference).tolist(),
         }
         main, _ = track_square(robot, reference, config, ctx=ctx)
         ctx.values.update(main.row())
