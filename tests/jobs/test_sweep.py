@@ -8,6 +8,7 @@ import sys
 import time
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 pytest.importorskip("dask.distributed")
@@ -161,3 +162,25 @@ def test_run_folder_names_are_safe_and_distinct():
     assert run_name({"model_error": 5.0, "controller": "ct"}) == "model_error=5.0,controller=ct"
     a, b = run_name({"robot": "a/b.xml"}), run_name({"robot": "a_b.xml"})
     assert "/" not in a and a != b
+
+
+def test_plot_axes_read_in_the_users_units():
+    """Options in the units the command line takes them in, report values in mm and %."""
+    from mbctl.jobs.sweep_plots import sweep_figure
+
+    rows = [{"model_error": str(m), "controller": c, "rms_error_m": str(e)}
+            for m, c, e in [(0.0, "ct", 1e-4), (40.0, "ct", 4e-3), (0.0, "pd", 0.025), (40.0, "pd", 0.018)]]
+    ax = sweep_figure(rows, ["model_error", "controller"], ["model_error", "controller"], "rms_error_m",
+                      "t").axes[0]
+    assert (ax.get_xlabel(), ax.get_ylabel()) == ("model error (%)", "controller")
+    assert [t.get_text() for t in ax.get_xticklabels()] == ["0", "40"]
+    assert sorted(float(t.get_text()) for t in ax.texts) == [0.1, 4.0, 18.0, 25.0]  # mm in the cells
+    assert ax.figure.axes[1].get_ylabel() == "rms error (mm)"  # the colour bar
+    line = sweep_figure(rows[:2], ["model_error"], ["model_error"], "rms_error_m", "t").axes[0]
+    assert line.get_ylabel() == "rms error (mm)"
+    np.testing.assert_allclose(line.lines[0].get_ydata(), [0.1, 4.0])
+    fell = [{"impulse": "5", "fell": "false"}, {"impulse": "5", "fell": "true"},
+            {"impulse": "15", "fell": "true"}]
+    ax = sweep_figure(fell, ["impulse"], ["impulse"], "fell", "t").axes[0]
+    assert (ax.get_xlabel(), ax.get_ylabel()) == ("impulse (N s)", "fell (% of runs)")
+    np.testing.assert_allclose(ax.lines[0].get_ydata(), [50.0, 100.0])
