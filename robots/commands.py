@@ -11,7 +11,7 @@ finiteness; the simulator checks names, shape and actuator kind when it first se
 
 from __future__ import annotations
 
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from enum import Enum
 
@@ -20,6 +20,7 @@ import numpy.typing as npt
 
 from mbctl.robots.exceptions import CommandError
 from mbctl.robots.fastmath import all_finite
+from mbctl.robots.names import ActuatorInfo
 
 
 class CommandKind(str, Enum):
@@ -117,3 +118,19 @@ def ctrl(values: npt.ArrayLike | Mapping[str, float]) -> Command:
     says explicitly that the caller knows each actuator's units.
     """
     return _make(CommandKind.CTRL, values)
+
+
+def kind_mismatch(kind: CommandKind, actuators: Sequence[ActuatorInfo]) -> str | None:
+    """Why a ``kind`` command cannot drive ``actuators`` (those of another kind), or None if it can.
+
+    The one message for the mistake, whether the simulator meets it at a step or a controller
+    at construction.
+    """
+    wrong = [] if kind is CommandKind.CTRL else [a for a in actuators if a.kind != kind.value]
+    if not wrong:
+        return None
+    listing = ", ".join(f"{a.name} ({a.kind})" for a in wrong[:6])
+    return (f"A {kind.value} command cannot drive {listing}: the actuator kind differs. "
+            f"Send a command of the actuator's kind, a raw ctrl command (mbctl.robots.commands.ctrl: "
+            f"each actuator's own units), or convert the model's actuators "
+            f"(e.g. mbctl.robots.edits.position_to_motor for torque control).")

@@ -10,7 +10,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from mbctl.robots.commands import Command, CommandKind
+from mbctl.robots.commands import Command, kind_mismatch
 from mbctl.robots.exceptions import CommandError, UnknownNameError
 from mbctl.robots.fastmath import SMALL_VECTOR_MAX, any_outside
 from mbctl.robots.model_pair import Robot
@@ -84,15 +84,9 @@ class CommandBinder:
                     known = list(actuators) + [j for j in self._by_joint if j not in actuators]
                     raise UnknownNameError("actuator or actuated joint", name, known)
                 infos.append(info)
-        wrong = [] if command.kind is CommandKind.CTRL else [a for a in infos if a.kind != command.kind.value]
-        if wrong:
-            listing = ", ".join(f"{a.name} ({a.kind})" for a in wrong[:6])
-            raise CommandError(
-                f"A {command.kind.value} command cannot drive {listing}: the actuator kind differs. "
-                f"Send a command of the actuator's kind, a raw ctrl command (mbctl.robots.commands.ctrl: "
-                f"each actuator's own units), or convert the model's actuators "
-                f"(e.g. mbctl.robots.edits.position_to_motor for torque control)."
-            )
+        wrong = kind_mismatch(command.kind, infos)
+        if wrong is not None:
+            raise CommandError(wrong)
         index = np.array([a.index for a in infos], dtype=int)
         low = np.array([a.ctrl_range[0] for a in infos])
         high = np.array([a.ctrl_range[1] for a in infos])

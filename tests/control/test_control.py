@@ -302,3 +302,17 @@ def test_loop_rejects_a_reference_of_the_wrong_kind(two_link_torque):
     pd = JointPD(two_link_torque, gains_from_frequency(10.0, 1.0, 0.1))
     with pytest.raises(ReferenceMismatch, match="takes a JointReference"):
         run(sim, pd, task_reference([0.1, 0.2]), 0.01)
+
+
+def test_computed_torque_on_position_actuators_fails_at_construction(two_link):
+    """Its message is the simulator's for a torque sent to a position actuator, said up front."""
+    from mbctl.robots.commands import torque
+    from mbctl.sim import Simulator
+
+    with pytest.raises(CommandError) as at_step:
+        Simulator(two_link).step(torque([0.0, 0.0]))
+    with pytest.raises(ControllerSetupError) as at_build:
+        ComputedTorque(two_link, gains_from_frequency(10.0))
+    assert str(at_build.value) == f"ComputedTorque outputs torques. {at_step.value}"
+    assert "shoulder (position), elbow (position)" in str(at_build.value)
+    assert "position_to_motor" in str(at_build.value)
