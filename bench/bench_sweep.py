@@ -29,7 +29,8 @@ from dask.distributed import Client, LocalCluster
 from mujoco import rollout
 
 from mbctl.jobs.catalog import RobotSource, parse_grid
-from mbctl.jobs.sweep import SweepConfig, cached_robot, local_cluster, run_sweep, run_task
+from mbctl.jobs.sweep import SweepConfig, cached_robot, run_sweep, run_task
+from mbctl.jobs.sweep_cluster import local_cluster
 
 JOB, DURATION = "g1-stand", 2.0
 ROLLOUT_STEPS = 1000  # 2 s at the G1's 2 ms step

@@ -1,17 +1,18 @@
-"""Whole-body inverse dynamics on the G1: our controller per cycle, TSID in the same run, QP solvers.
+"""Whole-body inverse dynamics on the G1: our controller per cycle, TSID in the same run, QP paths,
+the job's overhead, and the cycle against the number of contact points.
 
-    python bench/bench_wbc.py            # timings (needs MENAGERIE_ROOT; TSID if installed)
+    python bench/bench_wbc.py            # timings (needs MENAGERIE_ROOT; TSID if built)
     python bench/bench_wbc.py --push     # also: the largest push impulse survived per direction
 
 Timings are medians over the same 60 states of a squat run by our controller (so both controllers
-see moving, loaded states), interleaved. TSID: ``pip install tsid`` (1.10 uses pin 4.1, as we do);
-without it that part is skipped with a line saying so.
+see moving, loaded states), interleaved rounds. TSID: ``bench/build_tsid.sh`` then
+``export PYTHONPATH=...`` (see bench/README.md); without it that column is skipped with a line
+saying so. Every ratio is measured in the same run; the load average is printed with it.
 """
 
 from __future__ import annotations
 
 import argparse
-import dataclasses
 import os
 import statistics
 import sys
@@ -22,11 +23,12 @@ from pathlib import Path
 import numpy as np
 import qpsolvers
 
+from mbctl.control.wbc import FootContact, WholeBodyController, foot_contact_from_model, standing_controller
 from mbctl.jobs.g1_wbc import G1_WBC, WBCParams, g1_whole_body
 from mbctl.jobs.runner import run_job
 from mbctl.robots import load_robot
 from mbctl.robots.edits import position_to_motor
-from mbctl.robots.g1 import crouched_start, with_palm_sites
+from mbctl.robots.g1 import FEET, PELVIS, TORSO, crouched_start, with_palm_sites
 from mbctl.robots.interface import RobotState
 from mbctl.sim.simulator import Simulator
 
@@ -37,7 +39,7 @@ def _states(robot, n: int = 60, stride: int = 10) -> list[RobotState]:
     """States of a squat under our controller: ``n`` states, every ``stride``-th cycle."""
     sim = Simulator(robot)
     sim.reset("stand")
-    sim.set_state(crouched_start(robot), np.zeros(robot.pin_model.nv))
+    sim.set_state(crouched_start(robot), np.zeros(robot.nv))
     wb = g1_whole_body(robot)
     wb.hold(sim.read_state())
     c0 = wb.com.target
@@ -62,26 +64,46 @@ def _per_cycle(fn, states, repeats: int = 5) -> float:
     return statistics.median(samples)
 
 
-def _controller(robot, q0: np.ndarray, momentum: bool = True, warm_start: bool = True):
-    """Our controller at rest at ``q0``: the job's task set, or without angular momentum (TSID's)."""
-    wb = g1_whole_body(robot)
+def _controller(robot, q0: np.ndarray, momentum: bool = True, daqp_only: bool = False,
+                points_per_foot: int | None = None) -> WholeBodyController:
+    """Our controller at rest at ``q0``: the job's task set, or without angular momentum (TSID's).
+
+    ``daqp_only`` skips the equality-constrained fast path (daqp on every cycle, as when an
+    inequality binds); ``points_per_foot`` replaces each sole's 4 corners by a grid of points.
+    """
+    contacts = None
+    if points_per_foot is not None:
+        contacts = [_grid_foot(foot_contact_from_model(robot, f), points_per_foot) for f in FEET]
+    wb = standing_controller(robot, FEET, PELVIS, TORSO, contacts=contacts)
     ctrl = wb.controller
-    ctrl.config = dataclasses.replace(ctrl.config, warm_start=warm_start)
     if not momentum:
         ctrl.remove_task(wb.momentum)
-    wb.hold(RobotState(q0, np.zeros(robot.pin_model.nv), 0.0))
+    if daqp_only:
+        qp = ctrl._qp  # the bench times the general path on purpose (a private hook)
+        qp.solve = lambda m_eq: qp._daqp(np.arange(m_eq), 0)  # type: ignore[method-assign]
+    wb.hold(RobotState(q0, np.zeros(robot.nv), 0.0))
     return ctrl
+
+
+def _grid_foot(contact: FootContact, n: int) -> FootContact:
+    """The same sole with ``n`` points: a grid over the rectangle of its corners (n = 4, 8, 16...)."""
+    lo, hi = contact.points_F.min(0), contact.points_F.max(0)
+    cols = {4: 2, 8: 4, 16: 4}[n]
+    rows = n // cols
+    xs, ys = np.linspace(lo[0], hi[0], cols), np.linspace(lo[1], hi[1], rows)
+    pts = np.array([[x, y, lo[2]] for x in xs for y in ys])
+    return FootContact(contact.name, contact.frame, pts, contact.mu, contact.geoms)
 
 
 #: Our controller on TSID's task set (no angular-momentum task): the ratio's numerator.
 SAME_TASKS = "ours, TSID's tasks"
 
 
-def timings(robot) -> None:
+def timings(robot) -> dict[str, float]:
     states = _states(robot)
     q0 = crouched_start(robot)
     ctrls = {"ours": _controller(robot, q0), SAME_TASKS: _controller(robot, q0, momentum=False),
-             "ours, cold start": _controller(robot, q0, warm_start=False)}
+             "ours, daqp every cycle": _controller(robot, q0, daqp_only=True)}
     qp_times: dict[str, list[float]] = {name: [] for name in ctrls}
 
     def ours(name):
@@ -97,9 +119,9 @@ def timings(robot) -> None:
         from tsid_g1 import TsidG1
 
         tsid_ctrl = TsidG1(ctrls["ours"], q0)
-        tau_tsid = tsid_ctrl.compute(q0, np.zeros(robot.pin_model.nv))  # joint order (idx_v - 6)
+        tau_tsid = tsid_ctrl.compute(q0, np.zeros(robot.nv))  # joint order (idx_v - 6)
         same = ctrls[SAME_TASKS]
-        same.compute(RobotState(q0, np.zeros(robot.pin_model.nv), 0.0))
+        same.compute(RobotState(q0, np.zeros(robot.nv), 0.0))
         tau_ours = same.solution.tau  # actuator order
         tau_tsid = tau_tsid[np.asarray(same.joints.idx_v) - 6]
         mg = same.state.mass * 9.81
@@ -111,7 +133,6 @@ def timings(robot) -> None:
         print("TSID not importable (see bench/README.md for building it): its column is skipped")
     except MemoryError:
         # seen with the PyPI tsid 1.10 wheel + pin 4.1: RobotWrapper(model, ...) raises MemoryError
-        # even for pin.buildSampleModelHumanoid() (a binary mismatch of the wheels)
         print("TSID imports but its RobotWrapper(pin.Model) fails (MemoryError: the PyPI tsid 1.10 "
               "wheel; build it from source, bench/README.md): its column is skipped")
     medians: dict[str, list[float]] = {name: [] for name in fns}
@@ -119,35 +140,40 @@ def timings(robot) -> None:
         for name, fn in fns.items():
             medians[name].append(_per_cycle(fn, states, repeats=2))
     res = {k: statistics.median(v) for k, v in medians.items()}
-    solver = ctrls["ours"].config.solver
-    print(f"G1 whole-body ID per cycle (Pinocchio terms + QP build + solve), median over {len(states)} "
-          f"squat states x 10, load average {os.getloadavg()[0]:.1f}:")
+    fast = ctrls["ours"].fast_path_cycles / max(1, ctrls["ours"].fast_path_cycles + ctrls["ours"].daqp_cycles)
+    print(f"G1 whole-body ID per cycle (Pinocchio terms, task rows, QP), median over {len(states)} squat "
+          f"states x 10, load average {os.getloadavg()[0]:.1f}:")
     for name in ctrls:
-        print(f"  {name + f' (qpsolvers/{solver})':38s} {res[name] * 1e6:6.0f} us; QP solve alone "
-              f"{statistics.median(qp_times[name]) * 1e6:4.0f} us  (goal 400 us)")
+        print(f"  {name:34s} {res[name] * 1e6:6.0f} us; QP {statistics.median(qp_times[name]) * 1e6:4.0f} us")
+    print(f"  (equality-constrained fast path taken in {fast * 100:.0f} % of these states)")
     if "tsid" in res:
-        print(f"  {'TSID 1.10 (C++, eiquadprog-fast)':38s} {res['tsid'] * 1e6:6.0f} us   ratio ours/TSID "
-              f"{res[SAME_TASKS] / res['tsid']:.2f}x on the same task set")
-    # warm start on consecutive cycles (the job's case)
-    consecutive = _states(robot, n=200, stride=1)
-    warm = {w: _controller(robot, q0, warm_start=w) for w in (True, False)}
-    t_qp: dict[bool, list[float]] = {True: [], False: []}
-    for _ in range(3):
-        for w, ctrl in warm.items():
-            for st in consecutive:
-                ctrl.compute(st)
-                t_qp[w].append(ctrl.solution.qp_time_s)
-    warm_us, cold_us = (statistics.median(t_qp[w]) * 1e6 for w in (True, False))
-    print(f"warm start on {len(consecutive)} consecutive cycles: QP solve {warm_us:.0f} us warm against "
-          f"{cold_us:.0f} us cold")
-    # the QP backend: the same problem through each installed solver
-    ctrl = ctrls["ours"]
-    ctrl.compute(states[-1])
-    problem = _last_problem(ctrl, states[-1])
-    print(f"QP backends on the same G1 problem ({ctrl.n_x} variables):")
-    for solver in ("daqp", "proxqp", "osqp", "quadprog"):
+        print(f"  {'TSID 1.10 (C++, eiquadprog-fast)':34s} {res['tsid'] * 1e6:6.0f} us")
+        print(f"  ratio ours/TSID : {res[SAME_TASKS] / res['tsid']:.2f} on the same task set (goal <= 1.0); "
+              f"with daqp every cycle {res['ours, daqp every cycle'] / res['tsid']:.2f}")
+    _backends(ctrls["ours"], states[-1])
+    return {"bench_controller_us": res["ours"] * 1e6}
+
+
+def _backends(ctrl: WholeBodyController, state: RobotState) -> None:
+    """The same problem through each QP path and backend."""
+    ctrl.compute(state)
+    qp = ctrl._qp  # the bench reads the last cycle's buffers (a private hook)
+    m_eq = ctrl._n_unact + 6 * sum(cs.active for cs in ctrl.contacts.values())
+    problem = qp.problem(m_eq)
+    ref = qpsolvers.solve_problem(problem, solver="daqp").x
+    paths = {"structured (fast path)": lambda: qp.solve(m_eq),
+             "daqp direct (two-sided rows)": lambda: qp._daqp(np.arange(m_eq), 0)}
+    print(f"QP on the same G1 problem ({ctrl.n_x} variables, {m_eq} equalities):")
+    for name, fn in paths.items():
+        t = []
+        for _ in range(200):
+            t0 = time.perf_counter()
+            x = fn().x
+            t.append(time.perf_counter() - t0)
+        print(f"  {name:30s} {statistics.median(t) * 1e6:7.0f} us, |x - x_daqp| {np.abs(x - ref).max():.1e}")
+    for solver in ("daqp", "proxqp", "osqp"):
         if solver not in qpsolvers.available_solvers:
-            print(f"  {solver:8s} not installed")
+            print(f"  {'qpsolvers/' + solver:30s} not installed")
             continue
         t = []
         for _ in range(50):
@@ -156,26 +182,36 @@ def timings(robot) -> None:
                 warnings.simplefilter("ignore")  # osqp: "converted to csc_matrix"
                 sol = qpsolvers.solve_problem(problem, solver=solver)
             t.append(time.perf_counter() - t0)
-        ref = qpsolvers.solve_problem(problem, solver="daqp").x
-        print(f"  {solver:8s} {statistics.median(t) * 1e6:7.0f} us, found={sol.found}, "
+        print(f"  {'qpsolvers/' + solver:30s} {statistics.median(t) * 1e6:7.0f} us, found={sol.found}, "
               f"primal residual {sol.primal_residual():.1e}, |x - x_daqp| {np.abs(sol.x - ref).max():.1e}")
 
 
-def _last_problem(ctrl, state):
-    """Rebuild the QP of ``state`` by solving with a spy solver name (qpsolvers.Problem)."""
-    captured = {}
-    original = qpsolvers.solve_problem
+def job_ratios(robot, bench_controller_us: float) -> None:
+    """The controller inside the g1-wbc job against the bench, and the job's cycle against the controller."""
+    rows = []
+    for k in range(3):
+        rec = run_job(G1_WBC, WBCParams("squat", duration=4.0), Path("out/bench_wbc_job") / str(k),
+                      quiet=True)
+        v = rec.values
+        rows.append((v["controller_time_median_us"], v["cycle_time_median_us"]))
+    ctrl_us = statistics.median(r[0] for r in rows)
+    cycle_us = statistics.median(r[1] for r in rows)
+    print(f"g1-wbc squat 4 s (3 runs, medians), load average {os.getloadavg()[0]:.1f}:")
+    print(f"  controller in the job {ctrl_us:.0f} us / in this bench {bench_controller_us:.0f} us : "
+          f"{ctrl_us / bench_controller_us:.2f} (goal <= 1.1)")
+    print(f"  job cycle {cycle_us:.0f} us / its controller {ctrl_us:.0f} us : {cycle_us / ctrl_us:.2f} "
+          "(goal <= 1.3; the cycle: state, controller, physics step, plant monitor, CSV row)")
 
-    def spy(problem, solver, **kw):
-        captured["p"] = problem
-        return original(problem, solver=solver, **kw)
 
-    qpsolvers.solve_problem = spy
-    try:
-        ctrl.compute(state)
-    finally:
-        qpsolvers.solve_problem = original
-    return captured["p"]
+def scaling(robot) -> None:
+    """Cycle time against the number of contact points per foot."""
+    states = _states(robot, n=30)
+    q0 = crouched_start(robot)
+    print("WBC cycle against contact points per foot (the same squat states):")
+    for n in (4, 8, 16):
+        ctrl = _controller(robot, q0, points_per_foot=n)
+        t = _per_cycle(ctrl.compute, states, repeats=3)
+        print(f"  {n:2d} points per foot ({ctrl.n_x} variables): {t * 1e6:6.0f} us")
 
 
 #: Foot slip [m] above which a push counts as not withstood.
@@ -191,7 +227,7 @@ def push_limits() -> None:
         while hi - lo > 0.5:
             mid = 0.5 * (lo + hi)
             rec = run_job(G1_WBC, WBCParams("push", impulse=mid, direction=float(angle)),
-                          Path("out/bench_push") / f"{angle}")
+                          Path("out/bench_push") / f"{angle}", quiet=True)
             # survived: did not fall and the feet held (a sideways shove can slide the robot
             # across the floor without a fall: that is not standing the push)
             held = rec.values.get("fell") is False and rec.values["max_foot_slip_m"] < MAX_SLIP_M
@@ -204,7 +240,9 @@ def main() -> None:
     parser.add_argument("--push", action="store_true", help="Also bisect the largest push per direction.")
     args = parser.parse_args()
     robot = position_to_motor(with_palm_sites(load_robot("g1")))
-    timings(robot)
+    figures = timings(robot)
+    job_ratios(robot, figures["bench_controller_us"])
+    scaling(robot)
     if args.push:
         push_limits()
 

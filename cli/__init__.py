@@ -25,9 +25,9 @@ app = typer.Typer(
 def _register_commands() -> None:
     # One module per command family; each exposes register(app). Imported here, not at module
     # top, so `mbctl --help` stays fast and a broken family names itself in the traceback.
-    from mbctl.cli import demo, g1, g1_wbc, ik, robots, sim, sweep, view, xcheck
+    from mbctl.cli import demo, g1, g1_wbc, ik, robots, serve, sim, sweep, view, xcheck
 
-    for family in (robots, sim, demo, g1, g1_wbc, xcheck, ik, sweep, view):
+    for family in (robots, sim, demo, g1, g1_wbc, xcheck, ik, sweep, view, serve):
         family.register(app)
 
 
@@ -55,22 +55,24 @@ def fail(message: str, code: int = 2) -> typer.Exit:
 
 
 def _wants_rendering(argv: list[str]) -> bool:
-    if "--web" in argv:  # the browser draws: no OpenGL here
-        return False
-    return "--video" in argv or bool(argv) and argv[0] in ("render", "replay")
+    """Whether the command renders offscreen (render, replay --video, any --video)."""
+    return "--video" in argv or bool(argv) and argv[0] == "render"
 
 
 def main() -> None:
     """Console-script entry point: toolkit errors exit 2 with their message, no traceback."""
-    if _wants_rendering(sys.argv[1:]):
-        # MuJoCo reads MUJOCO_GL when first imported: pick a headless backend before that.
-        from mbctl.gl import VideoError, choose_gl_backend
+    # MuJoCo reads MUJOCO_GL when first imported: pick a headless backend before that, or switch
+    # OpenGL off for the commands that do not render (a bad MUJOCO_GL then breaks none of them).
+    from mbctl.gl import VideoError, choose_gl_backend, disable_gl
 
+    if _wants_rendering(sys.argv[1:]) and "--help" not in sys.argv:
         try:
             choose_gl_backend()
         except VideoError as exc:
             typer.echo(f"error: {exc}", err=True)
             sys.exit(2)
+    else:
+        disable_gl()
     _register_commands()
     try:
         app()

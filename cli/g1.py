@@ -7,6 +7,20 @@ from typing import Annotated
 import typer
 
 from mbctl.cli._run import OutputOpt, QuietOpt, VideoOpt, VideoSizeOpt, execute, video_spec
+from mbctl.cli.plant_options import (
+    DomainOpt,
+    DropOpt,
+    DryRunOpt,
+    EstimateOpt,
+    ImuNoiseOpt,
+    InterfaceOpt,
+    JitterOpt,
+    LatencyOpt,
+    LinkSeedOpt,
+    NetworkOpt,
+    TruthOpt,
+    WatchdogOpt,
+)
 from mbctl.cli.robots import ModelDirOpt
 from mbctl.jobs import options
 from mbctl.jobs.g1 import G1_ARM_PD, G1_STAND, G1_TRACK
@@ -26,13 +40,32 @@ def stand(
     omega: Omega = 10.0,
     zeta: Zeta = 1.0,
     model_dir: ModelDirOpt = None,
+    interface: InterfaceOpt = "sim",
+    domain: DomainOpt = 0,
+    network_interface: NetworkOpt = "lo",
+    latency_ms: LatencyOpt = 0.0,
+    jitter_ms: JitterOpt = 0.0,
+    drop: DropOpt = 0.0,
+    imu_noise: ImuNoiseOpt = 0.0,
+    estimate: EstimateOpt = False,
+    link_seed: LinkSeedOpt = 0,
+    truth: TruthOpt = None,
+    watchdog_periods: WatchdogOpt = 3,
+    dry_run: DryRunOpt = False,
     output: OutputOpt = None,
     quiet: QuietOpt = False,
     video: VideoOpt = False,
     video_size: VideoSizeOpt = "640x480",
 ) -> None:
-    """Stand on the floor under PD + gravity compensation in torque mode; exit 1 if it fell."""
-    params = options.g1_stand(duration=duration, omega=omega, zeta=zeta, model_dir=model_dir)
+    """Stand on the floor under PD + gravity compensation in torque mode; exit 1 if it fell.
+
+    --interface dds runs the same controller on the G1's low-level DDS (a robot, or `mbctl serve g1`).
+    """
+    params = options.g1_stand(duration=duration, omega=omega, zeta=zeta, model_dir=model_dir,
+                              interface=interface, domain=domain, network_interface=network_interface,
+                              latency_ms=latency_ms, jitter_ms=jitter_ms, drop=drop, imu_noise=imu_noise,
+                              estimate=estimate, link_seed=link_seed, truth=truth,
+                              watchdog_periods=watchdog_periods, dry_run=dry_run)
     execute(G1_STAND, params, output, quiet, video_spec(video, video_size))
 
 
@@ -47,7 +80,10 @@ def track(
     video: VideoOpt = False,
     video_size: VideoSizeOpt = "640x480",
 ) -> None:
-    """Computed torque on the welded-base G1 along ruckig trajectories (arms, legs, waist)."""
+    """Computed torque on the welded-base G1 along ruckig trajectories (arms, legs, waist).
+
+    In-process only: the welded base is a simulation edit no real robot has.
+    """
     params = options.g1_track(duration=duration, omega=omega, zeta=zeta, max_rms_rad=max_rms_rad,
                               model_dir=model_dir)
     execute(G1_TRACK, params, output, quiet, video_spec(video, video_size))
@@ -62,14 +98,34 @@ def arm_pd(
     ] = True,
     max_rms_rad: MaxRms = None,
     model_dir: ModelDirOpt = None,
+    interface: InterfaceOpt = "sim",
+    domain: DomainOpt = 0,
+    network_interface: NetworkOpt = "lo",
+    latency_ms: LatencyOpt = 0.0,
+    jitter_ms: JitterOpt = 0.0,
+    drop: DropOpt = 0.0,
+    imu_noise: ImuNoiseOpt = 0.0,
+    estimate: EstimateOpt = False,
+    link_seed: LinkSeedOpt = 0,
+    truth: TruthOpt = None,
+    watchdog_periods: WatchdogOpt = 3,
+    dry_run: DryRunOpt = False,
     output: OutputOpt = None,
     quiet: QuietOpt = False,
     video: VideoOpt = False,
     video_size: VideoSizeOpt = "640x480",
 ) -> None:
-    """One arm follows a ruckig trajectory through the Menagerie position actuators."""
+    """One arm follows a ruckig trajectory through the Menagerie position actuators.
+
+    Over DDS (--interface dds) the targets go out as position commands with the actuators' kp and kv.
+    """
     params = options.g1_arm_pd(duration=duration, side=side, gravity_feedforward=gravity_feedforward,
-                               max_rms_rad=max_rms_rad, model_dir=model_dir)
+                               max_rms_rad=max_rms_rad, model_dir=model_dir, interface=interface,
+                               domain=domain,
+                               network_interface=network_interface, latency_ms=latency_ms,
+                               jitter_ms=jitter_ms, drop=drop, imu_noise=imu_noise, estimate=estimate,
+                               link_seed=link_seed, truth=truth, watchdog_periods=watchdog_periods,
+                               dry_run=dry_run)
     execute(G1_ARM_PD, params, output, quiet, video_spec(video, video_size))
 
 

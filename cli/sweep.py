@@ -11,7 +11,8 @@ import typer
 from mbctl.cli._run import QuietOpt
 from mbctl.jobs.catalog import CATALOG, parse_grid
 from mbctl.jobs.runner import Progress
-from mbctl.jobs.sweep import SweepConfig, run_sweep
+from mbctl.jobs.sweep import CSV_NAME, SweepConfig, run_sweep
+from mbctl.limits import MAX_SWEEP_TASKS
 
 
 def sweep(
@@ -29,6 +30,9 @@ def sweep(
     scheduler: Annotated[
         str | None, typer.Option("--scheduler", help="Use this Dask scheduler (tcp://HOST:PORT).")
     ] = None,
+    connect_timeout: Annotated[
+        float, typer.Option("--connect-timeout", help="Seconds to wait for --scheduler to answer.")
+    ] = 10.0,
     dashboard: Annotated[
         bool, typer.Option("--dashboard", help="Serve the Dask dashboard (local cluster, port 8787).")
     ] = False,
@@ -44,15 +48,24 @@ def sweep(
                                       "sweep.png, runs/."),
     ] = None,
     quiet: QuietOpt = False,
+    force: Annotated[
+        bool, typer.Option("--force", help=f"Run a grid of more than {MAX_SWEEP_TASKS:,} tasks.")
+    ] = False,
 ) -> None:
     """Run JOB for every combination of the values (times the seeds); exit 1 if a row failed."""
     grid = parse_grid(job, param or [], seeds)
     folder = output or Path("out") / f"sweep-{job}"
-    config = SweepConfig(job, grid, folder, workers, scheduler, dashboard, resume, metric)
+    config = SweepConfig(job, grid, folder, workers, scheduler, dashboard, resume, metric, connect_timeout,
+                         force)
     result = run_sweep(config, Progress(enabled=not quiet and sys.stdout.isatty()))
     lines = [f"{len(result.rows)} rows ({result.ran} run, {result.skipped} kept) in "
              f"{result.wall_time_s:.1f} s; {len(result.failures)} not completed",
              "wrote " + ", ".join(str(p) for p in result.files.values())]
+    if result.earlier:
+        lines.append(f"kept {len(result.earlier)} rows of an earlier grid in {CSV_NAME} (after this grid's)")
+    if result.unsound:
+        lines.append(f"{result.unsound} rows of the earlier {CSV_NAME} were torn or disagreed with their "
+                     "run folder: dropped (this grid's ones ran again)")
     if result.note:
         lines.append(result.note)
     if result.status == "interrupted":

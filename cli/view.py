@@ -7,7 +7,7 @@ import sys
 import time
 from collections.abc import Callable
 from pathlib import Path
-from typing import Annotated, Any
+from typing import Annotated, Any, BinaryIO, cast
 
 import mujoco
 import typer
@@ -16,6 +16,7 @@ from mbctl.cli.robots import ModelDirOpt, RobotArg, SceneOpt
 from mbctl.jobs.runner import OutputError, check_output_file
 from mbctl.robots import load_robot
 from mbctl.robots.model_pair import Robot
+from mbctl.sim.atomic import write_bytes_atomic
 from mbctl.sim.trajectory import TRAJECTORY_NAME, base_body, load_trajectory
 from mbctl.sim.video import VideoError, VideoSpec, film_trajectory, parse_size, still
 
@@ -86,7 +87,8 @@ def render(
     loaded = load_robot(robot, scene, model_dir=model_dir)
     data = _posed(loaded, keyframe)
     frame = still(loaded.mj_model, data, VideoSpec(width, height), base_body(loaded))
-    image.imsave(output, frame)
+    # written beside and renamed: a symbolic link at --output is replaced, never followed
+    write_bytes_atomic(output, lambda f: image.imsave(cast(BinaryIO, f), frame, format="png"))
     typer.echo(f"wrote {output} ({width}x{height} px)")
 
 

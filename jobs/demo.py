@@ -41,6 +41,7 @@ from mbctl.control.task_space import TaskSpaceComputedTorque
 from mbctl.jobs.plots import new_figure
 from mbctl.jobs.recording import LoopRows, PlantSite, command_columns
 from mbctl.jobs.runner import Job, Outcome, RunContext, Work
+from mbctl.limits import check_duration
 from mbctl.planners.cartesian import CartesianTrajectory, PathLimits, time_path, to_joint_trajectory
 from mbctl.planners.paths import square_path
 from mbctl.planners.trajectory import JointTrajectory
@@ -104,6 +105,7 @@ class DemoConfig:
             )
         if self.duration_s is not None and not (np.isfinite(self.duration_s) and self.duration_s > 0):
             raise ControllerSetupError(f"duration_s must be > 0 [s]; got {self.duration_s}")
+        check_duration(self.duration_s)
         if not (np.isfinite(self.model_error_pct) and self.model_error_pct > -100):
             raise ControllerSetupError(
                 f"model_error_pct must be a finite percentage > -100; got {self.model_error_pct}"

@@ -21,7 +21,8 @@ v, command; ``base_z_m`` for the robots on the floor), ``report.json`` with the 
 and a PNG. The verdict (exit 1 when missed): the robot on the floor did not fall (pelvis within
 ``PELVIS_BOUND_M`` of the keyframe height, and not fallen by the G1's fall rule
 (``mbctl.robots.g1.G1_FALL``: pelvis below 0.5 m or a body other than the feet on the floor,
-measured by a ``PlantMonitor``) and, when given, the joint RMS error bound.
+measured by a ``PlantMonitor`` in-process, from the bridge's truth log over DDS) and, when given,
+the joint RMS error bound.
 
 Plots: reference dashed, plant solid; at most eight labelled traces per panel. The tracking jobs
 draw one row per limb that moves, coloured by the joint's role in the limb (the knee has one
@@ -44,14 +45,16 @@ from mbctl.control.gains import PDGains, gains_from_frequency
 from mbctl.control.loop import RunLog, run
 from mbctl.control.pd_gravity import PDGravity
 from mbctl.control.position_pd import PositionTargetPD
+from mbctl.jobs.plant import Plant, PlantOptions, dry_run, prepare_plant, report_plant
 from mbctl.jobs.plots import coincident_groups, joint_colors, most_moved, new_figure, tracking_panels
 from mbctl.jobs.recording import LoopRows, command_columns
 from mbctl.jobs.runner import Job, Outcome, RunContext, Work
+from mbctl.limits import check_duration
 from mbctl.planners.ruckig_planner import JointLimits, plan_ruckig, plan_waypoints
 from mbctl.planners.trajectory import JointTrajectory
 from mbctl.robots.edits import position_to_motor, weld_base
 from mbctl.robots.g1 import G1_FALL, KEYFRAME, LEG_WORDS, joint_role, limb_of
-from mbctl.robots.interface import RobotState
+from mbctl.robots.interface import RobotInterface, RobotState
 from mbctl.robots.model_pair import Robot
 from mbctl.robots.registry import load_robot
 from mbctl.sim.monitor import PlantMonitor
@@ -149,14 +152,16 @@ def _positive(name: str, value: float | None, allow_none: bool = True) -> None:
 
 @dataclass(frozen=True)
 class StandParams:
-    """``mbctl g1-stand``: duration [s], closed-loop omega [rad/s], zeta [-], model directory."""
+    """``mbctl g1-stand``: duration [s], closed-loop omega [rad/s], zeta [-], model directory, plant."""
 
     duration_s: float = 10.0
     omega_rad_s: float = 10.0
     zeta: float = 1.0
     model_dir: str | None = None
+    plant: PlantOptions = PlantOptions()
 
     def __post_init__(self) -> None:
+        check_duration(self.duration_s)
         for name in ("duration_s", "omega_rad_s", "zeta"):
             _positive(name, getattr(self, name), allow_none=False)
 
@@ -172,6 +177,7 @@ class TrackParams:
     model_dir: str | None = None
 
     def __post_init__(self) -> None:
+        check_duration(self.duration_s)
         _positive("duration_s", self.duration_s)
         _positive("omega_rad_s", self.omega_rad_s, allow_none=False)
         _positive("zeta", self.zeta, allow_none=False)
@@ -187,10 +193,12 @@ class ArmPDParams:
     gravity_feedforward: bool = True
     max_rms_error_rad: float | None = None
     model_dir: str | None = None
+    plant: PlantOptions = PlantOptions()
 
     def __post_init__(self) -> None:
         if self.side not in ("left", "right"):
             raise ControlError(f"side must be 'left' or 'right'; got {self.side!r}")
+        check_duration(self.duration_s)
         _positive("duration_s", self.duration_s)
         _positive("max_rms_error_rad", self.max_rms_error_rad)
 
@@ -201,13 +209,13 @@ def _base_z_index(robot: Robot) -> int:
     return base.idx_q + 2
 
 
-def _loop(ctx: RunContext, sim: Simulator, controller: PDGravity | ComputedTorque | PositionTargetPD,
+def _loop(ctx: RunContext, sim: RobotInterface, controller: PDGravity | ComputedTorque | PositionTargetPD,
           reference: Any, duration_s: float, unit: str, label: str, base_z: bool = False) -> RunLog:
     """Run the control loop with every cycle streamed to the run's CSV and the progress bar.
 
     Args:
         ctx: The run.
-        sim: The plant.
+        sim: The plant (a Simulator is attached to the run for replay and video).
         controller: The control law.
         reference: What ``control.loop.run`` takes as the reference.
         duration_s: Simulated time [s].
@@ -215,7 +223,8 @@ def _loop(ctx: RunContext, sim: Simulator, controller: PDGravity | ComputedTorqu
         label: Progress bar label.
         base_z: Add a ``base_z_m`` column (floating-base height [m]).
     """
-    ctx.attach(sim)
+    if isinstance(sim, Simulator):
+        ctx.attach(sim)
     joints = controller.joints
     extra_names = ["base_z_m"] if base_z else []
     header = LoopRows.header(sim.robot, [f"q_ref_{j}_rad" for j in joints], command_columns(joints, unit),
@@ -328,51 +337,99 @@ def prepare_stand(params: StandParams, robot: Robot | None = None) -> Work:
     probe = PDGravity(robot, PDGains(np.ones(1), np.ones(1)))
     inertia = stance_inertia(robot, q0, probe.joints)
     gains = gains_from_frequency(params.omega_rad_s, params.zeta, inertia)
+    plant = prepare_plant(params.plant, robot, KEYFRAME)
 
     def work(ctx: RunContext) -> Outcome:
-        sim = Simulator(robot)
-        sim.reset(KEYFRAME)
-        controller = PDGravity(robot, gains)
-        ctx.sections["inputs"] = {"keyframe": KEYFRAME, "controller": "pd_gravity"}
-        ctx.sections["gains"] = {
-            "kp_N_m_rad": dict(zip(controller.joints, controller.gains.kp.tolist(), strict=True)),
-            "kd_N_m_s_rad": dict(zip(controller.joints, controller.gains.kd.tolist(), strict=True)),
-            "inertia_kg_m2": dict(zip(controller.joints, inertia.tolist(), strict=True)),
-        }
-        z0 = sim.base_z_m
-        ctx.values["pelvis_z_keyframe_m"] = float(z0)
-        plant = PlantMonitor(sim, fall_rule=G1_FALL.reason).attach()
-        reference = joint_reference(q0[controller.joint_map.idx_q])
-        log = _loop(ctx, sim, controller, reference, params.duration_s, "N_m", "g1-stand", base_z=True)
-        z = np.append(log.q[:, _base_z_index(robot)], sim.base_z_m)
-        dev = z - z0
-        joint_err = log.reference - log.q[:, controller.joint_map.idx_q]
-        fell = plant.fall_reason is not None
-        off = bool(np.abs(dev).max() > PELVIS_BOUND_M)
-        ctx.values.update({
-            "pelvis_z_min_m": float(z.min()),
-            "pelvis_z_max_m": float(z.max()),
-            "pelvis_z_final_m": float(z[-1]),
-            "pelvis_max_deviation_m": float(np.abs(dev).max()),
-            "fell": fell,
-            "fall_reason": plant.fall_reason,
-            "joint_rms_error_rad": float(np.sqrt(np.mean(joint_err**2))),
-            "joint_max_error_rad": float(np.abs(joint_err).max()),
-            "saturated_cycles": controller.saturation.saturated_cycles,
-            "simulated_time_s": sim.time_s,
-            "wall_time_s": log.wall_time_s,
-        })
-        ctx.sections["controller_saturation"] = controller.saturation.summary()
-        _stand_plot(ctx, log, dev[:-1], -joint_err, controller.joints, params)
-        v = ctx.values
-        return Outcome(not (fell or off), (
-            f"g1-stand {params.duration_s:g} s, PD + gravity (omega {params.omega_rad_s:g} rad/s, zeta "
-            f"{params.zeta:g}): {'FELL (' + str(plant.fall_reason) + ')' if fell else 'stood'}, pelvis max "
-            f"deviation {v['pelvis_max_deviation_m'] * 1e3:.2f} mm, joint RMS error "
-            f"{v['joint_rms_error_rad']:.3e} rad, saturated cycles {v['saturated_cycles']}",
-        ), f"did not fall; pelvis within {PELVIS_BOUND_M * 1e3:g} mm of the keyframe height")
+        with plant(ctx) as p:
+            return _stand(ctx, params, robot, gains, inertia, q0, p)
 
     return work
+
+
+def _stand(ctx: RunContext, params: StandParams, robot: Robot, gains: PDGains, inertia: np.ndarray,
+           q0: np.ndarray, p: Plant) -> Outcome:
+    sim = p.interface
+    if p.options.dry_run:
+        return dry_run(ctx, p, params.duration_s)
+    controller = PDGravity(robot, gains)
+    ctx.sections["inputs"] = {"keyframe": KEYFRAME, "controller": "pd_gravity"}
+    ctx.sections["gains"] = {
+        "kp_N_m_rad": dict(zip(controller.joints, controller.gains.kp.tolist(), strict=True)),
+        "kd_N_m_s_rad": dict(zip(controller.joints, controller.gains.kd.tolist(), strict=True)),
+        "inertia_kg_m2": dict(zip(controller.joints, inertia.tolist(), strict=True)),
+    }
+    z0 = float(q0[_base_z_index(robot)])
+    ctx.values["pelvis_z_keyframe_m"] = float(z0)
+    reference = joint_reference(q0[controller.joint_map.idx_q])
+    monitor = _fall_monitor(p)
+    log = _loop(ctx, sim, controller, reference, params.duration_s, "N_m", "g1-stand", base_z=True)
+    z = np.append(log.q[:, _base_z_index(robot)], sim.read_state().q[_base_z_index(robot)])
+    dev = z - z0
+    joint_err = log.reference - log.q[:, controller.joint_map.idx_q]
+    reason = _fall_reason(ctx, p, log, monitor, z)
+    fell = reason is not None
+    off = _off_bound(ctx, float(np.abs(dev).max()))
+    ctx.values.update({
+        "pelvis_z_min_m": float(z.min()),
+        "pelvis_z_max_m": float(z.max()),
+        "pelvis_z_final_m": float(z[-1]),
+        "pelvis_max_deviation_m": float(np.abs(dev).max()),
+        "fell": fell,
+        "fall_reason": reason,
+        "joint_rms_error_rad": float(np.sqrt(np.mean(joint_err**2))),
+        "joint_max_error_rad": float(np.abs(joint_err).max()),
+        "saturated_cycles": controller.saturation.saturated_cycles,
+        "simulated_time_s": sim.time_s,
+        "wall_time_s": log.wall_time_s,
+    })
+    ctx.sections["controller_saturation"] = controller.saturation.summary()
+    _stand_plot(ctx, log, dev[:-1], -joint_err, controller.joints, params)
+    v = ctx.values
+    return Outcome(not (fell or off), (
+        f"g1-stand {params.duration_s:g} s, PD + gravity (omega {params.omega_rad_s:g} rad/s, zeta "
+        f"{params.zeta:g}): {'FELL (' + str(reason) + ')' if fell else 'stood'}, pelvis max "
+        f"deviation {v['pelvis_max_deviation_m'] * 1e3:.2f} mm, joint RMS error "
+        f"{v['joint_rms_error_rad']:.3e} rad, saturated cycles {v['saturated_cycles']}", *_plant_lines(v),
+    ), f"did not fall; pelvis within {PELVIS_BOUND_M * 1e3:g} mm of the keyframe height")
+
+
+def _fall_monitor(p: Plant) -> PlantMonitor | None:
+    """The G1's fall rule on the in-process plant (None over DDS: the truth log says it there)."""
+    return PlantMonitor(p.sim, fall_rule=G1_FALL.reason).attach() if p.sim is not None else None
+
+
+def _fall_reason(ctx: RunContext, p: Plant, log: RunLog, monitor: PlantMonitor | None,
+                 z: np.ndarray) -> str | None:
+    """Why the G1 fell, by its one rule: the plant's monitor, the bridge's truth log, else the state."""
+    truth_fell = report_plant(ctx, p, log, G1_FALL.base_min_z_m)
+    if monitor is not None:
+        return monitor.fall_reason
+    if truth_fell is not None:
+        return "pelvis below its fall height (truth log)" if truth_fell else None
+    z_min = float(np.min(z))  # the estimated pelvis height: the client's only view of it
+    return G1_FALL.reason(z_min, ())
+
+
+def _off_bound(ctx: RunContext, estimated_deviation_m: float) -> bool:
+    """The pelvis moved more than PELVIS_BOUND_M (the truth log's word over the estimate's)."""
+    deviation = ctx.values.get("truth_pelvis_max_deviation_m", estimated_deviation_m)
+    return bool(deviation > PELVIS_BOUND_M)
+
+
+def _plant_lines(v: dict[str, Any]) -> tuple[str, ...]:
+    """The summary lines of a run through a link or over DDS (none in-process)."""
+    if v.get("interface") != "dds":
+        return ()
+    lines: tuple[str, ...] = (f"dds: {v['cycles']} cycles, period p50 {v['period_p50_ms']:.3f} ms, p99 "
+             f"{v['period_p99_ms']:.3f} ms, {v['deadline_misses']} deadline misses, "
+             f"{v['messages_lost']} messages lost, "
+             f"{v['watchdog_events']} watchdog events",)
+    if "truth_pelvis_max_deviation_m" in v:
+        lines += (f"truth: pelvis max deviation {v['truth_pelvis_max_deviation_m'] * 1e3:.2f} mm, foot slip "
+                  f"{v['truth_max_foot_slip_m'] * 1e3:.3f} mm; estimator error max "
+                  f"{v['estimator_position_error_max_m'] * 1e3:.2f} mm, "
+                  f"{v['estimator_orientation_error_max_deg']:.3f} deg",)
+    return lines
 
 
 def _stand_plot(ctx: RunContext, log: RunLog, dz_m: np.ndarray, deviation: np.ndarray,
@@ -430,14 +487,14 @@ def prepare_track(params: TrackParams, robot: Robot | None = None) -> Work:
 
 
 def _tracking_outcome(ctx: RunContext, name: str, log: RunLog, err: np.ndarray, controller: ControllerBase,
-                      sim: Simulator, bound: float | None, extra: dict[str, Any], title: str,
+                      sim: RobotInterface, bound: float | None, extra: dict[str, Any], title: str,
                       body: tuple[np.ndarray, np.ndarray, tuple[str, ...]] | None = None,
-                      plant: PlantMonitor | None = None) -> Outcome:
+                      fall_reason: str | None = None) -> Outcome:
     """Tracking values, the plot and the verdict: the RMS bound (if any) met and the robot standing.
 
     With ``body`` (pelvis height change (N,) [m], the other joints' deviation (N, m) [rad], their
-    names) and ``plant`` (its fall rule), the robot stands on the floor: a fall, or the pelvis
-    moving more than ``PELVIS_BOUND_M``, fails the run too.
+    names) and ``fall_reason`` (the G1's fall rule), the robot stands on the floor: a fall, or the
+    pelvis moving more than ``PELVIS_BOUND_M``, fails the run too.
     """
     rms_by_joint = np.sqrt(np.mean(err**2, axis=0))
     rms = float(np.sqrt(np.mean(err**2)))
@@ -462,12 +519,12 @@ def _tracking_outcome(ctx: RunContext, name: str, log: RunLog, err: np.ndarray, 
              f"saturated cycles {ctx.values['saturated_cycles']}"]
     if body is not None:
         dz = float(np.abs(body[0]).max())
-        reason = plant.fall_reason if plant is not None else None
-        fell = reason is not None or dz > PELVIS_BOUND_M
-        ctx.values.update({"pelvis_max_deviation_m": dz, "fell": reason is not None, "fall_reason": reason})
+        ctx.values.update({"pelvis_max_deviation_m": dz, "fell": fall_reason is not None,
+                           "fall_reason": fall_reason})
+        fell = fall_reason is not None or _off_bound(ctx, dz)
         bounds.append(f"did not fall; pelvis within {PELVIS_BOUND_M * 1e3:g} mm of the keyframe height")
         lines.append(f"pelvis max deviation {dz * 1e3:.2f} mm "
-                     f"({'FELL (' + reason + ')' if reason is not None else 'stood'})")
+                     f"({'FELL (' + fall_reason + ')' if fall_reason is not None else 'stood'})")
     _tracking_plot(ctx, name, log, controller.joints, err, f"{title}: joint RMS {rms:.3g} rad", body)
     passed = (bound is None or rms <= bound) and not fell
     return Outcome(passed, tuple(lines), "; ".join(bounds) or None)
@@ -478,35 +535,45 @@ def prepare_arm_pd(params: ArmPDParams, robot: Robot | None = None) -> Work:
     robot = robot or load_robot("g1", model_dir=params.model_dir)
     traj = arm_trajectory(robot, params.side, robot.timestep_s)
     controller = PositionTargetPD(robot, traj.names, gravity_feedforward=params.gravity_feedforward)
-    q0 = robot.keyframe_q(KEYFRAME)
     others = tuple(a.joint for a in robot.actuators.values() if a.joint not in traj.names)
+    # every actuator holds the keyframe's target (DDS: the pose at start); the arm's are overwritten
+    plant = prepare_plant(params.plant, robot, KEYFRAME)
 
     def work(ctx: RunContext) -> Outcome:
-        sim = Simulator(robot)
-        sim.reset(KEYFRAME)  # every actuator holds the keyframe's target; the arm's are overwritten
-        z0 = sim.base_z_m
-        duration = params.duration_s or traj.duration_s + 0.3
-        ctx.sections["inputs"] = {
-            "duration_s": duration, "controller": "position_pd",
-            "limits": {"max_velocity_rad_s": ARM_LIMITS[0], "max_acceleration_rad_s2": ARM_LIMITS[1],
-                       "max_jerk_rad_s3": ARM_LIMITS[2]},
-            "actuator_kp_N_m_rad": controller.kp.tolist(), "actuator_kv_N_m_s_rad": controller.kv.tolist()}
-        plant = PlantMonitor(sim, fall_rule=G1_FALL.reason).attach()
-        log = _loop(ctx, sim, controller, traj, duration, "rad", f"g1-arm-pd ({params.side} arm)",
-                    base_z=True)
-        err = log.reference - log.q[:, controller.joint_map.idx_q]
-        dz = log.q[:, _base_z_index(robot)] - z0
-        idx_others = [robot.joint(j).idx_q for j in others]
-        deviation = log.q[:, idx_others] - q0[idx_others]
-        return _tracking_outcome(ctx, "g1_arm_pd", log, err, controller, sim, params.max_rms_error_rad, {
-            "arm": params.side,
-            "trajectory_duration_s": traj.duration_s,
-            "other_joints_max_deviation_rad": float(np.abs(deviation).max()),
-        }, f"G1 {params.side} arm through the position actuators"
-           + (" + gravity feed-forward" if params.gravity_feedforward else ""),
-           (dz, deviation, others), plant)
+        with plant(ctx) as p:
+            return _arm_pd(ctx, params, robot, traj, controller, others, p)
 
     return work
+
+
+def _arm_pd(ctx: RunContext, params: ArmPDParams, robot: Robot, traj: JointTrajectory,
+            controller: PositionTargetPD, others: tuple[str, ...], p: Plant) -> Outcome:
+    sim = p.interface
+    q0 = robot.keyframe_q(KEYFRAME)
+    duration = params.duration_s or traj.duration_s + 0.3
+    if p.options.dry_run:
+        return dry_run(ctx, p, duration)
+    z0 = float(q0[_base_z_index(robot)])
+    ctx.sections["inputs"] = {
+        "duration_s": duration, "controller": "position_pd",
+        "limits": {"max_velocity_rad_s": ARM_LIMITS[0], "max_acceleration_rad_s2": ARM_LIMITS[1],
+                   "max_jerk_rad_s3": ARM_LIMITS[2]},
+        "actuator_kp_N_m_rad": controller.kp.tolist(), "actuator_kv_N_m_s_rad": controller.kv.tolist()}
+    monitor = _fall_monitor(p)
+    log = _loop(ctx, sim, controller, traj, duration, "rad", f"g1-arm-pd ({params.side} arm)",
+                base_z=True)
+    err = log.reference - log.q[:, controller.joint_map.idx_q]
+    dz = log.q[:, _base_z_index(robot)] - z0
+    idx_others = [robot.joint(j).idx_q for j in others]
+    deviation = log.q[:, idx_others] - q0[idx_others]
+    reason = _fall_reason(ctx, p, log, monitor, log.q[:, _base_z_index(robot)])
+    return _tracking_outcome(ctx, "g1_arm_pd", log, err, controller, sim, params.max_rms_error_rad, {
+        "arm": params.side,
+        "trajectory_duration_s": traj.duration_s,
+        "other_joints_max_deviation_rad": float(np.abs(deviation).max()),
+    }, f"G1 {params.side} arm through the position actuators"
+       + (" + gravity feed-forward" if params.gravity_feedforward else ""),
+       (dz, deviation, others), reason)
 
 
 #: The G1 jobs.

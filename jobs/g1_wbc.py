@@ -33,6 +33,7 @@ from mbctl.jobs.recording import q_columns
 from mbctl.jobs.runner import Job, Outcome, RunContext, Work
 from mbctl.jobs.wbc_log import WBCLog
 from mbctl.jobs.wbc_scenarios import PUSH_PERIOD_S, scenario
+from mbctl.limits import check_duration
 from mbctl.robots.edits import position_to_motor, scale_masses
 from mbctl.robots.g1 import FEET, G1_FALL, KEYFRAME, PELVIS, TORSO, crouched_start, with_palm_sites
 from mbctl.robots.model_pair import Robot
@@ -100,6 +101,7 @@ class WBCParams:
     def __post_init__(self) -> None:
         if self.scenario not in SCENARIOS:
             raise WBCSetupError(f"unknown scenario {self.scenario!r}; choose one of {', '.join(SCENARIOS)}")
+        check_duration(self.duration)
         if self.duration is not None and not (np.isfinite(self.duration) and self.duration > 0):
             raise WBCSetupError(f"duration must be a positive number of seconds; got {self.duration}")
         if self.scenario != "push" and (self.impulse is not None or self.direction is not None):

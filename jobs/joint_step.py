@@ -7,6 +7,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from mbctl.jobs.runner import Job, Outcome, RunContext, Work
+from mbctl.limits import MAX_STEPS, check_limit
 from mbctl.robots.commands import position_target
 from mbctl.robots.exceptions import CommandError
 from mbctl.robots.model_pair import Robot
@@ -49,6 +50,7 @@ class JointStepParams:
     def __post_init__(self) -> None:
         if self.steps < 1:
             raise CommandError(f"steps must be >= 1; got {self.steps}")
+        check_limit("--steps", self.steps, MAX_STEPS, advice="every step is a CSV row; take fewer")
         if not np.isfinite(self.delta_rad):
             raise CommandError(f"delta must be finite; got {self.delta_rad}")
 

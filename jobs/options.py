@@ -7,7 +7,8 @@ their signatures (names, types, defaults) to parse ``--param NAME=V1,V2``, so th
 the sweep cannot disagree on a name, a unit or a default. ``tests/cli`` checks that every
 command's signature matches its function here.
 
-Only parsing and unit conversion live here; validation stays in the dataclasses.
+Only parsing and unit conversion live here; validation stays in the dataclasses (except the
+duration limit of the G1 jobs, checked here: ``mbctl.limits``).
 """
 
 from __future__ import annotations
@@ -21,6 +22,8 @@ from mbctl.jobs.g1 import ArmPDParams, StandParams, TrackParams
 from mbctl.jobs.g1_wbc import WBCParams
 from mbctl.jobs.ik import IKParams
 from mbctl.jobs.joint_step import JointStepParams
+from mbctl.jobs.plant import PlantOptions
+from mbctl.jobs.serve import ServeParams
 from mbctl.jobs.workspace import WorkspaceParams
 from mbctl.jobs.xcheck import XcheckParams
 
@@ -35,9 +38,14 @@ def demo(controller: str = "ct", compare: bool = False, model_error: float = 0.0
 
 
 def g1_stand(duration: float = 10.0, omega: float = 10.0, zeta: float = 1.0,
-             model_dir: str | None = None) -> StandParams:
-    """``mbctl g1-stand``: duration in s, omega in rad/s, zeta (-)."""
-    return StandParams(duration, omega, zeta, model_dir)
+             model_dir: str | None = None, interface: str = "sim", domain: int = 0,
+             network_interface: str = "lo", latency_ms: float = 0.0, jitter_ms: float = 0.0,
+             drop: float = 0.0, imu_noise: float = 0.0, estimate: bool = False, link_seed: int = 0,
+             truth: Path | None = None, watchdog_periods: int = 3, dry_run: bool = False) -> StandParams:
+    """``mbctl g1-stand``: duration in s, omega in rad/s, zeta (-); the plant options (see ``plant``)."""
+    return StandParams(duration, omega, zeta, model_dir, plant(
+        interface, domain, network_interface, latency_ms, jitter_ms, drop, imu_noise, estimate, link_seed,
+        truth, watchdog_periods, dry_run))
 
 
 def g1_track(duration: float | None = None, omega: float = 40.0, zeta: float = 1.0,
@@ -47,9 +55,36 @@ def g1_track(duration: float | None = None, omega: float = 40.0, zeta: float = 1
 
 
 def g1_arm_pd(duration: float | None = None, side: str = "left", gravity_feedforward: bool = True,
-              max_rms_rad: float | None = None, model_dir: str | None = None) -> ArmPDParams:
-    """``mbctl g1-arm-pd``: duration in s, side left or right, max_rms_rad in rad."""
-    return ArmPDParams(duration, side, gravity_feedforward, max_rms_rad, model_dir)
+              max_rms_rad: float | None = None, model_dir: str | None = None, interface: str = "sim",
+              domain: int = 0, network_interface: str = "lo", latency_ms: float = 0.0, jitter_ms: float = 0.0,
+              drop: float = 0.0, imu_noise: float = 0.0, estimate: bool = False, link_seed: int = 0,
+              truth: Path | None = None, watchdog_periods: int = 3, dry_run: bool = False) -> ArmPDParams:
+    """``mbctl g1-arm-pd``: duration in s, side left or right, max_rms_rad in rad; the plant options."""
+    return ArmPDParams(duration, side, gravity_feedforward, max_rms_rad, model_dir, plant(
+        interface, domain, network_interface, latency_ms, jitter_ms, drop, imu_noise, estimate, link_seed,
+        truth, watchdog_periods, dry_run))
+
+
+def plant(interface: str = "sim", domain: int = 0, network_interface: str = "lo", latency_ms: float = 0.0,
+          jitter_ms: float = 0.0, drop: float = 0.0, imu_noise: float = 0.0, estimate: bool = False,
+          link_seed: int = 0, truth: Path | None = None, watchdog_periods: int = 3,
+          dry_run: bool = False) -> PlantOptions:
+    """The plant options of the G1 jobs: latency and jitter in ms, drop a probability, imu_noise a factor.
+
+    ``link_seed`` (not ``seed``: a sweep's ``--seeds`` is for jobs that always draw random numbers)
+    seeds the in-process link's drops, jitter and noise.
+    """
+    return PlantOptions(interface, domain, network_interface, latency_ms, jitter_ms, drop, imu_noise,
+                        estimate, link_seed, None if truth is None else str(truth), watchdog_periods, dry_run)
+
+
+def serve(robot: str = "g1", start: str = "stand", domain: int = 0, network_interface: str = "lo",
+          latency_ms: float = 0.0, jitter_ms: float = 0.0, drop: float = 0.0, imu_noise: float = 0.0,
+          seed: int = 0, duration: float | None = None, idle_timeout: float | None = None,
+          model_dir: str | None = None) -> ServeParams:
+    """``mbctl serve``: latency and jitter in ms, drop a probability, duration and idle_timeout in s."""
+    return ServeParams(robot, start, domain, network_interface, latency_ms, jitter_ms, drop, imu_noise, seed,
+                       duration, idle_timeout, model_dir)
 
 
 def g1_wbc(scenario: str = "stand", duration: float | None = None, impulse: float | None = None,

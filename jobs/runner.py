@@ -12,9 +12,10 @@ The runner owns the output folder (one run per folder):
   :class:`OutputError` (exit 2) naming it.
 - A lock file ``.mbctl.lock`` (holding the pid) makes a second concurrent run into the same folder
   refuse with a message naming the other process; a lock left by a dead process is taken over.
-- The files of an earlier run in the folder (those its ``report.json`` lists, the report itself and
-  temporary files of dead processes) are removed before the new run writes anything, so no file
-  of an earlier run survives beside a new one.
+- The files of an earlier run in the folder (those its ``report.json`` lists with their SHA-256
+  and that still have it, the report itself and temporary files of dead processes) are removed
+  before the new run writes anything, so no file of an earlier run survives beside a new one,
+  and no other file is removed (see :func:`clear_previous_run`).
 - ``report.json`` is written when the work starts (status ``running``) and again at the end in
   every case: ``completed``, ``interrupted`` (Ctrl-C or SIGTERM), ``diverged`` (the plant
   diverged) or ``failed`` (with the message), with the values known so far, the row count, the
@@ -40,12 +41,24 @@ from typing import Any, Generic, TypeVar
 import numpy as np
 
 from mbctl.exceptions import ToolkitError
-from mbctl.sim.atomic import FILE_MODE, write_bytes_atomic, write_json_atomic
+from mbctl.jobs.exceptions import JobError as JobError
+from mbctl.jobs.exceptions import OutputError as OutputError
+from mbctl.jobs.run_folder import LOCK_NAME as LOCK_NAME
+from mbctl.jobs.run_folder import (
+    REPORT_NAME,
+    check_output_dir,
+    check_output_names,
+    clear_previous_run,
+    folder_lock,
+    output_hashes,
+)
+from mbctl.jobs.run_folder import check_output_file as check_output_file
+from mbctl.sim.atomic import write_bytes_atomic, write_json_atomic
 from mbctl.sim.exceptions import SimulationDiverged
 from mbctl.sim.recorder import CsvStream
 from mbctl.sim.report import environment, model_section, run_section
 from mbctl.sim.simulator import Simulator
-from mbctl.sim.trajectory import TrajectoryRecorder
+from mbctl.sim.trajectory import MODEL_NAME, TRAJECTORY_NAME, TrajectoryRecorder
 from mbctl.sim.video import Overlay, VideoRecorder, VideoSpec
 
 P = TypeVar("P")
@@ -55,16 +68,7 @@ EXIT_OUT_OF_BOUND = 1
 EXIT_BAD_INPUT = 2
 EXIT_INTERRUPTED = 130
 
-REPORT_NAME = "report.json"
-LOCK_NAME = ".mbctl.lock"
-
-
-class JobError(ToolkitError):
-    """Base class of the job runner's errors."""
-
-
-class OutputError(JobError):
-    """The output folder cannot be created or written, or another run holds it."""
+VIDEO_NAME = "video.mp4"
 
 
 class Interrupted(BaseException):  # noqa: N818 - an interruption, like KeyboardInterrupt
@@ -173,7 +177,7 @@ class RunContext:
         The first CSV opened is the run's main one: its row count and last ``time_s`` go in the
         report and the interruption message.
         """
-        stream = CsvStream(self.path(name or f"{self.job.replace('-', '_')}.csv", "csv" if not
+        stream = CsvStream(self.path(name or csv_name(self.job), "csv" if not
                                      self._streams else name), header)
         self._streams.append(stream)
         if self.csv is None:
@@ -207,7 +211,7 @@ class RunContext:
             self._recorders.append(traj.attach())
             if self.video is not None:
                 spec = replace(self.video, contact_forces=contact_forces or self.video.contact_forces)
-                film = VideoRecorder(sim, self.path("video.mp4", "video"), spec, overlay, frame_qpos,
+                film = VideoRecorder(sim, self.path(VIDEO_NAME, "video"), spec, overlay, frame_qpos,
                                      frame_points_W)
                 self._recorders.append(film.attach())
         return sim
@@ -305,88 +309,9 @@ def default_output(job: str) -> Path:
     return Path("out") / job
 
 
-def check_output_dir(path: Path) -> Path:
-    """Create ``path`` and prove it writable; OutputError naming it otherwise (nothing else written)."""
-    path = Path(path)
-    try:
-        if path.exists() and not path.is_dir():
-            raise OutputError(f"output {path} exists and is not a directory; choose a folder")
-        path.mkdir(parents=True, exist_ok=True)
-        probe = path / f".mbctl-write-test.{os.getpid()}"
-        probe.write_text("")
-        probe.unlink()
-    except OutputError:
-        raise
-    except OSError as exc:
-        reason = exc.strerror or type(exc).__name__
-        raise OutputError(f"cannot write to output folder {path}: {reason}; choose another "
-                          "--output") from None
-    return path
-
-
-def check_output_file(path: Path) -> Path:
-    """Check that file ``path`` can be created (its folder made and writable) before any work."""
-    check_output_dir(Path(path).parent)
-    if Path(path).is_dir():
-        raise OutputError(f"{path} is a directory; give a file name")
-    return Path(path)
-
-
-def _pid_alive(pid: int) -> bool:
-    try:
-        os.kill(pid, 0)
-    except ProcessLookupError:
-        return False
-    except PermissionError:
-        return True
-    return True
-
-
-@contextlib.contextmanager
-def folder_lock(path: Path) -> Iterator[None]:
-    """Hold ``path/.mbctl.lock`` for the block; OutputError if a live process holds it."""
-    lock = path / LOCK_NAME
-    for _ in range(2):
-        try:
-            fd = os.open(lock, os.O_CREAT | os.O_EXCL | os.O_WRONLY, FILE_MODE)
-        except FileExistsError:
-            try:
-                pid = int(lock.read_text().strip() or "0")
-            except (OSError, ValueError):
-                pid = 0
-            if pid and pid != os.getpid() and _pid_alive(pid):
-                raise OutputError(
-                    f"another mbctl run (pid {pid}) is writing to {path}; wait for it or choose "
-                    "another --output"
-                ) from None
-            lock.unlink(missing_ok=True)  # left by a process that is gone
-            continue
-        with os.fdopen(fd, "w") as f:
-            f.write(str(os.getpid()))
-        break
-    try:
-        yield
-    finally:
-        lock.unlink(missing_ok=True)
-
-
-def _clear_previous_run(path: Path) -> None:
-    """Remove the previous run's outputs (from its report), the report and dead temp files."""
-    import json
-
-    report = path / REPORT_NAME
-    if report.exists():
-        try:
-            listed = json.loads(report.read_text()).get("outputs", {})
-        except (OSError, ValueError):
-            listed = {}
-        for name in listed.values() if isinstance(listed, dict) else ():
-            target = path / Path(str(name)).name  # only files inside this folder
-            if target.is_file():
-                target.unlink()
-        report.unlink()
-    for tmp in path.glob(".*.tmp"):
-        tmp.unlink(missing_ok=True)  # under the lock, every temp file is a dead process's
+def csv_name(job: str) -> str:
+    """The name of a job's main CSV: ``<job>.csv`` with dashes as underscores."""
+    return f"{job.replace('-', '_')}.csv"
 
 
 @contextlib.contextmanager
@@ -459,6 +384,9 @@ def _report(ctx: RunContext, params: Any, status: str, message: str | None, outc
     report["values"] = _jsonable(ctx.values)
     report.update(_jsonable(ctx.sections))
     report["outputs"] = {role: p.name for role, p in ctx.files.items() if role != "report"}
+    if status != "running":  # what the next run into this folder may remove, and nothing else
+        report["output_sha256"] = output_hashes(ctx.output_dir, {
+            role: p for role, p in ctx.files.items() if role != "report"})
     return report
 
 
@@ -489,12 +417,14 @@ def run_job(
             (status ``failed``).
     """
     folder = check_output_dir(Path(output_dir) if output_dir is not None else default_output(job.name))
+    check_output_names(folder, [REPORT_NAME, TRAJECTORY_NAME, MODEL_NAME, csv_name(job.name),
+                                *([VIDEO_NAME] if video is not None else [])])
     work = job.prepare(params)
     progress = Progress(enabled=not quiet and sys.stdout.isatty())
     ctx = RunContext(folder, job.name, progress=progress, video=video)
     report_path = folder / REPORT_NAME
     with folder_lock(folder):
-        _clear_previous_run(folder)
+        clear_previous_run(folder)
         write_json_atomic(report_path, _report(ctx, params, "running", None, None, 0.0))
         wall0 = time.perf_counter()
         status, message, outcome, code = "failed", None, None, EXIT_OUT_OF_BOUND

@@ -16,7 +16,9 @@ The sweep folder holds:
 
 A task that fails is a row with its status and error, never a lost sweep. Ctrl-C (or SIGTERM)
 cancels the remaining tasks and still writes the finished rows (exit 130). ``resume`` keeps the
-rows of ``sweep.csv`` whose run completed or diverged and runs the others.
+rows of ``sweep.csv`` whose run completed or diverged and runs the others. It trusts a row only
+if the line is whole and its run folder's report agrees with it (a torn line runs again), and it
+keeps the rows of an earlier grid that this one does not hold (after this grid's rows).
 """
 
 from __future__ import annotations
@@ -28,15 +30,10 @@ import hashlib
 import io
 import itertools
 import json
-import logging
+import math
 import re
-import shutil
-import signal
 import sys
-import threading
 import time
-import warnings
-from collections.abc import Iterator
 from dataclasses import dataclass, field
 from importlib import metadata
 from pathlib import Path
@@ -44,23 +41,23 @@ from typing import Any
 
 from mbctl.exceptions import ToolkitError
 from mbctl.jobs.catalog import CatalogEntry, RobotSource, SweepInputError, entry
+from mbctl.jobs.exceptions import JobError
+from mbctl.jobs.run_folder import REPORT_NAME, check_output_dir, clear_previous_run, folder_lock, refuse_link
 from mbctl.jobs.runner import (
     EXIT_INTERRUPTED,
     EXIT_OK,
     EXIT_OUT_OF_BOUND,
-    REPORT_NAME,
     Interrupted,
     Job,
-    JobError,
     Progress,
-    check_output_dir,
-    folder_lock,
     run_job,
     sigterm_as_interrupt,
 )
+from mbctl.jobs.sweep_cluster import NO_DASK, SweepSetupError, cluster_section, open_client, parse_scheduler
+from mbctl.limits import MAX_SWEEP_TASKS, check_limit
 from mbctl.robots.model_pair import Robot
 from mbctl.robots.registry import load_robot
-from mbctl.sim.atomic import write_json_atomic, write_text_atomic
+from mbctl.sim.atomic import read_text_nofollow, write_json_atomic, write_text_atomic
 from mbctl.sim.report import package_versions
 
 CSV_NAME = "sweep.csv"
@@ -71,11 +68,6 @@ RUNS = "runs"
 TAIL = ("status", "exit_code", "error", "run_dir")
 #: Statuses a resumed sweep does not run again.
 DONE = ("completed", "diverged")
-INSTALL_HINT = "pip install 'mbctl[sweep]'"
-
-
-class SweepSetupError(JobError):
-    """Dask is missing, or the cluster cannot be started or reached."""
 
 
 @dataclass(frozen=True)
@@ -91,6 +83,8 @@ class SweepConfig:
         dashboard: Serve the Dask dashboard (local cluster only).
         resume: Keep the done rows of an earlier ``sweep.csv`` in the folder.
         metric: The report value to plot (default: the job's main value).
+        connect_timeout_s: How long [s] to wait for ``scheduler`` to answer as a Dask scheduler.
+        force: Run more than :data:`~mbctl.limits.MAX_SWEEP_TASKS` tasks.
     """
 
     job: str
@@ -101,10 +95,14 @@ class SweepConfig:
     dashboard: bool = False
     resume: bool = False
     metric: str | None = None
+    connect_timeout_s: float = 10.0
+    force: bool = False
 
     def __post_init__(self) -> None:
         if self.workers < 1:
             raise SweepInputError(f"--workers must be >= 1; got {self.workers}")
+        if not 0 < self.connect_timeout_s <= 600:
+            raise SweepInputError(f"--connect-timeout must be in (0, 600] s; got {self.connect_timeout_s}")
 
 
 @dataclass
@@ -114,8 +112,12 @@ class SweepResult:
     Attributes:
         status: completed or interrupted.
         rows: Every row (done earlier and now), in grid order.
-        ran: Tasks this sweep finished; skipped: rows kept from an earlier sweep.
+        ran: Tasks this sweep finished; skipped: rows of this grid kept from an earlier sweep.
         failures: Rows whose status is not completed.
+        earlier: Rows of an earlier sweep (``--resume``) whose combination this grid does not
+            hold: kept in sweep.csv after this grid's rows (not in ``rows``).
+        unsound: Rows of the earlier sweep.csv that were torn or did not match their run folder:
+            dropped (run again where this grid holds them).
         files: sweep.csv, sweep.json and (if drawn) sweep.png.
         wall_time_s: Wall time [s] from submitting the first task to the last result.
         note: Why no plot was drawn, if none was.
@@ -129,6 +131,8 @@ class SweepResult:
     files: dict[str, Path] = field(default_factory=dict)
     wall_time_s: float = 0.0
     note: str | None = None
+    earlier: list[dict[str, Any]] = field(default_factory=list)
+    unsound: int = 0
 
     @property
     def exit_code(self) -> int:
@@ -211,22 +215,67 @@ def _key(row: dict[str, Any], names: list[str]) -> tuple[str, ...]:
     return tuple(cell(row[n]) for n in names)
 
 
-def read_done_rows(path: Path, names: list[str]) -> dict[tuple[str, ...], dict[str, Any]]:
-    """The rows of an earlier ``sweep.csv`` whose run is done, by their parameter values.
+def _row_problem(row: dict[Any, Any], names: list[str], folder: Path) -> str | None:
+    """Why an earlier ``sweep.csv`` row cannot be trusted (torn, edited, or its run gone), or None.
+
+    A row is sound if it has every column and no extra one, an integer exit code and a
+    ``run_dir`` that is its own run folder (``DIR/runs/<name>``); a row whose status a resumed
+    sweep keeps (completed, diverged) also needs that folder's report to have its status.
+    """
+    if None in row or any(v is None for v in row.values()):
+        return "its field count is not the header's (a torn or edited line)"
+    if not re.fullmatch(r"-?\d+", row["exit_code"]):
+        return f"exit_code {row['exit_code']!r} is not an integer"
+    name = run_name({n: row[n] for n in names})
+    if Path(row["run_dir"]).name != name:
+        return f"run_dir {row['run_dir']!r} is not its run folder {name!r}"
+    if row["status"] not in DONE:
+        return None
+    report = folder / RUNS / name / REPORT_NAME
+    try:
+        status = json.loads(read_text_nofollow(report)).get("status")
+    except (OSError, ValueError, AttributeError):
+        return f"{report} is missing or unreadable"
+    if status != row["status"]:
+        return f"its run's report says {status!r}, the row {row['status']!r}"
+    return None
+
+
+def read_earlier_rows(path: Path, names: list[str]) -> tuple[dict[tuple[str, ...], dict[str, Any]], int]:
+    """The sound rows of an earlier ``sweep.csv`` by their parameter values, and the count of the others.
+
+    Rows that fail :func:`_row_problem` (a line cut short by a crash or an edit, a run folder that
+    is gone) are left out, so their combination runs again. ``run_dir`` is set to where the run
+    folder is now (the sweep folder may have moved).
 
     Raises:
-        SweepInputError: The file's parameter columns are not this sweep's.
+        SweepInputError: The file's parameter columns are not this sweep's, or it is not a sweep's
+            CSV.
     """
     if not path.exists():
-        return {}
-    with path.open(newline="") as f:
-        reader = csv.DictReader(f)
-        header = list(reader.fieldnames or [])
-        if header[:len(names)] != names:
-            raise SweepInputError(f"{path} has the columns {', '.join(header[:len(names)])}, not this "
-                                  f"sweep's parameters {', '.join(names)}; drop --resume or choose "
-                                  "another --output")
-        return {_key(r, names): dict(r) for r in reader if r.get("status") in DONE}
+        return {}, 0
+    try:
+        text = read_text_nofollow(path)
+    except (OSError, UnicodeDecodeError) as exc:
+        raise SweepInputError(f"cannot read {path} to resume: {exc}; drop --resume or choose another "
+                              "--output") from None
+    reader = csv.DictReader(io.StringIO(text, newline=""))
+    header = list(reader.fieldnames or [])
+    if header[:len(names)] != names:
+        raise SweepInputError(f"{path} has the columns {', '.join(header[:len(names)])}, not this "
+                              f"sweep's parameters {', '.join(names)}; drop --resume or choose "
+                              "another --output")
+    if header[-len(TAIL):] != list(TAIL):
+        raise SweepInputError(f"{path} does not end its header with {', '.join(TAIL)}: not a sweep's "
+                              "CSV (or cut inside its header); drop --resume or choose another --output")
+    sound, unsound = {}, 0
+    for row in reader:
+        if _row_problem(row, names, path.parent) is None:
+            row["run_dir"] = str(path.parent / RUNS / run_name({n: row[n] for n in names}))
+            sound[_key(row, names)] = dict(row)
+        else:
+            unsound += 1
+    return sound, unsound
 
 
 def write_csv(path: Path, rows: list[dict[str, Any]], names: list[str]) -> Path:
@@ -241,84 +290,32 @@ def write_csv(path: Path, rows: list[dict[str, Any]], names: list[str]) -> Path:
     return write_text_atomic(path, buf.getvalue())
 
 
+def check_runs_folder(folder: Path) -> None:
+    """OutputError if ``DIR/runs``, a run folder in it or a sweep file is a symbolic link."""
+    for name in (CSV_NAME, JSON_NAME, PLOT_NAME, RUNS):
+        refuse_link(folder / name)
+    runs = folder / RUNS
+    if runs.is_dir():
+        for run in runs.iterdir():
+            refuse_link(run)
+
+
 def _clear_previous_sweep(folder: Path) -> None:
-    """Remove an earlier sweep's files and run folders (those holding a report)."""
+    """Remove an earlier sweep's files and what its runs made (run folders left empty go too).
+
+    Each run folder is cleared as the job runner clears a folder (only the files its report
+    lists with their SHA-256), so a file the sweep did not make is never removed.
+    """
     for name in (CSV_NAME, JSON_NAME, PLOT_NAME):
         (folder / name).unlink(missing_ok=True)
     runs = folder / RUNS
     if runs.is_dir():
         for run in runs.iterdir():
-            if run.is_dir() and (run / REPORT_NAME).exists():
-                shutil.rmtree(run)
-
-
-@contextlib.contextmanager
-def _sigint_ignored() -> Iterator[None]:
-    """Ignore SIGINT for the block (main thread only); processes started in it keep ignoring it."""
-    if threading.current_thread() is not threading.main_thread():
-        yield
-        return
-    previous = signal.signal(signal.SIGINT, signal.SIG_IGN)
-    try:
-        yield
-    finally:
-        signal.signal(signal.SIGINT, previous)
-
-
-def local_cluster(workers: int, dashboard: bool = False) -> Any:
-    """A LocalCluster of ``workers`` processes with one thread each, started quietly.
-
-    The workers ignore SIGINT (Ctrl-C reaches the sweep, which cancels and closes them). Without
-    the dashboard the workers' statistical profiler, which only the dashboard shows, is off: it
-    sampled every 10 ms and cost ~3 % of a task's CPU time.
-    """
-    import dask
-    from dask.distributed import LocalCluster
-
-    with _sigint_ignored(), dask.config.set({"distributed.worker.profile.enabled": dashboard}), \
-            warnings.catch_warnings():
-        # Without the dashboard the scheduler still serves /health on 8787, or on a free port when
-        # 8787 is taken (another sweep): that fallback is not worth a warning.
-        warnings.filterwarnings("ignore", message=".*already in use", category=UserWarning)
-        return LocalCluster(n_workers=workers, threads_per_worker=1, processes=True,
-                            dashboard_address=":8787" if dashboard else None, silence_logs=logging.ERROR)
-
-
-@contextlib.contextmanager
-def open_client(config: SweepConfig) -> Iterator[tuple[Any, dict[str, Any]]]:
-    """A Dask client on a new local cluster, or on ``config.scheduler``; closed after the block.
-
-    Yields:
-        The client and the cluster section of ``sweep.json`` (address, workers, threads).
-
-    Raises:
-        SweepSetupError: Dask is not installed, or the scheduler cannot be reached.
-    """
-    try:
-        from dask.distributed import Client
-    except ImportError:
-        raise SweepSetupError(f"mbctl sweep runs on Dask, which is not installed: {INSTALL_HINT}") from None
-    cluster = None
-    try:
-        if config.scheduler is not None:
-            client = Client(config.scheduler, timeout=10)
-        else:
-            cluster = local_cluster(config.workers, config.dashboard)
-            client = Client(cluster)
-    except OSError as exc:
-        if cluster is not None:
-            cluster.close()
-        where = config.scheduler or "a local cluster"
-        raise SweepSetupError(f"cannot start or reach {where}: {exc}") from None
-    try:
-        section = _cluster_section(client)
-        section.update(local=cluster is not None,
-                       dashboard=client.dashboard_link if config.dashboard and cluster is not None else None)
-        yield client, section
-    finally:
-        client.close()
-        if cluster is not None:
-            cluster.close()
+            if run.is_dir() and not run.is_symlink() and (run / REPORT_NAME).exists():
+                with folder_lock(run):
+                    clear_previous_run(run)
+                with contextlib.suppress(OSError):
+                    run.rmdir()  # only if empty
 
 
 def versions() -> dict[str, str]:
@@ -339,9 +336,15 @@ def prepare_sweep(config: SweepConfig) -> tuple[CatalogEntry, list[dict[str, Any
 
     Raises:
         SweepInputError: Unknown job, option or metric.
+        SizeLimitError: More than ``MAX_SWEEP_TASKS`` combinations without ``force``.
         ToolkitError: A combination the job's parameters reject (the message names the values).
     """
     spec = entry(config.job)
+    tasks = math.prod(len(values) for values in config.grid.values())
+    if not config.force:
+        check_limit("the grid", tasks, MAX_SWEEP_TASKS, " tasks",
+                    f"{' x '.join(f'{len(v)} {k}' for k, v in config.grid.items())}; split the grid, "
+                    "or give --force to run it anyway")
     combos = combinations(config.grid)
     for combo in combos:
         try:
@@ -370,25 +373,39 @@ def run_sweep(config: SweepConfig, progress: Progress | None = None, client: Any
         OutputError: The folder is not usable or another process holds it.
     """
     spec, combos = prepare_sweep(config)
+    if config.scheduler is not None and client is None:
+        try:
+            parse_scheduler(config.scheduler)  # a malformed address: nothing written
+        except ImportError:
+            raise SweepSetupError(NO_DASK) from None
     names = list(config.grid)
     folder = check_output_dir(config.output_dir)
     progress = progress or Progress()
     with folder_lock(folder):
-        done = read_done_rows(folder / CSV_NAME, names) if config.resume else {}
+        check_runs_folder(folder)
+        earlier, unsound = read_earlier_rows(folder / CSV_NAME, names) if config.resume else ({}, 0)
         if not config.resume:
             _clear_previous_sweep(folder)
         keys = [_key(c, names) for c in combos]
-        rows: dict[tuple[str, ...], dict[str, Any]] = {k: done[k] for k in keys if k in done}
-        todo = [(k, c) for k, c in zip(keys, combos, strict=True) if k not in done]
-        skipped = len(rows)
-        status = "completed"
+        # rows of this grid found earlier (a failed one stays until its rerun replaces it)
+        rows: dict[tuple[str, ...], dict[str, Any]] = {k: earlier[k] for k in keys if k in earlier}
+        todo = [(k, c) for k, c in zip(keys, combos, strict=True)
+                if rows.get(k, {}).get("status") not in DONE]
+        skipped = len(keys) - len(todo)
+        # rows of an earlier grid that this one does not hold: kept, after this grid's rows
+        in_grid = set(keys)
+        extra = [r for k, r in earlier.items() if k not in in_grid]
+        status, ran = "completed", 0
+
+        def every_row() -> list[dict[str, Any]]:
+            return [rows[k] for k in keys if k in rows] + extra
 
         def flush() -> None:
-            write_csv(folder / CSV_NAME, [rows[k] for k in keys if k in rows], names)
+            write_csv(folder / CSV_NAME, every_row(), names)
 
         with open_client(config) if client is None else contextlib.nullcontext((client, None)) as opened:
             dask_client, cluster = opened
-            cluster = cluster or _cluster_section(dask_client)
+            cluster = cluster or cluster_section(dask_client)
             t0 = time.perf_counter()
             futures: dict[Any, tuple[tuple[str, ...], dict[str, Any]]] = {}
             progress.start(len(todo), f"sweep {spec.name}")
@@ -409,6 +426,7 @@ def run_sweep(config: SweepConfig, progress: Progress | None = None, client: Any
                             result = {"status": "failed", "exit_code": EXIT_OUT_OF_BOUND,
                                       "error": f"{type(exc).__name__}: {exc}"}
                         rows[key] = _row(combo, result, run_dir)
+                        ran += 1
                         flush()
                         progress.advance()
             except (KeyboardInterrupt, Interrupted):
@@ -418,10 +436,11 @@ def run_sweep(config: SweepConfig, progress: Progress | None = None, client: Any
                 progress.stop()
         wall = time.perf_counter() - t0
         ordered = [rows[k] for k in keys if k in rows]
-        result = SweepResult(status, ordered, len(ordered) - skipped, skipped,
-                             [r for r in ordered if r["status"] != "completed"], wall_time_s=wall)
-        result.files["csv"] = write_csv(folder / CSV_NAME, ordered, names)
-        plot = _plot(spec, config, ordered, names, folder / PLOT_NAME)
+        result = SweepResult(status, ordered, ran, skipped,
+                             [r for r in ordered if r["status"] != "completed"], wall_time_s=wall,
+                             earlier=extra, unsound=unsound)
+        result.files["csv"] = write_csv(folder / CSV_NAME, every_row(), names)
+        plot = _plot(spec, config, every_row(), names, folder / PLOT_NAME)
         if plot is not None:
             result.files["plot"] = plot
         else:
@@ -430,6 +449,7 @@ def run_sweep(config: SweepConfig, progress: Progress | None = None, client: Any
             "job": spec.name, "status": status,
             "grid": {k: [cell(v) for v in vs] for k, vs in config.grid.items()},
             "tasks": len(combos), "submitted": len(todo), "ran": result.ran, "skipped": skipped,
+            "earlier_grid_rows": len(extra), "unsound_rows": unsound,
             "wall_time_s": wall, "metric": config.metric or spec.main_value,
             "versions": versions(), "cluster": cluster,
             "failures": [{k: r[k] for k in [*names, "status", "error", "run_dir"]} for r in result.failures],
@@ -443,12 +463,6 @@ def _no_plot_reason(metric: str, rows: list[dict[str, Any]], names: list[str]) -
     if rows and not any(metric in r for r in rows):
         return f"no plot: --metric {metric} is not a value of this job; its values: {', '.join(keys)}"
     return f"no plot: no row has a number for {metric}, or no option has two values"
-
-
-def _cluster_section(client: Any) -> dict[str, Any]:
-    workers = client.scheduler_info().get("workers", {})
-    return {"address": client.scheduler.address, "local": False, "workers": len(workers),
-            "threads": sum(w.get("nthreads", 0) for w in workers.values()), "dashboard": None}
 
 
 def _plot(spec: CatalogEntry, config: SweepConfig, rows: list[dict[str, Any]], names: list[str],

@@ -1,7 +1,7 @@
 """The g1-wbc scenarios: task targets as functions of time, and the pushes on the plant.
 
 ``stand``    CoM over the middle of the feet.
-``squat``    CoM height ``z0 - A (1 - cos 2 pi f t)``, A = 0.08 m, f = 0.5 Hz.
+``squat``    CoM height ``z0 - A (1 - cos 2 pi f t)``, A = 0.06 m, f = 0.5 Hz.
 ``one-foot`` CoM over the left sole, right foot released (force ramp), lifted 5 cm, held 5 s,
              put back, CoM back to the middle.
 ``reach``    both palms 0.20 m forward and back (min-jerk) while balancing.
@@ -26,7 +26,10 @@ from mbctl.robots.g1 import FEET, PALM_SITES, PELVIS
 from mbctl.sim.perturb import Push, PushSchedule
 from mbctl.sim.simulator import Simulator
 
-SQUAT_AMPLITUDE_M = 0.08
+#: CoM drop [m] at the bottom of the squat is twice this. The G1's ankle pitch (range down to
+#: -0.873 rad) reaches its limit near 7 cm from the crouched start with flat feet; 6 cm keeps it
+#: clear (at 8 cm the ankle ran into MuJoCo's joint limit once per cycle: a contact-force spike).
+SQUAT_AMPLITUDE_M = 0.06
 SQUAT_FREQUENCY_HZ = 0.5
 LIFT_HEIGHT_M = 0.05
 REACH_M = 0.20

@@ -19,6 +19,7 @@ from mbctl.control.exceptions import IKSetupError
 from mbctl.control.ik.two_link import TwoLinkArm
 from mbctl.jobs.plots import new_figure
 from mbctl.jobs.runner import Job, Outcome, RunContext, Work
+from mbctl.limits import MAX_WORKSPACE_SAMPLES, check_limit
 from mbctl.robots.model_pair import Robot
 from mbctl.robots.registry import load_robot
 
@@ -46,6 +47,8 @@ class WorkspaceParams:
             )
         if int(self.samples) < 2:
             raise IKSetupError(f"samples must be >= 2 per joint; got {self.samples!r}")
+        check_limit("--samples", int(self.samples), MAX_WORKSPACE_SAMPLES,
+                    advice="the plot draws a samples x samples grid; a few hundred is plenty")
 
 
 def sample_workspace(arm: TwoLinkArm, robot: Robot | None = None, n: int = 121) -> np.ndarray:

@@ -12,6 +12,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from mbctl.jobs.runner import Job, Outcome, RunContext, Work, check_output_file
+from mbctl.limits import MAX_XCHECK_STATES, check_limit
 from mbctl.robots.crosscheck import crosscheck
 from mbctl.robots.exceptions import RobotError
 from mbctl.robots.registry import load_robot
@@ -50,6 +51,8 @@ class XcheckParams:
     def __post_init__(self) -> None:
         if self.states < 0:
             raise RobotError(f"states must be >= 0; got {self.states}")
+        check_limit("--states", self.states, MAX_XCHECK_STATES, advice="split the states over seeds "
+                    "(`mbctl sweep xcheck --param states=N --seeds K`)")
         if self.seed < 0:
             raise RobotError(f"seed must be >= 0; got {self.seed}")
 

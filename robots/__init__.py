@@ -1,5 +1,6 @@
 """Robot descriptions and the model pair (Pinocchio model + MuJoCo model) with conventions."""
 
+from mbctl.robots import mjlog  # noqa: F401 - MuJoCo's log file stays out of the cwd
 from mbctl.robots.commands import Command, CommandKind, ctrl, position_target, torque, velocity_target
 from mbctl.robots.conventions import (
     JointLayout,

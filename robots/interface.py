@@ -13,6 +13,10 @@ import numpy as np
 from mbctl.robots.commands import Command
 from mbctl.robots.model_pair import Robot
 
+#: Names of the state fields a robot does not measure and an estimator provides.
+BASE_POSITION = "base_position"
+BASE_LINEAR_VELOCITY = "base_linear_velocity"
+
 
 class RobotState(NamedTuple):
     """Measured state in Pinocchio's convention.
@@ -21,11 +25,63 @@ class RobotState(NamedTuple):
         q: Configuration (nq,); free-flyer quaternion (x, y, z, w). Read-only copy.
         v: Velocity (nv,); free-flyer linear velocity in the base frame. Read-only copy.
         time_s: Time of the measurement [s].
+        estimated: The fields estimated rather than measured (e.g. :data:`BASE_POSITION`,
+            :data:`BASE_LINEAR_VELOCITY` on a real robot); empty when the plant gives them all.
     """
 
     q: np.ndarray
     v: np.ndarray
     time_s: float
+    estimated: tuple[str, ...] = ()
+
+
+class ImuReading(NamedTuple):
+    """One IMU sample, in the IMU's frame I.
+
+    Attributes:
+        quat_wxyz: Orientation of I in the world W, quaternion (w, x, y, z) (4,).
+        gyro_I: Angular velocity of I in I (3,) [rad/s].
+        accel_I: Specific force (acceleration minus gravity) in I (3,) [m/s^2].
+    """
+
+    quat_wxyz: np.ndarray
+    gyro_I: np.ndarray
+    accel_I: np.ndarray
+
+
+class Proprioception(NamedTuple):
+    """What a legged robot measures of itself each cycle: encoders and IMU, no base position.
+
+    Attributes:
+        time_s: Time of the measurement [s].
+        q_joints: Joint positions (nq - 7,) [rad], the robot's joint order (q without the base).
+        v_joints: Joint velocities (nv - 6,) [rad/s].
+        imu: The IMU sample.
+    """
+
+    time_s: float
+    q_joints: np.ndarray
+    v_joints: np.ndarray
+    imu: ImuReading
+
+
+@runtime_checkable
+class BaseStateEstimator(Protocol):
+    """Estimates a floating base's state from proprioception (given to a plant by the job).
+
+    A robot interface calls ``reset`` with its first reading and ``update`` every cycle; it never
+    needs to know how the estimate is made (the estimators live in ``control/estimation``).
+    """
+
+    @property
+    def estimated(self) -> tuple[str, ...]:
+        """The state fields the estimate provides that the readings do not measure."""
+
+    def reset(self, reading: Proprioception) -> None:
+        """Start from ``reading`` (the robot at rest on its feet)."""
+
+    def update(self, reading: Proprioception) -> tuple[np.ndarray, np.ndarray]:
+        """The base's q (7,) [p_WB, quat_xyzw] and v (6,) [linear, angular, in the base frame]."""
 
 
 @runtime_checkable

@@ -21,6 +21,10 @@ from mbctl.robots.exceptions import ModelFileError, ModelNotFoundError
 
 MANIFEST_NAME = "MANIFEST.sha256"
 MENAGERIE_ENV = "MENAGERIE_ROOT"
+#: How long [s] the download host may take to accept a connection before mbctl calls it offline.
+#: mujoco-menagerie's own download tries 3 times with a 60 s timeout and 1 + 2 s of back-off, so
+#: an offline machine waited 8-16 s (or minutes behind a firewall that drops packets) for the error.
+CONNECT_TIMEOUT_S = 2.0
 
 
 def sha256_file(path: Path) -> str:
@@ -88,6 +92,11 @@ def _from_package(name: str) -> Path:
         entry = mujoco_menagerie.get(name)
         cache = mujoco_menagerie.Cache()
         if not cache.is_cached(entry):
+            unreachable = _unreachable(cache.base_url)
+            if unreachable:
+                raise ModelNotFoundError(
+                    f"Menagerie model {name!r} is not on this machine and cannot be downloaded: "
+                    f"{unreachable}. Offline? {how_to_provide(name)[0].upper()}{how_to_provide(name)[1:]}.")
             size_mb = entry.download_size / 1e6 if entry.download_size else float("nan")
             print(f"mbctl: {name} is not cached; downloading {size_mb:.0f} MB "
                   f"(offline? set {MENAGERIE_ENV} or pass --model-dir)", file=sys.stderr)
@@ -100,6 +109,37 @@ def _from_package(name: str) -> Path:
             f"({type(exc).__name__}: {exc}). Offline? {how_to_provide(name)[0].upper()}"
             f"{how_to_provide(name)[1:]}."
         ) from None
+
+
+def _unreachable(url: str, timeout_s: float = CONNECT_TIMEOUT_S) -> str | None:
+    """Why ``url``'s host cannot be connected to within ``timeout_s`` (name lookup included), or None.
+
+    The lookup (``getaddrinfo``) takes no timeout, so the connection is tried in a daemon thread
+    that is abandoned after ``timeout_s``. Non-network URLs (``file:``) pass.
+    """
+    import socket
+    import threading
+    from urllib.parse import urlsplit
+
+    parts = urlsplit(url)
+    if parts.scheme not in ("http", "https") or not parts.hostname:
+        return None
+    host, port = parts.hostname, parts.port or (443 if parts.scheme == "https" else 80)
+    outcome: list[str | None] = []
+
+    def connect() -> None:
+        try:
+            socket.create_connection((host, port), timeout=timeout_s).close()
+            outcome.append(None)
+        except OSError as exc:
+            outcome.append(f"{type(exc).__name__}: {exc.strerror or exc}")
+
+    thread = threading.Thread(target=connect, name="mbctl-menagerie-probe", daemon=True)
+    thread.start()
+    thread.join(timeout_s)
+    if not outcome:
+        return f"no connection to {host}:{port} within {timeout_s:g} s"
+    return None if outcome[0] is None else f"cannot connect to {host}:{port} ({outcome[0]})"
 
 
 def verify_manifest(directory: Path) -> None:

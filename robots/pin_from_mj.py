@@ -43,6 +43,7 @@ import numpy as np
 import pinocchio as pin
 
 from mbctl.robots.exceptions import ModelMismatchError
+from mbctl.robots.model_size import check_robot_dof
 from mbctl.robots.scene import tree_roots
 
 #: Tolerance on a unit joint axis for using Pinocchio's axis-aligned joint types (RX, PY, ...):
@@ -83,8 +84,10 @@ def pin_model_from_mj(m: mujoco.MjModel, bodies: Iterable[int] | None = None) ->
             without its parent; or the model uses what Pinocchio cannot represent with the same
             q: a hinge or slide joint with a non-zero reference position (``ref``, so that
             ``qpos0`` is not zero), or a free joint that is not its body's first joint.
+        SizeLimitError: The included bodies have more than ``MAX_ROBOT_DOF`` degrees of freedom.
     """
     included = _checked_bodies(m, bodies)
+    check_robot_dof(sum(int(m.body_dofnum[b]) for b in included), _model_name(m))
     model = pin.Model()
     model.name = _model_name(m)
     model.gravity = pin.Motion(np.array(m.opt.gravity, dtype=float), np.zeros(3))

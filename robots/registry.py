@@ -13,6 +13,7 @@ import pinocchio as pin
 from mbctl.robots.exceptions import ModelFileError, ModelNotFoundError, UnknownNameError
 from mbctl.robots.menagerie import resolve_menagerie_dir
 from mbctl.robots.model_pair import ModelSource, Robot, load_mj_spec, load_pin_model
+from mbctl.robots.model_size import check_model_file_size, check_robot_dof
 
 ASSETS = Path(__file__).parent / "assets"
 
@@ -140,11 +141,14 @@ def load_robot(
         gravity_on = None
     if analytic not in ANALYTIC:
         raise UnknownNameError("analytic model path", analytic, ANALYTIC)
+    check_model_file_size(scene_file)
     spec = load_mj_spec(scene_file)
     pin_file = Path(pin_model_file).expanduser().resolve() if pin_model_file else robot_file
     if pin_model_file or analytic == "parser":
         analytic = "parser"
-        pin_model: pin.Model | None = load_pin_model(pin_file)
+        parsed = load_pin_model(pin_file)
+        check_robot_dof(parsed.nv, name)
+        pin_model: pin.Model | None = parsed
     else:
         pin_model = None  # built by Robot from the compiled MjModel (robots/pin_from_mj.py)
     edits: tuple[str, ...] = ()

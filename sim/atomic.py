@@ -1,6 +1,8 @@
 """Atomic file output: write to a temporary file beside the target, fsync, then rename.
 
 A reader never sees a torn file: either the previous file (or none) or the complete new one.
+No output follows a symbolic link: a link planted at the final name is replaced by the rename,
+and the temporary file is created with ``O_EXCL`` and reopened with ``O_NOFOLLOW``.
 """
 
 from __future__ import annotations
@@ -16,6 +18,41 @@ from typing import IO, Any
 FILE_MODE = 0o644
 
 
+class BesideFile:
+    """A temporary file beside ``path`` for a writer that opens files by name (ffmpeg).
+
+    ``publish()`` renames it to ``path``; ``discard()`` removes it. A symbolic link at ``path`` is
+    replaced, never followed. The temporary name is unique per process (``mkstemp``, ``O_EXCL``)
+    and ends in ``.tmp``, so the job runner removes it if the process dies.
+    """
+
+    def __init__(self, path: str | os.PathLike):
+        self.path = Path(path)
+        self.path.parent.mkdir(parents=True, exist_ok=True)
+        fd, tmp = tempfile.mkstemp(prefix=f".{self.path.name}.", suffix=".tmp", dir=self.path.parent)
+        os.close(fd)
+        self.tmp = Path(tmp)
+        self.done = False
+
+    def open(self, mode: str = "wb", **kwargs: Any) -> IO[Any]:
+        """Open the temporary file for writing (never through a link swapped in for it)."""
+        return os.fdopen(os.open(self.tmp, os.O_WRONLY | os.O_TRUNC | os.O_NOFOLLOW), mode, **kwargs)
+
+    def publish(self) -> Path:
+        """Make the file readable by all (mode 0644) and rename it to ``path`` (idempotent)."""
+        if not self.done:
+            os.chmod(self.tmp, FILE_MODE)
+            os.replace(self.tmp, self.path)
+            self.done = True
+        return self.path
+
+    def discard(self) -> None:
+        """Remove the temporary file without publishing it."""
+        if not self.done:
+            self.tmp.unlink(missing_ok=True)
+            self.done = True
+
+
 class AtomicFile:
     """A text file that appears at ``path`` only when closed (``os.replace``).
 
@@ -27,10 +64,8 @@ class AtomicFile:
 
     def __init__(self, path: str | os.PathLike):
         self.path = Path(path)
-        self.path.parent.mkdir(parents=True, exist_ok=True)
-        fd, tmp = tempfile.mkstemp(prefix=f".{self.path.name}.", suffix=".tmp", dir=self.path.parent)
-        self._tmp = Path(tmp)
-        self.file: IO[str] = os.fdopen(fd, "w", newline="")
+        self._out = BesideFile(self.path)
+        self.file: IO[str] = self._out.open("w", newline="")
         self.closed = False
 
     def close(self) -> Path:
@@ -39,8 +74,7 @@ class AtomicFile:
             self.file.flush()
             os.fsync(self.file.fileno())
             self.file.close()
-            os.chmod(self._tmp, FILE_MODE)
-            os.replace(self._tmp, self.path)
+            self._out.publish()
             self.closed = True
         return self.path
 
@@ -48,7 +82,7 @@ class AtomicFile:
         """Drop the temporary file without publishing it."""
         if not self.closed:
             self.file.close()
-            self._tmp.unlink(missing_ok=True)
+            self._out.discard()
             self.closed = True
 
     def __enter__(self) -> AtomicFile:
@@ -73,20 +107,15 @@ def write_bytes_atomic(path: str | os.PathLike, write: Callable[[IO[bytes]], Non
 
     The temporary file is unique per process and removed if ``write`` raises.
     """
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
+    out = BesideFile(path)
     try:
-        with os.fdopen(fd, "wb") as f:
+        with out.open("wb") as f:
             write(f)
             f.flush()
             os.fsync(f.fileno())
-        os.chmod(tmp, FILE_MODE)
-        os.replace(tmp, path)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
-    return path
+        return out.publish()
+    finally:
+        out.discard()
 
 
 def write_json_atomic(path: str | os.PathLike, data: Any) -> Path:
@@ -104,3 +133,14 @@ def _finite(x: Any) -> Any:
     if hasattr(x, "tolist"):
         return _finite(x.tolist())
     return x
+
+
+def read_text_nofollow(path: str | os.PathLike) -> str:
+    """The text of ``path``, refusing a symbolic link in its place (OSError ELOOP).
+
+    For files a run reads back from its own folder (an earlier report): a link planted there
+    must not make mbctl read, then act on, a file elsewhere.
+    """
+    fd = os.open(path, os.O_RDONLY | os.O_NOFOLLOW)
+    with os.fdopen(fd, encoding="utf-8") as f:
+        return f.read()

@@ -2,8 +2,11 @@
 
 ``mj_contactForce`` gives each contact's force in its contact frame (normal first); the frame's
 rows are its axes in W and its normal points from geom1 to geom2, and the force acts on geom2 (the
-opposite on geom1). These helpers sum, per group of geoms (a foot), the force on the group in W,
-the normal (z) and tangential parts, and the centre of pressure on the ground.
+opposite on geom1). A :class:`ContactSensor` sums, per group of geoms (a foot), the force on the
+group in W, the normal (z) and tangential parts, and the centre of pressure on the ground; a
+:class:`FloorContacts` names the bodies touching the floor. Both look their geoms up in arrays built
+once, so a control loop can read them every period for the price of ``mj_contactForce`` on the
+contacts that concern them.
 """
 
 from __future__ import annotations
@@ -41,52 +44,108 @@ class MeasuredContact:
         return float(np.hypot(self.force_W[0], self.force_W[1]))
 
 
-def measure_contacts(model: mujoco.MjModel, data: mujoco.MjData,
-                     groups: Mapping[str, Iterable[int]]) -> dict[str, MeasuredContact]:
-    """Force, CoP and contact count on each group of geom ids, from ``data``'s current contacts.
+class ContactSensor:
+    """Measures the contact force on named groups of geoms from an ``MjData``'s current contacts.
 
     Read it right after ``mj_step`` for the forces applied during that step (the contacts and
     their forces are those of the step's forward pass).
+
+    Args:
+        model: The compiled model.
+        groups: Geom ids per group name (a geom in two groups counts for the last).
     """
-    owner: dict[int, str] = {}
-    for name, geoms in groups.items():
-        for g in geoms:
-            owner[int(g)] = name
-    force = {name: np.zeros(3) for name in groups}
-    moment_xy = {name: np.zeros(2) for name in groups}
-    count = dict.fromkeys(groups, 0)
-    f6 = np.zeros(6)
-    for i in range(data.ncon):
-        con = data.contact[i]
-        for geom, sign in ((con.geom2, 1.0), (con.geom1, -1.0)):
-            group = owner.get(int(geom))
-            if group is None:
-                continue
-            mujoco.mj_contactForce(model, data, i, f6)
-            f_W = sign * (con.frame.reshape(3, 3).T @ f6[:3])
-            force[group] += f_W
-            moment_xy[group] += f_W[2] * con.pos[:2]
-            count[group] += 1
-    out = {}
-    for name in groups:
-        fz = force[name][2]
-        cop = np.full(3, np.nan)
-        if fz > 1e-9:
-            cop = np.array([*(moment_xy[name] / fz), 0.0])
-        out[name] = MeasuredContact(force[name], cop, count[name])
-    return out
+
+    def __init__(self, model: mujoco.MjModel, groups: Mapping[str, Iterable[int]]):
+        self.model = model
+        self.names = tuple(groups)
+        self._owner = np.full(model.ngeom, -1, dtype=int)  # group index of each geom, -1: none
+        for k, geoms in enumerate(groups.values()):
+            self._owner[np.asarray(list(geoms), dtype=int)] = k
+        self._owner_list = self._owner.tolist()
+        self._f6 = np.zeros(6)
+
+    def measure(self, data: mujoco.MjData) -> dict[str, MeasuredContact]:
+        """Force, CoP and contact count on each group."""
+        n_groups = len(self.names)
+        # plain Python floats: with a handful of contacts, per-contact arithmetic on floats costs
+        # less than the numpy temporaries a vectorised sum would allocate (measured on the G1)
+        force = [[0.0, 0.0, 0.0] for _ in range(n_groups)]
+        moment = [[0.0, 0.0] for _ in range(n_groups)]
+        count = [0] * n_groups
+        ncon = data.ncon
+        if ncon:
+            contact = data.contact
+            owner = self._owner_list
+            f6 = self._f6
+            frames, positions = contact.frame, contact.pos
+            for i, (g1, g2) in enumerate(contact.geom[:ncon].tolist()):
+                k1, k2 = owner[g1], owner[g2]
+                if k1 < 0 and k2 < 0:
+                    continue
+                mujoco.mj_contactForce(self.model, data, i, f6)
+                fn, t1, t2 = f6[:3].tolist()
+                r = frames[i].tolist()  # rows: the contact frame's axes in W; f_W = frame^T f
+                fx = r[0] * fn + r[3] * t1 + r[6] * t2
+                fy = r[1] * fn + r[4] * t1 + r[7] * t2
+                fz = r[2] * fn + r[5] * t1 + r[8] * t2
+                px, py = positions[i, :2].tolist()
+                for k, sign in ((k2, 1.0), (k1, -1.0)):  # the force acts on geom2, opposite on geom1
+                    if k >= 0:
+                        f = force[k]
+                        f[0] += sign * fx
+                        f[1] += sign * fy
+                        f[2] += sign * fz
+                        moment[k][0] += sign * fz * px
+                        moment[k][1] += sign * fz * py
+                        count[k] += 1
+        out = {}
+        for k, name in enumerate(self.names):
+            fz = force[k][2]
+            cop = np.array([moment[k][0] / fz, moment[k][1] / fz, 0.0]) if fz > 1e-9 else np.full(3, np.nan)
+            out[name] = MeasuredContact(np.array(force[k]), cop, count[k])
+        return out
+
+
+class FloorContacts:
+    """Names the bodies that touch a set of geoms (e.g. the floor), other than allowed geoms.
+
+    Args:
+        model: The compiled model.
+        floor_geoms: The geoms touched (e.g. the world body's).
+        allowed: Geoms whose touches do not count (e.g. the feet).
+        bodies: Only bodies among these ids are reported (default: every body).
+    """
+
+    def __init__(self, model: mujoco.MjModel, floor_geoms: Iterable[int], allowed: Iterable[int] = (),
+                 bodies: Iterable[int] | None = None):
+        self._floor = np.zeros(model.ngeom, dtype=bool)
+        self._floor[np.asarray(list(floor_geoms), dtype=int)] = True
+        self._counts = np.ones(model.ngeom, dtype=bool)
+        self._counts[np.asarray(list(allowed), dtype=int)] = False
+        self._counts &= ~self._floor
+        if bodies is not None:
+            self._counts &= np.isin(model.geom_bodyid, np.asarray(list(bodies), dtype=int))
+        self._body_name = [mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_BODY, int(b)) or f"body {int(b)}"
+                           for b in model.geom_bodyid]
+
+    def bodies(self, data: mujoco.MjData) -> list[str]:
+        """Sorted names of the bodies touching the floor geoms now."""
+        ncon = data.ncon
+        if not ncon:
+            return []
+        geom = data.contact.geom[:ncon]
+        a, b = geom[:, 0], geom[:, 1]
+        hits = np.concatenate([b[self._floor[a] & self._counts[b]], a[self._floor[b] & self._counts[a]]])
+        return sorted({self._body_name[g] for g in hits.tolist()})
+
+
+def measure_contacts(model: mujoco.MjModel, data: mujoco.MjData,
+                     groups: Mapping[str, Iterable[int]]) -> dict[str, MeasuredContact]:
+    """Force, CoP and contact count on each group of geom ids (a one-off :class:`ContactSensor`)."""
+    return ContactSensor(model, groups).measure(data)
 
 
 def touching(model: mujoco.MjModel, data: mujoco.MjData, body_geoms: Iterable[int],
              allowed: Iterable[int]) -> list[str]:
     """Names of bodies (other than ``allowed`` geoms) touching any of ``body_geoms`` (e.g. the floor)."""
-    targets, ok = set(int(g) for g in body_geoms), set(int(g) for g in allowed)
-    names = []
-    for i in range(data.ncon):
-        con = data.contact[i]
-        g1, g2 = int(con.geom1), int(con.geom2)
-        for a, b in ((g1, g2), (g2, g1)):
-            if a in targets and b not in ok and b not in targets:
-                names.append(mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_BODY, model.geom_bodyid[b])
-                             or f"body {model.geom_bodyid[b]}")
-    return sorted(set(names))
+    return FloorContacts(model, body_geoms, allowed).bodies(data)

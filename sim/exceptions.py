@@ -25,3 +25,7 @@ class SimulationDiverged(SimError):
             f"Simulation diverged near t={time_s:.4f} s: MuJoCo raised {names} and reset its state. "
             "Reduce the timestep, the gains or the commanded torques." + (f" {hint}" if hint else "")
         )
+
+
+class TrajectoryError(SimError):
+    """A recorded trajectory (``trajectory.npz`` + ``model.xml``) that is damaged or inconsistent."""

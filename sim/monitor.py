@@ -14,10 +14,9 @@ from __future__ import annotations
 
 from collections.abc import Callable, Iterable, Mapping, Sequence
 
-import mujoco
 import numpy as np
 
-from mbctl.sim.contacts import MeasuredContact, measure_contacts
+from mbctl.sim.contacts import ContactSensor, FloorContacts, MeasuredContact
 from mbctl.sim.exceptions import SimError
 from mbctl.sim.simulator import Simulator
 
@@ -52,15 +51,13 @@ class PlantMonitor:
                  sites: Sequence[str] = (), fall_rule: FallRule | None = None):
         self.sim = sim
         m, robot = sim.model, sim.robot
-        self._groups = {name: tuple(int(g) for g in geoms) for name, geoms in (contact_groups or {}).items()}
+        self._sensor = ContactSensor(m, contact_groups) if contact_groups else None
         self._roots = [b for b in robot.robot_body_ids if int(m.body_parentid[b]) == 0]
         self._root_mass = m.body_subtreemass[self._roots]
         #: The robot's mass [kg] in the plant.
         self.mass_kg = float(self._root_mass.sum())
         self._site_ids = {name: robot.site_id(name) for name in sites}
-        self._floor = {g for g in range(m.ngeom) if int(m.geom_bodyid[g]) == 0}
-        robot_bodies = set(robot.robot_body_ids)
-        self._robot_geom = {g for g in range(m.ngeom) if int(m.geom_bodyid[g]) in robot_bodies}
+        self._floor = FloorContacts(m, np.flatnonzero(m.geom_bodyid == 0), bodies=robot.robot_body_ids)
         if fall_rule is not None and not robot.has_floating_base:
             raise SimError(f"a fall rule needs a floating base; {robot.name!r} has a fixed base")
         self._fall_rule = fall_rule
@@ -80,28 +77,17 @@ class PlantMonitor:
 
     def __call__(self, sim: Simulator) -> None:
         """Sample the period that just ran (the simulator calls this after every ``sync``/``step``)."""
-        m, d = sim.model, sim.data
+        d = sim.data
         self.time_s = float(d.time) - sim.control_period_s
-        if self._groups:
-            self.contacts = measure_contacts(m, d, self._groups)
+        if self._sensor is not None:
+            self.contacts = self._sensor.measure(d)
         sub = d.subtree_com[self._roots]
         self.com_W = self._root_mass @ sub / self.mass_kg
         self.site_positions_W = {name: d.site_xpos[i].copy() for name, i in self._site_ids.items()}
-        self.floor_bodies = self._touching_floor(m, d)
+        self.floor_bodies = tuple(self._floor.bodies(d))
         if self._fall_rule is not None and self.fall_reason is None:
             # the base height at the step's start: the free joint sits at the root body's origin
             self.base_z_m = float(d.xpos[self._roots[0], 2])
             reason = self._fall_rule(self.base_z_m, self.floor_bodies)
             if reason is not None:
                 self.fall_reason, self.fall_time_s = reason, self.time_s
-
-    def _touching_floor(self, m: mujoco.MjModel, d: mujoco.MjData) -> tuple[str, ...]:
-        if d.ncon == 0:
-            return ()
-        geoms = d.contact.geom[: d.ncon]
-        names = set()
-        for g1, g2 in geoms.tolist():
-            for a, b in ((g1, g2), (g2, g1)):
-                if a in self._floor and b in self._robot_geom:
-                    names.add(mujoco.mj_id2name(m, mujoco.mjtObj.mjOBJ_BODY, int(m.geom_bodyid[b])))
-        return tuple(sorted(names))

@@ -224,6 +224,32 @@ class Simulator:
                 perturbation.apply(self.data)
             mujoco.mj_step(self.model, self.data)
 
+    def step_begin(self) -> None:
+        """First half of one physics step (``mj_step1``): kinematics and position/velocity sensors.
+
+        For plants that report the state a step starts from (the DDS bridge): between
+        ``step_begin`` and ``step_end`` the data holds the current state's kinematics and sensors;
+        ``step_end`` adds the acceleration-stage sensors (accelerometer, contact forces) of the same
+        state and integrates. Together they equal ``step()`` exactly.
+        """
+        mujoco.mj_step1(self.model, self.data)
+        self._stale = False
+
+    def step_end(self) -> None:
+        """Second half of the step begun by ``step_begin`` (``mj_step2``): forces, integration.
+
+        Raises:
+            SimulationDiverged: MuJoCo flagged bad qpos/qvel/qacc/ctrl.
+        """
+        for perturbation in self._perturbations:
+            perturbation.apply(self.data)
+        mujoco.mj_step2(self.model, self.data)
+        self.n_steps += 1
+        self._stale = True
+        self._check_divergence()
+        for observer in self._observers:
+            observer(self)
+
     def _check_divergence(self) -> None:
         counts = self._warn_numbers.tolist()  # one call; cheaper than per-warning struct access
         if counts == self._warn_seen:

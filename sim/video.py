@@ -4,11 +4,13 @@ A :class:`VideoRecorder` is a simulator observer: it renders a frame whenever si
 passes the next frame time (``fps`` frames per simulated second) and hands it to the encoder at
 once, so an interrupted run leaves a playable video of what ran. The MP4 is fragmented
 (``-movflags frag_keyframe+empty_moov``, a keyframe every 0.5 s, each fragment flushed to disk):
-even if the process and its encoder die before closing it, the file plays up to about 0.6 s
-before the end.
+playable up to about 0.6 s before its end even if the process and its encoder die before closing
+it. It is written beside its name and renamed into place when closed (the job runner closes on
+Ctrl-C and SIGTERM), so a symbolic link planted at its name is never followed; a process killed
+outright leaves it under its temporary name (``.video.mp4.*.tmp``).
 With no recorder the simulator pays nothing.
 
-Encoder: imageio with imageio-ffmpeg, which ships its own ffmpeg binary (no system install);
+Encoder: imageio-ffmpeg, which ships its own ffmpeg binary (no system install);
 the ``mbctl[video]`` extra. OpenGL: MuJoCo picks its backend from ``MUJOCO_GL`` when it is first
 imported; ``mbctl.gl.choose_gl_backend`` probes EGL, then OSMesa, in subprocesses before that.
 """
@@ -26,6 +28,7 @@ import mujoco
 import numpy as np
 
 from mbctl.gl import INSTALL_HINT, VideoError
+from mbctl.sim.atomic import BesideFile
 from mbctl.sim.simulator import Simulator
 from mbctl.sim.trajectory import base_body
 
@@ -168,24 +171,62 @@ def add_markers(
 KEYFRAME_INTERVAL_S, LOOKAHEAD_S = 0.5, 1.0 / 3.0
 
 
-def _open_writer(path: Path, fps: float) -> Any:
-    try:
-        import imageio.v2 as imageio
-    except ImportError:
-        raise VideoError("video needs imageio and imageio-ffmpeg: pip install 'mbctl[video]'") from None
-    keyint = max(1, round(KEYFRAME_INTERVAL_S * fps))
-    lookahead = max(1, round(LOOKAHEAD_S * fps))
-    try:
-        return imageio.get_writer(
-            str(path), fps=fps, codec="libx264", macro_block_size=2, quality=None,
-            ffmpeg_params=["-crf", "23", "-g", str(keyint), "-x264-params", f"rc-lookahead={lookahead}",
-                           "-movflags", "frag_keyframe+empty_moov", "-flush_packets", "1"],
-            ffmpeg_log_level="error",
-        )
-    except Exception as exc:  # imageio raises several types for a missing ffmpeg backend
-        raise VideoError(
-            f"cannot open a video writer for {str(path)!r}: {exc}; pip install 'mbctl[video]'"
-        ) from exc
+class _Writer:
+    """An MP4 writer into a file beside ``path``, renamed to ``path`` when closed.
+
+    ffmpeg opens its output by name and would follow a symbolic link planted there; it writes
+    a temporary file of ours instead (:class:`~mbctl.sim.atomic.BesideFile`), so no link is ever
+    followed. Closing (the job runner closes on Ctrl-C and SIGTERM too) publishes what was written.
+    """
+
+    def __init__(self, path: Path, fps: float):
+        try:
+            import imageio_ffmpeg
+        except ImportError:
+            raise VideoError("video needs imageio and imageio-ffmpeg: pip install 'mbctl[video]'") from None
+        try:
+            imageio_ffmpeg.get_ffmpeg_exe()
+        except RuntimeError as exc:
+            raise VideoError(f"no ffmpeg for the video: {exc}; pip install 'mbctl[video]'") from None
+        if path.is_dir():
+            raise VideoError(f"{path} is a directory; give a file name for the video")
+        self.path, self.fps, self._ffmpeg = path, fps, imageio_ffmpeg
+        self.out = BesideFile(path)
+        self._frames: Any = None  # ffmpeg's frame generator, started by the first frame (its size)
+
+    def append_data(self, frame: np.ndarray) -> None:
+        """Encode one frame (height, width, 3) uint8."""
+        if self._frames is None:
+            try:
+                self._frames = self._ffmpeg.write_frames(
+                    str(self.out.tmp), (frame.shape[1], frame.shape[0]), fps=self.fps, codec="libx264",
+                    macro_block_size=2, quality=None, ffmpeg_log_level="error",
+                    # fragmented: playable up to the last fragment if the process dies
+                    output_params=["-crf", "23", "-g", str(max(1, round(KEYFRAME_INTERVAL_S * self.fps))),
+                                   "-x264-params", f"rc-lookahead={max(1, round(LOOKAHEAD_S * self.fps))}",
+                                   "-movflags", "frag_keyframe+empty_moov", "-flush_packets", "1",
+                                   "-f", "mp4"])
+                self._frames.send(None)
+            except Exception as exc:  # imageio-ffmpeg raises several types for a missing ffmpeg
+                self._frames = None
+                raise VideoError(f"cannot start the video encoder for {str(self.path)!r}: {exc}; "
+                                 "pip install 'mbctl[video]'") from exc
+        self._frames.send(np.ascontiguousarray(frame))
+
+    def close(self) -> None:
+        """Finish the file and rename it into place (idempotent; a video without frames is not published)."""
+        if self._frames is None:
+            self.out.discard()
+            return
+        try:
+            self._frames.close()
+        finally:
+            self.out.publish()
+            self._frames = None
+
+
+def _open_writer(path: Path, fps: float) -> _Writer:
+    return _Writer(Path(path), fps)
 
 
 class VideoRecorder:
@@ -246,9 +287,7 @@ class VideoRecorder:
     def close(self) -> None:
         """Stop filming and finish the file (idempotent)."""
         self.sim.remove_observer(self)
-        if self._writer is not None:
-            self._writer.close()
-            self._writer = None
+        self._writer.close()
         self.renderer.close()
 
 

@@ -60,12 +60,31 @@ def dask_client():
     pytest.importorskip("dask.distributed")
     from dask.distributed import Client
 
-    from mbctl.jobs.sweep import local_cluster
+    from mbctl.jobs.sweep_cluster import local_cluster
 
     cluster = local_cluster(2)  # as mbctl sweep starts it
     with Client(cluster) as client:
         yield client
     cluster.close()
+
+
+_DDS_DOMAINS = iter(range(10**9))
+
+
+@pytest.fixture
+def dds_domain() -> int:
+    """A DDS domain id for one test: derived from the pid and a counter, in 1..232.
+
+    Every DDS participant in the tests uses it on the loopback interface ``lo`` (the default of
+    mbctl.robots.unitree.Channel), so tests never share a domain and never leave the machine.
+    """
+    try:
+        import cyclonedds  # noqa: F401
+    except ImportError:
+        if os.environ.get("CI"):
+            pytest.fail("CI must have the hardware extra (pip install -e '.[test]')")
+        pytest.skip("DDS tests need the hardware extra")
+    return 1 + (os.getpid() * 37 + next(_DDS_DOMAINS)) % 232
 
 
 # ------------------------------------------------------------------------ progress per file

@@ -26,11 +26,13 @@ ALLOWED = {
     "sim": {"", "robots", "sim"},
     "planners": {"", "robots", "planners"},
     "control": {"", "robots", "planners", "control"},
-    "jobs": {"", "robots", "sim", "planners", "control", "jobs"},
-    "cli": {"", "robots", "sim", "planners", "control", "jobs", "cli"},
+    "jobs": {"", "robots", "sim", "planners", "control", "jobs", "hardware"},
+    "cli": {"", "robots", "sim", "planners", "control", "jobs", "cli", "hardware"},
+    # the real robots: a plant beside sim/, never importing it (nor control/: the estimator is given)
+    "hardware": {"", "robots", "hardware"},
 }
 #: Top-level names that belong to other projects and must never be imported bare.
-FOREIGN = {"control", "robots", "sim", "planners", "jobs", "cli"}
+FOREIGN = {"control", "robots", "sim", "planners", "jobs", "cli", "hardware"}
 
 
 def _imports(path: Path) -> list[str]:
@@ -55,6 +57,7 @@ CONTROL_ALLOWED = {
     "tasks": {"tasks"},
     "ik": {"tasks", "ik"},
     "wbc": {"tasks", "wbc", ""},
+    "estimation": {"estimation"},
 }
 #: control/'s own modules any subpackage may use.
 CONTROL_COMMON = {"mbctl.control.exceptions"}
@@ -122,7 +125,7 @@ def test_control_task_layer_is_below_ik_and_wbc_which_are_peers():
 def test_the_control_check_sees_a_violation(tmp_path):
     (tmp_path / "control" / "ik").mkdir(parents=True)
     (tmp_path / "control" / "ik" / "bad.py").write_text("from mbctl.control.wbc import WBCConfig\n")
-    for sub in ("tasks", "wbc"):
+    for sub in ("tasks", "wbc", "estimation"):
         (tmp_path / "control" / sub).mkdir()
     assert _control_violations(tmp_path) == ["control/ik/bad.py: imports mbctl.control.wbc"]
 

@@ -28,3 +28,15 @@ def test_mypy_is_clean(tmp_path):
     )
     assert out.returncode == 0, out.stdout + out.stderr
     assert "Success: no issues found" in out.stdout
+
+
+def test_every_package_is_in_pyprojects_list():
+    """A subpackage missing from the list works in an editable install and is absent from a wheel."""
+    import tomllib
+
+    listed = set(tomllib.loads((ROOT / "pyproject.toml").read_text())["tool"]["setuptools"]["packages"])
+    skip = {"tests", "bench", "examples", "docs", ".venv", "build"}
+    found = {"mbctl." + ".".join(p.parent.relative_to(ROOT).parts) if p.parent != ROOT else "mbctl"
+             for p in ROOT.rglob("__init__.py") if not skip & set(p.relative_to(ROOT).parts)}
+    assert found - listed == set(), "add these to [tool.setuptools] packages"
+    assert listed - found == set(), "these packages do not exist"

@@ -61,7 +61,14 @@ class AngularMomentumTask(Task):
 
     def desired_acceleration(self, state: DynamicsState, J: np.ndarray) -> np.ndarray:
         """``-kd h`` (3,) [N m]."""
-        return -self.servo.kd * (J @ state.v)
+        return -self._kd * (J @ state.v)
+
+    def write_acceleration_rows(self, state: DynamicsState, W_t: np.ndarray, r_t: np.ndarray) -> None:
+        """Fast path of ``Task.write_acceleration_rows``: ``h`` read from the state, not recomputed."""
+        np.multiply(self._weights()[0], state.centroidal_map()[3:], out=W_t)
+        np.multiply(state.angular_momentum(), -self._kd, out=r_t)
+        r_t -= state.centroidal_drift()[3:]
+        r_t *= self._cost
 
     def residual(self, state: TaskState) -> TaskResidual:
         """A damper has no target: zero deviation."""

@@ -131,6 +131,16 @@ class Task(abc.ABC):
         self.servo = servo if servo is not None else AccelerationGains()
         self._cost = cost_vector(cost, k, name)
 
+    @property
+    def servo(self) -> AccelerationGains:
+        """Acceleration level: the PD gains (assignable; ``kp`` and ``kd`` are cached from them)."""
+        return self._servo
+
+    @servo.setter
+    def servo(self, gains: AccelerationGains) -> None:
+        self._servo = gains
+        self._kp, self._kd = gains.kp, gains.kd
+
     # ------------------------------------------------------------------ weights and targets
     @property
     def cost(self) -> np.ndarray:

@@ -102,8 +102,21 @@ class ComTask(Task):
 
     def desired_acceleration(self, state: DynamicsState, J: np.ndarray) -> np.ndarray:
         """``a_ref - kp e + kd (v_ref - J_com v)`` (3,) [m/s^2] in W."""
-        s = self.servo
-        return self.a_ref - s.kp * self.compute_error(state) + s.kd * (self.v_ref - J @ state.v)
+        return self.a_ref - self._kp * self.compute_error(state) + self._kd * (self.v_ref - J @ state.v)
+
+    def write_acceleration_rows(self, state: DynamicsState, W_t: np.ndarray, r_t: np.ndarray) -> None:
+        """Fast path of ``Task.write_acceleration_rows`` (the same values, fewer temporaries)."""
+        if self._target is None:
+            raise self._no_target()
+        J = state.com_jacobian()
+        np.multiply(self._weights()[0], J, out=W_t)
+        # r = cost (kp (p* - p) + a_ref + kd (v_ref - J v) - Jdot v)
+        np.subtract(self._target, state.com(), out=r_t)
+        r_t *= self._kp
+        r_t += self.a_ref
+        r_t += self._kd * (self.v_ref - J @ state.v)
+        r_t -= state.com_drift()
+        r_t *= self._cost
 
     def residual(self, state: TaskState) -> TaskResidual:
         """Distance to the target over the weighted axes [m] (axes with zero cost are ignored)."""

@@ -68,8 +68,23 @@ class FrameOrientationTask(FrameTask):
 
     def desired_acceleration(self, state: DynamicsState, J: np.ndarray) -> np.ndarray:
         """``kp log3(R_FT) - kd J v`` (3,) [rad/s^2] in F."""
-        s = self.servo
-        return s.kp * self.compute_error(state) - s.kd * (J @ state.v)
+        return self._kp * self.compute_error(state) - self._kd * (J @ state.v)
+
+    def write_acceleration_rows(self, state: DynamicsState, W_t: np.ndarray, r_t: np.ndarray) -> None:
+        """Fast path of ``Task.write_acceleration_rows`` (the same values, fewer temporaries).
+
+        ``R_TF = R_TW R_WF`` as one 3 x 3 product, and ``J v`` is F's angular velocity.
+        """
+        if self._X_TW is None:
+            raise self._no_target()
+        fid = self.frame_id
+        J = state.frame_jacobian(fid, pin.LOCAL)[3:]
+        np.multiply(self._weights()[0], J, out=W_t)
+        R_TF = self._X_TW.rotation @ state.oMf[fid].rotation
+        np.multiply(pin.log3(R_TF), -self._kp, out=r_t)  # kp log3(R_FT)
+        r_t -= self._kd * (J @ state.v)
+        r_t -= state.frame_drift(fid, pin.LOCAL)[3:]
+        r_t *= self._cost
 
     def residual(self, state: TaskState) -> TaskResidual:
         """Rotation angle to the target [rad]."""

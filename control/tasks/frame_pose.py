@@ -92,8 +92,7 @@ class FramePoseTask(FrameTask):
         R_FW = state.frame_pose(self.frame_id).rotation.T
         v_ref = np.concatenate([R_FW @ self.v_ref_W, np.zeros(3)])
         a_ref = np.concatenate([R_FW @ self.a_ref_W, np.zeros(3)])
-        s = self.servo
-        return a_ref + s.kp * self.compute_error(state) + s.kd * (v_ref - J @ state.v)
+        return a_ref + self._kp * self.compute_error(state) + self._kd * (v_ref - J @ state.v)
 
     def residual(self, state: TaskState) -> TaskResidual:
         """Distance [m] and rotation angle [rad] to the target; a part with zero cost is left out."""

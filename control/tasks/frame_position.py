@@ -80,8 +80,7 @@ class FramePositionTask(FrameTask):
 
     def desired_acceleration(self, state: DynamicsState, J: np.ndarray) -> np.ndarray:
         """``a_ref - kp e + kd (v_ref - J v)`` (3,) [m/s^2] in W."""
-        s = self.servo
-        return self.a_ref_W - s.kp * self.compute_error(state) + s.kd * (self.v_ref_W - J @ state.v)
+        return self.a_ref_W - self._kp * self.compute_error(state) + self._kd * (self.v_ref_W - J @ state.v)
 
     def residual(self, state: TaskState) -> TaskResidual:
         """Distance to the target [m]."""

@@ -110,8 +110,9 @@ class PostureTask(DiagonalTask):
 
     def desired_acceleration(self, state: DynamicsState, J: np.ndarray) -> np.ndarray:
         """``-kp e - kd v`` (nv,) on the joint dofs, 0 on the free flyer's."""
-        s = self.servo
-        a = -s.kp * self.compute_error(state) - s.kd * state.v
+        a = self.compute_error(state)  # free-flyer entries already zero
+        a *= -self._kp
+        a -= self._kd * state.v
         a *= self.mask
         return a
 

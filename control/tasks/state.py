@@ -156,8 +156,12 @@ class DynamicsState(TaskState):
         """Create the state at ``(q, v)`` (defaults: the neutral configuration, at rest)."""
         super().__init__(model)
         self.v = np.zeros(model.nv)
+        self._M_buffer = np.zeros((model.nv, model.nv))
         self._lower = np.tril_indices(model.nv, -1)
+        self._M_view = self._M_buffer.view()
+        self._M_view.setflags(write=False)
         self._M: np.ndarray | None = None
+        self._centroidal_drift: np.ndarray | None = None
         self.mass = float(sum(inertia.mass for inertia in model.inertias))
         self.update(self._q if q is None else q, v)
 
@@ -183,15 +187,16 @@ class DynamicsState(TaskState):
         pin.updateFramePlacements(model, data)
         pin.computeCentroidalMapTimeVariation(model, data, q_new, self.v)
         self._M = None
+        self._centroidal_drift = None
 
     @property
     def M(self) -> np.ndarray:  # noqa: N802 - the mass matrix is M in every text
         """Joint-space inertia (nv, nv) at q, both triangles filled (read-only, once per update)."""
-        if self._M is None:  # Pinocchio fills the upper triangle only
-            M = self.data.M.copy()
+        if self._M is None:  # Pinocchio fills the upper triangle (the lower holds other values)
+            M = self._M_buffer
+            np.copyto(M, self.data.M)
             M[self._lower] = M.T[self._lower]
-            M.setflags(write=False)
-            self._M = M
+            self._M = self._M_view
         return self._M
 
     @property
@@ -201,7 +206,7 @@ class DynamicsState(TaskState):
 
     def com_drift(self) -> np.ndarray:
         """``Jdot_com v`` (3,) [m/s^2]: the CoM acceleration at zero vdot."""
-        return (self.data.dAg[:3] @ self.v) / self.mass
+        return self.centroidal_drift()[:3] / self.mass
 
     def frame_drift(self, frame_id: int, reference: pin.ReferenceFrame) -> np.ndarray:
         """``d/dt(J_F) v`` (6,) in ``reference``: the frame's acceleration at zero vdot.
@@ -223,5 +228,11 @@ class DynamicsState(TaskState):
         return self.data.Ag
 
     def centroidal_drift(self) -> np.ndarray:
-        """``dA_g v`` (6,): the rate of centroidal momentum at zero vdot [N; N m]."""
-        return self.data.dAg @ self.v
+        """``dA_g v`` (6,): the rate of centroidal momentum at zero vdot [N; N m] (once per update)."""
+        if self._centroidal_drift is None:
+            self._centroidal_drift = self.data.dAg @ self.v
+        return self._centroidal_drift
+
+    def angular_momentum(self) -> np.ndarray:
+        """``h_G`` angular part (3,) [kg m^2/s]: the angular momentum about the CoM, ``A_g[3:] v``."""
+        return self.data.hg.angular

@@ -25,10 +25,16 @@ class WBCConfig:
         force_weight: Regularisation weight on the contact forces [cost]/[N].
         acceleration_weight: Regularisation weight on vdot [cost]/[rad/s^2].
         joint_limit_horizon_s: Horizon T [s] of the joint-limit acceleration bounds (> 0).
+        joint_limit_margin_rad: The joint-limit bounds keep this far [rad or m] inside each joint's
+            range (>= 0): the plant overshoots the model's accelerations a little (friction,
+            armature, contacts), and a joint that reaches the plant's own limit gets an impulsive
+            limit force (seen as a contact-force spike).
+        joint_limit_max_accel_rad_s2: The joint-limit bounds never demand more than this [rad/s^2]
+            toward the inside of a range (> 0), so they stay feasible under the torque limits even
+            for a joint found past its bound.
         ramp_s: Duration [s] of a contact's force ramp (> 0).
-        solver: qpsolvers backend name.
-        warm_start: Start each solve from the previous cycle's solution (daqp: its nearly
-            active constraints become the initial working set).
+        solver: "daqp" (the structured solve of ``control/wbc/qp.py``: an equality-constrained fast
+            path, else daqp) or another qpsolvers backend on the same problem (for comparison).
         on_infeasible: "raise" (``WBCInfeasible``) or "damp": from the first infeasible QP on, the
             controller commands joint damping ``tau = -fallback_kd v`` (a safe fallback that lets
             the plant show whether the robot stands or falls) and records when it switched.
@@ -41,9 +47,10 @@ class WBCConfig:
     force_weight: float = 1e-4
     acceleration_weight: float = 1e-3
     joint_limit_horizon_s: float = 0.1
+    joint_limit_margin_rad: float = 0.02
+    joint_limit_max_accel_rad_s2: float = 50.0
     ramp_s: float = 0.3
     solver: str = "daqp"
-    warm_start: bool = True
     on_infeasible: str = "raise"
     fallback_kd_n_m_s_rad: float = 5.0
 
@@ -53,6 +60,8 @@ class WBCConfig:
             "contact_omega_rad_s": self.contact_omega_rad_s >= 0, "force_weight": self.force_weight > 0,
             "acceleration_weight": self.acceleration_weight > 0,
             "joint_limit_horizon_s": self.joint_limit_horizon_s > 0, "ramp_s": self.ramp_s > 0,
+            "joint_limit_margin_rad": self.joint_limit_margin_rad >= 0,
+            "joint_limit_max_accel_rad_s2": self.joint_limit_max_accel_rad_s2 > 0,
             "fallback_kd_n_m_s_rad": self.fallback_kd_n_m_s_rad >= 0,
         }
         for name, ok in checks.items():

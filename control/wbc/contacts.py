@@ -130,7 +130,7 @@ class ContactState:
         contact: The foot's contact points and friction.
         fid: Pinocchio frame id of the foot frame.
         cols: The foot's force variables in the QP's x.
-        fz: The normal-force variables among them.
+        fz: The normal-force variables among them (a strided slice of x).
         active: The foot-acceleration equality is in force.
         weight: Force ramp ``w_c`` in [0, 1] (scales the normal-force bounds).
         target_weight: Where the ramp goes (0: release, 1: load).
@@ -140,7 +140,7 @@ class ContactState:
     contact: FootContact
     fid: int
     cols: slice
-    fz: np.ndarray
+    fz: slice
     active: bool = True
     weight: float = 1.0
     target_weight: float = 1.0
@@ -157,6 +157,8 @@ class ContactState:
 
     def advance_ramp(self, dt_s: float, ramp_s: float) -> None:
         """Move the weight toward its target by ``dt_s / ramp_s``; free the foot when it reaches 0."""
+        if self.weight == self.target_weight and (self.active or self.target_weight != 0.0):
+            return
         step = dt_s / ramp_s
         if self.weight < self.target_weight:
             self.weight = min(self.target_weight, self.weight + step)

@@ -26,12 +26,13 @@ Contacts switch with force ramps (:mod:`mbctl.control.wbc.contacts`): ``w_c`` go
 (or back) over ``ramp_s`` of the state's time while the foot's acceleration constraint stays, so
 the load moves to the other foot before the foot is released, and no torque jumps.
 
-Solved with qpsolvers' ``daqp`` (dense dual active set), picked by benchmark
-(``bench/bench_wbc.py``), e.g. on the G1's QP (59 variables, 18 equalities, 90 inequality rows, a
-bound on every variable) daqp solves in ~75 us, proxqp in ~245 us (to 4e-6), osqp in ~1,300 us and
-lands 3.3 away at its default tolerances. Each solve starts from the previous solution
-(``WBCConfig.warm_start``); in standing and squatting no inequality is active at the solution
-and warm starting saves nothing measurable there; it can only pay when bounds are active.
+Solved in its structure (:mod:`mbctl.control.wbc.qp`): the optimum under the equalities alone
+(a KKT solve through the Schur complement, exploiting the block-diagonal Hessian), accepted when it
+satisfies every inequality (always while standing or squatting: none is active), else daqp (dense
+dual active set, called directly) on the whole problem. daqp was picked by benchmark
+(``bench/bench_wbc.py``): e.g. on the G1's QP (59 variables, 18 equalities, 90 inequality rows, a
+bound on every variable) proxqp took ~3x and osqp ~17x as long, and osqp stopped far from the
+optimum at its default tolerances; ``WBCConfig.solver`` runs those through qpsolvers.
 
 When the QP has no solution, ``WBCConfig.on_infeasible`` decides: raise
 :class:`~mbctl.control.exceptions.WBCInfeasible`, or ("damp") switch for good to joint damping
@@ -54,6 +55,7 @@ from mbctl.control.tasks.stack import TaskStack
 from mbctl.control.tasks.state import DynamicsState
 from mbctl.control.wbc.config import WBCConfig, WBCSolution
 from mbctl.control.wbc.contacts import ContactState, FootContact
+from mbctl.control.wbc.qp import WholeBodyQP
 from mbctl.robots.commands import Command, CommandKind
 from mbctl.robots.indexing import as_slice
 from mbctl.robots.interface import RobotState
@@ -116,30 +118,35 @@ class WholeBodyController:
                 raise WBCSetupError(f"unknown foot frame {foot.frame!r}")
             cols = slice(col, col + 3 * foot.n_points)
             self.contacts[foot.name] = ContactState(foot, self.model.getFrameId(foot.frame), cols,
-                                                    np.arange(cols.start + 2, cols.stop, 3))
+                                                    slice(cols.start + 2, cols.stop, 3))
             col = cols.stop
         self.n_x = col
-        self.config = self._config  # the setter derives the regularisation diagonal
-        self._n_fric = 4 * (col - nv) // 3
-        self._G = np.zeros((self._n_fric + 2 * len(self._act), col))
-        self._h = np.zeros(self._G.shape[0])
-        self._lb = np.full(col, -np.inf)
-        self._ub = np.full(col, np.inf)
+        n_f = col - nv
+        self._n_fric = 4 * n_f // 3
+        n_a = len(self._act)
+        self._qp = WholeBodyQP(nv, n_f, self._n_fric + n_a, self._n_unact + 6 * len(self.contacts),
+                               self._config.force_weight)
+        qp = self._qp
         row = 0
         for cs in self.contacts.values():  # friction pyramid rows: |f_x|, |f_y| <= mu / sqrt(2) f_z
             mu = cs.contact.mu / np.sqrt(2.0)
             for c0 in range(cs.cols.start, cs.cols.stop, 3):
                 for axis in (0, 1):
                     for sign in (1.0, -1.0):
-                        self._G[row, c0 + axis] = sign
-                        self._G[row, c0 + 2] = -mu
+                        qp.G[row, c0 + axis] = sign
+                        qp.G[row, c0 + 2] = -mu
+                        qp.g_up[row] = 0.0
                         row += 1
+        self._T = qp.G[self._n_fric:]  # torque rows: tau = T x + b_a (a view, written each cycle)
+        self._Jc = np.zeros((n_f, nv))
+        self._H_vv_diag = np.einsum("ii->i", qp.H_vv)  # a writable view of its diagonal
+        self.config = self._config  # the setter sets the weights
         self._stack = TaskStack(nv)
-        self._H = np.zeros((col, col))
-        self._c = np.zeros(col)
         self._limits = self._joint_limits()
         self.last: WBCSolution | None = None
-        self._x_warm: np.ndarray | None = None
+        #: Cycles solved by the equality-constrained fast path / by daqp (see control/wbc/qp.py).
+        self.fast_path_cycles = 0
+        self.daqp_cycles = 0
         self._last_time_s: float | None = None
         self.steps = 0
         self.infeasible_at_s: float | None = None
@@ -153,9 +160,7 @@ class WholeBodyController:
     @config.setter
     def config(self, config: WBCConfig) -> None:
         self._config = config
-        nv = self.model.nv
-        self._regularisation = np.concatenate([np.full(nv, config.acceleration_weight**2),
-                                               np.full(self.n_x - nv, config.force_weight**2)])
+        self._qp.force_weight = config.force_weight
 
     @property
     def tasks(self) -> tuple[Task, ...]:
@@ -211,9 +216,9 @@ class WholeBodyController:
             self._stack.set_tasks([t for t in self._stack.tasks if t is not task])
 
     def reset(self) -> None:
-        """Forget the warm start, the ramp clock and the fallback (the tasks and contacts stay)."""
-        self._x_warm = None
+        """Forget the ramp clock, the fallback and the counters (the tasks and contacts stay)."""
         self._last_time_s = None
+        self.fast_path_cycles = self.daqp_cycles = 0
         self.infeasible_at_s = None
         self.infeasible_message = None
         self.steps = 0
@@ -263,21 +268,17 @@ class WholeBodyController:
         s.update(state.q, state.v)
         if self.infeasible_at_s is not None:
             return self._fallback(state, t0)
-        nv, n_x = self.model.nv, self.n_x
+        nv = self.model.nv
         cfg = self.config
-        H, c = self._H, self._c
-        H.fill(0.0)
-        c.fill(0.0)
-        self._stack.acceleration_objective(s, H[:nv, :nv], c[:nv])
-        np.einsum("ii->i", H)[:] += self._regularisation  # a writable view of the diagonal
+        qp = self._qp
+        # tasks: H_vv = W^T W + w_r^2 I, c_v = -W^T r (the task layer's stack)
+        self._stack.acceleration_objective(s, qp.H_vv, qp.c_v)
+        self._H_vv_diag += cfg.acceleration_weight**2
 
         # contact Jacobians of the points, in W: J_P = J_lin - [p_WP - p_WF]x J_ang
-        Jc = np.zeros((n_x - nv, nv))
-        eq_rows: list[np.ndarray] = []
-        eq_rhs: list[np.ndarray] = []
-        lb, ub = self._lb, self._ub
-        G, h = self._G, self._h  # friction rows are constant (built once); torque rows below
-        row = self._n_fric
+        Jc = self._Jc
+        lb, ub = qp.lb, qp.ub
+        m_eq = self._n_unact
         kp_c = cfg.contact_omega_rad_s**2
         kd_c = 2.0 * cfg.contact_omega_rad_s
         points_W, origins_W = {}, {}
@@ -293,47 +294,52 @@ class WholeBodyController:
             block[:] = J_lin - ((r_W @ _SKEW).reshape(-1, 3) @ J_ang).reshape(-1, 3, nv)
             lb[cs.fz] = cs.weight * cfg.f_min_n
             ub[cs.fz] = cs.weight * cfg.f_max_n
-            if cs.active:
-                eq = np.zeros((6, n_x))
-                eq[:3, :nv] = R_WF.T @ J_lin  # J_F in LOCAL: the same twist in F's axes
-                eq[3:, :nv] = R_WF.T @ J_ang
+            if cs.active:  # (the force columns of the foot rows stay zero)
+                eq = qp.E[m_eq:m_eq + 6]
+                eq[:, :nv] = s.frame_jacobian(cs.fid, pin.LOCAL)  # J_F: the foot's twist in F
                 drift = s.frame_drift(cs.fid, pin.LOCAL)
                 err = pin.log6(X_WF.actInv(cs.X_WF0)).vector
                 err[2:5] = 0.0  # the ground sets height, roll and pitch; feedback corrects slip only
-                a_fb = kp_c * err - kd_c * (eq[:, :nv] @ s.v)
-                eq_rows.append(eq)
-                eq_rhs.append(a_fb - drift)
+                qp.e[m_eq:m_eq + 6] = kp_c * err - kd_c * (eq[:, :nv] @ s.v) - drift
+                m_eq += 6
         M, b = s.M, s.b
         u, a = self._u, self._a
-        dyn = np.zeros((self._n_unact, n_x))
+        dyn = qp.E[:self._n_unact]
         dyn[:, :nv] = M[u]
         dyn[:, nv:] = -Jc[:, u].T
-        A_eq = np.vstack([dyn, *eq_rows])
-        b_eq = np.concatenate([-b[u], *eq_rhs])
+        np.negative(b[u], out=qp.e[:self._n_unact])
         # torque rows: tau = T x + b_a with T = [M_a, -Jc_a^T]; tau_min <= tau <= tau_max
-        n_a = len(self.tau_low)
-        T = G[row:row + n_a]
+        T = self._T
         T[:, :nv] = M[a]
         T[:, nv:] = -Jc[:, a].T
-        np.negative(T, out=G[row + n_a:row + 2 * n_a])
         b_a = b[a]
-        h[row:row + n_a] = self.tau_high - b_a
-        h[row + n_a:row + 2 * n_a] = b_a - self.tau_low
-        # joint limits: q + v T + vdot T^2/2 within [q_min, q_max]
+        n_fric = self._n_fric
+        np.subtract(self.tau_high, b_a, out=qp.g_up[n_fric:])
+        np.subtract(self.tau_low, b_a, out=qp.g_lo[n_fric:])
+        # joint limits: q + v T + vdot T^2/2 within [q_min + margin, q_max - margin]: a joint heading
+        # for a limit must decelerate (the bound turns positive), at most by the accel cap A, so
+        # that lb <= ub and the bounds stay feasible under the torque limits
         iv, iq, q_lo, q_hi = self._limits
         if len(iv):
             Th = cfg.joint_limit_horizon_s
-            q, v = s.q[iq], s.v[iv]
-            lo = 2.0 * (q_lo - q - v * Th) / Th**2
-            hi = 2.0 * (q_hi - q - v * Th) / Th**2
-            lb[iv] = np.minimum(lo, 0.0)
-            ub[iv] = np.maximum(hi, 0.0)
-        problem = qpsolvers.Problem(H, c, G, h, A_eq, b_eq, lb, ub)
+            reach = s.q[iq] + s.v[iv] * Th  # where the joints coast to in Th
+            scale = 2.0 / Th**2
+            margin, cap = cfg.joint_limit_margin_rad, cfg.joint_limit_max_accel_rad_s2
+            lb[iv] = np.minimum((q_lo + margin - reach) * scale, cap)
+            ub[iv] = np.maximum((q_hi - margin - reach) * scale, -cap)
         t_qp = time.perf_counter()
-        initvals = self._x_warm if cfg.warm_start else None
-        result = qpsolvers.solve_problem(problem, solver=cfg.solver, initvals=initvals)
+        if cfg.solver == "daqp":
+            result = qp.solve(m_eq)
+            x = result.x
+            if result.fast_path:
+                self.fast_path_cycles += 1
+            else:
+                self.daqp_cycles += 1
+        else:  # another backend, through qpsolvers (for comparison)
+            solution = qpsolvers.solve_problem(qp.problem(m_eq), solver=cfg.solver)
+            x = solution.x if solution.found and solution.x is not None else None
         qp_time = time.perf_counter() - t_qp
-        if not result.found or result.x is None or not np.isfinite(result.x).all():
+        if x is None or not np.isfinite(x).all():
             message = (
                 f"whole-body QP infeasible at step {self.steps} (solver {cfg.solver}): contacts "
                 + ", ".join(f"{n} weight {cs.weight:.2f}" for n, cs in self.contacts.items())
@@ -341,13 +347,11 @@ class WholeBodyController:
                 f"torque limits [{self.tau_low.min():.1f}, {self.tau_high.max():.1f}] N m. Check the "
                 "force bounds and torque limits against the load, the friction and the task targets.")
             if cfg.on_infeasible == "raise":
-                raise WBCInfeasible(
-                    message, qpsolvers.Problem(H.copy(), c.copy(), G.copy(), h.copy(), A_eq, b_eq,
-                                               lb.copy(), ub.copy()), result, cfg.solver, state.time_s)
+                problem = qp.problem(m_eq)
+                raise WBCInfeasible(message, problem, qpsolvers.solve_problem(problem, solver="daqp"),
+                                    cfg.solver, state.time_s)
             self.infeasible_at_s, self.infeasible_message = state.time_s, message
             return self._fallback(state, t0)
-        x = result.x
-        self._x_warm = x
         vdot, f = x[:nv], x[nv:]
         tau = T @ x + b_a
         self.steps += 1

@@ -22,7 +22,7 @@ from mbctl.control.tasks.com import ComTask
 from mbctl.control.tasks.frame_orientation import FrameOrientationTask
 from mbctl.control.tasks.posture import PostureTask
 from mbctl.control.wbc.config import WBCConfig
-from mbctl.control.wbc.contacts import foot_contact_from_model
+from mbctl.control.wbc.contacts import FootContact, foot_contact_from_model
 from mbctl.control.wbc.controller import WholeBodyController
 from mbctl.robots.commands import Command
 from mbctl.robots.interface import RobotState
@@ -63,7 +63,8 @@ class Standing:
 
 
 def standing_controller(robot: Robot, feet: Sequence[str], base_frame: str, torso_frame: str | None = None,
-                        pin_model: pin.Model | None = None, config: WBCConfig | None = None) -> Standing:
+                        pin_model: pin.Model | None = None, config: WBCConfig | None = None,
+                        contacts: Sequence[FootContact] | None = None) -> Standing:
     """The whole-body controller on ``robot`` (torque actuators) with the standing task set.
 
     Args:
@@ -74,12 +75,15 @@ def standing_controller(robot: Robot, feet: Sequence[str], base_frame: str, tors
         torso_frame: An upper-body frame whose orientation is held too, or None.
         pin_model: The controller's analytic model (default ``robot.pin_model``).
         config: QP options.
+        contacts: The feet's contact points, if not from the foot bodies' geoms (e.g. a finer grid
+            over each sole); one per foot frame.
 
     Raises:
         WBCSetupError: A foot without a colliding sphere or box geom, or an unknown frame.
         UnknownNameError: An unknown base or torso frame.
     """
-    contacts = [foot_contact_from_model(robot, f) for f in feet]
+    if contacts is None:
+        contacts = [foot_contact_from_model(robot, f) for f in feet]
     ctrl = WholeBodyController(robot, contacts, config, pin_model=pin_model)
     m = ctrl.model
     torso = None

@@ -53,3 +53,55 @@ def test_sweep_on_an_existing_scheduler(dask_client, tmp_path):
         rows = list(csv.DictReader(f))
     assert [r["model_error"] for r in rows] == ["0.0", "5.0"]
     assert (tmp_path / "s" / "sweep.png").exists()
+
+
+def test_a_symlink_under_runs_exits_2(tmp_path):
+    (tmp_path / "s" / "runs").mkdir(parents=True)
+    (tmp_path / "s" / "runs" / "duration=0.1").symlink_to(tmp_path)
+    out = mbctl("sweep", "demo", "--param", "duration=0.1", "--output", str(tmp_path / "s"))
+    assert out.returncode == 2 and "runs/duration=0.1 is a symbolic link" in out.stderr, out.stderr
+    assert "Traceback" not in out.stderr
+
+
+@pytest.fixture
+def http_server():
+    """A tiny HTTP server on a free loopback port: it accepts connections but speaks no Dask."""
+    import http.server
+    import threading
+
+    server = http.server.HTTPServer(("127.0.0.1", 0), http.server.SimpleHTTPRequestHandler)
+    thread = threading.Thread(target=server.serve_forever, daemon=True)
+    thread.start()
+    yield f"tcp://127.0.0.1:{server.server_address[1]}"
+    server.shutdown()
+    server.server_close()
+
+
+def test_a_scheduler_that_is_an_http_server_exits_2_without_hanging(http_server, tmp_path):
+    out = subprocess.run([sys.executable, "-m", "mbctl.cli", "sweep", "demo", "--param", "duration=0.1",
+                          "--scheduler", http_server, "--connect-timeout", "1", "--output",
+                          str(tmp_path / "s")], capture_output=True, text=True, timeout=60, env=os.environ)
+    assert out.returncode == 2, out.stderr
+    assert f"no Dask scheduler answered at {http_server} within 1 s" in out.stderr
+    assert "Traceback" not in out.stderr
+
+
+@pytest.mark.parametrize(("address", "message"), [
+    ("notaurl", "--scheduler 'notaurl' is not a scheduler address (missing port number"),
+    ("http://127.0.0.1:8787", "Dask reaches a scheduler by tcp, tls, ws, wss, ucx, not http://"),
+    ("tcp://127.0.0.1:70000", "needs a host and a port in 1-65535"),
+])
+def test_a_malformed_scheduler_address_exits_2_before_anything_is_written(tmp_path, address, message):
+    out = mbctl("sweep", "demo", "--param", "duration=0.1", "--scheduler", address, "--output",
+                str(tmp_path / "s"))
+    assert out.returncode == 2 and message in out.stderr, out.stderr
+    assert "Traceback" not in out.stderr and not (tmp_path / "s").exists()
+
+
+def test_a_worker_address_is_not_taken_for_a_scheduler(dask_client):
+    from mbctl.jobs.sweep_cluster import SweepSetupError, check_scheduler
+
+    worker = next(iter(dask_client.scheduler_info()["workers"]))
+    with pytest.raises(SweepSetupError, match="answers, but as a Dask Worker, not a scheduler"):
+        check_scheduler(worker, 5.0)
+    check_scheduler(dask_client.scheduler.address, 5.0)  # the scheduler itself passes

@@ -45,3 +45,45 @@ def test_bad_input_exits_2_with_a_message(tmp_path):
     assert out.returncode == 2 and "holds no trajectory.npz" in out.stderr
     out = _mbctl("render", "two_link", "--output", str(tmp_path / "arm.jpg"))
     assert out.returncode == 2 and "--output must be a .png file" in out.stderr
+
+
+def test_replay_of_a_damaged_run_exits_2_naming_the_problem(tmp_path):
+    import numpy as np
+
+    from mbctl.robots import load_robot
+    from mbctl.sim import Simulator
+    from mbctl.sim.trajectory import TrajectoryRecorder
+
+    sim = Simulator(load_robot("two_link_torque"))
+    rec = TrajectoryRecorder(sim, tmp_path).attach()
+    for _ in range(10):
+        sim.step()
+    path = rec.close()
+    with np.load(path) as data:
+        arrays = {k: data[k] for k in data.files}
+    arrays["qpos"][4, 1] = np.nan
+    np.savez(path, **arrays)
+    out = _mbctl("replay", str(tmp_path), "--video", "--output", str(tmp_path / "r.mp4"))
+    assert out.returncode == 2 and "qpos sample 4 (of 11) holds NaN or inf" in out.stderr, out.stderr
+    path.write_bytes(path.read_bytes()[:100])
+    out = _mbctl("replay", str(tmp_path), "--video", "--output", str(tmp_path / "r.mp4"))
+    assert out.returncode == 2 and "is damaged (truncated or not an npz archive)" in out.stderr, out.stderr
+    assert "Traceback" not in out.stderr and not (tmp_path / "r.mp4").exists()
+
+
+def test_render_and_replay_replace_a_symlink_never_follow_it(tmp_path):
+    victim = tmp_path / "victim.txt"
+    victim.write_text("the user's file")
+    (tmp_path / "arm.png").symlink_to(victim)
+    out = _mbctl("render", "two_link_torque", "--output", str(tmp_path / "arm.png"), "--size", "64x48")
+    assert out.returncode == 0, out.stderr
+    assert victim.read_text() == "the user's file" and not (tmp_path / "arm.png").is_symlink()
+    assert image.imread(tmp_path / "arm.png").shape[:2] == (48, 64)
+    run = tmp_path / "run"
+    out = _mbctl("demo", "--duration", "0.1", "--output", str(run), "--quiet")
+    assert out.returncode == 0, out.stderr
+    (run / "replay.mp4").symlink_to(victim)
+    out = _mbctl("replay", str(run), "--video", "--size", "64x48")
+    assert out.returncode == 0, out.stderr
+    assert victim.read_text() == "the user's file" and not (run / "replay.mp4").is_symlink()
+    assert iio.imread(run / "replay.mp4").shape[1:] == (48, 64, 3)

@@ -160,3 +160,93 @@ def test_cli_bad_output_exits_2_with_one_line_before_any_work():
 def test_cli_version():
     out = _cli("--version")
     assert out.returncode == 0 and out.stdout.startswith("mbctl 0.")
+
+
+def _filmed(params: None):
+    def work(ctx: RunContext) -> Outcome:
+        from mbctl.jobs.plots import new_figure
+        from mbctl.robots import load_robot, torque
+        from mbctl.sim import Simulator
+
+        sim = ctx.attach(Simulator(load_robot("two_link_torque")))
+        for _ in range(30):
+            sim.step(torque([1.0, 0.0]))
+        fig, _ = new_figure()
+        ctx.save_figure(fig, "toy.png")
+        return Outcome()
+
+    return work
+
+
+def test_no_output_follows_a_symlink(tmp_path):
+    from mbctl.sim.video import VideoSpec
+
+    run, victims = tmp_path / "run", tmp_path / "victims"
+    run.mkdir()
+    victims.mkdir()
+    names = ["report.json", "trajectory.npz", "model.xml", "video.mp4", "toy.png"]
+    for name in names:
+        (victims / name).write_text(f"the user's {name}")
+        (run / name).symlink_to(victims / name)
+    record = run_job(Job("toy", _filmed), None, run, video=VideoSpec(64, 48))
+    assert record.status == "completed"
+    for name in names:
+        assert (victims / name).read_text() == f"the user's {name}", name
+        assert not (run / name).is_symlink() and (run / name).stat().st_size > 0, name
+    assert (run / "video.mp4").read_bytes()[4:8] == b"ftyp"  # the run's own MP4 replaced the link
+
+
+def test_a_directory_in_place_of_an_output_is_refused_before_the_run(tmp_path):
+    from mbctl.sim.video import VideoSpec
+
+    calls = []
+    job = Job("toy", lambda p: calls.append(p))
+    (tmp_path / "video.mp4").mkdir()
+    with pytest.raises(OutputError, match="video.mp4 is a directory where this run writes a file"):
+        run_job(job, Params(), tmp_path, video=VideoSpec(64, 48))
+    assert calls == [] and sorted(os.listdir(tmp_path)) == ["video.mp4"]
+    out = _cli("demo", "--duration", "0.1", "--video", "--output", str(tmp_path), "--quiet")
+    assert out.returncode == 2 and "video.mp4 is a directory" in out.stderr, out.stderr
+    assert "Traceback" not in out.stderr and sorted(os.listdir(tmp_path)) == ["video.mp4"]
+
+
+def test_a_forged_or_stale_report_removes_no_user_file(tmp_path):
+    from mbctl.robots.menagerie import sha256_file
+
+    run_job(TOY, Params(rows=3, plot=True), tmp_path)
+    report = _report(tmp_path)
+    assert set(report["output_sha256"]) == {"toy.csv", "toy.png"}
+    assert report["output_sha256"]["toy.csv"] == sha256_file(tmp_path / "toy.csv")
+    outside, victim = tmp_path.parent / f"{tmp_path.name}-outside.txt", tmp_path / "victim.txt"
+    outside.write_text("outside")
+    victim.write_text("the user's notes")
+    (tmp_path / "notes.txt").write_text("the user's notes")
+    (tmp_path / "link.txt").symlink_to(victim)
+    (tmp_path / "toy.png").write_text("edited by the user since the run")  # stale entry
+    digest = sha256_file(victim)
+    report["outputs"].update(notes="notes.txt", link="link.txt", out=f"../{outside.name}",
+                             victim="victim.txt")
+    report["output_sha256"].update({"notes.txt": "0" * 64, "link.txt": digest,
+                                    f"../{outside.name}": sha256_file(outside), "/etc/passwd": "0" * 64})
+    (tmp_path / "report.json").write_text(json.dumps(report))
+    run_job(TOY, Params(rows=2), tmp_path)
+    assert sorted(os.listdir(tmp_path)) == ["link.txt", "notes.txt", "report.json", "toy.csv", "toy.png",
+                                           "victim.txt"]
+    assert victim.read_text() == "the user's notes" and outside.read_text() == "outside"
+    assert (tmp_path / "toy.png").read_text() == "edited by the user since the run"
+
+
+def test_a_report_that_is_a_symlink_is_not_read(tmp_path):
+    from mbctl.robots.menagerie import sha256_file
+
+    elsewhere = tmp_path / "elsewhere"
+    elsewhere.mkdir()
+    (tmp_path / "run").mkdir()
+    (tmp_path / "run" / "data.txt").write_text("the user's data")
+    digest = sha256_file(tmp_path / "run" / "data.txt")
+    (elsewhere / "report.json").write_text(json.dumps(
+        {"outputs": {"csv": "data.txt"}, "output_sha256": {"data.txt": digest}}))
+    (tmp_path / "run" / "report.json").symlink_to(elsewhere / "report.json")
+    run_job(TOY, Params(rows=2), tmp_path / "run")
+    assert (tmp_path / "run" / "data.txt").read_text() == "the user's data"
+    assert (elsewhere / "report.json").exists() and not (tmp_path / "run" / "report.json").is_symlink()

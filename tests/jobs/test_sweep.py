@@ -17,7 +17,8 @@ from mbctl.jobs import options  # noqa: E402
 from mbctl.jobs.catalog import CATALOG, SweepInputError, parse_grid  # noqa: E402
 from mbctl.jobs.demo import DEMO  # noqa: E402
 from mbctl.jobs.runner import Progress, run_job  # noqa: E402
-from mbctl.jobs.sweep import SweepConfig, SweepSetupError, open_client, run_sweep  # noqa: E402
+from mbctl.jobs.sweep import SweepConfig, run_sweep  # noqa: E402
+from mbctl.jobs.sweep_cluster import SweepSetupError, open_client  # noqa: E402
 
 DURATION = "0.1"
 
@@ -87,6 +88,34 @@ def test_failed_task_is_a_row_and_resume_reruns_only_it(client, tmp_path):
     again = run_sweep(demo_sweep(tmp_path, "side=0.2,0.9", resume=True), client=client)
     assert (again.ran, again.skipped) == (1, 1)
     assert [r["side"] for r in read_rows(again.files["csv"])[1]] == ["0.2", "0.9"]
+
+
+@pytest.mark.parametrize("cut", ["in run_dir", "in the values", "status edited"])
+def test_resume_runs_a_torn_row_again(client, tmp_path, cut):
+    config = demo_sweep(tmp_path, "model_error=0,5")
+    run_sweep(config, client=client)
+    path = config.output_dir / "sweep.csv"
+    text = path.read_text()
+    last = text.rstrip("\n").rsplit("\n", 1)[1]
+    torn = {"in run_dir": last[:-12], "in the values": last[:len(last) // 3],
+            "status edited": last.replace(",completed,", ",diverged,")}[cut]
+    path.write_text(text.replace(last, torn))
+    again = run_sweep(SweepConfig("demo", config.grid, config.output_dir, resume=True), client=client)
+    assert (again.ran, again.skipped, again.unsound) == (1, 1, 1)
+    rows = read_rows(again.files["csv"])[1]
+    assert [r["model_error"] for r in rows] == ["0.0", "5.0"]
+    assert all(r["status"] == "completed" and Path(r["run_dir"], "report.json").exists() for r in rows)
+    assert rows[1]["run_dir"] == str(config.output_dir / "runs" / "duration=0.1,model_error=5.0")
+
+
+def test_resume_with_a_changed_grid_keeps_the_earlier_rows(client, tmp_path):
+    run_sweep(demo_sweep(tmp_path, "model_error=0,5"), client=client)
+    again = run_sweep(demo_sweep(tmp_path, "model_error=5,10", resume=True), client=client)
+    assert (again.ran, again.skipped, len(again.earlier)) == (1, 1, 1)
+    assert [r["model_error"] for r in again.rows] == ["5.0", "10.0"]
+    rows = read_rows(again.files["csv"])[1]
+    assert [r["model_error"] for r in rows] == ["5.0", "10.0", "0.0"]  # the earlier grid's row last
+    assert json.loads(again.files["json"].read_text())["earlier_grid_rows"] == 1
 
 
 def test_resume_with_other_parameters_is_refused(client, tmp_path):
@@ -162,6 +191,38 @@ def test_run_folder_names_are_safe_and_distinct():
     assert run_name({"model_error": 5.0, "controller": "ct"}) == "model_error=5.0,controller=ct"
     a, b = run_name({"robot": "a/b.xml"}), run_name({"robot": "a_b.xml"})
     assert "/" not in a and a != b
+
+
+@pytest.mark.parametrize("resume", [False, True])
+def test_a_symlink_under_runs_is_refused_before_any_task(tmp_path, resume):
+    from mbctl.jobs.runner import OutputError
+
+    victim = tmp_path / "victim"
+    victim.mkdir()
+    (victim / "report.json").write_text("{}")
+    (victim / "thesis.tex").write_text("years of work")
+    config = demo_sweep(tmp_path, "model_error=0", resume=resume)
+    (config.output_dir / "runs").mkdir(parents=True)
+    (config.output_dir / "runs" / "duration=0.1,model_error=0.0").symlink_to(victim)
+    with pytest.raises(OutputError, match="runs/duration=0.1,model_error=0.0 is a symbolic link; mbctl "
+                                          "never writes through one"):
+        run_sweep(config, client=object())  # never used: the check comes first
+    assert sorted(p.name for p in victim.iterdir()) == ["report.json", "thesis.tex"]
+
+
+def test_a_new_sweep_removes_only_what_its_runs_made(client, tmp_path):
+    config = demo_sweep(tmp_path, "model_error=0")
+    run_sweep(config, client=client)
+    runs = config.output_dir / "runs"
+    (runs / "mine").mkdir()
+    (runs / "mine" / "report.json").write_text('{"outputs": {"a": "thesis.tex"}}')  # forged
+    (runs / "mine" / "thesis.tex").write_text("years of work")
+    (runs / "duration=0.1,model_error=0.0" / "notes.txt").write_text("the user's notes")
+    run_sweep(demo_sweep(tmp_path, "model_error=5"), client=client)
+    assert (runs / "mine" / "thesis.tex").read_text() == "years of work"
+    assert sorted(p.name for p in (runs / "duration=0.1,model_error=0.0").iterdir()) == ["notes.txt"]
+    assert sorted(p.name for p in runs.iterdir()) == ["duration=0.1,model_error=0.0",
+                                                      "duration=0.1,model_error=5.0", "mine"]
 
 
 def test_plot_axes_read_in_the_users_units():

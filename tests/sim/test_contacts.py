@@ -71,3 +71,35 @@ def test_push_gives_its_impulse():
     assert d.qvel[0] == pytest.approx(1.0, rel=1e-6)
     with pytest.raises(SimError, match="push on unknown body 'nope'"):
         PushSchedule(m, [Push("nope", (1.0, 0.0, 0.0), 0.0, 0.1)])
+
+
+STACK = """
+<mujoco>
+  <worldbody>
+    <geom name="floor" type="plane" size="2 2 0.1"/>
+    <body name="low" pos="0 0 0.1">
+      <freejoint/><geom name="low" type="box" size="0.1 0.1 0.1" mass="2"/>
+    </body>
+    <body name="up" pos="0 0 0.3">
+      <freejoint/><geom name="up" type="box" size="0.05 0.05 0.1" mass="0.5"/>
+    </body>
+  </worldbody>
+</mujoco>
+"""
+
+
+def test_a_contact_between_two_groups_counts_for_both_with_opposite_signs():
+    from mbctl.sim.contacts import ContactSensor, FloorContacts
+
+    m = mujoco.MjModel.from_xml_string(STACK)
+    d = mujoco.MjData(m)
+    mujoco.mj_step(m, d, 1000)
+    low, up = (mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_GEOM, n) for n in ("low", "up"))
+    out = ContactSensor(m, {"low": [low], "up": [up]}).measure(d)
+    g = 9.81
+    assert out["up"].normal_n == pytest.approx(0.5 * g, rel=1e-3)  # the lower box holds the upper
+    assert out["low"].normal_n == pytest.approx(2.0 * g, rel=1e-3)  # floor (2.5 g) minus the upper (0.5 g)
+    floor = [mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_GEOM, "floor")]
+    assert FloorContacts(m, floor).bodies(d) == ["low"]
+    up_body = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_BODY, "up")
+    assert FloorContacts(m, floor, bodies=[up_body]).bodies(d) == []

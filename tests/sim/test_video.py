@@ -71,9 +71,10 @@ def test_the_file_on_disk_plays_to_within_a_second_of_the_last_frame(tmp_path):
     for _ in range(1500):  # 3 s at 2 ms: 90 frames sent
         sim.step(torque([1.0, -0.5]))
     assert rec.frames == 90
+    (on_disk,) = tmp_path.glob(".live.mp4.*.tmp")  # written beside its name until closed
     snapshot, readable, deadline = tmp_path / "snapshot.mp4", 0, time.monotonic() + 60.0
     while readable < 60 and time.monotonic() < deadline:
-        shutil.copyfile(tmp_path / "live.mp4", snapshot)  # what a reader finds on disk now
+        shutil.copyfile(on_disk, snapshot)  # what a reader finds on disk now
         try:
             readable = iio.imread(snapshot).shape[0]
         except OSError:  # no complete fragment yet

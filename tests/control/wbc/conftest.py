@@ -1,7 +1,7 @@
 """A small biped built in code, so the whole-body controller is tested without the G1.
 
-Floating pelvis, a waist yaw, two 5-dof legs (hip roll and pitch in one body, knee, ankle pitch
-and roll in one body), four sole spheres per foot, torque motors; 23 kg. ``tiny_biped_reordered``
+Floating pelvis, a waist yaw, two 6-dof legs (hip yaw, roll and pitch in one body, knee, ankle
+pitch and roll in one body), four sole spheres per foot, torque motors; 23 kg. ``tiny_biped_reordered``
 is the same robot with its actuators declared in another order (the controller then indexes its
 torque rows with index arrays instead of slices).
 """
@@ -21,6 +21,7 @@ def _leg(side: str, y: float) -> str:
         for x in (0.09, -0.05) for dy in (0.035, -0.035))
     return f"""
       <body name="{side}_thigh" pos="0 {y} -0.05">
+        <joint name="{side}_hip_yaw" axis="0 0 1" range="-0.8 0.8"/>
         <joint name="{side}_hip_roll" axis="1 0 0" range="-0.6 0.6"/>
         <joint name="{side}_hip_pitch" axis="0 1 0" range="-1.6 1.0"/>
         <inertial pos="0 0 -0.12" mass="2.5" diaginertia="0.03 0.03 0.004"/>
@@ -38,8 +39,8 @@ def _leg(side: str, y: float) -> str:
       </body>"""
 
 
-JOINTS = ["waist", *[f"{s}_{j}" for s in ("l", "r") for j in ("hip_roll", "hip_pitch", "knee", "ankle_pitch",
-                                                                    "ankle_roll")]]
+JOINTS = ["waist", *[f"{s}_{j}" for s in ("l", "r") for j in ("hip_yaw", "hip_roll", "hip_pitch", "knee",
+                                                                    "ankle_pitch", "ankle_roll")]]
 
 
 def biped_xml(actuator_order: list[str]) -> str:

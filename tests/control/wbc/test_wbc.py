@@ -58,6 +58,30 @@ def test_every_task_drift_is_the_time_derivative_of_its_jacobian_times_v(tiny_bi
         assert J.shape == (task.k, model.nv)
 
 
+def test_every_fast_acceleration_path_equals_the_generic_rows(tiny_biped):
+    """Each task's own write_acceleration_rows (a fast path) equals Task's generic one."""
+    from mbctl.control.tasks import Task
+
+    model = tiny_biped.pin_model
+    rng = np.random.default_rng(11)
+    q = pin.integrate(model, pin.neutral(model), 0.3 * rng.normal(size=model.nv))
+    state = DynamicsState(model, q, rng.normal(size=model.nv))
+    for task in _tasks(model):
+        if hasattr(task, "set_target") and not isinstance(task, (ComTask, PostureTask)):
+            task.set_target(pin.SE3(pin.exp3(0.2 * rng.normal(size=3)), rng.normal(size=3)))
+        elif isinstance(task, ComTask):
+            task.set_target(rng.normal(size=3), rng.normal(size=3), rng.normal(size=3))
+        task.servo = AccelerationGains(7.0, 0.6)
+        task.set_cost(rng.uniform(0.5, 2.0, task.k))
+        fast = np.zeros((task.k, model.nv)), np.zeros(task.k)
+        generic = np.zeros((task.k, model.nv)), np.zeros(task.k)
+        task.write_acceleration_rows(state, *fast)
+        Task.write_acceleration_rows(task, state, *generic)
+        np.testing.assert_allclose(fast[0], generic[0], atol=1e-12, err_msg=task.name)
+        np.testing.assert_allclose(fast[1], generic[1], atol=1e-10, err_msg=task.name)
+    np.testing.assert_allclose(state.angular_momentum(), state.centroidal_map()[3:] @ state.v, atol=1e-12)
+
+
 def test_a_task_without_an_acceleration_form_is_named(tiny_biped, crouch):
     wb = standing_controller(tiny_biped, FEET, "pelvis")
     wb.hold(RobotState(crouch(tiny_biped), np.zeros(tiny_biped.nv), 0.0))
@@ -191,15 +215,14 @@ def _moving_state(robot, crouch, seed=5):
     return RobotState(crouch(robot), 0.2 * rng.normal(size=robot.nv), 0.0)
 
 
-def test_actuator_order_and_warm_start_do_not_change_the_torques(tiny_biped, tiny_biped_reordered, crouch):
+def test_the_actuator_order_does_not_change_the_torques(tiny_biped, tiny_biped_reordered, crouch):
     # contiguous actuated dofs (slices) against an actuator order with no contiguous run (index
-    # arrays), and warm against cold starts: the same torques, joint by joint
+    # arrays): the same torques, joint by joint
     state = _moving_state(tiny_biped, crouch)
     torques = {}
-    for label, robot, warm in (("slices", tiny_biped, True), ("arrays", tiny_biped_reordered, False)):
-        wb, _ = _stance(robot, crouch, warm_start=warm)
-        wb.controller.compute(state)
-        command = wb.controller.compute(state)  # the second solve starts from the first's solution
+    for label, robot in (("slices", tiny_biped), ("arrays", tiny_biped_reordered)):
+        wb, _ = _stance(robot, crouch)
+        command = wb.controller.compute(state)
         torques[label] = dict(zip(wb.controller.joints.joints, command.values, strict=True))
     assert list(torques["slices"]) != list(torques["arrays"])  # the orders differ
     for joint, tau in torques["slices"].items():
@@ -233,3 +256,21 @@ def test_mass_matrix_is_symmetric_and_matches_crba(tiny_biped, crouch):
     M = np.triu(M) + np.triu(M, 1).T
     np.testing.assert_allclose(s.M, M, atol=1e-10)
     assert not s.M.flags.writeable
+
+
+def test_a_joint_heading_for_its_limit_is_made_to_decelerate(tiny_biped, crouch):
+    """The joint-limit bound demands deceleration before the limit (not only no acceleration toward it)."""
+    wb, state = _stance(tiny_biped, crouch)
+    ctrl = wb.controller
+    knee = tiny_biped.joint("l_knee")
+    q = np.array(state.q)
+    q_lo = tiny_biped.pin_model.lowerPositionLimit[knee.idx_q]
+    q[knee.idx_q] = q_lo + 0.06  # 0.06 rad above the lower limit, closing at 1 rad/s
+    v = np.zeros(tiny_biped.nv)
+    v[knee.idx_v] = -1.0
+    ctrl.compute(RobotState(q, v, 0.0))
+    cfg = ctrl.config
+    Th = cfg.joint_limit_horizon_s
+    required = 2.0 * (q_lo + cfg.joint_limit_margin_rad - (q[knee.idx_q] + v[knee.idx_v] * Th)) / Th**2
+    assert required > 0.0  # coasting would cross the limit within the horizon
+    assert ctrl.solution.vdot[knee.idx_v] >= min(required, cfg.joint_limit_max_accel_rad_s2) - 1e-6

@@ -1,0 +1,251 @@
+"""Floating-base state from the IMU and the joint encoders, with feet in contact: a linear Kalman filter.
+
+The robot measures its joints and its IMU, not where its base is. With a foot on the ground, the
+foot does not move, so leg kinematics tie the base to it: this is the linear filter of Bledt et
+al. (MIT Cheetah 3, IROS 2018), also used on humanoids.
+
+Notation: W world (z up, x and y where the base started), B base, I IMU, F a foot frame, P the
+foot's contact point. The IMU gives R_WI (its orientation filter), w_I (gyro) and the specific
+force f_I (accelerometer); R_BI and p_BI are fixed by the model. So R_WB = R_WI R_BI^T and
+w_B = R_BI w_I are measured; the filter estimates the rest.
+
+State x = [p_WB, v_WB, p_WP1, ..., p_WPn] (3 + 3 + 3 n), all in W.
+
+- Predict (the IMU drives it): a_W = R_WI f_I + g; p += v dt + a dt^2 / 2; v += a dt; feet stay,
+  with a random walk that grows without bound for a foot out of contact.
+- Correct, for each foot in contact: p_WP - p_WB = R_WB p_BP(q) (leg forward kinematics, base at the
+  origin), and v_WB = -R_WB (v_BP(q, dq) + w_B x p_BP) (the contact point is at rest).
+
+The model is linear in x, so the filter is exact for it (no linearization); R_WB enters only
+through the measurements. Position and yaw are unobservable: they stay where they started and
+drift only as much as the feet slip. The height is observable through the starting assumption
+that the contact points are on the ground (z = ``ground_z_m``).
+
+Out of scope: the IMU's lever arm (its centripetal acceleration, below 0.01 m/s^2 for a standing
+robot), accelerometer bias, contact detection (the feet in contact are given: ``set_contacts``).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from dataclasses import dataclass
+
+import numpy as np
+import numpy.typing as npt
+import pinocchio as pin
+
+from mbctl.control.estimation.exceptions import EstimatorError
+from mbctl.robots.fastmath import cross3, quat_xyzw_to_matrix
+from mbctl.robots.interface import BASE_LINEAR_VELOCITY, BASE_POSITION, Proprioception
+from mbctl.robots.model_pair import Robot
+
+
+@dataclass(frozen=True)
+class LegKinematicsNoise:
+    """Standard deviations of the filter's noise models.
+
+    Attributes:
+        accel_m_s2: Accelerometer white noise [m/s^2] (drives the velocity).
+        foot_slip_m_s: Random walk of a foot in contact [m/s^0.5] (how far it may slip).
+        foot_swing_m_s: Random walk of a foot in the air [m/s^0.5] (large: it goes anywhere).
+        kinematics_m: Error of the leg kinematics p_BP [m] (encoders, model).
+        leg_velocity_m_s: Error of the base velocity measured through a leg [m/s].
+    """
+
+    accel_m_s2: float = 0.5
+    foot_slip_m_s: float = 1e-4
+    foot_swing_m_s: float = 10.0
+    kinematics_m: float = 1e-3
+    leg_velocity_m_s: float = 0.02
+
+    def __post_init__(self) -> None:
+        for name in ("accel_m_s2", "foot_slip_m_s", "foot_swing_m_s", "kinematics_m", "leg_velocity_m_s"):
+            value = getattr(self, name)
+            if not (np.isfinite(value) and value > 0):
+                raise EstimatorError(f"noise {name} must be finite and > 0; got {value}")
+
+
+class LegKinematicsEstimator:
+    """Base position and linear velocity from leg kinematics and the IMU (see the module docstring).
+
+    Implements :class:`~mbctl.robots.interface.BaseStateEstimator`.
+
+    Args:
+        robot: A floating-base robot (its Pinocchio model is used).
+        feet: Foot frame -> its contact point p_FP (3,) [m] in that frame (e.g. the sole's centre).
+        imu_site: The frame of the IMU in the model (a site).
+        noise: The filter's noise models.
+        start_xy_m: The base's (x, y) [m] in W at ``reset`` (W is where the robot started).
+        ground_z_m: Height [m] of the ground the feet stand on at ``reset``.
+        max_dt_s: Longest IMU integration step [s]: after a gap in the readings (a stalled
+            process, lost messages) the prediction covers at most this, and the legs correct the rest.
+
+    Raises:
+        EstimatorError: A fixed-base robot, no feet, or an unknown frame.
+    """
+
+    def __init__(
+        self,
+        robot: Robot,
+        feet: Mapping[str, npt.ArrayLike],
+        imu_site: str,
+        noise: LegKinematicsNoise | None = None,
+        *,
+        start_xy_m: tuple[float, float] = (0.0, 0.0),
+        ground_z_m: float = 0.0,
+        max_dt_s: float = 0.02,
+    ):
+        if not robot.has_floating_base:
+            raise EstimatorError(f"{robot.name} has a fixed base: there is no base state to estimate")
+        if not feet:
+            raise EstimatorError("give at least one foot frame with its contact point")
+        self.model = robot.pin_model
+        self.data = self.model.createData()
+        unknown = [f for f in (*feet, imu_site) if not self.model.existFrame(f)]
+        if unknown:
+            raise EstimatorError(f"unknown frames {unknown}; the model has sites and bodies such as "
+                                 f"{[f.name for f in self.model.frames][1:8]}")
+        self.feet = tuple(feet)
+        self._fids = [self.model.getFrameId(f) for f in self.feet]
+        self._p_FP = [np.asarray(feet[f], dtype=float).reshape(3) for f in self.feet]
+        self.noise = noise or LegKinematicsNoise()
+        self.start_xy_m = (float(start_xy_m[0]), float(start_xy_m[1]))
+        self.ground_z_m = float(ground_z_m)
+        self.max_dt_s = float(max_dt_s)
+        self._g_W = np.array(self.model.gravity.linear)
+        # the IMU's placement in the base, at the neutral joint configuration (it is on the base)
+        pin.framesForwardKinematics(self.model, self.data, pin.neutral(self.model))
+        X_BI = self.data.oMf[self.model.getFrameId(imu_site)]
+        self._R_BI = X_BI.rotation.copy()
+        self._q_BI = pin.Quaternion(self._R_BI)
+        n = len(self.feet)
+        self._n = 6 + 3 * n
+        self._contact = np.ones(n, dtype=bool)
+        self._q_fk = pin.neutral(self.model)
+        self._v_fk = np.zeros(self.model.nv)
+        self.x = np.zeros(self._n)
+        self.P = np.eye(self._n)
+        self._t: float | None = None
+        self._H = self._measurement_matrix()
+        nz = self.noise
+        self._r_diag = np.concatenate([np.full(3 * n, nz.kinematics_m**2),
+                                       np.full(3 * n, nz.leg_velocity_m_s**2)])
+
+    @property
+    def estimated(self) -> tuple[str, ...]:
+        """Base position and linear velocity (orientation and angular velocity are the IMU's)."""
+        return (BASE_POSITION, BASE_LINEAR_VELOCITY)
+
+    def set_contacts(self, in_contact: Mapping[str, bool]) -> None:
+        """Say which feet are on the ground (all are, until told otherwise).
+
+        Raises:
+            EstimatorError: An unknown foot.
+        """
+        for foot, flag in in_contact.items():
+            if foot not in self.feet:
+                raise EstimatorError(f"unknown foot {foot!r}; the estimator's feet are {list(self.feet)}")
+            self._contact[self.feet.index(foot)] = bool(flag)
+
+    # ------------------------------------------------------------------ kinematics
+    def _orientation(self, reading: Proprioception) -> tuple[np.ndarray, np.ndarray, pin.Quaternion]:
+        """R_WI, R_WB and q_WB from the IMU's quaternion."""
+        w, x, y, z = reading.imu.quat_wxyz
+        R_WI = quat_xyzw_to_matrix([x, y, z, w])
+        R_WB = R_WI @ self._R_BI.T
+        q_WB = pin.Quaternion(float(w), float(x), float(y), float(z)) * self._q_BI.inverse()
+        return R_WI, R_WB, q_WB
+
+    def _legs(self, reading: Proprioception, w_B: list[float]) -> tuple[np.ndarray, np.ndarray]:
+        """p_BP (n, 3) [m] and the base velocity each leg implies, in B (n, 3) [m/s]."""
+        self._q_fk[7:] = reading.q_joints
+        self._v_fk[6:] = reading.v_joints
+        pin.forwardKinematics(self.model, self.data, self._q_fk, self._v_fk)
+        p_BP = np.empty((len(self.feet), 3))
+        v_B = np.empty((len(self.feet), 3))
+        for i, fid in enumerate(self._fids):
+            X_BF = pin.updateFramePlacement(self.model, self.data, fid)
+            p_FP_B = X_BF.rotation @ self._p_FP[i]
+            p_BP[i] = X_BF.translation + p_FP_B
+            vel = pin.getFrameVelocity(self.model, self.data, fid, pin.LOCAL_WORLD_ALIGNED)
+            # the point's velocity relative to B, then the base's: -(v_BP + w_B x p_BP)
+            v_BP = vel.linear + cross3(vel.angular.tolist(), p_FP_B.tolist())
+            v_B[i] = -(v_BP + cross3(w_B, p_BP[i].tolist()))
+        return p_BP, v_B
+
+    @property
+    def _rows(self) -> np.ndarray:
+        """The measurement rows of the feet in contact (positions, then velocities)."""
+        return np.concatenate([np.repeat(self._contact, 3), np.repeat(self._contact, 3)])
+
+    def _measurement_matrix(self) -> np.ndarray:
+        n = len(self.feet)
+        H = np.zeros((6 * n, self._n))
+        for i in range(n):
+            H[3 * i:3 * i + 3, 0:3] = -np.eye(3)  # p_WP - p_WB
+            H[3 * i:3 * i + 3, 6 + 3 * i:9 + 3 * i] = np.eye(3)
+            H[3 * n + 3 * i:3 * n + 3 * i + 3, 3:6] = np.eye(3)  # v_WB
+        return H
+
+    # ------------------------------------------------------------------ filter
+    def reset(self, reading: Proprioception) -> None:
+        """Start at rest: base (x, y) at ``start_xy_m``, the lowest contact point on the ground."""
+        _, R_WB, _ = self._orientation(reading)
+        w_B = self._R_BI @ np.asarray(reading.imu.gyro_I, dtype=float)
+        p_BP, _ = self._legs(reading, w_B.tolist())
+        p_WP_rel = p_BP @ R_WB.T  # R_WB p_BP, per foot
+        base = np.array([*self.start_xy_m, self.ground_z_m - p_WP_rel[:, 2].min()])
+        self.x = np.concatenate([base, np.zeros(3), (base + p_WP_rel).ravel()])
+        self.P = np.diag([1e-6] * 3 + [1e-4] * 3 + [1e-6] * 3 * len(self.feet))
+        self._t = float(reading.time_s)
+
+    def update(self, reading: Proprioception) -> tuple[np.ndarray, np.ndarray]:
+        """Predict with the IMU, correct with the legs in contact; the base's q (7,) and v (6,).
+
+        Raises:
+            EstimatorError: ``update`` before ``reset``, or readings that are not finite.
+        """
+        if self._t is None:
+            raise EstimatorError("call reset(reading) with the first reading before update()")
+        R_WI, R_WB, q_WB = self._orientation(reading)
+        w_B = self._R_BI @ np.asarray(reading.imu.gyro_I, dtype=float)
+        dt = min(float(reading.time_s) - self._t, self.max_dt_s)
+        self._t = float(reading.time_s)
+        nz = self.noise
+        x, P = self.x, self.P
+        if dt > 0:
+            a_W = R_WI @ np.asarray(reading.imu.accel_I, dtype=float) + self._g_W
+            x[0:3] += x[3:6] * dt + 0.5 * dt * dt * a_W
+            x[3:6] += a_W * dt
+            # F = I + dt [[0, I], [0, 0]] on the base block; feet unchanged
+            P[0:3, :] += dt * P[3:6, :]
+            P[:, 0:3] += dt * P[:, 3:6]
+            q_diag = np.empty(self._n)
+            q_diag[0:3] = (0.5 * nz.accel_m_s2 * dt * dt) ** 2
+            q_diag[3:6] = nz.accel_m_s2**2 * dt
+            walk = np.where(self._contact, nz.foot_slip_m_s, nz.foot_swing_m_s) ** 2 * dt
+            q_diag[6:] = np.repeat(walk, 3)
+            P[np.diag_indices(self._n)] += q_diag
+        p_BP, v_B_legs = self._legs(reading, w_B.tolist())
+        if self._contact.any():
+            rows = self._rows
+            H = self._H[rows]
+            z = np.concatenate([(p_BP @ R_WB.T).ravel(), (v_B_legs @ R_WB.T).ravel()])[rows]
+            PHt = P @ H.T
+            S = H @ PHt
+            S[np.diag_indices(len(S))] += self._r_diag[rows]
+            K = np.linalg.solve(S, PHt.T).T  # S is symmetric
+            x += K @ (z - H @ x)
+            P -= K @ PHt.T
+            P[:] = 0.5 * (P + P.T)
+        if not np.all(np.isfinite(x)):
+            raise EstimatorError(f"the estimate diverged at t={reading.time_s:.3f} s (non-finite "
+                                 "readings or noise models); check the IMU and encoder values")
+        q_base = np.concatenate([x[0:3], q_WB.coeffs()])  # coeffs: (x, y, z, w)
+        v_base = np.concatenate([R_WB.T @ x[3:6], w_B])
+        return q_base, v_base
+
+    @property
+    def foot_positions_W(self) -> dict[str, np.ndarray]:
+        """The estimated contact points p_WP (3,) [m] by foot (copies)."""
+        return {f: self.x[6 + 3 * i:9 + 3 * i].copy() for i, f in enumerate(self.feet)}

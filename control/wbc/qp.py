@@ -1,0 +1,226 @@
+"""The whole-body QP with its structure: a block-diagonal Hessian, equalities, two-sided rows, bounds.
+
+The controller's problem over ``x = [vdot (nv); f (n_f)]``::
+
+    min  1/2 x^T H x + c^T x,    H = blockdiag(H_vv, w_f^2 I),   c = [c_v; 0]
+    s.t. E x = e                              (base dynamics, feet in contact)
+         g_lo <= G x <= g_up                  (friction pyramids, torque limits)
+         lb <= x <= ub                        (joint-limit accelerations, normal forces)
+
+Solved in two ways, the first tried first:
+
+* **Equality-constrained fast path.** The optimum of the QP without its inequalities comes from
+  the KKT system, by the Schur complement on the equalities: with ``H_vv = L L^T``,
+  ``S = E H^-1 E^T`` (m_eq x m_eq, SPD when E has full row rank),
+  ``lambda = -S^-1 (e + E H^-1 c)`` and ``x = -H^-1 (c + E^T lambda)``. If that point satisfies
+  every inequality and bound (to :data:`FEASIBILITY_TOL`), it is the QP's optimum (the problem is
+  convex and no inequality is active). This is the first iteration of any active-set method,
+  written here because daqp's setup with 18 equality rows costs ~60 us (e.g. on the G1; measured,
+  ``bench/bench_wbc.py``) while this costs a Cholesky of the 35 x 35 block and an 18 x 18 solve.
+  Standing and squatting never leave it (no inequality is active there).
+* **daqp** (the dual active-set solver) on the whole problem, called directly with preallocated
+  rows (two-sided torque rows instead of qpsolvers' two one-sided rows each), whenever an
+  inequality would be violated or E is rank-deficient. Calling ``daqp.solve`` directly instead of
+  through ``qpsolvers.solve_problem`` saves the wrapper's conversions (~17 us per solve, measured).
+
+Other QP backends (``proxqp``, ``osqp``...) go through ``qpsolvers`` on the same problem
+(:meth:`WholeBodyQP.problem`), for comparison.
+"""
+
+from __future__ import annotations
+
+from typing import NamedTuple
+
+import daqp
+import numpy as np
+import qpsolvers
+from scipy.linalg.lapack import dpotrf, dpotrs, dpstrf, dtrtri
+
+#: Largest violation [problem units: rad/s^2, N, N m] of an inequality or bound that the fast
+#: path's point may have and still count as feasible (daqp's own primal tolerance is 1e-6).
+FEASIBILITY_TOL = 1e-9
+
+#: daqp's infinity: bounds beyond it are absent.
+DAQP_INF = 1e30
+
+#: Exit flag for bounds or equalities that contradict each other (daqp's infeasibility flag is -1).
+CONTRADICTORY = -100
+
+#: Relative pivot [-] below which an equality row counts as dependent on the others (in the
+#: metric of ``E H^-1 E^T``).
+RANK_RTOL = 1e-10
+
+class QPResult(NamedTuple):
+    """One solve.
+
+    Attributes:
+        x: The solution (n_x,), or None when the QP has no solution.
+        fast_path: Whether the equality-constrained fast path gave it (no inequality active).
+        exitflag: daqp's exit flag (1 optimal; < 0 infeasible or failed); 1 for the fast path.
+        dependent_rows: Equality rows dropped as linearly dependent on the others.
+    """
+
+    x: np.ndarray | None
+    fast_path: bool
+    exitflag: int
+    dependent_rows: int
+
+
+class WholeBodyQP:
+    """Buffers and solver for the whole-body QP of a fixed size (see the module docstring).
+
+    The caller fills the public buffers each cycle, then calls :meth:`solve`.
+
+    Args:
+        nv: Number of accelerations.
+        n_f: Number of force variables.
+        m_in: Number of two-sided inequality rows.
+        m_eq_max: The most equality rows a cycle may have.
+        force_weight: ``w_f`` [cost]/[N]: the force block of H is ``w_f^2 I``.
+
+    Attributes:
+        H_vv: (nv, nv) the acceleration block of H (symmetric positive definite).
+        c_v: (nv,) the acceleration part of c.
+        E: (m_eq_max, n_x) equality rows; the first ``m_eq`` are used.
+        e: (m_eq_max,) their right-hand side.
+        G: (m_in, n_x) inequality rows; ``g_lo``, ``g_up`` (m_in,) their bounds (+-inf: none).
+        lb, ub: (n_x,) bounds on x (+-inf: none).
+    """
+
+    def __init__(self, nv: int, n_f: int, m_in: int, m_eq_max: int, force_weight: float):
+        self.nv, self.n_f, self.n_x = nv, n_f, nv + n_f
+        self.m_in, self.m_eq_max = m_in, m_eq_max
+        self.H_vv = np.zeros((nv, nv))
+        self.c_v = np.zeros(nv)
+        self.E = np.zeros((m_eq_max, self.n_x))
+        self.e = np.zeros(m_eq_max)
+        self.G = np.zeros((m_in, self.n_x))
+        self.g_lo = np.full(m_in, -np.inf)
+        self.g_up = np.full(m_in, np.inf)
+        self.lb = np.full(self.n_x, -np.inf)
+        self.ub = np.full(self.n_x, np.inf)
+        self.force_weight = force_weight
+        # daqp's buffers: the simple bounds first, then the rows (inequalities, then equalities)
+        m_all = self.n_x + m_in + m_eq_max
+        self._A = np.zeros((m_in + m_eq_max, self.n_x))
+        self._bu = np.zeros(m_all)
+        self._bl = np.zeros(m_all)
+        self._sense = np.zeros(m_all, dtype=np.intc)
+        self._H = np.zeros((self.n_x, self.n_x))
+        self._rows = np.arange(m_eq_max)
+
+    @property
+    def force_weight(self) -> float:
+        """``w_f`` [cost]/[N] (assignable)."""
+        return self._w_f
+
+    @force_weight.setter
+    def force_weight(self, value: float) -> None:
+        self._w_f = float(value)
+        self._inv_wf2 = 1.0 / (self._w_f * self._w_f)
+
+    def solve(self, m_eq: int) -> QPResult:
+        """Solve with the first ``m_eq`` equality rows: the fast path, else daqp.
+
+        Contradictory bounds (a lower above its upper) are reported as infeasible (exit flag
+        :data:`CONTRADICTORY`) before any solve: daqp would satisfy one side of such a row
+        silently. Linearly dependent equality rows (e.g. the feet of legs without a hip yaw, which
+        cannot yaw relative to each other) are reduced to an independent subset (the pivots of
+        ``E H^-1 E^T``), and the result says how many were dropped: the dropped rows hold only as
+        far as they agree with the kept ones.
+        """
+        if (self.g_lo > self.g_up).any() or (self.lb > self.ub).any():
+            return QPResult(None, False, CONTRADICTORY, 0)
+        x, rows = self._equality_optimum(m_eq)
+        dropped = m_eq - len(rows)
+        if x is not None and self._feasible(x):
+            return QPResult(x, True, 1, dropped)
+        return self._daqp(rows, dropped)
+
+    def _equality_optimum(self, m_eq: int) -> tuple[np.ndarray | None, np.ndarray]:
+        """The minimiser under the equalities only (KKT by Schur complement) and the independent rows.
+
+        Returns:
+            ``(x, rows)``: x (n_x,) or None if H_vv is not positive definite; ``rows`` the indices
+            of a maximal independent subset of the equality rows (x satisfies those).
+        """
+        nv = self.nv
+        E, e = self.E[:m_eq], self.e[:m_eq]
+        all_rows = self._rows[:m_eq]
+        # LAPACK directly: numpy.linalg's wrappers cost several us of Python per call at this size
+        L, info = dpotrf(self.H_vv, lower=1, clean=1)  # H_vv = L L^T
+        if info != 0:
+            return None, all_rows
+        Linv, info = dtrtri(L, lower=1)  # L^-1, so H_vv^-1 = L^-T L^-1
+        if info != 0:
+            return None, all_rows
+        E_v, E_f = E[:, :nv], E[:, nv:]
+        B = E_v @ Linv.T  # E_v L^-T: (m_eq, nv)
+        Lc = Linv @ self.c_v  # L^-1 c_v
+        S = B @ B.T
+        S += (E_f @ E_f.T) * self._inv_wf2
+        rhs = e + B @ Lc  # e + E H^-1 c   (c_f = 0)
+        # S = E H^-1 E^T: a plain Cholesky when E has full row rank (pivots well above round-off),
+        # else a pivoted one, whose rank is E's and whose pivots pick independent rows
+        scale = max(float(S.diagonal().max()), 1e-300)
+        Ls, info = dpotrf(S, lower=1)
+        if info == 0 and float(Ls.diagonal().min()) ** 2 > RANK_RTOL * scale:
+            rows = all_rows
+            y, _ = dpotrs(Ls, rhs, lower=1)
+            lam = -y
+        else:
+            _, piv, rank, _ = dpstrf(S, tol=RANK_RTOL * scale, lower=1)
+            rows = np.sort(piv[:rank] - 1)
+            Ls, _ = dpotrf(S[np.ix_(rows, rows)], lower=1)
+            y, _ = dpotrs(Ls, rhs[rows], lower=1)
+            lam = -y
+        x = np.empty(self.n_x)
+        x[:nv] = -(Linv.T @ (Lc + B[rows].T @ lam))
+        x[nv:] = -(E_f[rows].T @ lam) * self._inv_wf2
+        return x, rows
+
+    def _feasible(self, x: np.ndarray) -> bool:
+        tol = FEASIBILITY_TOL
+        if (x < self.lb - tol).any() or (x > self.ub + tol).any():
+            return False
+        gx = self.G @ x
+        return not ((gx < self.g_lo - tol).any() or (gx > self.g_up + tol).any())
+
+    def _daqp(self, eq_rows: np.ndarray, dropped: int) -> QPResult:
+        n, m_in, m_eq = self.n_x, self.m_in, len(eq_rows)
+        H = self._H
+        H[:self.nv, :self.nv] = self.H_vv
+        np.einsum("ii->i", H)[self.nv:] = self._w_f * self._w_f
+        c = np.zeros(n)
+        c[:self.nv] = self.c_v
+        rows = m_in + m_eq
+        A = self._A[:rows]
+        A[:m_in] = self.G
+        A[m_in:] = self.E[eq_rows]
+        m = n + rows
+        bu, bl, sense = self._bu[:m], self._bl[:m], self._sense[:m]
+        np.clip(self.ub, -DAQP_INF, DAQP_INF, out=bu[:n])
+        np.clip(self.lb, -DAQP_INF, DAQP_INF, out=bl[:n])
+        np.clip(self.g_up, -DAQP_INF, DAQP_INF, out=bu[n:n + m_in])
+        np.clip(self.g_lo, -DAQP_INF, DAQP_INF, out=bl[n:n + m_in])
+        bu[n + m_in:] = self.e[eq_rows]
+        bl[n + m_in:] = self.e[eq_rows]
+        sense[:] = 0
+        sense[n + m_in:] = 5  # equality (daqp: active and immutable)
+        x, _, exitflag, _ = daqp.solve(H, c, A, bu, bl, sense)
+        ok = exitflag > 0 and np.isfinite(x).all()
+        return QPResult(np.asarray(x) if ok else None, False, int(exitflag), dropped)
+
+    def problem(self, m_eq: int) -> qpsolvers.Problem:
+        """The same QP as a ``qpsolvers.Problem`` (copies; for other backends and for diagnosis)."""
+        n, nv = self.n_x, self.nv
+        H = np.zeros((n, n))
+        H[:nv, :nv] = self.H_vv
+        np.einsum("ii->i", H)[nv:] = self._w_f * self._w_f
+        c = np.zeros(n)
+        c[:nv] = self.c_v
+        up, lo = np.isfinite(self.g_up), np.isfinite(self.g_lo)
+        G = np.vstack([self.G[up], -self.G[lo]])
+        h = np.concatenate([self.g_up[up], -self.g_lo[lo]])
+        return qpsolvers.Problem(H, c, G, h, self.E[:m_eq].copy(), self.e[:m_eq].copy(), self.lb.copy(),
+                                 self.ub.copy())

@@ -1,0 +1,184 @@
+"""Typed commands into the motor slots of a LowCmd_: each kind maps explicitly, nothing is reinterpreted.
+
+A motor applies ``tau + kp (q* - q) + kd (dq* - dq)``. The command kinds map to it as:
+
+- torque: ``tau`` [N m] with ``kp = kd = 0`` (and ``q* = dq* = 0``);
+- position target: ``q*`` [rad] with the motor's ``kp`` and ``kd`` (``dq* = 0``, ``tau = 0``);
+- velocity target: ``dq*`` [rad/s] with the motor's ``kd`` (``kp = 0``, ``tau = 0``);
+- raw ctrl (MuJoCo's own units): refused, the robot has no ctrl.
+
+Every motor takes every kind (the firmware runs the same law), so unlike the simulator the kind is
+not checked against the model's actuators; position and velocity targets need gains
+(:class:`MotorGains`, by default the model's position actuators' ``kp`` and ``kv``). Torques are
+clamped to the motor's torque limit and position targets to the joint's range; each clamped value
+is counted per motor.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import numpy.typing as npt
+
+from mbctl.robots.commands import Command, CommandKind
+from mbctl.robots.exceptions import CommandError
+from mbctl.robots.model_pair import Robot
+from mbctl.robots.unitree.g1 import MotorMap
+
+#: Default damping gain: the motor's torque limit is reached at this joint speed [rad/s].
+DAMPING_SATURATION_RAD_S = 10.0
+
+
+@dataclass(frozen=True, eq=False)
+class MotorGains:
+    """PD gains per motor (motor order), read-only; NaN where a motor has none.
+
+    Attributes:
+        kp: Stiffness (n,) [N m/rad] for position targets.
+        kd: Damping (n,) [N m s/rad] for position and velocity targets.
+    """
+
+    kp: np.ndarray
+    kd: np.ndarray
+
+    def __post_init__(self) -> None:
+        kp = np.array(self.kp, dtype=float)
+        kd = np.array(self.kd, dtype=float)
+        if kp.shape != kd.shape or kp.ndim != 1:
+            raise CommandError(f"kp and kd must be vectors of one length; got {kp.shape} and {kd.shape}")
+        if np.any(kp[np.isfinite(kp)] < 0) or np.any(kd[np.isfinite(kd)] < 0):
+            raise CommandError("motor gains must be >= 0 (NaN where a motor has none)")
+        for arr, name in ((kp, "kp"), (kd, "kd")):
+            arr.setflags(write=False)
+            object.__setattr__(self, name, arr)
+
+    @classmethod
+    def from_actuators(cls, robot: Robot, motors: MotorMap) -> MotorGains:
+        """The model's position actuators' ``kp`` and ``kv`` (NaN for motors driven otherwise)."""
+        infos = [robot.actuator_for_joint(j) for j in motors.joints]
+        return cls(np.array([a.kp if a.kind == "position" else np.nan for a in infos]),
+                   np.array([a.kv if a.kind == "position" else np.nan for a in infos]))
+
+    @classmethod
+    def uniform(cls, n: int, kp: float, kd: float) -> MotorGains:
+        """The same gains on ``n`` motors."""
+        return cls(np.full(n, float(kp)), np.full(n, float(kd)))
+
+
+def default_damping(motors: MotorMap) -> np.ndarray:
+    """Damping gains (n,) [N m s/rad]: each motor's torque limit over :data:`DAMPING_SATURATION_RAD_S`."""
+    return motors.tau_max / DAMPING_SATURATION_RAD_S
+
+
+@dataclass(frozen=True)
+class _Binding:
+    slots: np.ndarray | slice  # motor slots of the values
+    motors: np.ndarray  # the same as indices into the motor map
+    low: np.ndarray
+    high: np.ndarray
+    kp: np.ndarray
+    kd: np.ndarray
+
+
+class MotorCommandWriter:
+    """Writes commands into a LowCmd_ record's ``motor_cmd`` (bindings cached per kind and names).
+
+    Args:
+        robot: The robot model (names and actuator order of full commands).
+        motors: The motor map.
+        gains: Gains for position and velocity targets.
+    """
+
+    def __init__(self, robot: Robot, motors: MotorMap, gains: MotorGains):
+        if gains.kp.size != motors.n:
+            raise CommandError(f"gains for {gains.kp.size} motors; the robot has {motors.n}")
+        self.robot = robot
+        self.motors = motors
+        self.gains = gains
+        motor_of_actuator = np.full(robot.nu, -1)
+        motor_of_actuator[motors.actuator] = np.arange(motors.n)
+        self._motor_of_actuator = motor_of_actuator
+        self._cache: dict[tuple, _Binding] = {}
+        self.saturation_counts = np.zeros(motors.n, dtype=int)
+
+    def _bind(self, command: Command) -> _Binding:
+        key = (command.kind, command.names, command.values.size)
+        found = self._cache.get(key)
+        if found is not None:
+            return found
+        kind = command.kind
+        if kind is CommandKind.CTRL:
+            raise CommandError("a raw ctrl command is MuJoCo's own units; the robot's motors take torque, "
+                               "position_target or velocity_target commands")
+        if command.names is None:
+            if command.values.size != self.robot.nu:
+                raise CommandError(f"{kind.value} command needs {self.robot.nu} values (one per actuator: "
+                                   f"{', '.join(self.robot.actuators)}); got {command.values.size}")
+            actuators = np.arange(self.robot.nu)
+        else:
+            acts = self.robot.actuators
+            actuators = np.array([(acts.get(n) or self.robot.actuator_for_joint(n)).index
+                                  for n in command.names])
+        motors = self._motor_of_actuator[actuators]
+        if np.any(motors < 0):
+            names = list(self.robot.actuators)
+            bad = [names[a] for a in actuators[motors < 0]]
+            raise CommandError(f"actuators {bad} drive no motor of the robot")
+        kp, kd = self.gains.kp[motors], self.gains.kd[motors]
+        need = {CommandKind.POSITION: np.isfinite(kp) & np.isfinite(kd),
+                CommandKind.VELOCITY: np.isfinite(kd)}.get(kind)
+        if need is not None and not need.all():
+            missing = [self.motors.joints[m] for m in motors[~need]]
+            raise CommandError(f"a {kind.value} target needs motor gains; none for {missing[:6]}: give "
+                               "MotorGains (kp, kd per motor) to the interface")
+        if kind is CommandKind.TORQUE:
+            low, high = -self.motors.tau_max[motors], self.motors.tau_max[motors]
+        elif kind is CommandKind.POSITION:
+            low, high = self.motors.q_low[motors], self.motors.q_high[motors]
+        else:
+            low, high = np.full(motors.size, -np.inf), np.full(motors.size, np.inf)
+        slots: np.ndarray | slice = motors
+        if np.array_equal(motors, np.arange(motors.size)):
+            slots = slice(0, motors.size)
+        binding = self._cache[key] = _Binding(slots, motors, low, high, kp, kd)
+        return binding
+
+    def write(self, command: Command, motor_cmd: np.ndarray) -> None:
+        """Write ``command`` into ``motor_cmd`` (the LowCmd_'s (35,) motor records).
+
+        Raises:
+            CommandError: A ctrl command, the wrong number of values, or targets without gains.
+            UnknownNameError: A name that is neither an actuator nor an actuated joint.
+        """
+        b = self._bind(command)
+        values = command.values
+        hit = (values < b.low) | (values > b.high)
+        if hit.any():
+            self.saturation_counts[b.motors[hit]] += 1
+            values = np.clip(values, b.low, b.high)
+        s, kind = b.slots, command.kind
+        if kind is CommandKind.TORQUE:
+            motor_cmd["tau"][s] = values
+            motor_cmd["q"][s] = motor_cmd["dq"][s] = motor_cmd["kp"][s] = motor_cmd["kd"][s] = 0.0
+        elif kind is CommandKind.POSITION:
+            motor_cmd["q"][s] = values
+            motor_cmd["kp"][s] = b.kp
+            motor_cmd["kd"][s] = b.kd
+            motor_cmd["dq"][s] = motor_cmd["tau"][s] = 0.0
+        else:
+            motor_cmd["dq"][s] = values
+            motor_cmd["kd"][s] = b.kd
+            motor_cmd["q"][s] = motor_cmd["kp"][s] = motor_cmd["tau"][s] = 0.0
+
+    def saturations(self) -> dict[str, int]:
+        """How many values were clamped, per joint (non-zero only)."""
+        return {j: int(c) for j, c in zip(self.motors.joints, self.saturation_counts, strict=True) if c}
+
+
+def write_damping(motor_cmd: np.ndarray, kd: npt.ArrayLike) -> None:
+    """The damping command on the first ``len(kd)`` motors: ``kp = 0``, ``kd`` given, no target, no torque."""
+    kd = np.asarray(kd, dtype=float)
+    s = slice(0, kd.size)
+    motor_cmd["kd"][s] = kd
+    motor_cmd["q"][s] = motor_cmd["dq"][s] = motor_cmd["tau"][s] = motor_cmd["kp"][s] = 0.0

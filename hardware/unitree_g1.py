@@ -1,0 +1,351 @@
+"""The Unitree G1 over its low-level DDS, as a :class:`~mbctl.robots.interface.RobotInterface`.
+
+The same controller object that runs on the simulator runs here, through ``control.loop.run``:
+``read_state`` takes the latest ``rt/lowstate`` (LowState_), ``send`` fills a LowCmd_ and
+publishes it on ``rt/lowcmd``, ``sync`` waits for the robot's next state (the robot's 500 Hz
+stream is the wall clock; GIL released while waiting) and watches the link.
+
+Lifecycle (as ros2_control's hardware components): constructing the interface configures DDS and
+*activates* only once a valid LowState has been read: no LowState with a valid CRC within
+``connect_timeout_s`` raises :class:`NoRobotError` naming the domain and the network interface; a
+joint outside its limits raises :class:`JointOutOfLimits` naming it; nothing is commanded in
+either case. ``close()`` deactivates: it sends the damping command (``kp = 0``, ``kd`` per motor)
+if anything was commanded, then leaves DDS. Use it as a context manager.
+
+Messages: every LowCmd_ carries ``mode_pr`` = 0 (pitch/roll ankles, as the model has them), the
+``mode_machine`` copied from the first LowState, each motor's mode (enabled), q, dq, tau, kp, kd,
+and the CRC. A LowState with a bad CRC or another encoding is ignored and counted. Lost messages
+are counted from gaps in LowState's ``tick``.
+
+State: joint q and dq come from the motors; the base orientation and angular velocity from the
+IMU; the base position and linear velocity are not measured, so they come from the estimator the
+job gives (:class:`~mbctl.robots.interface.BaseStateEstimator`) and ``RobotState.estimated`` says so.
+
+Safety: ``watchdog_periods`` periods without a LowState send the damping command and raise
+:class:`LinkLost` ("link lost"); commands are clamped to the model's torque and position limits
+and counted; Ctrl-C (KeyboardInterrupt) goes through ``close()`` and so damps; ``dry_run`` reads
+and never commands.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+import numpy.typing as npt
+
+from mbctl.hardware.exceptions import DryRunError, JointOutOfLimits, LinkLost, NoRobotError
+from mbctl.hardware.motor_commands import MotorCommandWriter, MotorGains, default_damping, write_damping
+from mbctl.robots.commands import Command
+from mbctl.robots.interface import BaseStateEstimator, ImuReading, Proprioception, RobotState
+from mbctl.robots.model_pair import Robot
+from mbctl.robots.timing import CycleClock
+from mbctl.robots.unitree.channel import LOOPBACK, TOPIC_LOWCMD, TOPIC_LOWSTATE, Channel, message_types
+from mbctl.robots.unitree.exceptions import WireFormatError
+from mbctl.robots.unitree.g1 import MODE_PR, MOTOR_ENABLED, MotorMap
+from mbctl.robots.unitree.wire import low_cmd_codec, low_state_codec
+
+#: Byte offset of LowState_.tick in the wire bytes (4-byte header + its XCDR1 offset, 12).
+_TICK = slice(16, 20)
+
+
+@dataclass(frozen=True)
+class DdsOptions:
+    """How to reach the robot and how strict to be.
+
+    Attributes:
+        domain: DDS domain id (the robot's is 0).
+        network_interface: The interface wired to the robot (default ``lo``: the bridge on this
+            machine).
+        control_period_s: Wall-clock control period [s] (the G1's low level runs at 500 Hz).
+        connect_timeout_s: How long to wait for the first valid LowState [s].
+        watchdog_periods: Periods without a LowState after which the link counts as lost.
+        limit_tolerance_rad: How far [rad] a joint may be past its limit at start (encoder slack
+            at the end stops).
+        dry_run: Read and report the state, never command.
+    """
+
+    domain: int = 0
+    network_interface: str = LOOPBACK
+    control_period_s: float = 0.002
+    connect_timeout_s: float = 1.0
+    watchdog_periods: int = 3
+    limit_tolerance_rad: float = 0.01
+    dry_run: bool = False
+
+
+class UnitreeG1:
+    """The G1 over Unitree's low-level DDS (see the module docstring).
+
+    Args:
+        robot: The G1 model pair (Menagerie joint names; any actuator kinds).
+        estimator: Estimates the base position and linear velocity.
+        options: Domain, network interface, timing and safety options.
+        gains: Gains of position and velocity targets (default: the model's position actuators').
+        damping_kd: Damping [N m s/rad] per motor for the damping command (default: the torque
+            limit reached at 10 rad/s).
+
+    Raises:
+        ChannelError: The hardware extra is missing, a bad domain or an unknown interface.
+        NoRobotError: No valid LowState within ``connect_timeout_s``.
+        JointOutOfLimits: A joint outside its limits at start.
+        MotorTableError: A robot that is not the G1.
+    """
+
+    def __init__(
+        self,
+        robot: Robot,
+        estimator: BaseStateEstimator,
+        options: DdsOptions | None = None,
+        *,
+        gains: MotorGains | None = None,
+        damping_kd: npt.ArrayLike | None = None,
+    ):
+        self.options = options or DdsOptions()
+        self._robot = robot
+        self.motors = MotorMap.for_robot(robot)
+        self.estimator = estimator
+        self.gains = gains or MotorGains.from_actuators(robot, self.motors)
+        self.damping_kd = (default_damping(self.motors) if damping_kd is None
+                           else np.asarray(damping_kd, dtype=float))
+        self.commands = MotorCommandWriter(robot, self.motors, self.gains)
+        self._state_codec, self._cmd_codec = low_state_codec(), low_cmd_codec()
+        self._clock = CycleClock(self.options.control_period_s)
+        self.bad_crc = self.bad_format = self.stale = self.watchdog_events = 0
+        self._valid = 0
+        self._ticks: list[int] = []  # first and last valid tick, smallest step
+        #: The LowState tick of the state each ``read_state`` returned (aligns a run with the
+        #: bridge's truth log).
+        self.state_ticks: list[int] = []
+        self._commanded = False
+        self._fresh = False
+        self._state: RobotState | None = None
+        lowcmd, lowstate = message_types()
+        self.channel = Channel(self.options.domain, self.options.network_interface)
+        try:
+            self._writer = self.channel.writer(TOPIC_LOWCMD, lowcmd)
+            self._reader = self.channel.reader(TOPIC_LOWSTATE, lowstate)
+            self._t0 = time.perf_counter()
+            self._last_rx = -np.inf
+            self._connect()
+        except BaseException:
+            self.channel.close()
+            raise
+
+    # ------------------------------------------------------------------ activation
+    def _connect(self) -> None:
+        deadline = self._t0 + self.options.connect_timeout_s
+        while not self._fresh:
+            remaining = deadline - time.perf_counter()
+            if remaining <= 0:
+                raise NoRobotError(self._no_robot_message())
+            if self._reader.wait(min(remaining, 0.05)):
+                self._drain()
+        self.mode_machine = int(self._state_codec.message["mode_machine"])
+        q = self._motor_q
+        tol = self.options.limit_tolerance_rad
+        out = np.flatnonzero((q < self.motors.q_low - tol) | (q > self.motors.q_high + tol))
+        if out.size:
+            raise JointOutOfLimits("refusing to start: " + "; ".join(
+                f"{self.motors.joints[i]} at {q[i]:.4f} rad is outside its limits "
+                f"[{self.motors.q_low[i]:.4f}, {self.motors.q_high[i]:.4f}]" for i in out)
+                + ". Move the joint back inside its range by hand (robot powered down or damped), "
+                "then retry.")
+        cmd = self._cmd_codec.message
+        cmd["mode_pr"] = MODE_PR
+        cmd["mode_machine"] = self.mode_machine
+        motor_cmd = cmd["motor_cmd"]
+        motor_cmd["mode"][: self.motors.n] = MOTOR_ENABLED
+        write_damping(motor_cmd, self.damping_kd)
+        # motors with gains hold where they are until a command addresses them
+        hold = np.isfinite(self.gains.kp) & np.isfinite(self.gains.kd)
+        motor_cmd["q"][: self.motors.n][hold] = q[hold]
+        motor_cmd["kp"][: self.motors.n][hold] = self.gains.kp[hold]
+        motor_cmd["kd"][: self.motors.n][hold] = self.gains.kd[hold]
+        self.estimator.reset(self._reading())
+        self._fresh = True
+
+    def _no_robot_message(self) -> str:
+        o = self.options
+        seen = (f" ({self.bad_crc} LowState messages had a bad CRC, {self.bad_format} another encoding)"
+                if self.bad_crc or self.bad_format else "")
+        return (f"no robot: no valid LowState on {TOPIC_LOWSTATE} within {o.connect_timeout_s:g} s on DDS "
+                f"domain {o.domain}, network interface {o.network_interface!r}{seen}. Check that the robot "
+                f"is on and its low-level state is published (or that `mbctl serve g1 --domain {o.domain} "
+                f"--network-interface {o.network_interface}` runs), that {o.network_interface!r} is the "
+                "interface wired to it (ip addr; the G1's is on 192.168.123.0/24), and that the domain "
+                "ids match.")
+
+    # ------------------------------------------------------------------ reading
+    def _drain(self) -> None:
+        """Take every waiting LowState; keep the newest valid one."""
+        codec = self._state_codec
+        for data in self._reader.take(32):
+            try:
+                ok = codec.decode(data)
+            except WireFormatError:
+                self.bad_format += 1
+                continue
+            if not ok:
+                self.bad_crc += 1
+                continue
+            tick = int.from_bytes(data[_TICK], "little")
+            if self._ticks and tick <= self._ticks[1]:
+                continue  # older than what we have (reordered): keep the newest
+            self._account(tick)
+            ms = codec.message["motor_state"][: self.motors.n]
+            imu = codec.message["imu_state"]
+            self._motor_q = ms["q"].astype(float)
+            self._motor_dq = ms["dq"].astype(float)
+            self._imu = ImuReading(imu["quaternion"].astype(float), imu["gyroscope"].astype(float),
+                                   imu["accelerometer"].astype(float))
+            self._last_rx = time.perf_counter()
+            self._fresh = True
+
+    def _account(self, tick: int) -> None:
+        self._valid += 1
+        if not self._ticks:
+            self._ticks = [tick, tick, 0]
+            return
+        step = tick - self._ticks[1]
+        self._ticks[1] = tick
+        self._ticks[2] = step if not self._ticks[2] else min(self._ticks[2], step)
+
+    @property
+    def messages_lost(self) -> int:
+        """LowState messages sent but never received (gaps in ``tick``; bad-CRC ones count as lost)."""
+        first, last, step = self._ticks or (0, 0, 0)
+        return 0 if not step else max(0, (last - first) // step + 1 - self._valid)
+
+    def _reading(self) -> Proprioception:
+        q = np.zeros(self._robot.nq)
+        v = np.zeros(self._robot.nv)
+        q[self.motors.idx_q] = self._motor_q
+        v[self.motors.idx_v] = self._motor_dq
+        self._q, self._v = q, v
+        return Proprioception(self._last_rx - self._t0, q[7:], v[6:], self._imu)
+
+    def read_state(self) -> RobotState:
+        """The latest state: joints measured, base orientation from the IMU, position estimated."""
+        self._drain()
+        if self._clock.cycles == 0:
+            self._clock.start()
+        if self._fresh or self._state is None:
+            reading = self._reading()
+            q_base, v_base = self.estimator.update(reading)
+            q, v = self._q, self._v
+            q[:7] = q_base
+            v[:6] = v_base
+            q.setflags(write=False)
+            v.setflags(write=False)
+            self._state = RobotState(q, v, reading.time_s, self.estimator.estimated)
+            self._fresh = False
+        else:
+            self.stale += 1
+        self.state_ticks.append(self._ticks[1])
+        return self._state
+
+    # ------------------------------------------------------------------ commanding
+    def send(self, command: Command) -> None:
+        """Publish ``command`` (torque, position or velocity target) as a LowCmd_ with its CRC.
+
+        Raises:
+            DryRunError: The interface was opened with ``dry_run``.
+            CommandError: A ctrl command, wrong size, or targets without gains.
+        """
+        if self.options.dry_run:
+            raise DryRunError("dry run: this interface reads the robot and never commands it")
+        self.commands.write(command, self._cmd_codec.message["motor_cmd"])
+        self._writer.write(self._cmd_codec.encode())
+        self._commanded = True
+
+    def damp(self) -> None:
+        """Send the damping command: every motor ``kp = 0`` with its damping ``kd``, no torque."""
+        write_damping(self._cmd_codec.message["motor_cmd"], self.damping_kd)
+        self._writer.write(self._cmd_codec.encode())
+
+    def sync(self) -> None:
+        """Wait for the robot's next state (GIL released); check the link.
+
+        The loop is paced by the robot's LowState stream (500 Hz on the G1, paced by its own
+        clock): the cycle ends when the next state arrives, at the earliest half a period after
+        it began, so the command computed from state n reaches the robot before it applies
+        state n + 1's period (one period of loop delay, the least a sampled loop has). A cycle
+        whose compute and IO ran past its period counts as a deadline miss.
+
+        Raises:
+            LinkLost: No LowState for ``watchdog_periods`` periods (the damping command was sent).
+        """
+        clock, period = self._clock, self.options.control_period_s
+        if clock.cycles == 0:
+            clock.start()
+        overran = time.perf_counter() > clock.deadline
+        earliest = clock.deadline - 0.5 * period
+        now = time.perf_counter()
+        if earliest > now:
+            time.sleep(earliest - now)
+        limit_s = self.options.watchdog_periods * period
+        self._drain()
+        while not self._fresh:
+            remaining = self._last_rx + limit_s - time.perf_counter()
+            if remaining <= 0 or not self._reader.wait(remaining):
+                self._lost(limit_s)
+            self._drain()
+        clock.mark(overran)
+
+    def _lost(self, limit_s: float) -> None:
+        silent_s = time.perf_counter() - self._last_rx
+        self.watchdog_events += 1
+        if self._commanded:
+            self.damp()
+        raise LinkLost(
+            f"link lost: no LowState for {silent_s * 1e3:.1f} ms (limit {limit_s * 1e3:.0f} ms, "
+            f"{self.options.watchdog_periods} periods) at t={self.time_s:.3f} s; sent the damping "
+            f"command. Check the robot and the link on {self.options.network_interface!r}.")
+
+    # ------------------------------------------------------------------ RobotInterface
+    @property
+    def robot(self) -> Robot:
+        """The model pair."""
+        return self._robot
+
+    @property
+    def control_period_s(self) -> float:
+        """The wall-clock control period [s]."""
+        return self.options.control_period_s
+
+    @property
+    def time_s(self) -> float:
+        """Wall-clock time [s] since the interface connected."""
+        return time.perf_counter() - self._t0
+
+    # ------------------------------------------------------------------ lifecycle and report
+    def stats(self) -> dict[str, Any]:
+        """The link's figures for a report: cycles, period percentiles [ms], misses, losses."""
+        p = self._clock.stats()
+        return {"interface": "dds", "cycles": p.cycles, "period_p50_ms": p.period_p50_ms,
+                "period_p99_ms": p.period_p99_ms, "period_max_ms": p.period_max_ms,
+                "deadline_misses": p.deadline_misses, "messages_lost": self.messages_lost,
+                "bad_crc": self.bad_crc, "bad_encoding": self.bad_format, "stale_cycles": self.stale,
+                "watchdog_events": self.watchdog_events, "clamped": self.commands.saturations(),
+                "domain": self.options.domain, "network_interface": self.options.network_interface,
+                "mode_machine": self.mode_machine}
+
+    def close(self) -> None:
+        """Damp (if anything was commanded) and leave DDS (idempotent)."""
+        if self.channel is None:
+            return
+        try:
+            if self._commanded and not self.options.dry_run:
+                self.damp()
+        finally:
+            self.channel.close()
+            self.channel = None  # type: ignore[assignment]
+
+    def __enter__(self) -> UnitreeG1:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()

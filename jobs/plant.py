@@ -1,0 +1,246 @@
+"""Which plant a G1 job runs on: the in-process simulator (optionally through a link) or the G1 over DDS.
+
+The jobs build their controller as before and take a :class:`RobotInterface` from here, so the
+same controller object runs on either plant through ``control.loop.run``:
+
+- ``--interface sim`` (default): the :class:`Simulator`, reset to the job's start; with any of
+  ``--latency-ms``, ``--jitter-ms``, ``--drop``, ``--imu-noise`` or ``--estimate`` it is seen
+  through :class:`LinkedSimulator` (the bridge's link model, at simulation speed, sweepable).
+- ``--interface dds``: :class:`~mbctl.hardware.UnitreeG1` on ``--domain`` and
+  ``--network-interface`` (default ``lo``: ``mbctl serve g1`` on this machine), with the
+  leg-kinematics estimator for the base. It connects in the job's ``prepare``, so no robot or a
+  joint outside its limits is bad input (exit 2) before any file is written. The link's
+  imperfections are the bridge's (``mbctl serve g1 --latency-ms ...``).
+
+:func:`report_plant` adds the report values every plant gives (``interface``, ``cycles``, the
+period percentiles, ``deadline_misses``, ``messages_lost``, ``watchdog_events``) and, with the
+bridge's truth log (``--truth``), the plant checks of :mod:`mbctl.jobs.truth`.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+import pinocchio as pin
+
+from mbctl.control.estimation import LegKinematicsEstimator
+from mbctl.control.loop import RunLog
+from mbctl.control.wbc.contacts import foot_contact_from_model
+from mbctl.hardware import DdsOptions, UnitreeG1
+from mbctl.jobs.recording import q_columns
+from mbctl.jobs.runner import JobError, Outcome, RunContext
+from mbctl.jobs.truth import truth_checks
+from mbctl.robots.interface import RobotInterface
+from mbctl.robots.model_pair import Robot
+from mbctl.robots.unitree.channel import LOOPBACK, check_domain
+from mbctl.robots.unitree.g1 import G1_IMU
+from mbctl.sim.link import LinkedSimulator, LinkSpec
+from mbctl.sim.simulator import Simulator
+
+INTERFACES = ("sim", "dds")
+#: The G1's feet (sites) the estimator stands on.
+G1_FEET = ("left_foot", "right_foot")
+
+
+class PlantOptionError(JobError):
+    """Plant options that do not go together (e.g. a link model on a DDS run)."""
+
+
+@dataclass(frozen=True)
+class PlantOptions:
+    """The plant options of the G1 jobs (field names are the CLI options).
+
+    Attributes:
+        interface: "sim" (in-process) or "dds" (the G1's low-level DDS).
+        domain: DDS domain id (dds).
+        network_interface: The interface wired to the robot (dds; default ``lo``).
+        latency_ms: Link delay each direction [ms] (sim).
+        jitter_ms: Extra uniform delay [ms] (sim).
+        drop: Probability of losing a message, each direction (sim).
+        imu_noise: IMU noise as a multiple of the model's declared sensor noise (sim).
+        estimate: Base position and velocity from the estimator instead of the plant (sim; always
+            over DDS).
+        seed: Seed of the link's randomness (sim).
+        truth: The bridge's truth log (``truth.csv`` of ``mbctl serve g1``) for the plant checks (dds).
+        watchdog_periods: Periods without a state before the link counts as lost (dds).
+        dry_run: Read and report the robot's state, never command (dds).
+    """
+
+    interface: str = "sim"
+    domain: int = 0
+    network_interface: str = LOOPBACK
+    latency_ms: float = 0.0
+    jitter_ms: float = 0.0
+    drop: float = 0.0
+    imu_noise: float = 0.0
+    estimate: bool = False
+    seed: int = 0
+    truth: str | None = None
+    watchdog_periods: int = 3
+    dry_run: bool = False
+
+    def __post_init__(self) -> None:
+        if self.interface not in INTERFACES:
+            raise PlantOptionError(f"interface must be one of {', '.join(INTERFACES)}; "
+                                   f"got {self.interface!r}")
+        spec = self.link  # validates the numbers
+        if self.interface == "dds":
+            check_domain(self.domain)
+            if not spec.ideal or self.seed:
+                raise PlantOptionError(
+                    "over DDS the link is the real one (or the bridge's): give --latency-ms, --jitter-ms, "
+                    "--drop and --imu-noise to `mbctl serve g1`, not to the client")
+            if self.watchdog_periods < 1:
+                raise PlantOptionError(f"watchdog_periods must be >= 1; got {self.watchdog_periods}")
+        elif self.truth is not None or self.dry_run:
+            raise PlantOptionError("--truth and --dry-run are for --interface dds (in-process, the plant "
+                                   "is the truth and is always commanded)")
+
+    @property
+    def link(self) -> LinkSpec:
+        """The in-process link model."""
+        return LinkSpec(self.latency_ms, self.jitter_ms, self.drop, self.imu_noise, self.seed)
+
+
+def g1_estimator(robot: Robot, start_xy_m: tuple[float, float] = (0.0, 0.0)) -> LegKinematicsEstimator:
+    """The leg-kinematics estimator on the G1's feet (contact point: the sole's centre) and pelvis IMU."""
+    feet = {f: foot_contact_from_model(robot, f).points_F.mean(axis=0) for f in G1_FEET}
+    return LegKinematicsEstimator(robot, feet, G1_IMU.site, start_xy_m=start_xy_m)
+
+
+@dataclass
+class Plant:
+    """What a job's work runs on.
+
+    Attributes:
+        interface: The robot API the control loop drives.
+        sim: The in-process plant (None over DDS).
+        options: The plant options.
+    """
+
+    interface: RobotInterface
+    sim: Simulator | None
+    options: PlantOptions
+
+    def close(self) -> None:
+        """Leave the robot in a safe state (DDS: damping) and close the connection."""
+        if isinstance(self.interface, UnitreeG1):
+            self.interface.close()
+
+    def __enter__(self) -> Plant:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+
+PlantFactory = Callable[[RunContext], Plant]
+
+
+def prepare_plant(options: PlantOptions, robot: Robot, keyframe: str | None = None,
+                  start_q: np.ndarray | None = None) -> PlantFactory:
+    """Check the options and, over DDS, connect (no robot: exit 2 before any output).
+
+    Args:
+        options: The plant options.
+        robot: The robot the controller is built for.
+        keyframe: The in-process start (its ctrl too), or None.
+        start_q: The in-process start configuration (nq,) (after the keyframe), or None.
+
+    Returns:
+        A function of the run's context that gives the plant (the simulator is attached to the run).
+
+    Raises:
+        NoRobotError, JointOutOfLimits, ChannelError: Over DDS, before anything is written.
+    """
+    if options.interface == "dds":
+        dds = UnitreeG1(robot, g1_estimator(robot), DdsOptions(
+            domain=options.domain, network_interface=options.network_interface,
+            watchdog_periods=options.watchdog_periods, dry_run=options.dry_run))
+        return lambda ctx: Plant(dds, None, options)
+
+    def make(ctx: RunContext) -> Plant:
+        sim = Simulator(robot)
+        sim.reset(keyframe)
+        if start_q is not None:
+            sim.set_state(start_q, np.zeros(robot.nv))
+        ctx.attach(sim)
+        if options.link.ideal and not options.estimate:
+            return Plant(sim, sim, options)
+        q = sim.read_state().q
+        estimator = g1_estimator(robot, (float(q[0]), float(q[1]))) if options.estimate else None
+        return Plant(LinkedSimulator(sim, options.link, estimator, G1_IMU), sim, options)
+
+    return make
+
+
+def report_plant(ctx: RunContext, plant: Plant, log: RunLog,
+                 fall_height_m: float | None = None) -> bool | None:
+    """Add the plant's report values; with a truth log, check the run against it.
+
+    Args:
+        ctx: The run.
+        plant: The plant the run used.
+        log: The control loop's log.
+        fall_height_m: Pelvis height [m] below which the robot has fallen, in the truth check.
+
+    Returns:
+        Whether the robot fell according to the truth log, or None without one.
+    """
+    iface = plant.interface
+    values: dict[str, Any] = {"interface": plant.options.interface, "cycles": log.cycles}
+    if isinstance(iface, UnitreeG1):
+        values.update({**iface.stats(), "cycles": log.cycles})
+        ctx.sections["estimator"] = {"kind": "leg kinematics Kalman filter", "feet": list(G1_FEET),
+                                     "imu": G1_IMU.site, "estimated": list(iface.estimator.estimated)}
+    else:
+        period_ms = plant.interface.control_period_s * 1e3
+        values.update({"period_p50_ms": period_ms, "period_p99_ms": period_ms, "deadline_misses": 0,
+                       "messages_lost": 0, "watchdog_events": 0})
+        if isinstance(iface, LinkedSimulator):
+            values.update({k: v for k, v in iface.stats().items() if k != "interface"})
+            values["messages_lost"] = int(iface.stats()["states_dropped"])
+    ctx.values.update(values)
+    if plant.options.truth is None or not isinstance(iface, UnitreeG1):
+        return None
+    checks = truth_checks(plant.options.truth, np.asarray(iface.state_ticks[: log.cycles]), log,
+                          fall_height_m)
+    ctx.values.update(checks)
+    return bool(checks["truth_fell"])
+
+
+def dry_run(ctx: RunContext, plant: Plant, duration_s: float) -> Outcome:
+    """Read the robot's state for ``duration_s`` at the control period, never commanding; report it.
+
+    Writes every state to the run's CSV and returns a summary of the last one: base orientation
+    (IMU), estimated base position, and each joint's angle with its distance to its limits.
+    """
+    iface = plant.interface
+    robot = iface.robot
+    header = ["time_s", *q_columns(robot)]
+    csv = ctx.open_csv(header)
+    n = max(1, int(round(duration_s / iface.control_period_s)))
+    ctx.progress.start(n, "dry run (reading only)")
+    state = iface.read_state()
+    for _ in range(n):
+        state = iface.read_state()
+        csv.write([state.time_s, *state.q])
+        ctx.progress.advance()
+        iface.sync()
+    ctx.values.update({"interface": plant.options.interface, "dry_run": True, "cycles": n})
+    if isinstance(iface, UnitreeG1):
+        ctx.values.update(iface.stats())
+    q = state.q
+    roll, pitch, yaw = np.degrees(pin.rpy.matrixToRpy(pin.Quaternion(q[6], q[3], q[4], q[5]).matrix()))
+    lines = [f"dry run: read {n} states over {duration_s:g} s, sent no command",
+             f"base: roll {roll:.2f} deg, pitch {pitch:.2f} deg, yaw {yaw:.2f} deg (IMU); position "
+             f"{q[0]:.4f}, {q[1]:.4f}, {q[2]:.4f} m ({', '.join(state.estimated) or 'measured'} estimated)"]
+    low, high = robot.pin_model.lowerPositionLimit, robot.pin_model.upperPositionLimit
+    for name, j in robot.joints.items():
+        if j.kind in ("hinge", "slide"):
+            i = j.idx_q
+            lines.append(f"  {name:28s} {q[i]:+.4f} rad  (limits {low[i]:+.3f} .. {high[i]:+.3f})")
+    return Outcome(True, tuple(lines))

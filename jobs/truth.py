@@ -1,0 +1,137 @@
+"""A DDS run checked against what really happened: the bridge's truth log, aligned by LowState tick.
+
+``mbctl serve g1`` writes ``truth.csv`` (one row per physics step, :data:`TRUTH_COLUMNS`, with the
+tick of the LowState made at that step). A client records the tick of the state it used each
+cycle, so its estimate at cycle k compares with the plant at the moment that state was measured,
+whatever the link's delay.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pinocchio as pin
+
+from mbctl.control.loop import RunLog
+from mbctl.jobs.runner import JobError
+from mbctl.sim.dds_bridge import TRUTH_COLUMNS
+
+#: A foot supports the robot (its slip counts) while the plant measures at least this fraction
+#: of the robot's weight on it.
+SUPPORT_FRACTION = 0.1
+
+
+class TruthLogError(JobError):
+    """A truth log that is missing, malformed, or from another run."""
+
+
+def read_truth(path: str | Path) -> np.ndarray:
+    """The truth log as a structured array (one field per column).
+
+    Raises:
+        TruthLogError: A missing or unreadable file, or columns other than :data:`TRUTH_COLUMNS`.
+    """
+    path = Path(path)
+    try:
+        with open(path, encoding="utf-8") as f:
+            header = f.readline().strip().split(",")
+        data = np.genfromtxt(path, delimiter=",", names=True, ndmin=1)
+    except (OSError, ValueError) as exc:
+        raise TruthLogError(f"cannot read the truth log {path}: {exc}; give the truth.csv that "
+                            "`mbctl serve g1 --output DIR` wrote") from None
+    if tuple(header) != TRUTH_COLUMNS or data.size == 0:
+        raise TruthLogError(f"{path} is not a bridge truth log (columns {header[:4]}..., {data.size} rows); "
+                            "give the truth.csv that `mbctl serve g1 --output DIR` wrote")
+    return data
+
+
+def truth_at_ticks(truth: np.ndarray, ticks: np.ndarray) -> np.ndarray:
+    """The truth rows (N,) at which the LowStates with ``ticks`` (N,) were made.
+
+    Raises:
+        TruthLogError: A tick the log does not have (a log from another run, or cut short).
+    """
+    rows = np.searchsorted(truth["tick"], ticks)
+    rows = np.clip(rows, 0, truth.size - 1)
+    missing = truth["tick"][rows] != ticks
+    if missing.any():
+        raise TruthLogError(f"the truth log has no row for LowState ticks {ticks[missing][:3].tolist()} "
+                            f"(it covers {int(truth['tick'][0])}..{int(truth['tick'][-1])}); give the log of "
+                            "the bridge this run talked to, written while it ran")
+    return truth[rows]
+
+
+def truth_com(path: str | Path, ticks: np.ndarray) -> np.ndarray:
+    """The robot's true CoM p_WC (N, 3) [m] when each of the LowStates with ``ticks`` (N,) was made.
+
+    For a job comparing its CoM reference with the plant (g1-wbc's CoM RMS over DDS).
+
+    Raises:
+        TruthLogError: A missing or foreign log, or ticks it does not have.
+    """
+    rows = truth_at_ticks(read_truth(path), np.asarray(ticks))
+    return np.column_stack([rows["com_x_m"], rows["com_y_m"], rows["com_z_m"]])
+
+
+def _foot_slip(window: np.ndarray) -> float:
+    """Largest horizontal drift [m] of a supporting foot from where it started to support."""
+    weight = window["left_foot_fz_N"][0] + window["right_foot_fz_N"][0]
+    worst = 0.0
+    for side in ("left", "right"):
+        xy = np.column_stack([window[f"{side}_foot_x_m"], window[f"{side}_foot_y_m"]])
+        loaded = window[f"{side}_foot_fz_N"] >= SUPPORT_FRACTION * weight
+        home = xy[0]
+        for k in range(len(xy)):
+            if not loaded[k]:
+                home = xy[k]
+            else:
+                worst = max(worst, float(np.hypot(*(xy[k] - home))))
+    return worst
+
+
+def truth_checks(path: str | Path, ticks: np.ndarray, log: RunLog,
+                 fall_height_m: float | None) -> dict[str, Any]:
+    """The plant checks of a DDS run and the estimator's errors, from the bridge's truth log.
+
+    Args:
+        path: The truth log.
+        ticks: LowState tick of each cycle's state (N,).
+        log: The run's log (its q holds the estimated base pose).
+        fall_height_m: Pelvis height [m] below which the robot has fallen (the robot's fall rule,
+            e.g. ``mbctl.robots.g1.G1_FALL.base_min_z_m``; None: no verdict).
+
+    Returns:
+        Report values: ``truth_pelvis_max_deviation_m``, ``truth_pelvis_z_min_m``, ``truth_fell``,
+        ``truth_max_foot_slip_m``,
+        ``estimator_position_error_max_m``, ``estimator_position_error_final_m``,
+        ``estimator_orientation_error_max_deg``, ``truth_rows``.
+    """
+    truth = read_truth(path)
+    at = truth_at_ticks(truth, ticks)
+    first = int(np.searchsorted(truth["tick"], ticks.min()))
+    last = int(np.searchsorted(truth["tick"], ticks.max()))
+    window = truth[first:last + 1]
+    dz = window["base_z_m"] - window["base_z_m"][0]
+    p_true = np.column_stack([at["base_x_m"], at["base_y_m"], at["base_z_m"]])
+    p_est = log.q[:, 0:3].copy()
+    # W of the estimator starts at (x, y) = its start; compare displacements in x, y and absolute z
+    p_est[:, :2] += p_true[0, :2] - p_est[0, :2]
+    err = np.linalg.norm(p_est - p_true, axis=1)
+    angles = []
+    for k in range(len(at)):
+        R_true = pin.Quaternion(at["base_qw"][k], at["base_qx"][k], at["base_qy"][k], at["base_qz"][k])
+        R_est = pin.Quaternion(log.q[k, 6], log.q[k, 3], log.q[k, 4], log.q[k, 5])
+        angles.append(R_true.angularDistance(R_est))
+    deviation = float(np.abs(dz).max())
+    return {
+        "truth_rows": int(window.size),
+        "truth_pelvis_max_deviation_m": deviation,
+        "truth_pelvis_z_min_m": float(window["base_z_m"].min()),
+        "truth_fell": bool(fall_height_m is not None and window["base_z_m"].min() < fall_height_m),
+        "truth_max_foot_slip_m": _foot_slip(window),
+        "estimator_position_error_max_m": float(err.max()),
+        "estimator_position_error_final_m": float(err[-1]),
+        "estimator_orientation_error_max_deg": float(np.degrees(max(angles))),
+    }

@@ -1,0 +1,117 @@
+"""Wall-clock pacing for the real-time plants (DDS interface, bridge): deadlines, GIL-free sleep, statistics.
+
+A free-running loop (the bridge) calls ``wait()``; a loop paced by the robot's state stream (the
+DDS interface) calls ``mark()`` when its state arrives.
+
+Cycle k should start at t_k = t_0 + k T. ``wait()`` ends cycle k: if the cycle's compute and IO
+ran past t_{k+1} it counts a deadline miss and starts the next cycle at once, re-anchoring the
+grid there (no burst of catch-up cycles); otherwise it sleeps until t_{k+1} (``time.sleep`` is a
+``clock_nanosleep``, which releases the GIL; Linux wakes within ~0.1 ms).
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass
+
+import numpy as np
+
+
+@dataclass(frozen=True)
+class PeriodStats:
+    """What the clock measured over a run.
+
+    Attributes:
+        cycles: Completed cycles.
+        period_p50_ms: Median time between cycle starts [ms].
+        period_p99_ms: 99th percentile of it [ms].
+        period_max_ms: Longest [ms].
+        deadline_misses: Cycles whose compute and IO overran the period.
+    """
+
+    cycles: int
+    period_p50_ms: float
+    period_p99_ms: float
+    period_max_ms: float
+    deadline_misses: int
+
+
+class CycleClock:
+    """Paces a loop to ``period_s`` of wall-clock time and measures it.
+
+    Args:
+        period_s: The control period [s].
+        capacity: Cycles whose start times are kept for the statistics (a ring after that).
+    """
+
+    def __init__(self, period_s: float, capacity: int = 1 << 18):
+        self.period_s = float(period_s)
+        self._starts = np.empty(capacity)
+        self._n = 0
+        self.deadline_misses = 0
+        self._next = 0.0
+
+    def start(self) -> float:
+        """Start cycle 0 now; its time (``time.perf_counter``) [s]."""
+        now = time.perf_counter()
+        self._n = 0
+        self.deadline_misses = 0
+        self._record(now)
+        self._next = now + self.period_s
+        return now
+
+    def _record(self, t: float) -> None:
+        self._starts[self._n % len(self._starts)] = t
+        self._n += 1
+
+    def wait(self) -> float:
+        """End the cycle: sleep to the next deadline, or count a miss; the next cycle's start [s]."""
+        now = time.perf_counter()
+        if now > self._next:
+            self.deadline_misses += 1
+            self._next = now
+        else:
+            time.sleep(self._next - now)
+            now = time.perf_counter()
+        self._record(now)
+        self._next += self.period_s
+        return now
+
+    def mark(self, overran: bool) -> float:
+        """Start the next cycle now, for a loop paced by something else (the robot's state stream).
+
+        Args:
+            overran: The cycle that ends overran its period (counted as a deadline miss).
+
+        Returns:
+            The next cycle's start [s].
+        """
+        now = time.perf_counter()
+        self.deadline_misses += bool(overran)
+        self._record(now)
+        self._next = now + self.period_s
+        return now
+
+    @property
+    def deadline(self) -> float:
+        """When the current cycle should end (``time.perf_counter``) [s]."""
+        return self._next
+
+    @property
+    def cycles(self) -> int:
+        """Cycles started."""
+        return self._n
+
+    def stats(self) -> PeriodStats:
+        """The statistics so far (NaN periods before two cycles)."""
+        n = min(self._n, len(self._starts))
+        if self._n > len(self._starts):  # the ring wrapped: unroll it in time order
+            k = self._n % len(self._starts)
+            starts = np.concatenate([self._starts[k:], self._starts[:k]])
+        else:
+            starts = self._starts[:n]
+        periods_ms = np.diff(starts) * 1e3
+        if periods_ms.size == 0:
+            return PeriodStats(self._n, float("nan"), float("nan"), float("nan"), self.deadline_misses)
+        return PeriodStats(self._n, float(np.median(periods_ms)), float(np.percentile(periods_ms, 99)),
+                           float(periods_ms.max()), self.deadline_misses)

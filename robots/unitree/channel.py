@@ -1,0 +1,232 @@
+"""DDS on one domain and one network interface, with raw-bytes writers and readers for the hot path.
+
+Both plants use it: the hardware interface (client: publishes ``rt/lowcmd``, reads ``rt/lowstate``)
+and the MuJoCo bridge (the reverse). Topics are registered with Unitree's IDL types (from the
+``unitree-sdk2py-dimos`` package) so the type names and type information match the robot's, but
+messages are written and taken as serialized bytes: cyclonedds' ``DataWriter.write`` serializes
+an ``IdlStruct`` field by field in Python (~180 us per LowCmd_ measured here, bench/bench_dds.py)
+while the numpy codec (:mod:`mbctl.robots.unitree.wire`) makes the same bytes in a few us. The
+raw calls are the ones cyclonedds' own ``write`` and ``take`` make after (de)serializing
+(``ddspy_write``, ``ddspy_take``); tests check they round-trip with the public API.
+
+Network safety: the participant is configured for exactly one interface. ``lo`` (the default
+everywhere in mbctl) gets unicast discovery to 127.0.0.1 only, multicast off, so no packet leaves
+the machine; any other interface must be named by the user (a real robot's, e.g. ``enp3s0``) and
+gets Cyclone's defaults on that interface only. Waiting (``RawReader.wait``) blocks in C through
+ctypes, which releases the GIL.
+"""
+
+from __future__ import annotations
+
+import socket
+import threading
+from typing import Any
+
+from mbctl.robots.unitree.exceptions import ChannelError
+
+TOPIC_LOWCMD = "rt/lowcmd"
+TOPIC_LOWSTATE = "rt/lowstate"
+LOOPBACK = "lo"
+#: DDS domain ids Cyclone accepts (the port of domain d is 7400 + 250 d, below 65536).
+MAX_DOMAIN = 232
+
+_LOOPBACK_CONFIG = """<CycloneDDS><Domain Id="any">
+<General><Interfaces><NetworkInterface name="lo" multicast="false"/></Interfaces>
+<AllowMulticast>false</AllowMulticast></General>
+<Discovery><ParticipantIndex>auto</ParticipantIndex><MaxAutoParticipantIndex>30</MaxAutoParticipantIndex>
+<Peers><Peer address="127.0.0.1"/></Peers></Discovery>
+<Tracing><Verbosity>none</Verbosity></Tracing>
+</Domain></CycloneDDS>"""
+
+_INTERFACE_CONFIG = """<CycloneDDS><Domain Id="any">
+<General><Interfaces><NetworkInterface name="{name}" priority="default" multicast="default"/></Interfaces>
+</General><Tracing><Verbosity>none</Verbosity></Tracing>
+</Domain></CycloneDDS>"""
+
+
+def _dds() -> dict[str, Any]:
+    """The cyclonedds names used here, or ChannelError saying how to install them."""
+    try:
+        import cyclonedds._clayer as clayer
+        from cyclonedds import core, domain, pub, qos, sub, topic
+    except ImportError as exc:
+        raise ChannelError(f"DDS needs the hardware extra: pip install 'mbctl[hardware]' ({exc})") from None
+    return {"clayer": clayer, "Domain": domain.Domain, "DomainParticipant": domain.DomainParticipant,
+            "Topic": topic.Topic, "DataWriter": pub.DataWriter, "DataReader": sub.DataReader,
+            "Qos": qos.Qos, "Policy": qos.Policy, "WaitSet": core.WaitSet,
+            "ReadCondition": core.ReadCondition, "SampleState": core.SampleState,
+            "ViewState": core.ViewState, "InstanceState": core.InstanceState}
+
+
+def message_types() -> tuple[type, type]:
+    """Unitree's ``unitree_hg`` (LowCmd_, LowState_) IDL types.
+
+    Raises:
+        ChannelError: The hardware extra is not installed.
+    """
+    try:
+        from unitree_sdk2py.idl.unitree_hg.msg.dds_ import LowCmd_, LowState_
+    except ImportError as exc:
+        raise ChannelError(f"DDS needs the hardware extra: pip install 'mbctl[hardware]' ({exc})") from None
+    return LowCmd_, LowState_
+
+
+def check_domain(domain: int) -> int:
+    """``domain`` as an int in 0..232; ChannelError otherwise."""
+    if isinstance(domain, bool) or not isinstance(domain, int) or not 0 <= domain <= MAX_DOMAIN:
+        raise ChannelError(f"DDS domain must be an integer in 0..{MAX_DOMAIN}; got {domain!r}")
+    return domain
+
+
+def check_network_interface(name: str) -> str:
+    """``name`` if this machine has that network interface; ChannelError listing the ones it has."""
+    known = [n for _, n in socket.if_nameindex()]
+    if name not in known:
+        raise ChannelError(f"no network interface {name!r} on this machine; it has: {', '.join(known)} "
+                           f"(the default is {LOOPBACK!r}; name the interface wired to the robot)")
+    return name
+
+
+def domain_config(network_interface: str) -> str:
+    """The Cyclone DDS configuration (XML) for one network interface (see the module docstring)."""
+    if network_interface == LOOPBACK:
+        return _LOOPBACK_CONFIG
+    return _INTERFACE_CONFIG.format(name=network_interface)
+
+
+# Cyclone allows one configuration per domain id per process: domains are shared and counted.
+_domains: dict[int, tuple[Any, str, int]] = {}
+_domains_lock = threading.Lock()
+
+
+def _acquire_domain(domain: int, network_interface: str) -> None:
+    with _domains_lock:
+        held = _domains.get(domain)
+        if held is not None:
+            if held[1] != network_interface:
+                raise ChannelError(f"DDS domain {domain} is already open on {held[1]!r} in this process; "
+                                   f"cannot also open it on {network_interface!r}")
+            _domains[domain] = (held[0], held[1], held[2] + 1)
+            return
+        dds = _dds()
+        _domains[domain] = (dds["Domain"](domain, domain_config(network_interface)), network_interface, 1)
+
+
+def _release_domain(domain: int) -> None:
+    with _domains_lock:
+        held = _domains.get(domain)
+        if held is None:
+            return
+        if held[2] > 1:
+            _domains[domain] = (held[0], held[1], held[2] - 1)
+        else:
+            del _domains[domain]
+
+
+class RawWriter:
+    """Publishes already serialized messages on one topic."""
+
+    def __init__(self, writer: Any, write: Any):
+        self._writer = writer
+        self._ref = writer._ref
+        self._write = write
+
+    def write(self, payload: bytes) -> None:
+        """Publish ``payload`` (encapsulation header + serialized message, a multiple of 4 bytes).
+
+        Raises:
+            ChannelError: DDS refused the sample.
+        """
+        ret = self._write(self._ref, payload)
+        if ret < 0:
+            raise ChannelError(f"DDS write failed with return code {ret}")
+
+
+class RawReader:
+    """Takes serialized messages of one topic; waits for them with the GIL released."""
+
+    def __init__(self, dds: dict[str, Any], reader: Any):
+        self._reader = reader
+        self._ref = reader._ref
+        self._take = dds["clayer"].ddspy_take
+        self._mask = dds["SampleState"].Any | dds["ViewState"].Any | dds["InstanceState"].Any
+        self._waitset = dds["WaitSet"](reader.participant)
+        self._condition = dds["ReadCondition"](reader, self._mask)
+        self._waitset.attach(self._condition)
+
+    def take(self, max_samples: int = 16) -> list[bytes]:
+        """Every sample waiting (up to ``max_samples``), oldest first, as wire bytes."""
+        samples = self._take(self._ref, self._mask, max_samples)
+        if isinstance(samples, int):
+            raise ChannelError(f"DDS take failed with return code {samples}")
+        return [data for data, info in samples if info.valid_data]
+
+    def wait(self, timeout_s: float) -> bool:
+        """Block (GIL released) until a sample is waiting or ``timeout_s`` passed; whether one is."""
+        return self._waitset.wait(max(0, int(timeout_s * 1e9))) > 0
+
+
+class Channel:
+    """A DDS participant on one domain and one network interface.
+
+    Args:
+        domain: DDS domain id (0..232); the robot uses 0, tests use a unique one each.
+        network_interface: ``lo`` (default) or the interface wired to the robot.
+
+    Raises:
+        ChannelError: The hardware extra is missing, a bad domain id or an unknown interface.
+    """
+
+    def __init__(self, domain: int = 0, network_interface: str = LOOPBACK):
+        self.domain = check_domain(domain)
+        self.network_interface = check_network_interface(network_interface)
+        self._dds = _dds()
+        _acquire_domain(self.domain, self.network_interface)
+        try:
+            self._participant = self._dds["DomainParticipant"](self.domain)
+        except Exception as exc:
+            _release_domain(self.domain)
+            raise ChannelError(f"cannot join DDS domain {domain} on {network_interface!r}: {exc}") from exc
+        self._topics: dict[str, Any] = {}
+        self._entities: list[Any] = []
+        self._closed = False
+
+    def _topic(self, name: str, data_type: type) -> Any:
+        if name not in self._topics:
+            self._topics[name] = self._dds["Topic"](self._participant, name, data_type)
+        return self._topics[name]
+
+    def writer(self, topic: str, data_type: type) -> RawWriter:
+        """A writer of ``topic`` (reliable, keep last 1: Cyclone's writer defaults, as Unitree's SDK)."""
+        w = self._dds["DataWriter"](self._participant, self._topic(topic, data_type))
+        self._entities.append(w)
+        return RawWriter(w, self._dds["clayer"].ddspy_write)
+
+    def reader(self, topic: str, data_type: type, depth: int = 16) -> RawReader:
+        """A best-effort reader of ``topic`` keeping the last ``depth`` samples."""
+        Policy, Qos = self._dds["Policy"], self._dds["Qos"]
+        qos = Qos(Policy.Reliability.BestEffort, Policy.History.KeepLast(depth))
+        r = self._dds["DataReader"](self._participant, self._topic(topic, data_type), qos=qos)
+        raw = RawReader(self._dds, r)
+        self._entities += [r, raw._condition, raw._waitset]
+        return raw
+
+    def close(self) -> None:
+        """Delete the participant and everything it owns (idempotent)."""
+        if self._closed:
+            return
+        self._closed = True
+        participant, self._participant = self._participant, None
+        self._entities.clear()
+        self._topics.clear()
+        # Deleting the participant in C deletes its readers, writers, topics and waitsets now,
+        # whoever still holds their Python objects (cyclonedds deletes an entity in __del__ and
+        # then forgets it, so the children's own __del__ later is a no-op error code).
+        participant.__del__()
+        _release_domain(self.domain)
+
+    def __enter__(self) -> Channel:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()

@@ -1,0 +1,311 @@
+"""The MuJoCo plant speaking the G1's low-level messages: subscribes ``rt/lowcmd``, publishes ``rt/lowstate``.
+
+Each physics step (the G1's 2 ms, paced to wall-clock time) the bridge
+
+1. takes the LowCmd_ messages that arrived, ignores and counts those with a bad CRC, another
+   ``mode_machine``, ``mode_pr`` = 1 (the ankles' parallel-linkage mode is not modelled) or
+   non-finite values, and puts the rest on the command link (latency, jitter, drops);
+2. applies the newest command the link delivers as the motor firmware does: each enabled motor
+   exerts ``tau + kp (q* - q) + kd (dq* - dq)``, clamped to its torque limit. The law is MuJoCo's
+   own actuator (force = ctrl + b1 q + b2 qdot with ctrl = tau + kp q* + kd dq*, b1 = -kp,
+   b2 = -kd), so it is evaluated at every physics step, its damping integrated implicitly
+   (``implicitfast``) exactly as the in-process position actuators, and clamped by the joints'
+   ``actuatorfrcrange``; a disabled motor exerts nothing;
+3. steps the physics, then publishes LowState_ (motor q, dq, tau_est; IMU quaternion of its site,
+   gyro and accelerometer sensors plus optional noise) through the state link, ``tick`` counting
+   the LowStates made;
+4. records its ground truth (base pose and velocity, CoM, feet, contact forces) in a CSV row.
+
+Until the first valid command the physics is paused (states are still published, the IMU reading
+at rest), like a robot held still in its harness, so a client starts from the same pose as the
+in-process run.
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+from typing import Any
+
+import mujoco
+import numpy as np
+import numpy.typing as npt
+
+from mbctl.robots.model_pair import Robot
+from mbctl.robots.timing import CycleClock
+from mbctl.robots.unitree.channel import LOOPBACK, TOPIC_LOWCMD, TOPIC_LOWSTATE, Channel, message_types
+from mbctl.robots.unitree.exceptions import WireFormatError
+from mbctl.robots.unitree.g1 import G1_IMU, MODE_PR, MOTOR_ENABLED, ImuSpec, MotorMap
+from mbctl.robots.unitree.wire import low_cmd_codec, low_state_codec
+from mbctl.sim.contacts import measure_contacts
+from mbctl.sim.imu import ImuReader
+from mbctl.sim.link import DelayLine, LinkSpec
+from mbctl.sim.simulator import Simulator
+
+#: The truth log measures contact forces every this many steps (measuring costs ~0.1 ms).
+FORCE_EVERY = 10
+#: ``mode_machine`` the bridge reports (the robot's type code; clients copy it into LowCmd_).
+BRIDGE_MODE_MACHINE = 5
+
+
+def motor_pd_actuators(robot: Robot) -> Robot:
+    """The robot with each actuator turned into the motor law's actuator (gain 1, affine bias).
+
+    ``ctrl`` is unlimited (it holds ``tau + kp q* + kd dq*``); the torque is clamped by the joints'
+    ``actuatorfrcrange`` (the Menagerie G1's motor limits). The bias gains are set per command.
+    """
+
+    def edit(spec: mujoco.MjSpec) -> None:
+        for act in spec.actuators:
+            act.gaintype = mujoco.mjtGain.mjGAIN_FIXED
+            act.gainprm = np.array([1.0] + [0.0] * 9)
+            act.biastype = mujoco.mjtBias.mjBIAS_AFFINE
+            act.biasprm = np.zeros(10)
+            act.ctrllimited = mujoco.mjtLimited.mjLIMITED_FALSE
+            act.inheritrange = 0
+        for key in spec.keys:
+            key.ctrl = np.zeros(0)
+
+    return robot.with_edits("actuators -> motor PD law (tau + kp (q* - q) + kd (dq* - dq))", mj_edit=edit)
+
+
+@dataclass(frozen=True)
+class BridgeOptions:
+    """Where the bridge listens and what its link does.
+
+    Attributes:
+        domain: DDS domain id.
+        network_interface: ``lo`` unless a real network is meant.
+        link: Latency, jitter, drops and IMU noise (applied to both directions).
+        mode_machine: The ``mode_machine`` reported and required in commands.
+    """
+
+    domain: int = 0
+    network_interface: str = LOOPBACK
+    link: LinkSpec = LinkSpec()
+    mode_machine: int = BRIDGE_MODE_MACHINE
+
+
+#: Columns of the truth log (world frame W, MuJoCo's quaternion order w, x, y, z).
+TRUTH_COLUMNS = (
+    "tick", "time_s", "wall_s", "commands_applied",
+    "base_x_m", "base_y_m", "base_z_m", "base_qw", "base_qx", "base_qy", "base_qz",
+    "base_vx_m_s", "base_vy_m_s", "base_vz_m_s", "com_x_m", "com_y_m", "com_z_m",
+    "left_foot_x_m", "left_foot_y_m", "left_foot_z_m", "right_foot_x_m", "right_foot_y_m", "right_foot_z_m",
+    "left_foot_fz_N", "right_foot_fz_N",
+)
+
+
+class G1Bridge:
+    """The G1's MuJoCo plant behind DDS (see the module docstring).
+
+    Args:
+        robot: The G1 model pair (any actuators: they are converted with :func:`motor_pd_actuators`).
+        start_q: Initial configuration (nq,), Pinocchio convention.
+        options: Domain, network interface, link.
+        feet: Foot sites (recorded in the truth log), left then right.
+        imu: The IMU reported in LowState_.
+
+    Raises:
+        ChannelError: Missing hardware extra, bad domain or unknown interface.
+        MotorTableError: Not the G1.
+    """
+
+    def __init__(self, robot: Robot, start_q: npt.ArrayLike, options: BridgeOptions | None = None,
+                 feet: Sequence[str] = ("left_foot", "right_foot"), imu: ImuSpec = G1_IMU):
+        self.options = options or BridgeOptions()
+        self.robot = motor_pd_actuators(robot)
+        self.sim = Simulator(self.robot)
+        self.sim.reset(q=start_q)
+        self.motors = MotorMap.for_robot(self.robot)
+        self._act = self.motors.actuator
+        self._imu = ImuReader(self.sim, imu, self.options.link.imu_noise, self.options.link.seed + 1)
+        self._imu_site = self.robot.site_id(imu.site)
+        rng = np.random.default_rng(self.options.link.seed)
+        self._commands: DelayLine[np.ndarray] = DelayLine(self.options.link, rng)
+        self._states: DelayLine[bytes] = DelayLine(self.options.link, rng)
+        self._cmd, self._state = low_cmd_codec(), low_state_codec()
+        st = self._state.message
+        st["mode_pr"] = MODE_PR
+        st["mode_machine"] = self.options.mode_machine
+        st["motor_state"]["mode"][: self.motors.n] = MOTOR_ENABLED
+        m = self.sim.model
+        self._feet = [self.robot.site_id(f) for f in feet]
+        foot_bodies = [int(m.site_bodyid[s]) for s in self._feet]
+        self._foot_geoms = {str(i): [g for g in range(m.ngeom) if m.geom_bodyid[g] == b]
+                            for i, b in enumerate(foot_bodies)}
+        base = next(j for j in self.robot.joints.values() if j.kind == "free")
+        self._base_q, self._base_v = base.qposadr, base.dofadr
+        # the CoM of the robot is that of the free joint's body's subtree
+        self._root = int(m.jnt_bodyid[mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_JOINT, base.name)])
+        self._qpos_motor = np.array([self.robot.joint(j).qposadr for j in self.motors.joints])
+        self._qvel_motor = np.array([self.robot.joint(j).dofadr for j in self.motors.joints])
+        self._forces: list[float] | None = None
+        self.counts = {"commands_received": 0, "commands_applied": 0, "bad_crc": 0, "bad_encoding": 0,
+                       "wrong_mode_machine": 0, "mode_pr_ab": 0, "non_finite": 0, "states_published": 0}
+        self.started = False
+        self.channel = Channel(self.options.domain, self.options.network_interface)
+        try:
+            lowcmd, lowstate = message_types()
+            self._reader = self.channel.reader(TOPIC_LOWCMD, lowcmd)
+            self._writer = self.channel.writer(TOPIC_LOWSTATE, lowstate)
+        except BaseException:
+            self.channel.close()
+            raise
+        self.clock = CycleClock(self.sim.control_period_s)
+
+    # ------------------------------------------------------------------ commands
+    def _valid_command(self, data: bytes) -> np.ndarray | None:
+        """The motor records of a LowCmd_ (a copy) if it passes every check, else None (counted)."""
+        counts = self.counts
+        counts["commands_received"] += 1
+        try:
+            ok = self._cmd.decode(data)
+        except WireFormatError:
+            counts["bad_encoding"] += 1
+            return None
+        msg = self._cmd.message
+        if not ok:
+            counts["bad_crc"] += 1
+        elif int(msg["mode_machine"]) != self.options.mode_machine:
+            counts["wrong_mode_machine"] += 1
+        elif int(msg["mode_pr"]) != MODE_PR:
+            counts["mode_pr_ab"] += 1
+        else:
+            motors = msg["motor_cmd"][: self.motors.n].copy()
+            if all(np.isfinite(motors[f]).all() for f in ("q", "dq", "tau", "kp", "kd")):
+                return motors
+            counts["non_finite"] += 1
+        return None
+
+    def _apply(self, motors: np.ndarray) -> None:
+        """Set each motor's law: ctrl = tau + kp q* + kd dq*, bias = (-kp, -kd); disabled: nothing."""
+        on = motors["mode"] == MOTOR_ENABLED
+        kp = np.where(on, motors["kp"], 0.0)
+        kd = np.where(on, motors["kd"], 0.0)
+        m = self.sim.model
+        m.actuator_biasprm[self._act, 1] = -kp
+        m.actuator_biasprm[self._act, 2] = -kd
+        ctrl = motors["tau"] + kp * motors["q"] + kd * motors["dq"]
+        self.sim.data.ctrl[self._act] = np.where(on, ctrl, 0.0)
+        self.counts["commands_applied"] += 1
+
+    # ------------------------------------------------------------------ state and truth
+    def _publish_state(self, now: float) -> int:
+        """Fill and send the LowState_ of the state the step started from (read between its halves)."""
+        msg = self._state.message
+        tick = int(msg["tick"]) + 1
+        msg["tick"] = tick
+        ms = msg["motor_state"]
+        n = self.motors.n
+        d = self.sim.data
+        ms["q"][:n] = self._q_start
+        ms["dq"][:n] = self._v_start
+        ms["tau_est"][:n] = d.actuator_force[self._act]
+        imu = self._imu.imu(forward=False)
+        msg["imu_state"]["quaternion"] = imu.quat_wxyz
+        if self.started:
+            msg["imu_state"]["gyroscope"] = imu.gyro_I
+            msg["imu_state"]["accelerometer"] = imu.accel_I
+        else:  # held still before the first command: no rotation, the specific force is -g
+            msg["imu_state"]["gyroscope"] = 0.0
+            msg["imu_state"]["accelerometer"] = -self._R_WI().T @ self.sim.model.opt.gravity
+        self._states.send(now, self._state.encode())
+        return tick
+
+    def _R_WI(self) -> np.ndarray:
+        """The IMU site's rotation R_WI (3, 3) now."""
+        return self.sim.data.site_xmat[self._imu_site].reshape(3, 3)
+
+    def truth_row(self, tick: int, wall_s: float) -> list[float]:
+        """The plant's true state at the start of the last step, as a row of :data:`TRUTH_COLUMNS`.
+
+        Contact forces are measured every :data:`FORCE_EVERY` steps and held in between.
+        """
+        m, d = self.sim.model, self.sim.data
+        if tick % FORCE_EVERY == 1 or self._forces is None:
+            forces = measure_contacts(m, d, self._foot_geoms)
+            self._forces = [forces["0"].normal_n, forces["1"].normal_n]
+        feet = np.concatenate([d.site_xpos[s] for s in self._feet])
+        return [tick, self._t_start, wall_s, self.counts["commands_applied"], *self._base_start,
+                *d.subtree_com[self._root], *feet, *self._forces]
+
+    # ------------------------------------------------------------------ loop
+    def step(self, now: float) -> int:
+        """One period: commands in, physics (once started), state out; the tick published.
+
+        The LowState carries the state the physics step starts from (the plant's present); the step
+        then advances it to the next period. Between its two halves (``Simulator.step_begin`` and
+        ``step_end``) MuJoCo holds that state's kinematics and sensors, so no extra forward pass.
+        """
+        for data in self._reader.take(32):
+            motors = self._valid_command(data)
+            if motors is not None:
+                self._commands.send(now, motors)
+        command = self._commands.receive(now)
+        if command is not None:
+            self._apply(command)
+            self.started = True
+        sim, d = self.sim, self.sim.data
+        if self.started:
+            sim.step_begin()
+        else:
+            sim.forward()  # paused: the same state every period (computed once)
+        self._q_start = d.qpos[self._qpos_motor]
+        self._v_start = d.qvel[self._qvel_motor]
+        self._base_start = [*d.qpos[self._base_q:self._base_q + 7], *d.qvel[self._base_v:self._base_v + 3]]
+        self._t_start = float(d.time)
+        if self.started:
+            sim.step_end()
+        tick = self._publish_state(now)
+        for _ in range(64):
+            payload = self._states.receive(now)
+            if payload is None:
+                break
+            self._writer.write(payload)
+            self.counts["states_published"] += 1
+        return tick
+
+    def serve(self, duration_s: float | None = None, idle_timeout_s: float | None = None,
+              on_step: Callable[[int, float], None] | None = None) -> str:
+        """Run until ``duration_s`` of wall time, or ``idle_timeout_s`` without commands after the first.
+
+        Args:
+            duration_s: Stop after this long [s] (None: until interrupted).
+            idle_timeout_s: Stop once no command has arrived for this long [s] after the first.
+            on_step: Called with (tick, wall time [s]) after each period (e.g. the truth log).
+
+        Returns:
+            Why it stopped: "duration" or "idle".
+        """
+        t0 = self.clock.start()
+        last_applied, last_change = 0, t0
+        while True:
+            now = time.perf_counter()
+            tick = self.step(now - t0)
+            if on_step is not None:
+                on_step(tick, now - t0)
+            applied = self.counts["commands_applied"]
+            if applied != last_applied:
+                last_applied, last_change = applied, now
+            if duration_s is not None and now - t0 >= duration_s:
+                return "duration"
+            if idle_timeout_s is not None and applied and now - last_change >= idle_timeout_s:
+                return "idle"
+            self.clock.wait()
+
+    def stats(self) -> dict[str, Any]:
+        """What the bridge counted: messages, link drops, its own period statistics."""
+        p = self.clock.stats()
+        return {**self.counts, "steps": self.sim.n_steps, "simulated_time_s": self.sim.time_s,
+                "commands_dropped_by_link": self._commands.dropped,
+                "states_dropped_by_link": self._states.dropped, "cycles": p.cycles,
+                "period_p50_ms": p.period_p50_ms, "period_p99_ms": p.period_p99_ms,
+                "deadline_misses": p.deadline_misses}
+
+    def close(self) -> None:
+        """Leave DDS (idempotent)."""
+        if self.channel is not None:
+            self.channel.close()
+            self.channel = None  # type: ignore[assignment]

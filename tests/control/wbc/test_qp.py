@@ -1,0 +1,115 @@
+"""The whole-body QP's structured solve against qpsolvers on random problems of the same shape.
+
+The equality-constrained fast path must give the QP's optimum whenever it claims to (no
+inequality active), and hand over to daqp otherwise; both must match an independent solve.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import qpsolvers
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from mbctl.control.wbc.qp import CONTRADICTORY, WholeBodyQP
+
+NV, NF, M_IN, M_EQ = 9, 6, 10, 5
+
+
+def _problem(seed: int, cut: float) -> WholeBodyQP:
+    """A random QP of the controller's structure; ``cut`` > 0 moves three rows' upper bounds and a
+    bound that far past the equality-constrained optimum (they become active), 0 leaves room."""
+    rng = np.random.default_rng(seed)
+    qp = WholeBodyQP(NV, NF, M_IN, M_EQ + 2, force_weight=0.3)
+    W = rng.normal(size=(NV + 2, NV))
+    qp.H_vv[:] = W.T @ W + 1e-3 * np.eye(NV)
+    qp.c_v[:] = rng.normal(size=NV)
+    qp.E[:M_EQ] = rng.normal(size=(M_EQ, NV + NF))
+    qp.e[:M_EQ] = rng.normal(size=M_EQ)
+    qp.G[:] = rng.normal(size=(M_IN, NV + NF))
+    x_free = qp.solve(M_EQ).x  # fast path with no inequality yet
+    g = qp.G @ x_free
+    qp.g_lo[:] = g - 1.0
+    qp.g_up[:] = g + 1.0
+    qp.g_up[:3] = g[:3] - cut
+    qp.lb[:NV] = x_free[:NV] - 1.0
+    qp.ub[NV:] = x_free[NV:] + 1.0
+    qp.ub[NV] = x_free[NV] - cut
+    return qp
+
+
+def _reference(qp: WholeBodyQP, m_eq: int) -> np.ndarray | None:
+    """The optimum from qpsolvers' own daqp path on the exported problem (None: infeasible)."""
+    solution = qpsolvers.solve_problem(qp.problem(m_eq), solver="daqp")
+    return solution.x if solution.found else None
+
+
+@settings(max_examples=25, deadline=None)
+@given(st.integers(0, 10_000), st.sampled_from([0.0, 0.01, 0.2]))
+def test_structured_solve_equals_qpsolvers(seed, cut):
+    qp = _problem(seed, cut)
+    result = qp.solve(M_EQ)
+    reference = _reference(qp, M_EQ)
+    # with room around the equality-constrained optimum the fast path takes it; when the
+    # inequalities cut into it, daqp solves the whole QP: either way the optimum, or both find
+    # none (a deep cut can make the random problem infeasible)
+    assert result.fast_path == (cut == 0.0)
+    if reference is None:
+        assert result.x is None and result.exitflag < 0
+        return
+    assert result.x is not None
+    np.testing.assert_allclose(result.x, reference, atol=1e-6 * max(1.0, np.abs(reference).max()))
+    E = qp.E[:M_EQ]
+    np.testing.assert_allclose(E @ result.x, qp.e[:M_EQ], atol=1e-7)
+
+
+def test_fast_path_point_satisfies_the_kkt_conditions():
+    qp = _problem(3, 0.0)
+    x = qp.solve(M_EQ).x
+    H = qp.problem(M_EQ).P
+    c = qp.problem(M_EQ).q
+    E = qp.E[:M_EQ]
+    # H x + c lies in the row space of E (stationarity with multipliers on the equalities only)
+    grad = H @ x + c
+    lam, *_ = np.linalg.lstsq(E.T, -grad, rcond=None)
+    np.testing.assert_allclose(E.T @ lam, -grad, atol=1e-9)
+
+
+def test_infeasible_problems_report_no_solution():
+    qp = _problem(5, 0.0)
+    qp.g_lo[0], qp.g_up[0] = 1.0, -1.0  # contradictory bounds of one row (daqp would pick a side)
+    assert qp.solve(M_EQ) == (None, False, CONTRADICTORY, 0)
+    qp = _problem(5, 0.0)
+    qp.G[1] = qp.G[0]  # the same row twice with disjoint ranges
+    qp.g_lo[0], qp.g_up[0] = 0.0, 1.0
+    qp.g_lo[1], qp.g_up[1] = 2.0, 3.0
+    result = qp.solve(M_EQ)
+    assert result.x is None and not result.fast_path and result.exitflag < 0
+
+
+@pytest.mark.parametrize("consistent", [True, False])
+def test_dependent_equality_rows_are_dropped_and_counted(consistent):
+    # e.g. the feet of legs without a hip yaw: their yaw rows are the base's, twice
+    qp = _problem(7, 0.0)
+    qp.E[1] = 2.0 * qp.E[0]
+    qp.e[1] = 2.0 * qp.e[0] + (0.0 if consistent else 0.3)
+    result = qp.solve(M_EQ)
+    assert result.dependent_rows == 1 and result.x is not None
+    residual = qp.E[:M_EQ] @ result.x - qp.e[:M_EQ]
+    np.testing.assert_allclose(residual[2:], 0.0, atol=1e-9)  # the independent rows hold
+    # one of the two dependent rows holds; the other only as far as it agrees with it
+    assert min(abs(residual[0]), abs(residual[1])) < 1e-9
+    # (row 0 kept: row 1 misses by 0.3; row 1 kept: row 0 misses by 0.15)
+    expected = {0.0} if consistent else {0.3, 0.15}
+    assert any(max(abs(residual[0]), abs(residual[1])) == pytest.approx(v, abs=1e-9) for v in expected)
+
+
+def test_problem_export_round_trips_the_two_sided_rows():
+    qp = _problem(11, 0.0)
+    problem = qp.problem(M_EQ)
+    assert problem.G.shape == (2 * M_IN, NV + NF)  # each two-sided row as two one-sided rows
+    x = qp.solve(M_EQ).x
+    assert np.all(problem.G @ x <= problem.h + 1e-9)
+    with pytest.raises(AssertionError):
+        np.testing.assert_array_equal(problem.P[:NV, :NV], np.eye(NV))

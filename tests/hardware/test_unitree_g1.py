@@ -1,0 +1,200 @@
+"""The G1 DDS interface against a fake robot on loopback: safety, command kinds, the link's accounting."""
+
+from __future__ import annotations
+
+import time
+
+import numpy as np
+import pytest
+
+from mbctl.control.controller import JointReference
+from mbctl.control.loop import run
+from mbctl.hardware import (
+    DdsOptions,
+    DryRunError,
+    JointOutOfLimits,
+    LinkLost,
+    NoRobotError,
+    UnitreeG1,
+    default_damping,
+)
+from mbctl.robots.commands import ctrl, position_target, torque, velocity_target
+from mbctl.robots.exceptions import CommandError
+from mbctl.robots.interface import BASE_LINEAR_VELOCITY, BASE_POSITION, BaseStateEstimator
+from mbctl.robots.unitree import MotorMap
+
+
+class StillBase:
+    """A stand-in estimator: the base at the origin, upright, at rest (the interface must not care)."""
+
+    estimated = (BASE_POSITION, BASE_LINEAR_VELOCITY)
+
+    def reset(self, reading):
+        self.first = reading
+
+    def update(self, reading):
+        return np.array([0, 0, 0.79, 0, 0, 0, 1.0]), np.zeros(6)
+
+
+class ConstantTorque:
+    """A controller sending zero torques; raises ``stop_with`` at cycle ``stop_at``."""
+
+    def __init__(self, robot, stop_at=None, stop_with=KeyboardInterrupt):
+        self.nu, self.k, self.stop_at, self.stop_with = robot.nu, 0, stop_at, stop_with
+
+    def reset(self):
+        self.k = 0
+
+    def compute(self, state, reference):
+        self.k += 1
+        if self.stop_at is not None and self.k >= self.stop_at:
+            raise self.stop_with()
+        return torque(np.zeros(self.nu))
+
+
+#: A reference for the controllers above (they ignore it).
+HOLD = JointReference(np.zeros(1), np.zeros(1), np.zeros(1))
+
+
+def _wait_for(predicate, timeout_s=2.0):
+    deadline = time.monotonic() + timeout_s
+    while not predicate() and time.monotonic() < deadline:
+        time.sleep(0.005)
+    return predicate()
+
+
+def _is_damping(cmd, robot):
+    kd = default_damping(MotorMap.for_robot(robot))
+    return (np.all(cmd["kp"] == 0) and np.allclose(cmd["kd"], kd, rtol=1e-6) and np.all(cmd["tau"] == 0)
+            and np.all(cmd["mode"] == 1))
+
+
+def test_no_robot_exits_within_a_second_naming_domain_and_interface(g1, dds_domain):
+    t0 = time.monotonic()
+    with pytest.raises(NoRobotError) as err:
+        UnitreeG1(g1, StillBase(), DdsOptions(domain=dds_domain))
+    assert time.monotonic() - t0 < 1.5
+    message = str(err.value)
+    assert f"DDS domain {dds_domain}" in message and "network interface 'lo'" in message
+    assert "mbctl serve g1" in message and "domain ids match" in message
+
+
+def test_only_bad_crc_is_no_robot_and_says_so(g1, fake_g1, dds_domain):
+    fake_g1(bad_crc=True)
+    with pytest.raises(NoRobotError, match=r"\(\d+ LowState messages had a bad CRC"):
+        UnitreeG1(g1, StillBase(), DdsOptions(domain=dds_domain, connect_timeout_s=0.5))
+
+
+def test_bad_crc_mid_run_is_counted_not_used(g1, fake_g1, dds_domain):
+    fake = fake_g1()
+    with UnitreeG1(g1, StillBase(), DdsOptions(domain=dds_domain, watchdog_periods=50)) as robot:
+        q0 = robot.read_state().q.copy()
+        fake._state.message["motor_state"]["q"][0] = 1.0  # a wrong value, in messages with a bad CRC
+        fake.bad_crc = True
+        assert _wait_for(lambda: robot.read_state() is not None and robot.bad_crc >= 5)
+        assert robot.read_state().q[7] == q0[7]  # none of them was used
+        assert robot.stats()["bad_crc"] == robot.bad_crc
+
+
+def test_joint_outside_its_limits_is_refused_by_name(g1, fake_g1, dds_domain):
+    q = g1.keyframe_q("stand")[7:].copy()
+    q[3] = -0.5  # left knee; its range starts at -0.087 rad
+    fake = fake_g1(q=q)
+    with pytest.raises(JointOutOfLimits, match=r"left_knee_joint at -0.5000 rad is outside its limits"):
+        UnitreeG1(g1, StillBase(), DdsOptions(domain=dds_domain))
+    time.sleep(0.05)
+    assert fake.commands == []  # refused before commanding anything
+
+
+def test_command_kinds_map_explicitly(g1, fake_g1, dds_domain):
+    fake = fake_g1()
+    motors = MotorMap.for_robot(g1)
+    with UnitreeG1(g1, StillBase(), DdsOptions(domain=dds_domain, watchdog_periods=50)) as robot:
+        state = robot.read_state()
+        assert state.estimated == (BASE_POSITION, BASE_LINEAR_VELOCITY)
+        assert np.allclose(state.q[7:], g1.keyframe_q("stand")[7:], atol=1e-6)
+
+        def last():
+            n = len(fake.commands)
+            assert _wait_for(lambda: len(fake.commands) > n)
+            return fake.commands[-1]
+
+        tau = np.linspace(-5, 5, g1.nu)
+        robot.send(torque(tau))
+        cmd = last()
+        assert np.allclose(cmd["tau"], tau[motors.actuator], atol=1e-5)
+        assert np.all(cmd["kp"] == 0) and np.all(cmd["kd"] == 0) and np.all(cmd["q"] == 0)
+
+        arm = {"left_elbow_joint": 0.5, "left_wrist_roll_joint": -0.2}
+        robot.send(position_target(arm))
+        cmd = last()
+        for joint, value in arm.items():
+            i = motors.joints.index(joint)
+            act = g1.actuator_for_joint(joint)
+            assert cmd["q"][i] == pytest.approx(value) and cmd["dq"][i] == 0 and cmd["tau"][i] == 0
+            assert cmd["kp"][i] == pytest.approx(act.kp) and cmd["kd"][i] == pytest.approx(act.kv, rel=1e-6)
+        # the other motors keep their torques (kp = 0)
+        assert np.all(cmd["kp"][[i for i, j in enumerate(motors.joints) if j not in arm]] == 0)
+
+        robot.send(velocity_target({"waist_yaw_joint": 0.3}))
+        cmd = last()
+        i = motors.joints.index("waist_yaw_joint")
+        assert cmd["dq"][i] == pytest.approx(0.3) and cmd["kp"][i] == 0 and cmd["q"][i] == 0
+        assert cmd["kd"][i] == pytest.approx(g1.actuator_for_joint("waist_yaw_joint").kv, rel=1e-6)
+
+        robot.send(torque({"left_knee_joint": 1000.0}))
+        assert last()["tau"][3] == pytest.approx(139.0)
+        assert robot.stats()["clamped"] == {"left_knee_joint": 1}
+        with pytest.raises(CommandError, match="raw ctrl command"):
+            robot.send(ctrl(np.zeros(g1.nu)))
+        with pytest.raises(CommandError, match="needs 29 values"):
+            robot.send(torque(np.zeros(3)))
+    assert _wait_for(lambda: _is_damping(fake.commands[-1], g1))  # closing leaves the robot damped
+
+
+def test_position_targets_need_gains(g1, fake_g1, dds_domain):
+    from mbctl.robots.edits import position_to_motor
+
+    motor_robot = position_to_motor(g1)  # torque motors: no kp/kv in the model
+    fake_g1()
+    with UnitreeG1(motor_robot, StillBase(), DdsOptions(domain=dds_domain, watchdog_periods=50)) as robot:
+        with pytest.raises(CommandError, match="needs motor gains; none for"):
+            robot.send(position_target({"left_elbow_joint": 0.5}))
+
+
+def test_lost_link_sends_damping_and_says_link_lost(g1, fake_g1, dds_domain):
+    fake = fake_g1()
+    controller = ConstantTorque(g1)
+    with UnitreeG1(g1, StillBase(), DdsOptions(domain=dds_domain, watchdog_periods=3)) as robot:
+        fake.publishing.clear()  # the robot goes silent
+        t0 = time.monotonic()
+        with pytest.raises(LinkLost, match="link lost: no LowState for"):
+            run(robot, controller, HOLD, 5.0)
+        assert time.monotonic() - t0 < 1.0
+        assert robot.stats()["watchdog_events"] == 1
+        assert _wait_for(lambda: fake.commands and _is_damping(fake.commands[-1], g1))
+
+
+def test_ctrl_c_sends_damping(g1, fake_g1, dds_domain):
+    fake = fake_g1()
+    with pytest.raises(KeyboardInterrupt), UnitreeG1(g1, StillBase(), DdsOptions(domain=dds_domain)) as robot:
+        run(robot, ConstantTorque(g1, stop_at=20), HOLD, 5.0)
+    assert _wait_for(lambda: len(fake.commands) >= 20 and _is_damping(fake.commands[-1], g1))
+    assert not _is_damping(fake.commands[-2], g1)  # it ran with torques before
+
+
+def test_dry_run_never_commands(g1, fake_g1, dds_domain):
+    fake = fake_g1()
+    with UnitreeG1(g1, StillBase(), DdsOptions(domain=dds_domain, dry_run=True)) as robot:
+        for _ in range(5):
+            robot.read_state()
+            robot.sync()
+        with pytest.raises(DryRunError, match="never commands"):
+            robot.send(torque(np.zeros(g1.nu)))
+        assert robot.stats()["cycles"] >= 5
+    time.sleep(0.05)
+    assert fake.commands == []
+
+
+def test_estimator_protocol_is_what_the_interface_needs():
+    assert isinstance(StillBase(), BaseStateEstimator)

@@ -1,0 +1,128 @@
+"""The G1 jobs over DDS against ``mbctl serve g1``, as a user runs them: processes on loopback, exit codes.
+
+Each test uses its own DDS domain on ``lo``; every process it starts is stopped before it ends.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import signal
+import subprocess
+import sys
+import time
+from contextlib import contextmanager
+from pathlib import Path
+
+import pytest
+
+#: The end-to-end runs share 2 cores with other work: a 6 ms stall of either process (the default
+#: watchdog, 3 periods) is not a lost link there. The 3-period watchdog itself is tested against a
+#: fake robot (tests/hardware).
+WATCHDOG = ("--watchdog-periods", "50")
+
+
+def _cmd(*args: str) -> list[str]:
+    return [sys.executable, "-m", "mbctl.cli", *args]
+
+
+def mbctl(*args: str, timeout: float = 120) -> subprocess.CompletedProcess:
+    return subprocess.run(_cmd(*args), capture_output=True, text=True, timeout=timeout, env=os.environ.copy())
+
+
+@contextmanager
+def bridge(domain: int, folder: Path, *extra: str):
+    """``mbctl serve g1`` on ``domain`` (lo) until the block ends; yields the process once it serves."""
+    proc = subprocess.Popen(_cmd("serve", "g1", "--domain", str(domain), "--idle-timeout", "1", "--duration",
+                                 "60", "--output", str(folder), "-q", *extra),
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=os.environ.copy())
+    try:
+        line = proc.stderr.readline()  # the "serving" line, once DDS is up
+        assert "serving on DDS domain" in line, line + proc.stderr.read()
+        yield proc
+    finally:
+        if proc.poll() is None:
+            proc.send_signal(signal.SIGINT)
+            try:
+                proc.wait(timeout=10)
+            except subprocess.TimeoutExpired:
+                proc.kill()
+                proc.wait()
+        proc.stdout.close()
+        proc.stderr.close()
+
+
+def test_g1_stand_over_dds_stands_and_checks_against_the_truth(g1, dds_domain, tmp_path):
+    serve_dir, run_dir = tmp_path / "serve", tmp_path / "stand"
+    with bridge(dds_domain, serve_dir) as proc:
+        out = mbctl("g1-stand", "--interface", "dds", "--domain", str(dds_domain), "--duration", "1.5",
+                    *WATCHDOG, "--truth", str(serve_dir / "truth.csv"), "--output", str(run_dir), "-q")
+        assert out.returncode == 0, out.stdout + out.stderr
+        assert proc.wait(timeout=20) == 0  # idle after the client left
+    values = json.loads((run_dir / "report.json").read_text())["values"]
+    assert values["interface"] == "dds" and values["cycles"] == 750
+    assert 1.9 < values["period_p50_ms"] < 2.1
+    assert values["watchdog_events"] == 0 and values["bad_crc"] == 0
+    assert values["truth_fell"] is False and values["truth_pelvis_max_deviation_m"] < 0.02
+    assert values["estimator_position_error_max_m"] < 5e-3
+    assert values["estimator_orientation_error_max_deg"] < 0.5
+    served = json.loads((serve_dir / "report.json").read_text())
+    assert served["status"] == "completed"
+    assert served["values"]["commands_applied"] > 500 and served["values"]["bad_crc"] == 0
+    assert "dds: 750 cycles" in out.stdout and "truth: pelvis max deviation" in out.stdout
+
+
+def test_no_robot_exits_2_naming_domain_and_interface(g1, dds_domain, tmp_path):
+    out = mbctl("g1-stand", "--interface", "dds", "--domain", str(dds_domain), "--output", str(tmp_path))
+    assert out.returncode == 2, out.stderr
+    assert f"DDS domain {dds_domain}" in out.stderr and "network interface 'lo'" in out.stderr
+    assert "Traceback" not in out.stderr
+    assert not (tmp_path / "report.json").exists()  # nothing written before the robot answered
+
+
+def test_ctrl_c_damps_and_exits_130(g1, dds_domain, tmp_path):
+    serve_dir, run_dir = tmp_path / "serve", tmp_path / "stand"
+    with bridge(dds_domain, serve_dir):
+        client = subprocess.Popen(_cmd("g1-stand", "--interface", "dds", "--domain", str(dds_domain),
+                                       "--duration", "30", *WATCHDOG, "--output", str(run_dir), "-q"),
+                                  stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+        try:
+            deadline = time.monotonic() + 30
+            while time.monotonic() < deadline and not _running(run_dir):
+                time.sleep(0.1)
+            time.sleep(0.5)
+            client.send_signal(signal.SIGINT)
+            _, err = client.communicate(timeout=20)
+        finally:
+            if client.poll() is None:
+                client.kill()
+                client.wait()
+    assert client.returncode == 130, err
+    report = json.loads((run_dir / "report.json").read_text())
+    assert report["status"] == "interrupted" and report["rows"] > 0
+
+
+def _running(folder: Path) -> bool:
+    try:
+        return json.loads((folder / "report.json").read_text())["status"] == "running"
+    except (OSError, ValueError, KeyError):
+        return False
+
+
+@pytest.mark.parametrize(("args", "message"), [
+    (("g1-stand", "--interface", "dds", "--latency-ms", "5"), "give --latency-ms"),
+    (("g1-stand", "--truth", "x.csv"), "--truth and --dry-run are for --interface dds"),
+    (("g1-arm-pd", "--interface", "can"), "interface must be one of sim, dds"),
+    (("serve", "h1"), "speaks the G1's low-level messages only"),
+])
+def test_bad_plant_options_exit_2(args, message, tmp_path):
+    out = mbctl(*args, "--output", str(tmp_path))
+    assert out.returncode == 2 and message in out.stderr, out.stderr
+
+
+def test_in_process_link_reports_its_losses(g1, tmp_path):
+    out = mbctl("g1-stand", "--duration", "0.4", "--drop", "0.1", "--estimate", "--output", str(tmp_path),
+                "-q")
+    assert out.returncode == 0, out.stderr
+    values = json.loads((tmp_path / "report.json").read_text())["values"]
+    assert values["interface"] == "sim" and values["states_dropped"] > 0 and values["commands_dropped"] > 0

@@ -1,0 +1,205 @@
+"""The Unitree wire layer against Unitree's own types and CRC: motor table, XCDR1 bytes, CRC, raw DDS."""
+
+from __future__ import annotations
+
+import os
+import time
+
+import numpy as np
+import pytest
+from hypothesis import given
+from hypothesis import strategies as st
+
+# Unitree's own IDL types and CRC helper (the hardware extra, which the test extra installs)
+from unitree_sdk2py.idl.unitree_hg.msg.dds_ import IMUState_, LowCmd_, LowState_, MotorCmd_, MotorState_
+from unitree_sdk2py.utils.crc import CRC
+
+from mbctl.robots.exceptions import UnknownNameError
+from mbctl.robots.unitree import (
+    G1_MOTOR_JOINTS,
+    LOW_CMD,
+    LOW_STATE,
+    MotorMap,
+    MotorTableError,
+    WireFormatError,
+    low_cmd_codec,
+    low_state_codec,
+)
+from mbctl.robots.unitree.channel import (
+    TOPIC_LOWCMD,
+    Channel,
+    ChannelError,
+    check_network_interface,
+    domain_config,
+    message_types,
+)
+from mbctl.robots.unitree.crc import crc32_reference, crc32_words
+from mbctl.robots.unitree.g1 import motor_index, motor_joint
+from mbctl.robots.unitree.wire import cdr_index
+
+
+# ---------------------------------------------------------------- the motor table
+def test_motor_table_round_trip_both_ways(g1):
+    assert len(G1_MOTOR_JOINTS) == 29 == len(set(G1_MOTOR_JOINTS))
+    for i, joint in enumerate(G1_MOTOR_JOINTS):
+        assert motor_index(joint) == i
+        assert motor_joint(i) == joint
+    motors = MotorMap.for_robot(g1)
+    for i, joint in enumerate(motors.joints):
+        assert g1.joint(joint).idx_q == motors.idx_q[i]
+        assert g1.joint(joint).idx_v == motors.idx_v[i]
+        assert g1.actuator_for_joint(joint).index == motors.actuator[i]
+    # Unitree's G1JointIndex: left knee 3, right hip pitch 6, waist yaw 12, right wrist yaw 28
+    unitree = {"left_knee_joint": 3, "right_hip_pitch_joint": 6, "waist_yaw_joint": 12,
+               "left_shoulder_pitch_joint": 15, "right_wrist_yaw_joint": 28}
+    assert {j: motor_index(j) for j in unitree} == unitree
+    assert motors.tau_max[motor_index("left_knee_joint")] == 139.0
+    assert motors.tau_max[motor_index("left_wrist_yaw_joint")] == 5.0
+
+
+def test_motor_table_names_bad_lookups(two_link):
+    with pytest.raises(UnknownNameError, match="left_knee_joint"):
+        motor_index("left_kne_joint")
+    with pytest.raises(UnknownNameError, match="motor index"):
+        motor_joint(29)
+    with pytest.raises(MotorTableError, match="joints missing from the robot"):
+        MotorMap.for_robot(two_link)
+
+
+# ---------------------------------------------------------------- messages and CRC
+def _random_cmd(rng):
+    codec = low_cmd_codec()
+    m = codec.message
+    m["mode_pr"], m["mode_machine"] = rng.integers(0, 2), rng.integers(0, 256)
+    mc = m["motor_cmd"]
+    mc["mode"] = rng.integers(0, 2, 35)
+    for f in ("q", "dq", "tau", "kp", "kd"):
+        mc[f] = rng.normal(size=35) * 10
+    mc["reserve"] = rng.integers(0, 2**32, 35, dtype=np.uint64)
+    m["reserve"] = rng.integers(0, 2**32, 4, dtype=np.uint64)
+    idl = LowCmd_(int(m["mode_pr"]), int(m["mode_machine"]),
+                  [MotorCmd_(int(x["mode"]), *(float(x[f]) for f in ("q", "dq", "tau", "kp", "kd")),
+                             int(x["reserve"])) for x in mc], [int(r) for r in m["reserve"]], 0)
+    return codec, idl
+
+
+def _random_state(rng):
+    codec = low_state_codec()
+    m = codec.message
+    m["version"] = rng.integers(0, 2**32, 2, dtype=np.uint64)
+    m["mode_pr"], m["mode_machine"] = rng.integers(0, 2), rng.integers(0, 256)
+    m["tick"] = rng.integers(0, 2**32)
+    imu = m["imu_state"]
+    for f in ("quaternion", "gyroscope", "accelerometer", "rpy"):
+        imu[f] = rng.normal(size=imu[f].shape)
+    imu["temperature"] = rng.integers(-100, 100)
+    ms = m["motor_state"]
+    ms["mode"] = rng.integers(0, 2, 35)
+    for f in ("q", "dq", "ddq", "tau_est", "vol"):
+        ms[f] = rng.normal(size=35)
+    ms["temperature"] = rng.integers(-100, 100, (35, 2))
+    for f in ("sensor", "reserve"):
+        ms[f] = rng.integers(0, 2**32, ms[f].shape, dtype=np.uint64)
+    ms["motorstate"] = rng.integers(0, 2**32, 35, dtype=np.uint64)
+    m["wireless_remote"] = rng.integers(0, 256, 40)
+    m["reserve"] = rng.integers(0, 2**32, 4, dtype=np.uint64)
+    idl = LowState_(
+        [int(v) for v in m["version"]], int(m["mode_pr"]), int(m["mode_machine"]), int(m["tick"]),
+        IMUState_(*(imu[f].tolist() for f in ("quaternion", "gyroscope", "accelerometer", "rpy")),
+                  int(imu["temperature"])),
+        [MotorState_(int(x["mode"]), *(float(x[f]) for f in ("q", "dq", "ddq", "tau_est")),
+                     x["temperature"].tolist(), float(x["vol"]), x["sensor"].tolist(), int(x["motorstate"]),
+                     x["reserve"].tolist()) for x in ms],
+        m["wireless_remote"].tolist(), m["reserve"].tolist(), 0)
+    return codec, idl
+
+
+def test_c_layout_sizes_are_unitree_structs():
+    # the sizes of Unitree's C++ structs (and of their Python CRC helper's pack formats)
+    assert (LOW_CMD.itemsize, LOW_STATE.itemsize) == (1004, 2092)
+    assert cdr_index(LOW_CMD).size == len(LowCmd_(0, 0, [MotorCmd_(0, 0, 0, 0, 0, 0, 0)] * 35, [0] * 4, 0)
+                                          .serialize()) - 4
+
+
+@pytest.mark.parametrize("make", [_random_cmd, _random_state], ids=["LowCmd_", "LowState_"])
+@pytest.mark.parametrize("seed", range(5))
+def test_wire_bytes_and_crc_match_unitree(make, seed):
+    codec, idl = make(np.random.default_rng(seed))
+    wire = codec.encode()
+    idl.crc = CRC().Crc(idl)  # Unitree's helper: repacks field by field, its own C CRC
+    assert int(codec.message["crc"]) == idl.crc
+    assert wire == idl.serialize()  # cyclonedds' serializer of Unitree's IDL type
+    other = type(codec)(codec.dtype)
+    assert other.decode(idl.serialize())
+    assert other.packed.tobytes() == codec.packed.tobytes()
+
+
+@given(st.lists(st.integers(0, 2**32 - 1), min_size=1, max_size=64))
+def test_crc_on_packed_words_equals_the_bitwise_definition(words):
+    arr = np.array(words, dtype=np.uint32)
+    assert crc32_words(arr.view(np.uint8)) == crc32_reference(arr)
+
+
+def test_bad_crc_and_other_encodings_are_detected():
+    codec, idl = _random_cmd(np.random.default_rng(7))
+    wire = bytearray(codec.encode())
+    wire[40] ^= 0x01  # one bit of motor 1's q
+    assert not low_cmd_codec().decode(bytes(wire))
+    with pytest.raises(WireFormatError, match="little-endian XCDR1"):
+        low_cmd_codec().decode(idl.serialize(use_version_2=True))
+    with pytest.raises(WireFormatError, match="got 10 bytes"):
+        low_cmd_codec().decode(b"\x00\x01\x00\x00" + bytes(6))
+
+
+# ---------------------------------------------------------------- DDS on loopback
+def test_raw_bytes_round_trip_with_the_public_api(dds_domain):
+    from cyclonedds.pub import DataWriter
+    from cyclonedds.sub import DataReader
+
+    cmd_type, _ = message_types()
+    codec, idl = _random_cmd(np.random.default_rng(3))
+    with Channel(dds_domain) as a, Channel(dds_domain) as b:
+        raw_writer, raw_reader = a.writer(TOPIC_LOWCMD, cmd_type), b.reader(TOPIC_LOWCMD, cmd_type)
+        public_reader = DataReader(b._participant, b._topic(TOPIC_LOWCMD, cmd_type))
+        public_writer = DataWriter(a._participant, a._topic(TOPIC_LOWCMD, cmd_type))
+        deadline = time.monotonic() + 5
+        got: list[bytes] = []
+        while not got and time.monotonic() < deadline:  # until discovery matched them
+            raw_writer.write(codec.encode())
+            raw_reader.wait(0.05)
+            got = raw_reader.take()
+        assert got and got[-1] == codec.encode()
+        assert public_reader.take(8)[-1] == idl.__class__.deserialize(codec.encode())
+        idl.crc = 5
+        public_writer.write(idl)
+        assert raw_reader.wait(1.0)
+        assert raw_reader.take()[-1] == idl.serialize()
+
+
+def test_channel_checks_its_inputs_and_stays_on_loopback(dds_domain):
+    with pytest.raises(ChannelError, match="domain must be an integer in 0..232"):
+        Channel(233)
+    with pytest.raises(ChannelError, match="no network interface 'eth-nope'.*lo"):
+        check_network_interface("eth-nope")
+    config = domain_config("lo")
+    assert 'multicast="false"' in config and "<AllowMulticast>false" in config
+    assert '<Peer address="127.0.0.1"/>' in config
+    # two participants of one process share the domain's configuration (counted, released last)
+    with Channel(dds_domain) as a, Channel(dds_domain) as b:
+        assert a.domain == b.domain == dds_domain
+
+
+def test_closing_a_channel_stops_its_threads(dds_domain):
+    def tasks() -> int:
+        return len(os.listdir("/proc/self/task"))
+
+    before = tasks()
+    channel = Channel(dds_domain)
+    channel.reader(TOPIC_LOWCMD, message_types()[0])
+    assert tasks() > before
+    channel.close()
+    channel.close()  # idempotent
+    deadline = time.monotonic() + 2
+    while tasks() > before and time.monotonic() < deadline:
+        time.sleep(0.01)
+    assert tasks() == before
