@@ -3,9 +3,11 @@
 from __future__ import annotations
 
 import os
+import sys
 import time
+from collections.abc import Callable
 from pathlib import Path
-from typing import TYPE_CHECKING, Annotated, BinaryIO, cast
+from typing import TYPE_CHECKING, Annotated, Any, BinaryIO, cast
 
 import typer
 
@@ -21,6 +23,30 @@ SizeOpt = Annotated[str, typer.Option("--size", help="Image or video frame size 
 KeyframeOpt = Annotated[
     str | None, typer.Option("--keyframe", help="Keyframe to show (default: the model's qpos0).")
 ]
+WebOpt = Annotated[bool, typer.Option(
+    "--web", help="Serve a 3-D view to the browser on 127.0.0.1 (no display needed; Ctrl-C stops it).")]
+PortOpt = Annotated[int, typer.Option(
+    "--port", help="With --web: the loopback TCP port (0: a free one; the URL is printed).")]
+
+
+def _serve(make_view: Callable[[], Any]) -> None:
+    """Build the web view, print its URL, serve until Ctrl-C (exit 0), then stop the server."""
+    from mbctl.sim.web import WebViewError
+
+    try:
+        view = make_view()
+    except (FileNotFoundError, ValueError) as exc:
+        raise WebViewError(f"cannot serve this run: {exc}") from exc
+    try:
+        typer.echo(f"serving {view.url} (loopback only; from another machine: ssh -L "
+                   f"{view.port}:127.0.0.1:{view.port} HOST); Ctrl-C stops it")
+        sys.stdout.flush()
+        while True:
+            time.sleep(3600)
+    except KeyboardInterrupt:
+        typer.echo("viewer stopped")
+    finally:
+        view.close()
 
 
 def _display() -> bool:
@@ -84,8 +110,10 @@ def replay(
         Path | None, typer.Option("--output", help="MP4 file (default RUN_DIR/replay.mp4).")
     ] = None,
     size: SizeOpt = "640x480",
+    web: WebOpt = False,
+    port: PortOpt = 0,
 ) -> None:
-    """Play a recorded run back: in MuJoCo's viewer, or to an MP4 with --video."""
+    """Play a recorded run back: in MuJoCo's viewer, to an MP4 with --video, or in the browser with --web."""
     from mbctl.jobs.runner import OutputError, check_output_file
     from mbctl.sim.trajectory import TRAJECTORY_NAME, load_trajectory
     from mbctl.sim.video import VideoSpec, film_trajectory, parse_size
@@ -94,6 +122,11 @@ def replay(
         raise OutputError(
             f"{str(run_dir)!r} holds no {TRAJECTORY_NAME}: not a run folder of a simulating job"
         )
+    if web:
+        from mbctl.jobs.web_view import run_view
+
+        _serve(lambda: run_view(run_dir, port))
+        return
     try:
         model, t, qpos, track = load_trajectory(run_dir)
     except ValueError as exc:
@@ -122,13 +155,19 @@ def replay(
 
 
 def view(robot: RobotArg, keyframe: KeyframeOpt = None, scene: SceneOpt = None,
-         model_dir: ModelDirOpt = None) -> None:
-    """Open MuJoCo's interactive viewer on ROBOT (needs a display)."""
+         model_dir: ModelDirOpt = None, web: WebOpt = False, port: PortOpt = 0) -> None:
+    """Open MuJoCo's interactive viewer on ROBOT (needs a display), or serve it to the browser with --web."""
+    from mbctl.robots import load_robot
+
+    if web:
+        from mbctl.jobs.web_view import robot_view
+
+        loaded = load_robot(robot, scene, model_dir=model_dir)
+        _serve(lambda: robot_view(loaded, keyframe, port))
+        return
     if not _display():
         raise _no_display("mbctl view")
     import mujoco.viewer
-
-    from mbctl.robots import load_robot
 
     loaded = load_robot(robot, scene, model_dir=model_dir)
     mujoco.viewer.launch(loaded.mj_model, _posed(loaded, keyframe))

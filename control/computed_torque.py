@@ -24,8 +24,9 @@ import numpy as np
 import pinocchio as pin
 
 from mbctl.control.controller import JointFeedbackController, JointReference
+from mbctl.control.exceptions import ControllerSetupError
 from mbctl.control.gains import PDGains
-from mbctl.robots.commands import Command, CommandKind
+from mbctl.robots.commands import Command, CommandKind, kind_mismatch
 from mbctl.robots.interface import RobotState
 from mbctl.robots.model_pair import Robot
 
@@ -49,7 +50,8 @@ class ComputedTorque(JointFeedbackController):
 
     Raises:
         GainsError: Gains that do not match the number of joints.
-        ControllerSetupError: A floating base or unactuated dofs, or a model of another size.
+        ControllerSetupError: Actuators that do not take torques (position, velocity), a
+            floating base or unactuated dofs, or a model of another size.
         UnknownNameError: An unknown joint name.
     """
 
@@ -66,6 +68,9 @@ class ComputedTorque(JointFeedbackController):
         saturate: bool = True,
     ):
         super().__init__(robot, gains, joints, saturate=saturate)
+        wrong = kind_mismatch(CommandKind.TORQUE, [robot.actuator(a) for a in self.joint_map.actuators])
+        if wrong is not None:  # here, not at the first step
+            raise ControllerSetupError(f"ComputedTorque outputs torques. {wrong}")
         self._require_every_dof("computed torque")
         self._use_model(pin_model)
         friction = np.asarray(self.model.friction)[self._idx_v]

@@ -38,6 +38,8 @@ from pathlib import Path
 from types import FrameType
 from typing import Any, Generic, TypeVar
 
+import numpy as np
+
 from mbctl.exceptions import ToolkitError
 from mbctl.jobs.exceptions import JobError as JobError
 from mbctl.jobs.exceptions import OutputError as OutputError
@@ -192,7 +194,8 @@ class RunContext:
         return stream
 
     def attach(
-        self, sim: Simulator, *, contact_forces: bool = False, overlay: Overlay | None = None
+        self, sim: Simulator, *, contact_forces: bool = False, overlay: Overlay | None = None,
+        frame_qpos: np.ndarray | None = None, frame_points_W: np.ndarray | None = None,
     ) -> Simulator:
         """Make ``sim`` the run's plant: report sections, trajectory for replay, video if filmed.
 
@@ -205,6 +208,9 @@ class RunContext:
             sim: The plant.
             contact_forces: Draw contact force arrows in the video.
             overlay: Adds markers to each video frame's scene (e.g. the reference path).
+            frame_qpos: Plant configurations (k, nq) of the planned motion: a fixed robot's video
+                camera frames them.
+            frame_points_W: Points (m, 3) [m] in W the video camera frames too.
         """
         first = self.sim is None
         self.sim = sim
@@ -214,7 +220,8 @@ class RunContext:
             self._recorders.append(traj.attach())
             if self.video is not None:
                 spec = replace(self.video, contact_forces=contact_forces or self.video.contact_forces)
-                film = VideoRecorder(sim, self.path(VIDEO_NAME, "video"), spec, overlay)
+                film = VideoRecorder(sim, self.path(VIDEO_NAME, "video"), spec, overlay, frame_qpos,
+                                     frame_points_W)
                 self._recorders.append(film.attach())
         return sim
 

@@ -13,6 +13,7 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
+from matplotlib import colormaps
 
 from mbctl.control.exceptions import IKSetupError
 from mbctl.control.ik.two_link import TwoLinkArm
@@ -75,19 +76,47 @@ def sample_workspace(arm: TwoLinkArm, robot: Robot | None = None, n: int = 121) 
 
 
 def plot_workspace(arm: TwoLinkArm, points: np.ndarray) -> object:
-    """A figure of the sampled site positions (k, 2) [m] with the r_min and r_max circles."""
-    fig, axes = new_figure(1, 1, (5.0, 5.0))
+    """A figure of the sampled site positions (k, 2) [m] with the r_min and r_max circles.
+
+    The samples are shown as a density (hexagonal bins, log colour scale: a uniform joint grid
+    crowds the shoulder), not as dots: a regular grid drawn dot by dot makes moire rings. The inner
+    circle (r_min, often a few mm) is shown again in an inset around the shoulder, in mm.
+    """
+    fig, axes = new_figure(1, 1, (6.0, 5.6))
     ax = axes[0, 0]
-    ax.scatter(points[:, 0], points[:, 1], s=1.0, alpha=0.4, label="sampled site positions")
+    x, y = points[:, 0], points[:, 1]
+    bins = ax.hexbin(x, y, gridsize=25, cmap="Blues", mincnt=1, linewidths=0.2, bins="log")
+    fig.colorbar(bins, ax=ax, shrink=0.8, label="joint-grid samples per bin (log scale)")
     t = np.linspace(0.0, 2.0 * math.pi, 361)
-    for radius, style, label in ((arm.r_max, "-", "r_max"), (arm.r_min, "--", "r_min")):
+    circles = ((arm.r_max, "-", "r_max"), (arm.r_min, "--", "r_min"))
+    for radius, style, label in circles:
         ax.plot(arm.base_x + radius * np.cos(t), arm.base_y + radius * np.sin(t), style, color="k",
-                label=f"{label} = {radius:.4g} m")
+                label=f"{label} = {radius * 1e3:.4g} mm")
+    ax.plot(arm.base_x, arm.base_y, "+", color="crimson", ms=10, label="shoulder")
     ax.set_aspect("equal")
     ax.set_xlabel("x (m)")
     ax.set_ylabel("y (m)")
-    ax.set_title(f"2-link workspace (l1={arm.link1_length:.4g} m, l2={arm.link2_length:.4g} m)")
-    ax.legend(loc="upper right", fontsize="small")
+    ax.set_title(f"2-link workspace (l1 = {arm.link1_length:.4g} m, l2 = {arm.link2_length:.4g} m)")
+    ax.legend(loc="upper left", fontsize="small", framealpha=0.9)
+    zoom = max(3.0 * arm.r_min, 0.02)  # the inset's half width [m]
+    if zoom < 0.25 * arm.r_max:
+        inset = ax.inset_axes((0.765, 0.01, 0.225, 0.225))  # the corner the circle leaves free
+        inset.set_facecolor(colormaps["Blues"](0.35))  # reachable
+        inner = arm.r_min * 1e3
+        inset.fill(inner * np.cos(t), inner * np.sin(t), facecolor="white", edgecolor="k", ls="--",
+                   hatch="///", label="unreachable")
+        inset.plot(0, 0, "+", color="crimson", ms=8)
+        lim = zoom * 1e3
+        inset.set_xlim(-lim, lim)
+        inset.set_ylim(-lim, lim)
+        inset.set_aspect("equal")
+        inset.set_xticks([])
+        inset.set_yticks([])
+        inset.text(0, 0.62 * lim, f"+/-{lim:.3g} mm", ha="center", fontsize="x-small")
+        inset.text(0, -0.85 * lim, f"r_min {inner:.3g} mm", ha="center", fontsize="x-small")
+        ax.indicate_inset(
+            (arm.base_x - zoom, arm.base_y - zoom, 2 * zoom, 2 * zoom), inset_ax=inset, edgecolor="0.4")
+    fig.tight_layout()
     return fig
 
 

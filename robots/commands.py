@@ -169,3 +169,19 @@ def actuators_named(
 
 def _as_named(name: str, info: ActuatorInfo) -> str:
     return f"{name!r}" if name == info.name else f"{name!r} (its joint)"
+
+
+def kind_mismatch(kind: CommandKind, actuators: Sequence[ActuatorInfo]) -> str | None:
+    """Why a ``kind`` command cannot drive ``actuators`` (those of another kind), or None if it can.
+
+    The one message for the mistake, whether the simulator meets it at a step or a controller
+    at construction.
+    """
+    wrong = [] if kind is CommandKind.CTRL else [a for a in actuators if a.kind != kind.value]
+    if not wrong:
+        return None
+    listing = ", ".join(f"{a.name} ({a.kind})" for a in wrong[:6])
+    return (f"A {kind.value} command cannot drive {listing}: the actuator kind differs. "
+            f"Send a command of the actuator's kind, a raw ctrl command (mbctl.robots.commands.ctrl: "
+            f"each actuator's own units), or convert the model's actuators "
+            f"(e.g. mbctl.robots.edits.position_to_motor for torque control).")

@@ -31,7 +31,7 @@ def position_to_motor(robot: Robot, actuators: Iterable[str] | None = None) -> R
 
     def edit(spec: mujoco.MjSpec) -> None:
         for info in infos:
-            act = spec.actuator(info.name)
+            act = spec.actuators[info.index]  # by index: an unnamed actuator has no name in the spec
             act.set_to_motor()
             act.gear = np.array([info.gear, 0, 0, 0, 0, 0])
             lo, hi = info.force_range

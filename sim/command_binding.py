@@ -10,7 +10,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from mbctl.robots.commands import Command, CommandKind, actuators_named, joint_actuators
+from mbctl.robots.commands import Command, actuators_named, joint_actuators, kind_mismatch
 from mbctl.robots.exceptions import CommandError
 from mbctl.robots.fastmath import SMALL_VECTOR_MAX, any_outside
 from mbctl.robots.model_pair import Robot
@@ -84,15 +84,9 @@ class CommandBinder:
             infos = list(actuators.values())
         else:
             infos = actuators_named(command.names, actuators, self._by_joint, f"{command.kind.value} command")
-        wrong = [] if command.kind is CommandKind.CTRL else [a for a in infos if a.kind != command.kind.value]
-        if wrong:
-            listing = ", ".join(f"{a.name} ({a.kind})" for a in wrong[:6])
-            raise CommandError(
-                f"A {command.kind.value} command cannot drive {listing}: the actuator kind differs. "
-                f"Send a command of the actuator's kind, a raw ctrl command (mbctl.robots.commands.ctrl: "
-                f"each actuator's own units), or convert the model's actuators "
-                f"(e.g. mbctl.robots.edits.position_to_motor for torque control)."
-            )
+        wrong = kind_mismatch(command.kind, infos)
+        if wrong is not None:
+            raise CommandError(wrong)
         index = np.array([a.index for a in infos], dtype=int)
         low = np.array([a.ctrl_range[0] for a in infos])
         high = np.array([a.ctrl_range[1] for a in infos])

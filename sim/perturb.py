@@ -22,7 +22,7 @@ class Push:
 
     @property
     def impulse_n_s(self) -> float:
-        """|F| T [N s]."""
+        """The impulse ``|F| T`` [N s]."""
         return float(np.linalg.norm(self.force_W)) * self.duration_s
 
 

@@ -3,10 +3,11 @@
 A :class:`VideoRecorder` is a simulator observer: it renders a frame whenever simulated time
 passes the next frame time (``fps`` frames per simulated second) and hands it to the encoder at
 once, so an interrupted run leaves a playable video of what ran. The MP4 is fragmented
-(``-movflags frag_keyframe+empty_moov``): playable up to its last fragment even if the process
-dies before closing it. It is written beside its name and renamed into place when closed (the
-job runner closes on Ctrl-C and SIGTERM), so a symbolic link planted at its name is never
-followed; a process killed outright leaves it under its temporary name (``.video.mp4.*.tmp``).
+(``-movflags frag_keyframe+empty_moov``, a keyframe every 0.5 s, each fragment flushed to disk):
+playable up to about 0.6 s before its end even if the process and its encoder die before closing
+it. It is written beside its name and renamed into place when closed (the job runner closes on
+Ctrl-C and SIGTERM), so a symbolic link planted at its name is never followed; a process killed
+outright leaves it under its temporary name (``.video.mp4.*.tmp``).
 With no recorder the simulator pays nothing.
 
 Encoder: imageio-ffmpeg, which ships its own ffmpeg binary (no system install);
@@ -88,11 +89,15 @@ def make_renderer(model: mujoco.MjModel, width: int, height: int) -> mujoco.Rend
 
 
 def default_camera(
-    model: mujoco.MjModel, data: mujoco.MjData, track_body: int | None
+    model: mujoco.MjModel, data: mujoco.MjData, track_body: int | None,
+    qpos_samples: np.ndarray | None = None, points_W: np.ndarray | None = None,
 ) -> mujoco.MjvCamera:
     """A camera that tracks ``track_body`` (a floating base) or frames the whole model (fixed).
 
-    A fixed robot whose hinges all share one axis (a planar arm) is seen along that axis.
+    A fixed robot is framed on the body origins (with mass) at ``data``'s configuration and at
+    each of ``qpos_samples`` (k, nq) (the motion to come: a planned trajectory, or a recorded
+    one), and on ``points_W`` (m, 3) [m] (a reference path). A fixed robot whose hinges all share
+    one axis (a planar arm) is seen along that axis, the framed box filling most of the image.
     """
     cam = mujoco.MjvCamera()
     mujoco.mjv_defaultFreeCamera(model, cam)
@@ -100,22 +105,45 @@ def default_camera(
     # Frame the bodies (not MuJoCo's stat.extent, which a floor plane or far props inflate):
     # the bounding box of the body origins that carry mass, world excluded.
     heavy = np.flatnonzero(model.body_mass[1:] > 0) + 1
-    points = data.xpos[heavy] if heavy.size else data.xpos[1:]
-    lo, hi = points.min(axis=0), points.max(axis=0)
+    if not heavy.size:
+        heavy = np.arange(1, model.nbody)
+    points = [data.xpos[heavy].copy()]
+    if qpos_samples is not None and track_body is None:
+        scratch = mujoco.MjData(model)
+        for q in np.asarray(qpos_samples, dtype=float).reshape(-1, model.nq):
+            scratch.qpos[:] = q
+            mujoco.mj_kinematics(model, scratch)
+            points.append(scratch.xpos[heavy].copy())
+    if points_W is not None and track_body is None:
+        points.append(np.asarray(points_W, dtype=float).reshape(-1, 3))
+    cloud = np.vstack(points)
+    lo, hi = cloud.min(axis=0), cloud.max(axis=0)
     size = max(float(np.linalg.norm(hi - lo)), 0.2)
     if track_body is not None:
         cam.type = mujoco.mjtCamera.mjCAMERA_TRACKING
         cam.trackbodyid = track_body
         cam.distance, cam.elevation, cam.azimuth = 2.2 * size, -15.0, 140.0
         return cam
+    cam.lookat[:] = (lo + hi) / 2
+    cam.distance = 2.5 * size
     hinges = [j for j in range(model.njnt) if model.jnt_type[j] == mujoco.mjtJoint.mjJNT_HINGE]
     axes = [data.xaxis[j] / np.linalg.norm(data.xaxis[j]) for j in hinges]
     if axes and all(abs(float(a @ axes[0])) > 0.999 for a in axes):
         ax = axes[0] if axes[0][2] >= 0 else -axes[0]  # look down the common axis
         cam.elevation = float(-np.degrees(np.arcsin(np.clip(ax[2], -1, 1))))
         cam.azimuth = float(np.degrees(np.arctan2(-ax[1], -ax[0]))) if abs(ax[2]) < 0.999 else 90.0
-    cam.lookat[:] = (lo + hi) / 2
-    cam.distance = 2.5 * size
+        # Fill the image: the framed points' box across the view axis, 25 % larger, fits the
+        # vertical field of view and the width of a 4:3 frame. Screen axes as MuJoCo draws them:
+        # looking down z, x right and y up; looking horizontally, z up.
+        forward = -ax
+        up = np.array([0.0, 1.0, 0.0]) if abs(ax[2]) >= 0.999 else np.array([0.0, 0.0, 1.0])
+        right = np.cross(forward, up)
+        right /= np.linalg.norm(right)
+        u, v = cloud @ right, cloud @ up
+        centre = right * (u.max() + u.min()) / 2 + up * (v.max() + v.min()) / 2
+        cam.lookat[:] = centre + ax * float(np.mean(cloud @ ax))
+        half = 1.25 * max((v.max() - v.min()) / 2, (u.max() - u.min()) / 2 / (4 / 3), 0.05)
+        cam.distance = half / np.tan(np.radians(float(model.vis.global_.fovy)) / 2)
     return cam
 
 
@@ -133,6 +161,14 @@ def add_markers(
                             np.array([radius_m, 0, 0]), np.asarray(p, dtype=float), np.eye(3).ravel(),
                             np.asarray(rgba, dtype=np.float32))
         scene.ngeom += 1
+
+
+#: Keyframe interval and x264 lookahead [s of video]. The fragmented MP4 is written a fragment per
+#: keyframe, once the encoder has emitted the next keyframe, so the file on disk lags the frames
+#: sent by about one interval plus the lookahead. x264's defaults (a keyframe every 250 frames, 40
+#: frames of lookahead) kept a 3 s clip unplayable until it was closed; with 0.5 s and 0.33 s the
+#: file plays to within 0.6 s of the last frame sent (tests/sim/test_video.py), for 15 % more bytes.
+KEYFRAME_INTERVAL_S, LOOKAHEAD_S = 0.5, 1.0 / 3.0
 
 
 class _Writer:
@@ -166,7 +202,10 @@ class _Writer:
                     str(self.out.tmp), (frame.shape[1], frame.shape[0]), fps=self.fps, codec="libx264",
                     macro_block_size=2, quality=None, ffmpeg_log_level="error",
                     # fragmented: playable up to the last fragment if the process dies
-                    output_params=["-crf", "23", "-movflags", "frag_keyframe+empty_moov", "-f", "mp4"])
+                    output_params=["-crf", "23", "-g", str(max(1, round(KEYFRAME_INTERVAL_S * self.fps))),
+                                   "-x264-params", f"rc-lookahead={max(1, round(LOOKAHEAD_S * self.fps))}",
+                                   "-movflags", "frag_keyframe+empty_moov", "-flush_packets", "1",
+                                   "-f", "mp4"])
                 self._frames.send(None)
             except Exception as exc:  # imageio-ffmpeg raises several types for a missing ffmpeg
                 self._frames = None
@@ -195,14 +234,27 @@ class VideoRecorder:
 
     Use as an observer (``sim.add_observer(recorder)``, done by :meth:`attach`) and ``close()``
     in every case (the job runner does).
+
+    Args:
+        sim: The plant to film.
+        path: The MP4 file.
+        spec: Frame size, rate and what to draw.
+        overlay: Adds markers to each frame's scene (e.g. the reference path).
+        frame_qpos: Plant configurations (k, nq) of the motion to come, which a fixed robot's
+            camera frames (see :func:`default_camera`).
+        frame_points_W: Points (m, 3) [m] in W the fixed camera frames too.
     """
 
     def __init__(self, sim: Simulator, path: Path, spec: VideoSpec = VideoSpec(),
-                 overlay: Overlay | None = None):
+                 overlay: Overlay | None = None, frame_qpos: np.ndarray | None = None,
+                 frame_points_W: np.ndarray | None = None):
         self.sim, self.path, self.spec, self.overlay = sim, Path(path), spec, overlay
         self.renderer = make_renderer(sim.model, spec.width, spec.height)
-        robot = sim.robot
-        self.camera = default_camera(sim.model, mujoco.MjData(sim.model), base_body(robot))
+        data = mujoco.MjData(sim.model)
+        data.qpos[:] = sim.data.qpos
+        # A fixed robot is framed on the motion to come (frame_qpos: plant qpos samples) and the
+        # points drawn with it (a reference path), not only on where it starts.
+        self.camera = default_camera(sim.model, data, base_body(sim.robot), frame_qpos, frame_points_W)
         self.options = mujoco.MjvOption()
         if spec.contact_forces:
             self.options.flags[mujoco.mjtVisFlag.mjVIS_CONTACTFORCE] = True
@@ -247,7 +299,9 @@ def film_trajectory(model: mujoco.MjModel, t_s: np.ndarray, qpos: np.ndarray, pa
     """
     renderer = make_renderer(model, spec.width, spec.height)
     data = mujoco.MjData(model)
-    camera = default_camera(model, data, track_body)
+    if len(qpos):
+        data.qpos[:] = qpos[0]
+    camera = default_camera(model, data, track_body, qpos[:: max(1, len(qpos) // 100)])
     writer = _open_writer(Path(path), spec.fps)
     frames = 0
     try:

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import os
+import time
 
 import pytest
 from hypothesis import settings
@@ -84,3 +85,43 @@ def dds_domain() -> int:
             pytest.fail("CI must have the hardware extra (pip install -e '.[test]')")
         pytest.skip("DDS tests need the hardware extra")
     return 1 + (os.getpid() * 37 + next(_DDS_DOMAINS)) % 232
+
+
+# ------------------------------------------------------------------------ progress per file
+# `pytest -q` prints one unbroken row of dots for minutes. Show each test file on its own line
+# (as pytest's default verbosity does, -q or not) and how long the previous file took, so a
+# slow file reads as progress, not a hang: `tests/jobs/test_g1_jobs.py ........ (41.2 s)  [ 62%]`.
+class _FileProgress:
+    """Terminal lines per test file, each closed with the file's wall time."""
+
+    def __init__(self, reporter: pytest.TerminalReporter, last_nodeid: str | None = None):
+        self.reporter, self.last_nodeid = reporter, last_nodeid
+        self.path: str | None = None
+        self.t0 = 0.0
+
+    def _close_line(self) -> None:
+        if self.path is not None:
+            self.reporter.write(f" ({time.monotonic() - self.t0:.1f} s)")
+            self.path = None
+
+    def pytest_collection_finish(self, session: pytest.Session) -> None:
+        self.last_nodeid = session.items[-1].nodeid if session.items else None
+
+    @pytest.hookimpl(tryfirst=True)  # before the reporter starts the new file's line
+    def pytest_runtest_logstart(self, nodeid: str, location: tuple[str, int | None, str]) -> None:
+        if location[0] != self.path:
+            self._close_line()
+            self.path, self.t0 = location[0], time.monotonic()
+
+    @pytest.hookimpl(tryfirst=True)  # before the reporter writes the closing percentage
+    def pytest_runtest_logfinish(self, nodeid: str) -> None:
+        if nodeid == self.last_nodeid:
+            self._close_line()
+
+
+@pytest.hookimpl(trylast=True)  # after the terminal reporter is registered
+def pytest_configure(config: pytest.Config) -> None:
+    reporter = config.pluginmanager.get_plugin("terminalreporter")
+    if reporter is not None and config.get_verbosity() <= 0:
+        reporter.showfspath = True
+        config.pluginmanager.register(_FileProgress(reporter), "mbctl-file-progress")

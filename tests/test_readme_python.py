@@ -20,9 +20,9 @@ def _python_blocks() -> list[str]:
     return re.findall(r"```python\n(.*?)```", section, flags=re.S)
 
 
-def test_the_section_has_the_three_snippets():
+def test_the_section_has_the_four_snippets():
     blocks = _python_blocks()
-    assert len(blocks) == 3
+    assert len(blocks) == 4
     assert 'load_robot("two_link_torque"' in blocks[0]
     assert 'load_robot("g1")' in blocks[1]
 
@@ -68,7 +68,34 @@ def test_g1_snippet_gives_the_documented_shapes(g1, capsys):
     assert robot.name == "g1"  # type: ignore[attr-defined]
 
 
-@pytest.mark.parametrize("index", [0, 1])
+@pytest.mark.parametrize("index", [0, 1, 3])
 def test_snippets_import_only_the_public_api(index):
     imports = re.findall(r"^from (mbctl[\w.]*) import", _python_blocks()[index], flags=re.M)
-    assert imports and set(imports) <= {"mbctl.robots", "mbctl.sim", "mbctl.control"}
+    assert imports and set(imports) <= {"mbctl.robots", "mbctl.sim", "mbctl.control", "mbctl.control.ik",
+                                        "mbctl.control.tasks", "mbctl.planners"}
+
+
+def test_arm_snippet_reaches_its_pose_targets(monkeypatch, capsys):
+    """IK on the tool pose (checked in MuJoCo), the generic config's position target, ruckig to the
+    solution, and computed torque bringing the plant's tool there."""
+    import mujoco
+    import pinocchio as pin
+
+    monkeypatch.chdir(README.parent)  # the snippet names the example's arm by its path in the repo
+    ns: dict[str, object] = {}
+    exec(_python_blocks()[3], ns)  # noqa: S102 (our own README)
+    assert capsys.readouterr().out.startswith("True ")
+    arm, result, target = ns["arm"], ns["result"], ns["target"]
+    data = mujoco.MjData(arm.mj_model)  # type: ignore[attr-defined]
+    data.qpos[:] = arm.plant_qpos(result.q)  # type: ignore[attr-defined]
+    mujoco.mj_kinematics(arm.mj_model, data)  # type: ignore[attr-defined]
+    site = arm.site_id("tool")  # type: ignore[attr-defined]
+    assert np.linalg.norm(data.site_xpos[site] - target.translation) < 1e-4  # type: ignore[attr-defined]
+    rotation = data.site_xmat[site].reshape(3, 3).T @ target.rotation  # type: ignore[attr-defined]
+    assert np.linalg.norm(pin.log3(rotation)) < 1e-3
+    moved, p = ns["moved"], ns["p"]
+    assert moved.converged  # type: ignore[attr-defined]
+    np.testing.assert_allclose(arm.frame_pose("tool", moved.q)[0], p + [0.05, 0.1, 0.0], atol=1e-4)  # type: ignore
+    trajectory, sim = ns["trajectory"], ns["sim"]
+    np.testing.assert_allclose(trajectory.q[-1], result.q, atol=1e-9)  # type: ignore[attr-defined]
+    assert np.linalg.norm(sim.site_pose("tool")[0] - target.translation) < 1e-3  # type: ignore

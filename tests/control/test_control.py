@@ -59,23 +59,45 @@ def test_gains_are_read_only_and_frozen():
 
 
 @pytest.mark.parametrize(
-    ("make", "fragment"),
+    ("make", "message"),
     [
-        (lambda: PDGains([1.0, -2.0], [0.1, 0.2]), "kp must be finite and >= 0"),
-        (lambda: PDGains([1.0, 2.0], [0.1]), "same length"),
-        (lambda: PDGains([1.0], [np.nan]), "kd must be finite"),
-        (lambda: PDGains([], []), "at least one"),
-        (lambda: gains_from_frequency(0.0, 1.0, 1.0), "omega_rad_s must be finite and > 0"),
-        (lambda: gains_from_frequency(10.0, -0.1, 1.0), "zeta must be finite and >= 0"),
-        (lambda: gains_from_frequency(10.0, 1.0, [1.0, 0.0]), "inertia must be finite and > 0"),
-        (lambda: gains_from_frequency([1.0, 2.0], 1.0, [1.0, 2.0, 3.0]), "one length"),
-        (lambda: PDGains([1.0, 2.0], [1.0, 2.0]).broadcast(3), "controller has 3 joints"),
+        (lambda: PDGains([1.0, -2.0], [0.1, 0.2]),
+         "kp must be finite and >= 0; got [-2.0] at joint indices [1]"),
+        (lambda: PDGains([1.0, 2.0], [0.1]),
+         "kp and kd must have the same length (one per joint); got 2 and 1"),
+        (lambda: PDGains([1.0], [np.nan]), "kd must be finite and >= 0; got [nan] at joint indices [0]"),
+        (lambda: PDGains([], []), "kp must have at least one value; got an empty vector"),
+        (lambda: gains_from_frequency(0.0, 1.0, 1.0),
+         "omega_rad_s must be finite and > 0; got [0.0] at indices [0]"),
+        (lambda: gains_from_frequency(10.0, -0.1, 1.0),
+         "zeta must be finite and >= 0; got [-0.1] at indices [0]"),
+        (lambda: gains_from_frequency(10.0, 1.0, [1.0, 0.0]),
+         "inertia must be finite and > 0; got [0.0] at indices [1]"),
+        (lambda: gains_from_frequency([1.0, 2.0], 1.0, [1.0, 2.0, 3.0]),
+         "omega_rad_s, zeta and inertia must be numbers or vectors of one length; got [1.0, 2.0], 1.0, "
+         "[1.0, 2.0, 3.0]"),
+        (lambda: PDGains([1.0, 2.0], [1.0, 2.0]).broadcast(3),
+         "gains cover 2 joints; the controller has 3 joints"),
     ],
 )
-def test_gains_validation_names_the_bad_value(make, fragment):
-    with pytest.raises(GainsError, match=fragment) as info:
+def test_gains_validation_names_the_bad_value(make, message):
+    """The whole message: the bad value, where it is, and what was expected; GainsError itself."""
+    with pytest.raises(GainsError) as info:
         make()
-    assert isinstance(info.value, ToolkitError)
+    assert type(info.value) is GainsError
+    assert str(info.value) == message
+
+
+def test_control_errors_share_the_toolkit_root():
+    """One except clause (the CLI's) catches every control error: checked once, for each class."""
+    import inspect
+
+    from mbctl.control import exceptions
+
+    classes = [c for _, c in inspect.getmembers(exceptions, inspect.isclass)
+               if c.__module__ == exceptions.__name__]
+    assert GainsError in classes and len(classes) >= 4
+    assert all(issubclass(c, ControlError) and issubclass(c, ToolkitError) for c in classes)
 
 
 # ------------------------------------------------------------------------------------ setup
@@ -293,3 +315,17 @@ def test_a_reference_of_the_wrong_length_is_refused_by_name(two_link_torque):
                     JointReference(np.zeros(2), np.zeros(1), np.zeros(2))):
             with pytest.raises(ReferenceMismatch, match=r"controls 2 joints \['shoulder', 'elbow'\]"):
                 controller.compute(state, bad)
+
+
+def test_computed_torque_on_position_actuators_fails_at_construction(two_link):
+    """Its message is the simulator's for a torque sent to a position actuator, said up front."""
+    from mbctl.robots.commands import torque
+    from mbctl.sim import Simulator
+
+    with pytest.raises(CommandError) as at_step:
+        Simulator(two_link).step(torque([0.0, 0.0]))
+    with pytest.raises(ControllerSetupError) as at_build:
+        ComputedTorque(two_link, gains_from_frequency(10.0))
+    assert str(at_build.value) == f"ComputedTorque outputs torques. {at_step.value}"
+    assert "shoulder (position), elbow (position)" in str(at_build.value)
+    assert "position_to_motor" in str(at_build.value)

@@ -41,7 +41,7 @@ def test_every_example_is_tested_and_listed():
     assert scripts == [
         "01_load_and_step.py", "02_pd_hold.py", "03_computed_torque_square.py",
         "04_g1_joint_step.py", "05_crosscheck_your_robot.py", "06_g1_whole_body_ik.py",
-        "07_g1_whole_body_control.py",
+        "07_g1_whole_body_control.py", "08_arm_tool_pose.py",
     ]
     readme = (EXAMPLES / "README.md").read_text()
     for script in scripts:
@@ -107,3 +107,73 @@ def test_07_g1_whole_body_control(g1):
     out = _run("07_g1_whole_body_control.py", "--duration", "1").stdout
     assert _figure(r"CoM RMS error \(MuJoCo's CoM\): {n} mm", out) < 5.0
     assert _figure(r"QP vs MuJoCo vertical foot force: {n} %", out) < 5.0
+
+
+def test_08_arm_tool_pose_shipped_arm():
+    out = _run("08_arm_tool_pose.py").stdout  # the whole trajectory: ~1.2 s simulated
+    assert "IK: converged True" in out
+    assert _figure(r"in MuJoCo the tool is {n} mm", out) < 0.1
+    assert _figure(r"tool RMS {n} mm from the planned path", out) < 1.0
+    assert _figure(r"final {n} mm from the target", out) < 1.0
+    assert _figure(r"ruckig: {n} s", out) > 0.2
+
+
+#: A user's 7-dof arm, unlike ours: default classes, a rotated root (hanging from a gantry),
+#: position actuators (the example converts them to motors), a gripper site named differently;
+#: its scene adds a floor, a gantry beam and a free box on the floor.
+USER_ARM = """<mujoco model="user_arm7">
+  <compiler angle="radian" autolimits="true"/>
+  <default>
+    <default class="link"><geom type="capsule" size="0.035" density="800"/></default>
+    <default class="j"><joint axis="0 0 1"/></default>
+    <joint armature="0.02" damping="0.5" range="-2.9 2.9"/>
+    <position kp="200" dampratio="1" forcerange="-120 120" ctrlrange="-2.9 2.9"/>
+  </default>
+  <worldbody>
+    <body name="mount" pos="0 0 1.6" quat="0 1 0 0">
+      <body name="l1"><joint class="j" name="j1"/>
+        <geom class="link" fromto="0 0 0 0 0 0.15"/>
+      <body name="l2" pos="0 0 0.15"><joint name="j2" axis="0 1 0"/>
+        <geom class="link" fromto="0 0 0 0 0 0.3"/>
+      <body name="l3" pos="0 0 0.3"><joint class="j" name="j3"/>
+        <geom class="link" fromto="0 0 0 0 0 0.1"/>
+      <body name="l4" pos="0 0 0.1"><joint name="j4" axis="0 1 0"/>
+        <geom class="link" fromto="0 0 0 0 0 0.3"/>
+      <body name="l5" pos="0 0 0.3"><joint class="j" name="j5"/>
+        <geom class="link" fromto="0 0 0 0 0 0.1"/>
+      <body name="l6" pos="0 0 0.1"><joint name="j6" axis="0 1 0"/>
+        <geom class="link" fromto="0 0 0 0 0 0.08"/>
+      <body name="l7" pos="0 0 0.08"><joint class="j" name="j7"/>
+        <geom class="link" fromto="0 0 0 0 0 0.05"/>
+        <site name="gripper" pos="0 0 0.08"/>
+      </body></body></body></body></body></body></body>
+    </body>
+  </worldbody>
+  <actuator>
+    <position joint="j1"/><position joint="j2"/><position joint="j3"/><position joint="j4"/>
+    <position joint="j5"/><position joint="j6"/><position joint="j7"/>
+  </actuator>
+  <keyframe><key name="ready" qpos="0 0.5 0 1.2 0 0.6 0"/></keyframe>
+</mujoco>"""
+USER_SCENE = """<mujoco model="user scene">
+  <include file="arm7.xml"/>
+  <worldbody>
+    <geom name="floor" type="plane" size="2 2 0.1"/>
+    <geom name="beam" type="box" size="0.6 0.05 0.05" pos="0 0 1.66"/>
+    <body name="box" pos="0.5 0.3 0.05"><freejoint/><geom type="box" size="0.05 0.05 0.05"/></body>
+  </worldbody>
+</mujoco>"""
+
+
+def test_08_arm_tool_pose_on_a_users_arm_and_scene(tmp_path):
+    (tmp_path / "arm7.xml").write_text(USER_ARM)
+    (tmp_path / "scene.xml").write_text(USER_SCENE)
+    out = _run("08_arm_tool_pose.py", "--robot", str(tmp_path / "arm7.xml"), "--scene",
+               str(tmp_path / "scene.xml"), "--tool", "gripper", "--keyframe", "ready",
+               "--offset", "0.05,-0.1,0.1", "--yaw", "-20").stdout
+    assert "converted to torque motors" in out and "Robot('arm7', nq=7, nv=7, nu=7)" in out
+    assert _figure(r"in MuJoCo the tool is {n} mm", out) < 0.1
+    assert _figure(r"final {n} mm from the target", out) < 1.0
+    bad = _run("08_arm_tool_pose.py", "--robot", str(tmp_path / "arm7.xml"), "--keyframe", "ready",
+               "--tool", "hand", expect=2)
+    assert "Unknown frame 'hand'" in bad.stderr and "gripper" in bad.stderr

@@ -88,3 +88,21 @@ def test_demo_bound_exits_1(tmp_path):
     assert out.returncode == 1, out.stderr
     report = json.loads((tmp_path / "report.json").read_text())
     assert report["status"] == "completed" and report["passed"] is False
+
+
+def test_pd_improves_with_model_error_because_its_gains_grow(two_link_torque_gravity, square, tmp_path):
+    """The measured explanation of "PD gets better as the model error grows": PD uses the model
+    for its gains only, so +40 % masses is the exact model at omega sqrt(I_model / I_plant)."""
+    robot = two_link_torque_gravity
+    record = run_job(DEMO, DemoConfig(controller="pd", model_error_pct=40.0), tmp_path)
+    values = record.values
+    ratio = np.array(list(values["pd_gain_ratio"].values()))
+    omega = np.array(list(values["pd_effective_omega_rad_s"].values()))
+    assert np.all((1.3 < ratio) & (ratio < 1.4))  # masses +40 %, the armature unchanged
+    np.testing.assert_allclose(omega, 30.0 * np.sqrt(ratio))
+    exact = json.loads(record.report_path.read_text())["exact_model"]["rms_error_m"]
+    assert values["rms_error_m"] < 0.8 * exact  # better with the "wrong" model ...
+    stiffer, _ = track_square(robot, square, DemoConfig(controller="pd", omega_rad_s=float(omega.mean())))
+    assert stiffer.rms_error_m == pytest.approx(values["rms_error_m"], rel=0.02)  # ... as a stiffer PD is
+    assert any(line.startswith("why: joint PD uses the model only for its gains") and "35." in line
+               for line in record.outcome.summary)

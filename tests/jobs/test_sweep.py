@@ -5,8 +5,10 @@ from __future__ import annotations
 import csv
 import json
 import sys
+import time
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 pytest.importorskip("dask.distributed")
@@ -38,7 +40,9 @@ def demo_sweep(tmp_path: Path, *params: str, resume: bool = False) -> SweepConfi
 
 
 def test_csv_columns_rows_json_and_plot(client, tmp_path):
+    t0 = time.perf_counter()
     result = run_sweep(demo_sweep(tmp_path, "model_error=0,10", "controller=ct,pd"), client=client)
+    elapsed_s = time.perf_counter() - t0
     assert result.status == "completed" and result.exit_code == 0
     header, rows = read_rows(result.files["csv"])
     assert header[:3] == ["duration", "model_error", "controller"]
@@ -51,7 +55,12 @@ def test_csv_columns_rows_json_and_plot(client, tmp_path):
     meta = json.loads(result.files["json"].read_text())
     assert {"mbctl", "dask", "mujoco", "pin"} <= set(meta["versions"])
     assert meta["cluster"]["workers"] == 2 and meta["cluster"]["threads"] == 2
-    assert meta["failures"] == [] and meta["wall_time_s"] > 0
+    assert meta["failures"] == []
+    # the sweep's wall time spans its tasks: no shorter than the longest task, nor than the tasks'
+    # total shared by the 2 one-thread workers, and no longer than the call that ran it
+    task_s = [json.loads(Path(r["run_dir"], "report.json").read_text())["wall_time_s"] for r in rows]
+    assert max(task_s) <= meta["wall_time_s"] <= elapsed_s
+    assert sum(task_s) / 2 <= meta["wall_time_s"]
     assert result.files["plot"].stat().st_size > 1000
 
 
@@ -214,3 +223,25 @@ def test_a_new_sweep_removes_only_what_its_runs_made(client, tmp_path):
     assert sorted(p.name for p in (runs / "duration=0.1,model_error=0.0").iterdir()) == ["notes.txt"]
     assert sorted(p.name for p in runs.iterdir()) == ["duration=0.1,model_error=0.0",
                                                       "duration=0.1,model_error=5.0", "mine"]
+
+
+def test_plot_axes_read_in_the_users_units():
+    """Options in the units the command line takes them in, report values in mm and %."""
+    from mbctl.jobs.sweep_plots import sweep_figure
+
+    rows = [{"model_error": str(m), "controller": c, "rms_error_m": str(e)}
+            for m, c, e in [(0.0, "ct", 1e-4), (40.0, "ct", 4e-3), (0.0, "pd", 0.025), (40.0, "pd", 0.018)]]
+    ax = sweep_figure(rows, ["model_error", "controller"], ["model_error", "controller"], "rms_error_m",
+                      "t").axes[0]
+    assert (ax.get_xlabel(), ax.get_ylabel()) == ("model error (%)", "controller")
+    assert [t.get_text() for t in ax.get_xticklabels()] == ["0", "40"]
+    assert sorted(float(t.get_text()) for t in ax.texts) == [0.1, 4.0, 18.0, 25.0]  # mm in the cells
+    assert ax.figure.axes[1].get_ylabel() == "rms error (mm)"  # the colour bar
+    line = sweep_figure(rows[:2], ["model_error"], ["model_error"], "rms_error_m", "t").axes[0]
+    assert line.get_ylabel() == "rms error (mm)"
+    np.testing.assert_allclose(line.lines[0].get_ydata(), [0.1, 4.0])
+    fell = [{"impulse": "5", "fell": "false"}, {"impulse": "5", "fell": "true"},
+            {"impulse": "15", "fell": "true"}]
+    ax = sweep_figure(fell, ["impulse"], ["impulse"], "fell", "t").axes[0]
+    assert (ax.get_xlabel(), ax.get_ylabel()) == ("impulse (N s)", "fell (% of runs)")
+    np.testing.assert_allclose(ax.lines[0].get_ydata(), [50.0, 100.0])

@@ -55,3 +55,21 @@ def test_cli_annulus_plot_and_refusal(tmp_path):
     assert "two_link, two_link_torque" in out.stderr and "Traceback" not in out.stderr
     help_text = " ".join(_mbctl("workspace", "--help").stdout.replace("│", " ").split())
     assert "other robots are refused" in help_text and "two_link_torque" in help_text
+
+
+def test_plot_is_a_density_with_the_inner_circle_in_an_inset(two_link):
+    """No dots (a regular joint grid drawn dot by dot makes moire), r_min visible in a zoom."""
+    from matplotlib.collections import PathCollection, PolyCollection
+
+    from mbctl.jobs.workspace import plot_workspace
+
+    arm = TwoLinkArm.from_robot(two_link)
+    fig = plot_workspace(arm, sample_workspace(arm, two_link, n=41))
+    ax = fig.axes[0]
+    assert any(isinstance(c, PolyCollection) for c in ax.collections)  # hexagonal bins
+    assert not any(isinstance(c, PathCollection) for c in ax.collections)  # no scatter
+    (inset,) = ax.child_axes
+    assert inset.get_xlim() == pytest.approx((-45.0, 45.0))  # 3 r_min either side, in mm
+    (disc,) = inset.patches  # the unreachable disc, r_min = 15 mm
+    assert np.ptp(disc.get_path().vertices[:, 0]) == pytest.approx(30.0, rel=1e-3)
+    assert "r_min = 15 mm" in [t.get_text() for t in ax.get_legend().get_texts()]

@@ -143,3 +143,24 @@ def test_position_to_motor(g1):
     np.testing.assert_array_equal(torque_g1.mj_model.key_ctrl, 0.0)
     assert torque_g1.source.edits[-1] == "position actuators -> torque motors: 29 actuators"
     assert g1.actuator("left_knee_joint").kind == "position"  # the original is unchanged
+
+
+def test_position_to_motor_on_unnamed_actuators():
+    """Actuators without a name (named after their joint in mbctl) are converted by index."""
+    from mbctl.robots import load_robot as load
+
+    xml = """<mujoco><worldbody><body name="l1"><joint name="a" axis="0 0 1"/>
+      <geom type="capsule" fromto="0 0 0 0.3 0 0" size="0.02"/>
+      <body name="l2" pos="0.3 0 0"><joint name="b" axis="0 0 1"/>
+      <geom type="capsule" fromto="0 0 0 0.3 0 0" size="0.02"/></body></body></worldbody>
+      <actuator><position joint="a" kp="50" forcerange="-9 9"/><position joint="b" kp="50" forcerange="-4 4"/>
+      </actuator></mujoco>"""
+    import tempfile
+    from pathlib import Path
+
+    with tempfile.TemporaryDirectory() as folder:
+        path = Path(folder) / "arm.xml"
+        path.write_text(xml)
+        robot = position_to_motor(load(path))
+    assert [a.kind for a in robot.actuators.values()] == ["torque", "torque"]
+    assert robot.mj_model.actuator_ctrlrange.tolist() == [[-9.0, 9.0], [-4.0, 4.0]]
