@@ -1,10 +1,12 @@
 """Robot descriptions and the model pair (Pinocchio model + MuJoCo model) with conventions."""
 
 from mbctl.robots import mjlog  # noqa: F401 - MuJoCo's log file stays out of the cwd
+from mbctl.robots.collision import CollisionPair, GeomPairs, resolve_pairs
 from mbctl.robots.commands import Command, CommandKind, ctrl, position_target, torque, velocity_target
 from mbctl.robots.conventions import (
     JointLayout,
     StateConverter,
+    VelocityMaps,
     quat_wxyz_to_xyzw,
     quat_xyzw_to_wxyz,
 )
@@ -27,6 +29,8 @@ from mbctl.robots.registry import KNOWN_ROBOTS, load_robot
 __all__ = [
     "KNOWN_ROBOTS",
     "ActuatorInfo",
+    "CollisionPair",
+    "GeomPairs",
     "Command",
     "CommandKind",
     "ctrl",
@@ -45,11 +49,13 @@ __all__ = [
     "StateConverter",
     "StateError",
     "UnknownNameError",
+    "VelocityMaps",
     "load_robot",
     "position_target",
     "position_to_motor",
     "quat_wxyz_to_xyzw",
     "quat_xyzw_to_wxyz",
+    "resolve_pairs",
     "torque",
     "velocity_target",
     "weld_base",

@@ -87,7 +87,7 @@ class GeomPairs(NamedTuple):
 
     Attributes:
         ids: Geom id pairs (P, 2), ``ids[k, 0] < ids[k, 1]``, rows in increasing order.
-        labels: A readable name of each pair, ``"body_a/body_b"`` (see :func:`geom_label`).
+        labels: A readable name of each pair, ``"body_a/body_b"`` (see ``geom_label``).
     """
 
     ids: np.ndarray

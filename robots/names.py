@@ -65,7 +65,8 @@ class SensorInfo:
 
 _PREFIX = {mujoco.mjtObj.mjOBJ_BODY: "body", mujoco.mjtObj.mjOBJ_JOINT: "joint",
            mujoco.mjtObj.mjOBJ_SITE: "site", mujoco.mjtObj.mjOBJ_ACTUATOR: "actuator",
-           mujoco.mjtObj.mjOBJ_SENSOR: "sensor", mujoco.mjtObj.mjOBJ_KEY: "key"}
+           mujoco.mjtObj.mjOBJ_SENSOR: "sensor", mujoco.mjtObj.mjOBJ_KEY: "key",
+           mujoco.mjtObj.mjOBJ_GEOM: "geom"}
 
 
 def mj_name(m: mujoco.MjModel, objtype: mujoco.mjtObj, i: int) -> str:

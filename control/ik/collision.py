@@ -203,7 +203,7 @@ class CollisionAvoidanceLimit(Limit):
         """``dq`` halved until no pair ends below the minimum distance closer than it started.
 
         A pair already below the minimum at ``q`` may stay there but not close further. After
-        :data:`MAX_HALVINGS` halvings the step is zero.
+        ``MAX_HALVINGS`` halvings the step is zero.
         """
         self._measure(q)
         before = self.distances_m.copy()
