@@ -44,6 +44,7 @@ from mbctl.planners.cartesian import (
     to_joint_trajectory,
 )
 from mbctl.planners.trajectory import JointTrajectory
+from mbctl.robots.edits import scale_masses
 from mbctl.robots.interface import RobotState
 from mbctl.robots.model_pair import Robot
 from mbctl.robots.registry import load_robot
@@ -167,18 +168,6 @@ class Tracking:
             "saturated_cycles": self.saturated_cycles,
             "saturations": self.saturations,
         }
-
-
-def scale_masses(model: pin.Model, factor: float) -> pin.Model:
-    """A copy of ``model`` with every body's mass and rotational inertia times ``factor``.
-
-    Centres of mass and rotor armature are unchanged (armature is a motor property).
-    """
-    out = model.copy()
-    for i in range(1, len(out.inertias)):
-        inertia = out.inertias[i]
-        out.inertias[i] = pin.Inertia(inertia.mass * factor, inertia.lever, inertia.inertia * factor)
-    return out
 
 
 def square_reference(robot: Robot, config: DemoConfig, dt_s: float) -> SquareReference:

@@ -1,0 +1,54 @@
+"""Write identified parameters into the robot's MJCF, so both engines carry them.
+
+Each identified body's ``<inertial>`` (mass, CoM, principal moments and axes) is set with MjSpec;
+friction goes into the joint's ``damping`` (viscous) and ``frictionloss`` (Coulomb), armature into
+``armature``. The result is the robot's own MJCF with the values replaced: MuJoCo reads it, and the
+Pinocchio model is built from it as for any robot (``load_robot(path)``), so the cross-check holds
+for the identified model as it does for the nominal one.
+"""
+
+from __future__ import annotations
+
+import mujoco
+import numpy as np
+
+from mbctl.robots.edits import set_inertial, standalone_xml
+from mbctl.robots.identification.exceptions import InconsistentParameters
+from mbctl.robots.identification.inertial import consistency_problems, to_inertial
+from mbctl.robots.identification.parameters import ParameterSet
+from mbctl.robots.model_pair import Robot
+
+
+def identified_spec(robot: Robot, params: ParameterSet, theta: np.ndarray) -> mujoco.MjSpec:
+    """A copy of ``robot``'s MjSpec with ``theta`` written in.
+
+    Raises:
+        InconsistentParameters: A body's parameters are not physically consistent (never written).
+    """
+    spec = robot.mj_spec.copy()
+    for b in params.bodies:
+        pi = theta[b.columns]
+        problems = consistency_problems(pi)
+        if problems:
+            raise InconsistentParameters(f"body {b.name!r}: {'; '.join(problems)}; not written")
+        mass, com, inertia = to_inertial(pi)
+        set_inertial(spec.body(b.name), mass, com, inertia)
+    for jb in params.joints:
+        joint = spec.joint(jb.name)
+        if jb.viscous is not None and jb.coulomb is not None:
+            joint.damping = float(theta[jb.viscous])
+            joint.frictionloss = float(theta[jb.coulomb])
+        if jb.armature is not None:
+            joint.armature = float(theta[jb.armature])
+    return spec
+
+
+def identified_xml(robot: Robot, params: ParameterSet, theta: np.ndarray) -> str:
+    """The identified MJCF as text, loadable from any folder (mesh and texture paths absolute).
+
+    Args:
+        robot: The nominal robot.
+        params: The parameter set ``theta`` belongs to.
+        theta: The identified parameters (n,).
+    """
+    return standalone_xml(robot, identified_spec(robot, params, theta))
