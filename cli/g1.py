@@ -6,7 +6,17 @@ from typing import Annotated
 
 import typer
 
-from mbctl.cli._run import OutputOpt, QuietOpt, VideoOpt, VideoSizeOpt, execute, video_spec
+from mbctl.cli._run import (
+    ControllerModelOpt,
+    OutputOpt,
+    PayloadOpt,
+    PlantErrorOpt,
+    QuietOpt,
+    VideoOpt,
+    VideoSizeOpt,
+    execute,
+    video_spec,
+)
 from mbctl.cli.robots import ModelDirOpt
 from mbctl.jobs import options
 from mbctl.jobs.g1 import G1_ARM_PD, G1_STAND, G1_TRACK
@@ -26,13 +36,17 @@ def stand(
     omega: Omega = 10.0,
     zeta: Zeta = 1.0,
     model_dir: ModelDirOpt = None,
+    payload: PayloadOpt = None,
+    plant_error: PlantErrorOpt = 0.0,
+    controller_model: ControllerModelOpt = None,
     output: OutputOpt = None,
     quiet: QuietOpt = False,
     video: VideoOpt = False,
     video_size: VideoSizeOpt = "640x480",
 ) -> None:
     """Stand on the floor under PD + gravity compensation in torque mode; exit 1 if it fell."""
-    params = options.g1_stand(duration=duration, omega=omega, zeta=zeta, model_dir=model_dir)
+    params = options.g1_stand(duration=duration, omega=omega, zeta=zeta, model_dir=model_dir,
+                              payload=payload, plant_error=plant_error, controller_model=controller_model)
     execute(G1_STAND, params, output, quiet, video_spec(video, video_size))
 
 
@@ -42,6 +56,9 @@ def track(
     zeta: Zeta = 1.0,
     max_rms_rad: MaxRms = None,
     model_dir: ModelDirOpt = None,
+    payload: PayloadOpt = None,
+    plant_error: PlantErrorOpt = 0.0,
+    controller_model: ControllerModelOpt = None,
     output: OutputOpt = None,
     quiet: QuietOpt = False,
     video: VideoOpt = False,
@@ -49,7 +66,8 @@ def track(
 ) -> None:
     """Computed torque on the welded-base G1 along ruckig trajectories (arms, legs, waist)."""
     params = options.g1_track(duration=duration, omega=omega, zeta=zeta, max_rms_rad=max_rms_rad,
-                              model_dir=model_dir)
+                              model_dir=model_dir, payload=payload, plant_error=plant_error,
+                              controller_model=controller_model)
     execute(G1_TRACK, params, output, quiet, video_spec(video, video_size))
 
 
@@ -62,6 +80,9 @@ def arm_pd(
     ] = True,
     max_rms_rad: MaxRms = None,
     model_dir: ModelDirOpt = None,
+    payload: PayloadOpt = None,
+    plant_error: PlantErrorOpt = 0.0,
+    controller_model: ControllerModelOpt = None,
     output: OutputOpt = None,
     quiet: QuietOpt = False,
     video: VideoOpt = False,
@@ -69,7 +90,8 @@ def arm_pd(
 ) -> None:
     """One arm follows a ruckig trajectory through the Menagerie position actuators."""
     params = options.g1_arm_pd(duration=duration, side=side, gravity_feedforward=gravity_feedforward,
-                               max_rms_rad=max_rms_rad, model_dir=model_dir)
+                               max_rms_rad=max_rms_rad, model_dir=model_dir, payload=payload,
+                               plant_error=plant_error, controller_model=controller_model)
     execute(G1_ARM_PD, params, output, quiet, video_spec(video, video_size))
 
 

@@ -13,7 +13,9 @@ omega, zeta and the joint inertia at the start), ``pd_gravity`` (the same plus g
 
 Model error (``--model-error PCT``): the controller's Pinocchio model has every link mass and
 rotational inertia scaled by ``1 + PCT/100`` (the plant is unchanged), so model and plant
-disagree and the computed-torque cancellation is imperfect.
+disagree and the computed-torque cancellation is imperfect. The plant options
+(``--payload``, ``--plant-error``, ``--controller-model``; :mod:`mbctl.jobs.plant_options`)
+change the plant instead, or give the controller a model from a file (an identified one).
 """
 
 from __future__ import annotations
@@ -33,6 +35,7 @@ from mbctl.control.loop import RunLog, presample, run
 from mbctl.control.pd import JointPD
 from mbctl.control.pd_gravity import PDGravity
 from mbctl.control.task_space import TaskSpaceComputedTorque
+from mbctl.jobs.plant_options import PlantOptions, build_models, plant_line
 from mbctl.jobs.plots import new_figure
 from mbctl.jobs.recording import LoopRows, PlantSite, command_columns
 from mbctl.jobs.runner import Job, Outcome, RunContext, Work
@@ -79,6 +82,7 @@ class DemoConfig:
         compare: Also run every controller (exact model) on the same reference.
         max_rms_error_m: Bound on the chosen controller's Cartesian RMS error [m] (exit 1 above
             it); None: no bound.
+        plant: Hidden plant changes and the controller's model file.
     """
 
     controller: str = "ct"
@@ -96,6 +100,7 @@ class DemoConfig:
     branch: str = "down"
     compare: bool = False
     max_rms_error_m: float | None = None
+    plant: PlantOptions = PlantOptions()
 
     def __post_init__(self) -> None:
         if self.controller not in CONTROLLERS:
@@ -226,15 +231,18 @@ def track_square(
     controller_name: str | None = None,
     model_error_pct: float | None = None,
     ctx: RunContext | None = None,
+    controller_model: pin.Model | None = None,
 ) -> tuple[Tracking, Simulator]:
     """Run one controller on the square from rest at its first corner; measure on the plant.
 
     With ``ctx``, the simulator is the run's plant (its report sections) and every cycle streams
-    a row to the run's CSV as it happens.
+    a row to the run's CSV as it happens. ``robot`` is the plant; the controller uses
+    ``controller_model`` (default: the plant's own model), scaled by the model error.
     """
     name = controller_name or config.controller
     pct = config.model_error_pct if model_error_pct is None else model_error_pct
-    pin_model = scale_masses(robot.pin_model, 1.0 + pct / 100.0) if pct else None
+    base = controller_model if controller_model is not None else robot.pin_model
+    pin_model = scale_masses(base, 1.0 + pct / 100.0) if pct else controller_model
     q_traj, cart = reference.joints, reference.cartesian
     sim = Simulator(robot)
     sim.reset(q=q_traj.q[0])
@@ -331,7 +339,8 @@ def prepare(config: DemoConfig, robot: Robot | None = None) -> Work:
     Raises:
         PlanningError: A square outside the workspace or through a singularity.
     """
-    robot = robot or load_robot("two_link_torque", gravity=config.gravity)
+    models = build_models(robot or load_robot("two_link_torque", gravity=config.gravity), config.plant)
+    robot, model = models.plant, models.controller_model
     reference = square_reference(robot, config, robot.timestep_s)
 
     def work(ctx: RunContext) -> Outcome:
@@ -341,22 +350,27 @@ def prepare(config: DemoConfig, robot: Robot | None = None) -> Work:
             "corners_m": [list(map(float, reference.cartesian.p[i, :2]))
                           for i in reference.cartesian.corner_indices],
         }
-        main, _ = track_square(robot, reference, config, ctx=ctx)
+        ctx.sections["plant"] = models.section()
+        main, _ = track_square(robot, reference, config, ctx=ctx, controller_model=model)
         ctx.values.update(main.row())
         exact = None
         if config.model_error_pct:
-            exact, _ = track_square(robot, reference, config, model_error_pct=0.0)
+            exact, _ = track_square(robot, reference, config, model_error_pct=0.0, controller_model=model)
             ctx.sections["exact_model"] = exact.row()
         runs: list[Tracking] = []
         if config.compare:
             for name in CONTROLLERS:
                 same = name == main.controller and not config.model_error_pct
-                runs.append(main if same else track_square(robot, reference, config, name, 0.0)[0])
+                runs.append(main if same else track_square(robot, reference, config, name, 0.0,
+                                                           controller_model=model)[0])
             ctx.sections["compare"] = [t.row() for t in runs]
         plot(ctx, main, exact, tuple(runs), config)
         bound = config.max_rms_error_m
         passed = bound is None or main.rms_error_m <= bound
-        return Outcome(passed, tuple(summary_lines(main, exact, tuple(runs))),
+        lines = summary_lines(main, exact, tuple(runs))
+        if config.plant.hidden or config.plant.controller_model:
+            lines.insert(0, plant_line(models.section()))
+        return Outcome(passed, tuple(lines),
                        None if bound is None else f"Cartesian RMS error <= {bound * 1e3:g} mm")
 
     return work

@@ -42,6 +42,7 @@ from mbctl.control.gains import PDGains, gains_from_frequency
 from mbctl.control.loop import RunLog, run
 from mbctl.control.pd_gravity import PDGravity
 from mbctl.control.position_pd import PositionTargetPD
+from mbctl.jobs.plant_options import PlantOptions, build_models
 from mbctl.jobs.plots import coincident_groups, joint_colors, most_moved, new_figure, tracking_panels
 from mbctl.jobs.recording import LoopRows, command_columns
 from mbctl.jobs.robot_constants import KEYFRAME
@@ -155,6 +156,7 @@ class StandParams:
     omega_rad_s: float = 10.0
     zeta: float = 1.0
     model_dir: str | None = None
+    plant: PlantOptions = PlantOptions()
 
     def __post_init__(self) -> None:
         for name in ("duration_s", "omega_rad_s", "zeta"):
@@ -170,6 +172,7 @@ class TrackParams:
     zeta: float = 1.0
     max_rms_error_rad: float | None = None
     model_dir: str | None = None
+    plant: PlantOptions = PlantOptions()
 
     def __post_init__(self) -> None:
         _positive("duration_s", self.duration_s)
@@ -187,6 +190,7 @@ class ArmPDParams:
     gravity_feedforward: bool = True
     max_rms_error_rad: float | None = None
     model_dir: str | None = None
+    plant: PlantOptions = PlantOptions()
 
     def __post_init__(self) -> None:
         if self.side not in ("left", "right"):
@@ -346,17 +350,20 @@ def _tracking_plot(ctx: RunContext, name: str, log: RunLog, joints: tuple[str, .
 
 def prepare_stand(params: StandParams, robot: Robot | None = None) -> Work:
     """Load the G1, convert its actuators to motors and derive the standing gains (no output yet)."""
-    robot = position_to_motor(robot or load_robot("g1", model_dir=params.model_dir))
+    models = build_models(position_to_motor(robot or load_robot("g1", model_dir=params.model_dir)),
+                          params.plant, position_to_motor)
+    robot = models.plant
     q0 = robot.keyframe_q(KEYFRAME)
     probe = PDGravity(robot, PDGains(np.ones(1), np.ones(1)))
-    inertia = stance_inertia(robot, q0, probe.joints)
+    inertia = stance_inertia(models.controller, q0, probe.joints)
     gains = gains_from_frequency(params.omega_rad_s, params.zeta, inertia)
 
     def work(ctx: RunContext) -> Outcome:
         sim = Simulator(robot)
         sim.reset(KEYFRAME)
-        controller = PDGravity(robot, gains)
+        controller = PDGravity(robot, gains, pin_model=models.controller_model)
         ctx.sections["inputs"] = {"keyframe": KEYFRAME, "controller": "pd_gravity"}
+        ctx.sections["plant"] = models.section()
         ctx.sections["gains"] = {
             "kp_N_m_rad": dict(zip(controller.joints, controller.gains.kp.tolist(), strict=True)),
             "kd_N_m_s_rad": dict(zip(controller.joints, controller.gains.kd.tolist(), strict=True)),
@@ -423,7 +430,11 @@ def _stand_plot(ctx: RunContext, log: RunLog, dz_m: np.ndarray, deviation: np.nd
 
 def prepare_track(params: TrackParams, robot: Robot | None = None) -> Work:
     """Load and weld the G1, convert to motors, plan the ruckig trajectory (no output yet)."""
-    robot = position_to_motor(weld_base(robot or load_robot("g1", model_dir=params.model_dir), KEYFRAME))
+    def edit(r: Robot) -> Robot:
+        return position_to_motor(weld_base(r, KEYFRAME))
+
+    models = build_models(edit(robot or load_robot("g1", model_dir=params.model_dir)), params.plant, edit)
+    robot = models.plant
     names = tuple(robot.joints)
     waypoints = track_waypoints(robot)
     limits = JointLimits.uniform(len(names), *TRACK_LIMITS)
@@ -432,7 +443,9 @@ def prepare_track(params: TrackParams, robot: Robot | None = None) -> Work:
     def work(ctx: RunContext) -> Outcome:
         sim = Simulator(robot)
         sim.reset(q=waypoints[0])
-        controller = ComputedTorque(robot, gains_from_frequency(params.omega_rad_s, params.zeta))
+        controller = ComputedTorque(robot, gains_from_frequency(params.omega_rad_s, params.zeta),
+                                    pin_model=models.controller_model)
+        ctx.sections["plant"] = models.section()
         duration = params.duration_s or traj.duration_s + 0.2
         ctx.sections["inputs"] = {
             "duration_s": duration, "controller": "computed_torque",
@@ -492,9 +505,11 @@ def _tracking_outcome(ctx: RunContext, name: str, log: RunLog, err: np.ndarray, 
 
 def prepare_arm_pd(params: ArmPDParams, robot: Robot | None = None) -> Work:
     """Load the G1 (position actuators) and plan the arm's trajectory (no output yet)."""
-    robot = robot or load_robot("g1", model_dir=params.model_dir)
+    models = build_models(robot or load_robot("g1", model_dir=params.model_dir), params.plant)
+    robot = models.plant
     traj = arm_trajectory(robot, params.side, robot.timestep_s)
-    controller = PositionTargetPD(robot, traj.names, gravity_feedforward=params.gravity_feedforward)
+    controller = PositionTargetPD(robot, traj.names, gravity_feedforward=params.gravity_feedforward,
+                                  pin_model=models.controller_model)
     q0 = robot.keyframe_q(KEYFRAME)
     others = tuple(a.joint for a in robot.actuators.values() if a.joint not in traj.names)
 
@@ -502,6 +517,7 @@ def prepare_arm_pd(params: ArmPDParams, robot: Robot | None = None) -> Work:
         sim = Simulator(robot)
         sim.reset(KEYFRAME)  # every actuator holds the keyframe's target; the arm's are overwritten
         z0 = sim.base_z_m
+        ctx.sections["plant"] = models.section()
         duration = params.duration_s or traj.duration_s + 0.3
         ctx.sections["inputs"] = {
             "duration_s": duration, "controller": "position_pd",

@@ -21,35 +21,46 @@ from mbctl.jobs.g1 import ArmPDParams, StandParams, TrackParams
 from mbctl.jobs.g1_wbc import WBCParams
 from mbctl.jobs.ik import IKParams
 from mbctl.jobs.joint_step import JointStepParams
+from mbctl.jobs.plant_options import PlantOptions
 from mbctl.jobs.workspace import WorkspaceParams
 from mbctl.jobs.xcheck import XcheckParams
 
 
 def demo(controller: str = "ct", compare: bool = False, model_error: float = 0.0,
          duration: float | None = None, side: float = 0.2, speed: float = 0.5, omega: float = 30.0,
-         gravity: bool = True, max_rms_mm: float | None = None) -> DemoConfig:
-    """``mbctl demo``: model_error in %, duration in s, side in m, speed in m/s, omega in rad/s, mm."""
+         gravity: bool = True, max_rms_mm: float | None = None, payload: str | None = None,
+         plant_error: float = 0.0, controller_model: str | None = None) -> DemoConfig:
+    """``mbctl demo``: model_error in %, duration in s, side in m, speed in m/s, omega in rad/s, mm.
+
+    The plant options: payload KG@BODY[:X,Y,Z], plant_error in %, controller_model an MJCF file.
+    """
     return DemoConfig(controller=controller, side_m=side, max_speed_m_s=speed, omega_rad_s=omega,
                       duration_s=duration, model_error_pct=model_error, gravity=gravity, compare=compare,
-                      max_rms_error_m=None if max_rms_mm is None else max_rms_mm * 1e-3)
+                      max_rms_error_m=None if max_rms_mm is None else max_rms_mm * 1e-3,
+                      plant=PlantOptions(payload, plant_error, controller_model))
 
 
 def g1_stand(duration: float = 10.0, omega: float = 10.0, zeta: float = 1.0,
-             model_dir: str | None = None) -> StandParams:
-    """``mbctl g1-stand``: duration in s, omega in rad/s, zeta (-)."""
-    return StandParams(duration, omega, zeta, model_dir)
+             model_dir: str | None = None, payload: str | None = None, plant_error: float = 0.0,
+             controller_model: str | None = None) -> StandParams:
+    """``mbctl g1-stand``: duration in s, omega in rad/s, zeta (-); plant options."""
+    return StandParams(duration, omega, zeta, model_dir, PlantOptions(payload, plant_error, controller_model))
 
 
 def g1_track(duration: float | None = None, omega: float = 40.0, zeta: float = 1.0,
-             max_rms_rad: float | None = None, model_dir: str | None = None) -> TrackParams:
-    """``mbctl g1-track``: duration in s, omega in rad/s, zeta (-), max_rms_rad in rad."""
-    return TrackParams(duration, omega, zeta, max_rms_rad, model_dir)
+             max_rms_rad: float | None = None, model_dir: str | None = None, payload: str | None = None,
+             plant_error: float = 0.0, controller_model: str | None = None) -> TrackParams:
+    """``mbctl g1-track``: duration in s, omega in rad/s, zeta (-), max_rms_rad in rad; plant options."""
+    return TrackParams(duration, omega, zeta, max_rms_rad, model_dir,
+                       PlantOptions(payload, plant_error, controller_model))
 
 
 def g1_arm_pd(duration: float | None = None, side: str = "left", gravity_feedforward: bool = True,
-              max_rms_rad: float | None = None, model_dir: str | None = None) -> ArmPDParams:
-    """``mbctl g1-arm-pd``: duration in s, side left or right, max_rms_rad in rad."""
-    return ArmPDParams(duration, side, gravity_feedforward, max_rms_rad, model_dir)
+              max_rms_rad: float | None = None, model_dir: str | None = None, payload: str | None = None,
+              plant_error: float = 0.0, controller_model: str | None = None) -> ArmPDParams:
+    """``mbctl g1-arm-pd``: duration in s, side left or right, max_rms_rad in rad; plant options."""
+    return ArmPDParams(duration, side, gravity_feedforward, max_rms_rad, model_dir,
+                       PlantOptions(payload, plant_error, controller_model))
 
 
 def g1_wbc(scenario: str = "stand", duration: float | None = None, impulse: float = 10.0,
@@ -61,9 +72,11 @@ def g1_wbc(scenario: str = "stand", duration: float | None = None, impulse: floa
 
 def joint_step(robot: str, joint: str, delta: float, steps: int = 250, keyframe: str | None = None,
                sensor: list[str] | None = None, scene: str | None = None,
-               model_dir: str | None = None) -> JointStepParams:
-    """``mbctl joint-step``: delta in rad (m for a slide joint), steps of the physics."""
-    return JointStepParams(robot, joint, delta, steps, keyframe, tuple(sensor or ()), scene, model_dir)
+               model_dir: str | None = None, payload: str | None = None, plant_error: float = 0.0,
+               controller_model: str | None = None) -> JointStepParams:
+    """``mbctl joint-step``: delta in rad (m for a slide joint), steps of the physics; plant options."""
+    return JointStepParams(robot, joint, delta, steps, keyframe, tuple(sensor or ()), scene, model_dir,
+                           PlantOptions(payload, plant_error, controller_model))
 
 
 def xcheck(robot: str, scene: str | None = None, states: int = 100, seed: int = 0,

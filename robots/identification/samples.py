@@ -226,7 +226,7 @@ def prepare_samples(robot: Robot, log: RecordedLog, cutoff_hz: float | None = 10
     others = (log.other_contacts > 0) if log.other_contacts is not None else np.zeros(n, dtype=bool)
     model = robot.pin_model
     lo, hi = np.asarray(model.lowerPositionLimit), np.asarray(model.upperPositionLimit)
-    limited = np.isfinite(lo) & np.isfinite(hi) & (hi - lo < 1e6)
+    limited = (lo > -1e6) & (hi < 1e6)  # hinges and slides with limits (not free-flyer bounds)
     if robot.has_floating_base:
         limited[:7] = False
     near = np.any((log.q[:, limited] < lo[limited] + LIMIT_MARGIN)
