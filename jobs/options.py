@@ -17,8 +17,10 @@ from pathlib import Path
 
 from mbctl.control.exceptions import IKSetupError
 from mbctl.jobs.demo import DemoConfig
+from mbctl.jobs.excite import ExciteParams
 from mbctl.jobs.g1 import ArmPDParams, StandParams, TrackParams
 from mbctl.jobs.g1_wbc import WBCParams
+from mbctl.jobs.identify import IdentifyParams
 from mbctl.jobs.ik import IKParams
 from mbctl.jobs.joint_step import JointStepParams
 from mbctl.jobs.plant_options import PlantOptions
@@ -142,3 +144,22 @@ def ik(robot: str, target: list[str] | None = None, com: str | None = None, back
         model_dir=model_dir,
         roots=tuple(root or ()),
     )
+
+
+def excite(robot: str, duration: float | None = None, seed: int = 0, period: float = 10.0, harmonics: int = 5,
+           gravity: bool = True, scene: str | None = None, model_dir: str | None = None,
+           payload: str | None = None, plant_error: float = 0.0,
+           controller_model: str | None = None) -> ExciteParams:
+    """``mbctl excite``: duration and period in s; plant options (payload KG@BODY[:X,Y,Z], %, MJCF)."""
+    return ExciteParams(robot, duration, seed, period, harmonics, gravity, scene, model_dir,
+                        PlantOptions(payload, plant_error, controller_model))
+
+
+def identify(runs: list[str], robot: str | None = None, bodies: str | None = None, friction: bool = False,
+             armature: bool = False, contact: str = "projected", cutoff_hz: float = 10.0,
+             rate_hz: float = 100.0, validation: float = 0.25, torque_noise: float = 0.0,
+             encoder_noise: float = 0.0, seed: int = 0, model_dir: str | None = None) -> IdentifyParams:
+    """``mbctl identify``: bodies comma-separated; cutoff and rate in Hz (0: off); noise in % and rad."""
+    names = tuple(b.strip() for b in (bodies or "").split(",") if b.strip())
+    return IdentifyParams(tuple(runs), robot, names, friction, armature, contact, cutoff_hz, rate_hz,
+                          validation, torque_noise, encoder_noise, seed, model_dir)

@@ -73,10 +73,13 @@ class ExcitationLimits:
     def from_robot(cls, robot: Robot, joints: Sequence[str], q_start: npt.ArrayLike, *,
                    range_rad: float = 1.2, margin_rad: float = 0.05, v_max_rad_s: float = 3.0,
                    torque_fraction: float = 0.5) -> ExcitationLimits:
-        """Limits from the model: joint range (within ``range_rad`` of the start for unlimited
-        joints, ``margin_rad`` inside finite limits), ``v_max_rad_s``, and ``torque_fraction`` of
-        each joint's torque limit (the smallest of the model's effort limit, the actuator's force
-        range and a motor's ctrl range; none: :data:`DEFAULT_EFFORT_N_M`)."""
+        """Limits from the model.
+
+        The joint range (within ``range_rad`` of the start for unlimited joints, ``margin_rad``
+        inside finite limits), ``v_max_rad_s``, and ``torque_fraction`` of each joint's torque
+        limit (the smallest of the model's effort limit, the actuator's force range and a motor's
+        ctrl range; none: :data:`DEFAULT_EFFORT_N_M`).
+        """
         model = robot.pin_model
         q0 = np.asarray(q_start, dtype=float)
         lo, hi, v, tau = [], [], [], []
@@ -251,8 +254,8 @@ def design_excitation(robot: Robot, joints: Sequence[str], q_start: npt.ArrayLik
         x = 0.99 * x
     if not np.all(ev.evaluate(x)[1] >= 0) or ev.evaluate(x)[0] > ev.evaluate(x0)[0]:
         x = x0
-    return ExcitationDesign(ev.trajectory(x), float(np.exp(ev.evaluate(x)[0])), cond0, ev.rank, int(result.nit),
-                            ev.limit_use(x))
+    return ExcitationDesign(ev.trajectory(x), float(np.exp(ev.evaluate(x)[0])), cond0, ev.rank,
+                            int(result.nit), ev.limit_use(x))
 
 
 def _feasible_start(ev: _Evaluator, rng: np.random.Generator) -> np.ndarray:

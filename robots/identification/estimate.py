@@ -2,11 +2,12 @@
 
 Minimise, over the parameter vector theta::
 
-    |W theta - y|^2 / sigma^2  +  |(theta - theta_0) / s|^2
+    |W theta - y|^2 / sigma^2  +  |B (theta - theta_0)|^2
 
 the torque misfit (sigma: the torque noise, estimated from the residual of the unconstrained
-least-squares fit) plus a Gaussian prior around the nominal model (s: the prior standard
-deviations, :meth:`ParameterSet.prior_std`). Where the data identify a direction the first term
+least-squares fit) plus a Gaussian prior around the nominal model (B:
+:meth:`ParameterSet.prior_factor`, per body the geometric, frame-invariant metric of its
+pseudo-inertia). Where the data identify a direction the first term
 decides; where they cannot (the null space) the prior keeps the nominal value. Every body's 10
 parameters are the image of unconstrained log-Cholesky parameters (:mod:`inertial`), so the
 minimiser is physically consistent by construction; friction and armature are bounded below by 0.
@@ -86,29 +87,28 @@ def _consistent(params: ParameterSet, theta: np.ndarray) -> bool:
     return bool(np.all(theta[params.nonnegative()] >= 0))
 
 
-def estimate(params: ParameterSet, system: LinearSystem, rank: int, prior_std: np.ndarray | None = None,
-             max_iterations: int = 200) -> Estimate:
+def estimate(params: ParameterSet, system: LinearSystem, rank: int, max_iterations: int = 200) -> Estimate:
     """The MAP estimate (see the module docstring).
 
     Args:
-        params: The parameter set (nominal values, bodies, non-negative scalars).
+        params: The parameter set (nominal values, prior, bodies, non-negative scalars).
         system: The compressed equations ``W theta = y``.
         rank: The equations' numerical rank (for the noise estimate's degrees of freedom).
-        prior_std: Prior standard deviation (n,) (default :meth:`ParameterSet.prior_std`).
         max_iterations: Solver iterations at most.
 
     Raises:
         IdentificationError: The solver did not reach a consistent estimate.
     """
     theta0 = params.nominal.copy()
-    s = params.prior_std() if prior_std is None else np.asarray(prior_std, dtype=float)
+    B = params.prior_factor()
+    s = params.prior_std()
     sigma = noise_sigma(system, rank)
-    # scaled coordinates u = theta / s; the quadratic |[Rs; I] u - [z / sigma; u0]|^2 is reduced by
-    # a QR (never forming Rs^T Rs, whose condition number is the square of the data's)
+    # scaled coordinates u = theta / s; the quadratic |[R / sigma; B] theta - [z / sigma; B theta0]|^2
+    # is reduced by a QR (never forming R^T R, whose condition number is the square of the data's)
     n = params.n
-    Rs = system.R * s / sigma
-    Q, RA = np.linalg.qr(np.vstack([Rs, np.eye(n)]))
-    c = Q.T @ np.concatenate([system.z / sigma, theta0 / s])
+    rows = np.vstack([system.R / sigma, B]) * s
+    Q, RA = np.linalg.qr(rows)
+    c = Q.T @ np.concatenate([system.z / sigma, B @ theta0])
     theta = scipy.linalg.solve_triangular(RA, c) * s
     iterations, constrained = 0, False
     if not _consistent(params, theta):

@@ -29,14 +29,19 @@ import pinocchio as pin
 from mbctl.robots.edits import body_inertial
 from mbctl.robots.exceptions import UnknownNameError
 from mbctl.robots.identification.exceptions import IdentificationError
-from mbctl.robots.identification.inertial import INERTIAL_NAMES, from_inertial, transform_matrix
+from mbctl.robots.identification.inertial import (
+    INERTIAL_NAMES,
+    from_inertial,
+    pseudo_inertia,
+    transform_matrix,
+)
 from mbctl.robots.model_pair import Robot
 
 #: Velocity scale [rad/s] of the smooth sign in the Coulomb friction column.
 COULOMB_SMOOTHING_RAD_S = 0.01
 
-#: Length scale [m] of the prior: a body's CoM may sit about this far from its nominal.
-PRIOR_LENGTH_M = 0.1
+#: Relative change of a body's pseudo-inertia that the prior takes as one standard deviation.
+PRIOR_RELATIVE = 0.5
 
 
 @dataclass(frozen=True)
@@ -195,27 +200,40 @@ class ParameterSet:
                 return b
         raise UnknownNameError("identified body", name, [b.name for b in self.bodies])
 
-    def prior_std(self) -> np.ndarray:
-        """Prior standard deviation (n,) of each parameter around its nominal value.
+    def prior_factor(self) -> np.ndarray:
+        """B (n, n) with the prior ``|B (theta - theta_0)|^2`` (a Gaussian of precision ``B^T B``).
 
-        Inertial parameters of a body of nominal mass m and inertia scale i: mass 0.5 m,
-        first moments 0.5 m L, rotational inertia 0.5 (i + m L^2) with L = :data:`PRIOR_LENGTH_M`
-        (broad: the data decide wherever they can, the prior only where they cannot). Friction
-        and armature: their nominal value, or 0.1 N m s/rad, 0.5 N m, 0.01 kg m^2 when nominal
-        is zero.
+        Each body's block is the second-order expansion of the entropic divergence between its
+        pseudo-inertia J and the nominal ``J_0`` (Lee and Park's geometric regulariser):
+        ``|J_0^-1/2 (J - J_0) J_0^-1/2|_F^2 / rho^2`` with rho = :data:`PRIOR_RELATIVE`. It measures
+        a change relative to the body itself and in any frame: scaling a body's density by 1 +
+        rho costs about as much as moving its CoM by its radius of gyration, and a thin link's small
+        moments are as costly to change as its large ones in relative terms, so where the data
+        cannot decide the body keeps its shape. Friction and armature: independent, standard
+        deviation their nominal value (0.1 N m s/rad, 0.5 N m, 0.01 kg m^2 when it is zero).
         """
-        out = np.empty(self.n)
-        L = PRIOR_LENGTH_M
+        out = np.zeros((self.n, self.n))
+        basis = [pseudo_inertia(e) for e in np.eye(10)]
         for b in self.bodies:
-            m = float(b.nominal[0])
-            inertia = float(np.abs(b.nominal[4:]).max())
-            out[b.columns] = [0.5 * m, *[0.5 * m * L] * 3, *[0.5 * (inertia + m * L * L)] * 6]
+            J0 = pseudo_inertia(b.nominal)
+            w, V = np.linalg.eigh(J0)
+            w = np.maximum(w, 1e-9 * w.max())  # a point mass is only semi-definite
+            W = (V / np.sqrt(w)) @ V.T
+            K = np.stack([(W @ P @ W).ravel() for P in basis], axis=1)  # (16, 10)
+            L = np.linalg.cholesky(K.T @ K) / PRIOR_RELATIVE
+            out[b.columns, b.columns] = L.T
         floors = {"viscous": 0.1, "coulomb": 0.5, "armature": 0.01}
         for jb in self.joints:
             for kind, col in (("viscous", jb.viscous), ("coulomb", jb.coulomb), ("armature", jb.armature)):
                 if col is not None:
-                    out[col] = max(abs(float(self.nominal[col])), floors[kind])
+                    out[col, col] = 1.0 / max(abs(float(self.nominal[col])), floors[kind])
         return out
+
+    def prior_std(self) -> np.ndarray:
+        """Prior standard deviation (n,) of each parameter (the marginals of :meth:`prior_factor`)."""
+        B = self.prior_factor()
+        Binv = np.linalg.inv(B)
+        return np.sqrt(np.sum(Binv**2, axis=1))
 
     def nonnegative(self) -> np.ndarray:
         """Mask (n,) of the scalar parameters that must be >= 0 (friction, armature)."""

@@ -189,7 +189,7 @@ def identify(robot: Robot, logs: Sequence[RecordedLog], options: IdentifyOptions
                 f"the log does not excite the robot: its equations have rank {data.rank} of the "
                 f"{structural.rank} any motion could reach (largest speed {moved:.3g} rad/s); record "
                 "an excitation (mbctl excite)")
-    result = estimate(params, system, data.rank, scale)
+    result = estimate(params, system, data.rank)
     joints = tuple(j.name for j in robot.joints.values() if j.nv == 1 and _actuated(robot, j.name))
     nominal, identified = predict(params, [params.nominal, result.theta], validation, joints, mode)
     return Identification(params, result, data, structural, training, validation, nominal, identified,

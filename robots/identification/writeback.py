@@ -18,6 +18,10 @@ from mbctl.robots.identification.inertial import consistency_problems, to_inerti
 from mbctl.robots.identification.parameters import ParameterSet
 from mbctl.robots.model_pair import Robot
 
+#: Relative margin kept on the triangle inequality of the written principal moments: MuJoCo writes
+#: 6 significant digits, and an estimate on the boundary must not round to the wrong side of it.
+TRIANGLE_MARGIN = 1e-5
+
 
 def identified_spec(robot: Robot, params: ParameterSet, theta: np.ndarray) -> mujoco.MjSpec:
     """A copy of ``robot``'s MjSpec with ``theta`` written in.
@@ -32,7 +36,7 @@ def identified_spec(robot: Robot, params: ParameterSet, theta: np.ndarray) -> mu
         if problems:
             raise InconsistentParameters(f"body {b.name!r}: {'; '.join(problems)}; not written")
         mass, com, inertia = to_inertial(pi)
-        set_inertial(spec.body(b.name), mass, com, inertia)
+        set_inertial(spec.body(b.name), mass, com, _off_the_boundary(inertia))
     for jb in params.joints:
         joint = spec.joint(jb.name)
         if jb.viscous is not None and jb.coulomb is not None:
@@ -52,3 +56,18 @@ def identified_xml(robot: Robot, params: ParameterSet, theta: np.ndarray) -> str
         theta: The identified parameters (n,).
     """
     return standalone_xml(robot, identified_spec(robot, params, theta))
+
+
+def _off_the_boundary(inertia_com: np.ndarray) -> np.ndarray:
+    """``inertia_com`` kept off the triangle boundary by :data:`TRIANGLE_MARGIN`.
+
+    Its two smaller principal moments are raised just enough that ``a + b >= c (1 + margin)``
+    (unchanged when that already holds).
+    """
+    moments, axes = np.linalg.eigh(0.5 * (inertia_com + inertia_com.T))
+    a, b, c = moments
+    short = c * (1.0 + TRIANGLE_MARGIN) - a - b
+    if short <= 0:
+        return inertia_com
+    moments[:2] += 0.5 * short
+    return (axes * moments) @ axes.T
