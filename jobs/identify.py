@@ -220,8 +220,9 @@ def report_dict(params: IdentifyParams, robot: Robot, ident: Identification, sec
         "solver_iterations": ident.estimate.iterations,
         "consistency_constraints_active": ident.estimate.constrained,
     }
-    base = [{"expression": b.expression(), "nominal": b.value(ident.params.nominal, names),
-             "identified": b.value(ident.theta, names)} for b in ident.data.base]
+    base = [{"expression": b.expression(), "coefficients": b.coefficients,
+             "nominal": b.value(ident.params.nominal, names), "identified": b.value(ident.theta, names)}
+            for b in ident.data.base]
     return {
         "robot": robot.name,
         "model_fingerprint": fingerprint,

@@ -25,7 +25,7 @@ from mbctl.robots.identification.samples import RecordedLog, Samples, prepare_sa
 from mbctl.robots.model_pair import Robot
 
 #: A log whose data rank is below this fraction of the structural rank does not excite the robot.
-MIN_EXCITATION = 0.25
+MIN_EXCITATION = 0.5
 
 
 @dataclass(frozen=True)

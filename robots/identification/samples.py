@@ -128,8 +128,8 @@ def check_log(robot: Robot, log: RecordedLog) -> None:
         bad = np.argwhere(~np.isfinite(arr))
         if bad.size:
             row, col = (int(x) for x in bad[0])
-            raise BadLogError(f"the log has {len(bad)} non-finite values in {name}, the first at row {row} "
-                              f"(t index), column {col}; clean or cut the log")
+            raise BadLogError(f"the log has {len(bad)} non-finite values in {name}, the first at data row "
+                              f"{row}, {name} column {col}; clean or cut the log")
     if n < MIN_SAMPLES or log.duration_s < MIN_DURATION_S:
         raise BadLogError(f"the log is too short: {n} rows over {log.duration_s:.3g} s; identification "
                           f"needs at least {MIN_SAMPLES} rows and {MIN_DURATION_S:g} s (record a longer "
