@@ -7,7 +7,7 @@ combination of parameters moves the torques by a comparable amount, so torque no
 swamp any of them. :func:`design_excitation` minimises ``log cond(W)`` (over its structural rank,
 what any motion could reach) over the coefficients of a :class:`FourierTrajectory`, subject to
 
-* the joint limits (with a margin), at every sample,
+* the joint limits (with a margin), at every sample (and checked again on a finer grid),
 * a speed limit per joint,
 * the nominal model's inverse-dynamics torque within a fraction of each actuator's limit,
 
@@ -200,6 +200,14 @@ class _Evaluator:
             out[k] = pin.rnea(self.model, self.data, qf, vf, af)[self.iv]
         return out
 
+    def within_limits(self, x: np.ndarray, oversample: int = 8) -> bool:
+        """Every limit holds on a grid ``oversample`` times finer than the design's."""
+        t = np.linspace(0.0, self.period_s, oversample * len(self.t), endpoint=False)
+        q, v, a = self.trajectory(x).sample(t)
+        lim = self.limits
+        return bool(np.all(q <= lim.q_max) and np.all(q >= lim.q_min) and np.all(np.abs(v) <= lim.v_max)
+                    and np.all(np.abs(self._torques(q, v, a)) <= lim.tau_max))
+
     def limit_use(self, x: np.ndarray) -> np.ndarray:
         _, g = self.evaluate(x)
         n = len(self.joints)
@@ -248,11 +256,11 @@ def design_excitation(robot: Robot, joints: Sequence[str], q_start: npt.ArrayLik
                       constraints=[{"type": "ineq", "fun": lambda x: ev.evaluate(x)[1]}],
                       options={"maxiter": max_iterations, "ftol": 1e-4})
     x = result.x
-    for _ in range(50):  # SLSQP may end a hair outside a limit: shrink back inside
-        if np.all(ev.evaluate(x)[1] >= 0):
+    for _ in range(100):  # SLSQP may end a hair outside a limit, or between samples: shrink inside
+        if ev.within_limits(x):
             break
-        x = 0.99 * x
-    if not np.all(ev.evaluate(x)[1] >= 0) or ev.evaluate(x)[0] > ev.evaluate(x0)[0]:
+        x = 0.98 * x
+    if not ev.within_limits(x) or ev.evaluate(x)[0] > ev.evaluate(x0)[0]:
         x = x0
     return ExcitationDesign(ev.trajectory(x), float(np.exp(ev.evaluate(x)[0])), cond0, ev.rank,
                             int(result.nit), ev.limit_use(x))
@@ -266,8 +274,14 @@ def _feasible_start(ev: _Evaluator, rng: np.random.Generator) -> np.ndarray:
     amp = 0.25 * span * 2 * np.pi / ev.period_s
     x = (rng.standard_normal((2, n, L)) * amp[None, :, None]).ravel()
     for _ in range(60):
-        if np.all(ev.evaluate(x)[1] >= 0):
+        if ev.within_limits(x):
             return x
         x = 0.8 * x
-    raise InvalidPlanningInput("no feasible excitation found even at small amplitude: the start is at "
-                               "or beyond a limit (check q_start against the joint limits)")
+    _, g = ev.evaluate(np.zeros_like(x))  # standing still at the start
+    kinds = ("upper position", "lower position", "speed", "torque")
+    worst = int(np.argmin(g))
+    joint = ev.joints[worst % n]
+    raise InvalidPlanningInput(
+        f"no feasible excitation, even at small amplitude: at rest at the start, joint {joint!r} is "
+        f"already at its {kinds[worst // n]} limit ({1.0 - g[worst]:.2f} of it); move q_start or widen "
+        "that limit")

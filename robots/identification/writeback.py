@@ -40,7 +40,9 @@ def identified_spec(robot: Robot, params: ParameterSet, theta: np.ndarray) -> mu
     for jb in params.joints:
         joint = spec.joint(jb.name)
         if jb.viscous is not None and jb.coulomb is not None:
-            joint.damping = float(theta[jb.viscous])
+            damping = np.array(joint.damping, dtype=float)  # MuJoCo 4: [linear, higher-order terms]
+            damping[0] = float(theta[jb.viscous])
+            joint.damping = damping
             joint.frictionloss = float(theta[jb.coulomb])
         if jb.armature is not None:
             joint.armature = float(theta[jb.armature])
