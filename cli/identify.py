@@ -28,10 +28,10 @@ def excite(
     robot: RobotArg,
     duration: Annotated[
         float | None,
-        typer.Option(help="Simulated time (s) (default: three periods; 30 s for the G1)."),
+        typer.Option(help="Simulated time (s) (default: 30)."),
     ] = None,
     seed: Annotated[int, typer.Option(help="Seed of the excitation design's random start.")] = 0,
-    period: Annotated[float, typer.Option(help="Period of the Fourier series' fundamental (s).")] = 10.0,
+    period: Annotated[float, typer.Option(help="Period of the Fourier series' fundamental (s).")] = 5.0,
     harmonics: Annotated[int, typer.Option(help="Harmonics per joint.")] = 5,
     gravity: Annotated[
         bool,

@@ -36,6 +36,8 @@ from mbctl.robots.registry import load_robot
 from mbctl.sim.contacts import contacts_elsewhere
 from mbctl.sim.simulator import Simulator
 
+#: Length [s] of an excitation unless asked otherwise.
+DEFAULT_DURATION_S = 30.0
 #: Computed-torque gains of the fixed-base excitation: natural frequency [rad/s], damping ratio.
 TRACKING_OMEGA_RAD_S = 30.0
 TRACKING_ZETA = 1.0
@@ -47,7 +49,7 @@ class ExciteParams:
 
     Attributes:
         robot: Known robot name or MJCF file.
-        duration: Simulated time [s] (None: three periods for a fixed base, 30 s for the G1).
+        duration: Simulated time [s] (None: 30 s).
         seed: Seed of the excitation design's random start.
         period: Period of the Fourier series' fundamental [s].
         harmonics: Harmonics per joint.
@@ -60,7 +62,7 @@ class ExciteParams:
     robot: str
     duration: float | None = None
     seed: int = 0
-    period: float = 10.0
+    period: float = 5.0
     harmonics: int = 5
     gravity: bool = True
     scene: str | None = None
@@ -123,7 +125,7 @@ def prepare(params: ExciteParams, robot: Robot | None = None) -> Work:
     q_start = nominal.keyframe_q(nominal.keyframes[0]) if nominal.keyframes else nominal.neutral_q()
     design = design_excitation(nominal, joints, q_start, period_s=params.period, harmonics=params.harmonics,
                                seed=params.seed)
-    duration = params.duration or 3.0 * params.period
+    duration = params.duration or DEFAULT_DURATION_S
 
     def work(ctx: RunContext) -> Outcome:
         return _run_fixed(ctx, params, models, joints, q_start, design, duration)

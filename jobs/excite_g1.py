@@ -29,7 +29,7 @@ import mujoco
 import numpy as np
 import pinocchio as pin
 
-from mbctl.jobs.excite import ExciteParams, log_section
+from mbctl.jobs.excite import DEFAULT_DURATION_S, ExciteParams, log_section
 from mbctl.jobs.g1_wbc import FALL_HEIGHT_M, G1WholeBody, crouched_start, g1_whole_body
 from mbctl.jobs.ident_log import CSV_NAME, SECTION, header
 from mbctl.jobs.plant_options import Models, build_models, plant_line
@@ -45,8 +45,6 @@ from mbctl.sim.contacts import contact_wrenches, contacts_elsewhere, touching
 from mbctl.sim.simulator import Simulator
 
 TORSO = "torso_link"
-#: Default length [s] of the G1's excitation.
-DEFAULT_DURATION_S = 30.0
 #: Range [rad] of each upper-body joint around the keyframe, (below, above); the shoulder roll
 #: only opens the arms outward and the elbow stays bent, away from the body.
 UPPER_RANGES_RAD = {
@@ -155,7 +153,7 @@ def design_upper_body(nominal: Robot, q_start: np.ndarray, params: ExciteParams
     q_w = q_start[7:].copy()  # the welded model's q is the floating one's without the base
     for side, sign in (("left", 1.0), ("right", -1.0)):
         q_w[welded.joint(f"{side}_shoulder_roll_joint").idx_q] += sign * ARM_OPEN_RAD
-    period = params.period / 2.0
+    period = params.period
     harmonics = min(params.harmonics, 3)
     designs = []
     for part in ("waist", "left"):

@@ -146,7 +146,7 @@ def ik(robot: str, target: list[str] | None = None, com: str | None = None, back
     )
 
 
-def excite(robot: str, duration: float | None = None, seed: int = 0, period: float = 10.0, harmonics: int = 5,
+def excite(robot: str, duration: float | None = None, seed: int = 0, period: float = 5.0, harmonics: int = 5,
            gravity: bool = True, scene: str | None = None, model_dir: str | None = None,
            payload: str | None = None, plant_error: float = 0.0,
            controller_model: str | None = None) -> ExciteParams:

@@ -10,7 +10,7 @@ its time), which identification never saw.
 from __future__ import annotations
 
 import hashlib
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, replace
 
 import numpy as np
@@ -200,16 +200,28 @@ def _actuated(robot: Robot, joint: str) -> bool:
     return any(a.joint == joint for a in robot.actuators.values())
 
 
-def base_parameter_errors(ident: Identification, truth: np.ndarray) -> np.ndarray:
-    """Relative error of each identified base parameter against ``truth`` (n,) (hidden-truth tests).
+def base_parameter_errors(base: Sequence[Mapping[str, float]], identified: Sequence[float],
+                          truth: Mapping[str, float]) -> np.ndarray:
+    """Relative errors of identified base parameters against a hidden truth (studies, tests).
 
-    Each error is relative to the true value, or to the prior standard deviation of the base
-    parameter's lead parameter when that is larger (a base parameter whose truth is zero, such as
-    a first moment off the link's axis, has no relative error of its own).
+    Args:
+        base: Each base parameter's coefficients (parameter name -> coefficient), as in
+            :class:`~mbctl.robots.identification.identifiability.BaseParameter` and the report.
+        identified: The identified value of each.
+        truth: The true value of every parameter the coefficients name.
+
+    Returns:
+        Per base parameter ``|identified - true| / reference``: the reference is its true value,
+        or, when that is smaller (a first moment that is zero across the link, say), the largest
+        true value among the base parameters of the same kind (masses, first moments, inertias),
+        so a zero-valued one is judged on the scale of its kind rather than on nothing.
     """
-    names = ident.params.names
-    std = dict(zip(names, ident.params.prior_std(), strict=True))
-    est = np.array([b.value(ident.theta, names) for b in ident.data.base])
-    true = np.array([b.value(truth, names) for b in ident.data.base])
-    ref = np.maximum(np.abs(true), [std[b.lead] for b in ident.data.base])
-    return np.abs(est - true) / ref
+    def kind(b: Mapping[str, float]) -> str:
+        lead = next(iter(b)).rsplit(".", 1)[-1]
+        return "m" if lead == "m" else lead[:2]
+
+    true = np.array([sum(c * truth[n] for n, c in b.items()) for b in base])
+    kinds = [kind(b) for b in base]
+    scale = {k: max(abs(t) for t, kk in zip(true, kinds, strict=True) if kk == k) for k in set(kinds)}
+    ref = np.array([max(abs(t), scale[k], 1e-300) for t, k in zip(true, kinds, strict=True)])
+    return np.abs(np.asarray(identified, dtype=float) - true) / ref
