@@ -210,8 +210,8 @@ def report_dict(params: IdentifyParams, robot: Robot, ident: Identification, sec
     why = reasons(ident.data, ident.structural)
     method = {
         "regressor": "pinocchio.computeJointTorqueRegressor, columns per MuJoCo body (its own frame)",
-        "estimate": "MAP: torque misfit / sigma^2 + Gaussian prior around the nominal model; bodies "
-                    "parametrised by log-Cholesky (physically consistent by construction)",
+        "estimate": "MAP: torque misfit / sigma^2 + geometric prior around the nominal model, subject to "
+                    "each body's pseudo-inertia > 0 (LMI, log-det barrier Newton method)",
         "contacts": {"none": "fixed base: no contact", "projected": "projected onto the null space of the "
                      "contact Jacobian (joint torques only, no force sensor)",
                      "measured": "measured contact wrenches from the log"}[ident.contact],

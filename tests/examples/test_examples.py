@@ -41,7 +41,7 @@ def test_every_example_is_tested_and_listed():
     assert scripts == [
         "01_load_and_step.py", "02_pd_hold.py", "03_computed_torque_square.py",
         "04_g1_joint_step.py", "05_crosscheck_your_robot.py", "06_g1_whole_body_ik.py",
-        "07_g1_whole_body_control.py",
+        "07_g1_whole_body_control.py", "08_identify_your_arm.py",
     ]
     readme = (EXAMPLES / "README.md").read_text()
     for script in scripts:
@@ -107,3 +107,9 @@ def test_07_g1_whole_body_control(g1):
     out = _run("07_g1_whole_body_control.py", "--duration", "1").stdout
     assert _figure(r"CoM RMS error \(MuJoCo's CoM\): {n} mm", out) < 5.0
     assert _figure(r"QP vs MuJoCo vertical foot force: {n} %", out) < 5.0
+
+
+def test_08_identify_your_arm():
+    out = _run("08_identify_your_arm.py", "--duration", "6").stdout
+    assert _figure(r"largest base-parameter error {n} \(bound 0.01\): ok", out) < 0.01
+    assert "identified.xml: cross-check PASS" in out
