@@ -31,6 +31,7 @@ from mbctl.jobs.runner import Job, Outcome, RunContext, Work
 from mbctl.planners.excitation import ExcitationDesign, design_excitation
 from mbctl.robots.edits import position_to_motor
 from mbctl.robots.identification import model_fingerprint
+from mbctl.robots.identification.threads import single_threaded_blas
 from mbctl.robots.model_pair import Robot
 from mbctl.robots.registry import load_robot
 from mbctl.sim.contacts import contacts_elsewhere
@@ -128,7 +129,8 @@ def prepare(params: ExciteParams, robot: Robot | None = None) -> Work:
     duration = params.duration or DEFAULT_DURATION_S
 
     def work(ctx: RunContext) -> Outcome:
-        return _run_fixed(ctx, params, models, joints, q_start, design, duration)
+        with single_threaded_blas():  # small matrices: threads only cost (robots/identification/threads)
+            return _run_fixed(ctx, params, models, joints, q_start, design, duration)
 
     return work
 

@@ -30,7 +30,7 @@ import numpy as np
 import pinocchio as pin
 
 from mbctl.jobs.excite import DEFAULT_DURATION_S, ExciteParams, log_section
-from mbctl.jobs.g1_wbc import FALL_HEIGHT_M, G1WholeBody, crouched_start, g1_whole_body
+from mbctl.jobs.g1_wbc import G1WholeBody, crouched_start, g1_whole_body
 from mbctl.jobs.ident_log import CSV_NAME, SECTION, header
 from mbctl.jobs.plant_options import Models, build_models, plant_line
 from mbctl.jobs.plots import new_figure
@@ -39,12 +39,15 @@ from mbctl.jobs.runner import Outcome, RunContext, Work
 from mbctl.planners.excitation import ExcitationDesign, ExcitationLimits, design_excitation
 from mbctl.planners.fourier import FourierTrajectory
 from mbctl.robots.edits import position_to_motor, weld_base
+from mbctl.robots.identification.threads import single_threaded_blas
 from mbctl.robots.interface import RobotState
 from mbctl.robots.model_pair import Robot
 from mbctl.sim.contacts import contact_wrenches, contacts_elsewhere, touching
 from mbctl.sim.simulator import Simulator
 
 TORSO = "torso_link"
+#: Pelvis height [m] below which the robot has fallen (as g1-wbc judges it).
+FALL_HEIGHT_M = 0.5
 #: Range [rad] of each upper-body joint around the keyframe, (below, above); the shoulder roll
 #: only opens the arms outward and the elbow stays bent, away from the body.
 UPPER_RANGES_RAD = {
@@ -189,32 +192,36 @@ class _Schedule:
     """Task references over time: CoM, pelvis and torso orientation, posture, contacts."""
 
     wb: G1WholeBody
+    robot: Robot      # the plant's robot (joint names and indices)
+    model: pin.Model  # the controller's model (the schedule's own kinematics)
     upper: FourierTrajectory
     q0: np.ndarray
-    c0: np.ndarray
-    feet_y: dict[str, float]
     steps: list[tuple[str, float]]
-    torso_fid: int
-    pelvis_fid: int
 
     def __post_init__(self) -> None:
-        model = self.wb.controller.model
+        model = self.model
         self.data = model.createData()
-        self.iq_upper = np.array([self.wb.robot.joint(j).idx_q for j in self.upper.names])
+        self.iq_upper = np.array([self.robot.joint(j).idx_q for j in self.upper.names])
+        self.feet_fid = {f: model.getFrameId(f) for f in FEET}
+        self.torso_fid, self.pelvis_fid = model.getFrameId(TORSO), model.getFrameId(PELVIS)
+        pin.framesForwardKinematics(model, self.data, self.q0)
+        self.feet_y = {f: float(self.data.oMf[fid].translation[1]) for f, fid in self.feet_fid.items()}
+        self.c0 = np.array(pin.centerOfMass(model, self.data, self.q0))
+        self.com_ref = self.c0.copy()
         self.released: set[str] = set()  # steps whose foot was released
         self.landed: set[str] = set()    # steps whose foot was put down again
         self.lift_off: dict[str, pin.SE3] = {}  # where each free foot left the floor
 
     def _orientation_torso(self, R_pelvis: np.ndarray, q: np.ndarray) -> np.ndarray:
         """The torso's world orientation with the pelvis at R_pelvis and the waist at q's."""
-        model = self.wb.controller.model
+        model = self.model
         pin.framesForwardKinematics(model, self.data, q)
         X_PT = self.data.oMf[self.pelvis_fid].actInv(self.data.oMf[self.torso_fid])
         return R_pelvis @ X_PT.rotation
 
-    def update(self, t: float, state: RobotState, touching: dict[str, bool]) -> None:
-        """Set every task's reference for time ``t`` [s]; ``touching``: the plant's foot contacts."""
-        step = self._step_phase(t, touching)
+    def update(self, t: float, state: RobotState) -> None:
+        """Set every task's reference for time ``t`` [s] at the measured ``state``."""
+        step = self._step_phase(t, state)
         ramp = _smooth(t / RAMP_S)
         # over one foot the upper body and the pelvis calm down: a small sole bears little moment
         calm = ramp * (1.0 - STEP_CALM * (step[1] if step is not None else 0.0))
@@ -240,6 +247,7 @@ class _Schedule:
                 target = pin.SE3(self.lift_off[foot].rotation,
                                  self.lift_off[foot].translation + [0.0, 0.0, height])
                 self._swing_leg(q_ref, state, foot, target)
+        self.com_ref = com
         self.wb.com.set_reference(com, dcom, ddcom)
         wp = 2 * np.pi * np.asarray(PELVIS_FREQUENCY_HZ)
         roll, pitch = calm * PELVIS_AMPLITUDE_RAD * np.sin(wp * t)
@@ -256,12 +264,12 @@ class _Schedule:
         The posture task then carries the free foot straight up and back to where it lifted off,
         whatever the pelvis does meanwhile.
         """
-        model, data = self.wb.controller.model, self.data
+        model, data = self.model, self.data
         side = "left" if foot == FEET[0] else "right"
-        leg = [self.wb.robot.joint(f"{side}_{j}_joint") for j in
+        leg = [self.robot.joint(f"{side}_{j}_joint") for j in
                ("hip_pitch", "hip_roll", "hip_yaw", "knee", "ankle_pitch", "ankle_roll")]
         iq, iv = [j.idx_q for j in leg], [j.idx_v for j in leg]
-        fid = self.wb.controller.contacts[foot].fid
+        fid = self.feet_fid[foot]
         q = np.array(state.q)
         for _ in range(LEG_IK_ITERATIONS):
             pin.framesForwardKinematics(model, data, q)
@@ -270,12 +278,13 @@ class _Schedule:
             q[iq] += np.linalg.solve(J, err)
         q_ref[iq] = q[iq]
 
-    def _step_phase(self, t: float, touching: dict[str, bool]) -> tuple[str, float, float] | None:
+    def _step_phase(self, t: float, state: RobotState) -> tuple[str, float, float] | None:
         """(foot, CoM shift fraction, foot height [m]) during a step, else None; drives the contacts.
 
         Phases (:data:`STEP_TIMES_S`): shift the CoM over the other foot; release the foot (force
-        ramp); once it is free, lift it straight up, hold, lower it to where it left the floor;
-        put it down (constraint back, force ramp up) when the lowering ends; shift the CoM back.
+        ramp, :data:`STEP_TIMES_S`'s second phase, longer than the controller's ramp); then lift it
+        straight up, hold, lower it to where it left the floor; put it down (constraint back, force
+        ramp up) when the lowering ends; shift the CoM back.
         """
         shift, _, lift, _, lower, _, back = STEP_TIMES_S
         marks = np.cumsum(STEP_TIMES_S)
@@ -290,9 +299,10 @@ class _Schedule:
                 ctrl.release(foot)
                 self.released.add(key)
             height = 0.0
-            free = ctrl.contact_released(foot) and key not in self.landed
+            free = tau >= marks[1] and key not in self.landed
             if free and foot not in self.lift_off:
-                self.lift_off[foot] = pin.SE3(ctrl.state.frame_pose(ctrl.contacts[foot].fid))
+                pin.framesForwardKinematics(self.model, self.data, np.asarray(state.q))
+                self.lift_off[foot] = pin.SE3(self.data.oMf[self.feet_fid[foot]])
             if free and tau < marks[2]:
                 height = LIFT_HEIGHT_M * _smooth((tau - marks[1]) / lift)
             elif free and tau < marks[3]:
@@ -324,7 +334,8 @@ def prepare_g1(params: ExciteParams, loaded: Robot) -> Work:
     duration = params.duration or DEFAULT_DURATION_S
 
     def work(ctx: RunContext) -> Outcome:
-        return _run(ctx, params, models, q_start, upper, designs, shrink, duration)
+        with single_threaded_blas():  # the whole-body QP's matrices are small: threads only cost
+            return _run(ctx, params, models, q_start, upper, designs, shrink, duration)
 
     return work
 
@@ -351,21 +362,17 @@ def _run(ctx: RunContext, params: ExciteParams, models: Models, q_start: np.ndar
     state = sim.read_state()
     wb.hold(state)
     ctrl = wb.controller
-    s = ctrl.state
-    feet_y = {f: float(s.frame_pose(ctrl.contacts[f].fid).translation[1]) for f in FEET}
     steps: list[tuple[str, float]] = []
     if duration >= MIN_DURATION_FOR_STEPS_S:
         total = sum(STEP_TIMES_S)
         steps = [(FEET[0], 0.45 * duration - total), (FEET[1], 0.8 * duration - total)]
-    model = ctrl.model
-    schedule = _Schedule(wb, upper, q_start.copy(), s.com().copy(), feet_y, steps,
-                         model.getFrameId(TORSO), model.getFrameId(PELVIS))
+    schedule = _Schedule(wb, plant, models.controller_model, upper, q_start.copy(), steps)
     m, d = sim.model, sim.data
     bodies, groups = _foot_groups(plant)
     foot_ids = [plant.body_id(b) for b in bodies]
     allowed = [g for grp in groups for g in grp]
     floor = [g for g in range(m.ngeom) if m.geom_bodyid[g] == 0]
-    joints = tuple(ctrl.joints.joints)
+    joints = tuple(a.joint for a in plant.actuators.values())  # the controller's order: actuators
     dofs = np.array([plant.joint(j).dofadr for j in joints])
     excitation: dict[str, Any] = {
         "kind": "whole-body control on the feet: upper-body Fourier excitation, CoM squat and sway, pelvis "
@@ -393,16 +400,14 @@ def _run(ctx: RunContext, params: ExciteParams, models: Models, q_start: np.ndar
     pelvis_id = plant.body_id(PELVIS)
     fell = None
     others_rows = 0
-    contact_now = dict.fromkeys(FEET, True)
     for _ in range(n):
         t = sim.time_s
         state = sim.read_state()
-        schedule.update(t, state, contact_now)
+        schedule.update(t, state)
         command = ctrl.compute(state, dt_s=dt)
         sim.step(command)
         tau = d.qfrc_actuator[dofs]
         on, wrench = contact_wrenches(m, d, groups, d.xpos[foot_ids])
-        contact_now = dict(zip(FEET, on.tolist(), strict=True))
         elsewhere = contacts_elsewhere(m, d, plant.robot_body_ids, allowed)
         others_rows += elsewhere > 0
         row = [state.time_s, *state.q, *state.v, *tau]
@@ -411,7 +416,7 @@ def _run(ctx: RunContext, params: ExciteParams, models: Models, q_start: np.ndar
         csv.write([*row, elsewhere])
         mujoco.mj_forward(m, d)
         log["t"].append(t)
-        log["com_ref"].append(wb.com.p_ref.copy())
+        log["com_ref"].append(schedule.com_ref.copy())
         log["com"].append(d.subtree_com[pelvis_id].copy())
         log["fz"].append(wrench[:, 2].copy())
         log["tau"].append(tau.copy())

@@ -27,6 +27,7 @@ import pinocchio as pin
 from mbctl.planners.exceptions import InvalidPlanningInput
 from mbctl.planners.fourier import FourierTrajectory, rest_projection
 from mbctl.robots.identification.parameters import ParameterSet
+from mbctl.robots.identification.threads import single_threaded_blas
 from mbctl.robots.model_pair import Robot
 
 #: Singular values of the scaled regressor below this fraction of the largest count as zero.
@@ -236,8 +237,6 @@ def design_excitation(robot: Robot, joints: Sequence[str], q_start: npt.ArrayLik
     Raises:
         InvalidPlanningInput: Bad joints, period, harmonics or samples.
     """
-    from scipy.optimize import minimize
-
     joints = tuple(joints)
     if not joints:
         raise InvalidPlanningInput("joints must name at least one joint to excite")
@@ -247,6 +246,16 @@ def design_excitation(robot: Robot, joints: Sequence[str], q_start: npt.ArrayLik
     if harmonics < 1 or n_samples < 4:
         raise InvalidPlanningInput(f"harmonics must be >= 1 and n_samples >= 4; got {harmonics}, {n_samples}")
     q_full = robot.converter.check_q(q_start, "q_start")
+    with single_threaded_blas():
+        return _design(robot, joints, q_full, limits, period_s, harmonics, n_samples, bodies, seed,
+                       max_iterations)
+
+
+def _design(robot: Robot, joints: tuple[str, ...], q_full: np.ndarray, limits: ExcitationLimits | None,
+            period_s: float, harmonics: int, n_samples: int, bodies: Sequence[str] | None, seed: int,
+            max_iterations: int) -> ExcitationDesign:
+    from scipy.optimize import minimize
+
     limits = limits or ExcitationLimits.from_robot(robot, joints, q_full)
     params = ParameterSet(robot, bodies)
     ev = _Evaluator(robot, joints, q_full, params, limits, period_s, harmonics, n_samples)

@@ -8,11 +8,14 @@ the normal (z) and tangential parts, and the centre of pressure on the ground.
 
 from __future__ import annotations
 
-from collections.abc import Iterable, Mapping, Sequence
+from collections.abc import Iterable, Iterator, Mapping, Sequence
 from dataclasses import dataclass
+from typing import TypeVar
 
 import mujoco
 import numpy as np
+
+_K = TypeVar("_K")
 
 
 @dataclass(frozen=True)
@@ -48,25 +51,13 @@ def measure_contacts(model: mujoco.MjModel, data: mujoco.MjData,
     Read it right after ``mj_step`` for the forces applied during that step (the contacts and
     their forces are those of the step's forward pass).
     """
-    owner: dict[int, str] = {}
-    for name, geoms in groups.items():
-        for g in geoms:
-            owner[int(g)] = name
     force = {name: np.zeros(3) for name in groups}
     moment_xy = {name: np.zeros(2) for name in groups}
     count = dict.fromkeys(groups, 0)
-    f6 = np.zeros(6)
-    for i in range(data.ncon):
-        con = data.contact[i]
-        for geom, sign in ((con.geom2, 1.0), (con.geom1, -1.0)):
-            group = owner.get(int(geom))
-            if group is None:
-                continue
-            mujoco.mj_contactForce(model, data, i, f6)
-            f_W = sign * (con.frame.reshape(3, 3).T @ f6[:3])
-            force[group] += f_W
-            moment_xy[group] += f_W[2] * con.pos[:2]
-            count[group] += 1
+    for group, f_W, p_W in _forces_on(model, data, groups.items()):
+        force[group] += f_W
+        moment_xy[group] += f_W[2] * p_W[:2]
+        count[group] += 1
     out = {}
     for name in groups:
         fz = force[name][2]
@@ -106,13 +97,20 @@ def contact_wrenches(model: mujoco.MjModel, data: mujoco.MjData, groups: Sequenc
         touching (c,) bool (at least one contact), and wrenches (c, 6): force [N] then moment
         about the group's point [N m], world axes W.
     """
-    owner: dict[int, int] = {}
-    for index, geoms in enumerate(groups):
-        for g in geoms:
-            owner[int(g)] = index
     n = len(points_W)
     touching = np.zeros(n, dtype=bool)
     wrench = np.zeros((n, 6))
+    for group, f_W, p_W in _forces_on(model, data, enumerate(groups)):
+        touching[group] = True
+        wrench[group, :3] += f_W
+        wrench[group, 3:] += np.cross(p_W - points_W[group], f_W)
+    return touching, wrench
+
+
+def _forces_on(model: mujoco.MjModel, data: mujoco.MjData, groups: Iterable[tuple[_K, Iterable[int]]]
+               ) -> Iterator[tuple[_K, np.ndarray, np.ndarray]]:
+    """(group, force on it f_W (3,) [N], contact point p_W (3,) [m]) for every contact on a group's geom."""
+    owner = {int(g): key for key, geoms in groups for g in geoms}
     f6 = np.zeros(6)
     for i in range(data.ncon):
         con = data.contact[i]
@@ -121,11 +119,7 @@ def contact_wrenches(model: mujoco.MjModel, data: mujoco.MjData, groups: Sequenc
             if group is None:
                 continue
             mujoco.mj_contactForce(model, data, i, f6)
-            f_W = sign * (con.frame.reshape(3, 3).T @ f6[:3])
-            touching[group] = True
-            wrench[group, :3] += f_W
-            wrench[group, 3:] += np.cross(con.pos - points_W[group], f_W)
-    return touching, wrench
+            yield group, sign * (con.frame.reshape(3, 3).T @ f6[:3]), np.array(con.pos)
 
 
 def contacts_elsewhere(model: mujoco.MjModel, data: mujoco.MjData, bodies: Iterable[int],

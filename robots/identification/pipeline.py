@@ -22,6 +22,7 @@ from mbctl.robots.identification.identifiability import Identifiability, analyse
 from mbctl.robots.identification.parameters import ParameterSet
 from mbctl.robots.identification.regressor import TorquePrediction, predict, stack
 from mbctl.robots.identification.samples import RecordedLog, Samples, prepare_samples, split
+from mbctl.robots.identification.threads import single_threaded_blas
 from mbctl.robots.model_pair import Robot
 
 #: A log whose data rank is below this fraction of the structural rank does not excite the robot.
@@ -165,7 +166,11 @@ def identify(robot: Robot, logs: Sequence[RecordedLog], options: IdentifyOptions
             robot (its rank is below :data:`MIN_EXCITATION` of the structural rank).
         IdentificationError: Unknown bodies or contact mode, or the solver failed.
     """
-    options = options or IdentifyOptions()
+    with single_threaded_blas():
+        return _identify(robot, logs, options or IdentifyOptions())
+
+
+def _identify(robot: Robot, logs: Sequence[RecordedLog], options: IdentifyOptions) -> Identification:
     params = ParameterSet(robot, options.bodies, options.friction, options.armature)
     trains, vals = [], []
     for log in logs:
