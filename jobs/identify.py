@@ -38,7 +38,6 @@ from mbctl.robots.identification import (
     BadLogError,
     Identification,
     IdentifyOptions,
-    RecordedLog,
     add_noise,
     identified_xml,
     identify,
@@ -127,7 +126,7 @@ def load_nominal(params: IdentifyParams, section: dict[str, Any]) -> Robot:
     return robot
 
 
-def check_same_robot(robot: Robot, log: RecordedLog, section: dict[str, Any], run: str) -> None:
+def check_same_robot(robot: Robot, section: dict[str, Any], run: str) -> None:
     """The log's coordinates must be the robot's.
 
     Raises:
@@ -138,7 +137,6 @@ def check_same_robot(robot: Robot, log: RecordedLog, section: dict[str, Any], ru
         raise BadLogError(f"{run} is a log of {theirs!r}; its coordinates ({len(section['q_columns'])} "
                           f"q columns, first {section['q_columns'][:2]}) are not {robot.name!r}'s "
                           f"({robot.nq} q, first {q_columns(robot)[:2]}): another robot's log")
-    del log
 
 
 def prepare(params: IdentifyParams) -> Work:
@@ -154,8 +152,8 @@ def prepare(params: IdentifyParams) -> Work:
         logs.append(log)
         sections.append(section)
     robot = load_nominal(params, sections[0])
-    for run, log, section in zip(params.runs, logs, sections, strict=True):
-        check_same_robot(robot, log, section, run)
+    for run, section in zip(params.runs, sections, strict=True):
+        check_same_robot(robot, section, run)
     if params.torque_noise or params.encoder_noise:
         logs = [add_noise(robot, log, params.torque_noise, params.encoder_noise, params.seed + k)
                 for k, log in enumerate(logs)]
