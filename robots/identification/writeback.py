@@ -63,13 +63,19 @@ def identified_xml(robot: Robot, params: ParameterSet, theta: np.ndarray) -> str
 def _off_the_boundary(inertia_com: np.ndarray) -> np.ndarray:
     """``inertia_com`` kept off the triangle boundary by :data:`TRIANGLE_MARGIN`.
 
-    Its two smaller principal moments are raised just enough that ``a + b >= c (1 + margin)``
-    (unchanged when that already holds).
+    The smallest principal moment is raised just enough that ``a + b >= c (1 + margin)``
+    (unchanged when that already holds). Raising the smallest keeps the moments' order, so the
+    largest stays the one the inequality bounds: a body at the boundary is a thin rod (``a`` near
+    0, ``b`` near ``c``), where raising ``b`` would overtake ``c``.
     """
     moments, axes = np.linalg.eigh(0.5 * (inertia_com + inertia_com.T))
     a, b, c = moments
     short = c * (1.0 + TRIANGLE_MARGIN) - a - b
     if short <= 0:
         return inertia_com
-    moments[:2] += 0.5 * short
+    if a + short <= b:
+        moments[0] += short
+    else:  # a and b are close: raise both, still below the (raised) bound
+        moments[:2] = 0.5 * c * (1.0 + TRIANGLE_MARGIN) + 0.5 * (moments[:2] - 0.5 * (a + b))
+        moments[2] = max(c, moments[1])
     return (axes * moments) @ axes.T

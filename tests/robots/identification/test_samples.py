@@ -79,3 +79,18 @@ def test_write_back_carries_inertials_friction_and_armature(two_link_torque, tmp
     bad[params.body("link2").columns.start] = -0.7
     with pytest.raises(InconsistentParameters, match="body 'link2': mass -0.7 kg is not > 0; not written"):
         identified_spec(two_link_torque, params, bad)
+
+
+def test_a_body_on_the_triangle_boundary_is_written_so_mujoco_compiles_it(two_link_torque, tmp_path):
+    """A thin rod (moments ~0, b, b + 4e-13): MuJoCo's 6 digits must not round it to the wrong side."""
+    from mbctl.robots.identification.inertial import from_inertial
+
+    params = ParameterSet(two_link_torque)
+    theta = params.nominal.copy()
+    R = np.linalg.qr(np.random.default_rng(0).standard_normal((3, 3)))[0]
+    rod = R @ np.diag([3.1e-13, 7.766444e-05, 7.7664440300e-05]) @ R.T
+    theta[params.body("link2").columns] = from_inertial(0.33, np.array([0.09, -0.01, 0.0]), rod)
+    path = tmp_path / "rod.xml"
+    path.write_text(identified_xml(two_link_torque, params, theta))
+    robot = load_robot(path)  # MuJoCo checks A + B >= C when it compiles
+    assert robot.mj_model.body_mass[robot.body_id("link2")] == pytest.approx(0.33)
