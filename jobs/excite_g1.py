@@ -30,7 +30,7 @@ import numpy as np
 import pinocchio as pin
 
 from mbctl.jobs.excite import DEFAULT_DURATION_S, ExciteParams, log_section
-from mbctl.jobs.g1_wbc import G1WholeBody, crouched_start, g1_whole_body
+from mbctl.jobs.g1_wbc import crouched_start, g1_whole_body
 from mbctl.jobs.ident_log import CSV_NAME, SECTION, header
 from mbctl.jobs.plant_options import Models, build_models, plant_line
 from mbctl.jobs.plots import new_figure
@@ -191,7 +191,7 @@ def design_upper_body(nominal: Robot, q_start: np.ndarray, params: ExciteParams
 class _Schedule:
     """Task references over time: CoM, pelvis and torso orientation, posture, contacts."""
 
-    wb: G1WholeBody
+    wb: Any           # what g1_whole_body returns (its controller and com/pelvis/torso/posture tasks)
     robot: Robot      # the plant's robot (joint names and indices)
     model: pin.Model  # the controller's model (the schedule's own kinematics)
     upper: FourierTrajectory
