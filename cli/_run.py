@@ -25,6 +25,22 @@ QuietOpt = Annotated[bool, typer.Option("--quiet", "-q", help="No progress bar."
 VideoOpt = Annotated[
     bool, typer.Option("--video", help="Film the run headless into video.mp4 (30 frames per simulated s).")
 ]
+#: ``--payload``: a hidden point mass on the plant (every simulating job).
+PayloadOpt = Annotated[
+    str | None,
+    typer.Option("--payload", help="Plant only: a point mass KG@BODY[:X,Y,Z] fixed to BODY, offset in the "
+                                   "body frame (m); the controller's model does not have it."),
+]
+#: ``--plant-error``: the plant's link masses off (every simulating job).
+PlantErrorOpt = Annotated[
+    float, typer.Option("--plant-error", help="Plant only: link masses and inertias off by PCT (%).")
+]
+#: ``--controller-model``: the controller's model from a file (every simulating job).
+ControllerModelOpt = Annotated[
+    str | None,
+    typer.Option("--controller-model", help="The controller's model from this MJCF (e.g. identified.xml); "
+                                            "the plant stays the robot's own. Same joints required."),
+]
 #: ``--video-size``: frame size of ``--video``.
 VideoSizeOpt = Annotated[str, typer.Option("--video-size", help="Video frame size WIDTHxHEIGHT (px).")]
 

@@ -6,7 +6,17 @@ from typing import Annotated
 
 import typer
 
-from mbctl.cli._run import OutputOpt, QuietOpt, VideoOpt, VideoSizeOpt, execute, video_spec
+from mbctl.cli._run import (
+    ControllerModelOpt,
+    OutputOpt,
+    PayloadOpt,
+    PlantErrorOpt,
+    QuietOpt,
+    VideoOpt,
+    VideoSizeOpt,
+    execute,
+    video_spec,
+)
 from mbctl.jobs.choices import CONTROLLERS
 
 
@@ -30,6 +40,9 @@ def demo(
     max_rms_mm: Annotated[
         float | None, typer.Option("--max-rms-mm", help="Exit 1 above this Cartesian RMS error (mm).")
     ] = None,
+    payload: PayloadOpt = None,
+    plant_error: PlantErrorOpt = 0.0,
+    controller_model: ControllerModelOpt = None,
     output: OutputOpt = None,
     quiet: QuietOpt = False,
     video: VideoOpt = False,
@@ -40,7 +53,8 @@ def demo(
     from mbctl.jobs.demo import DEMO
 
     config = options.demo(controller=controller, compare=compare, model_error=model_error, duration=duration,
-                          side=side, speed=speed, omega=omega, gravity=gravity, max_rms_mm=max_rms_mm)
+                          side=side, speed=speed, omega=omega, gravity=gravity, max_rms_mm=max_rms_mm,
+                          payload=payload, plant_error=plant_error, controller_model=controller_model)
     execute(DEMO, config, output, quiet, video_spec(video, video_size))
 
 

@@ -6,7 +6,17 @@ from typing import Annotated
 
 import typer
 
-from mbctl.cli._run import OutputOpt, QuietOpt, VideoOpt, VideoSizeOpt, execute, video_spec
+from mbctl.cli._run import (
+    ControllerModelOpt,
+    OutputOpt,
+    PayloadOpt,
+    PlantErrorOpt,
+    QuietOpt,
+    VideoOpt,
+    VideoSizeOpt,
+    execute,
+    video_spec,
+)
 from mbctl.cli.plant_options import (
     DomainOpt,
     DropOpt,
@@ -50,6 +60,9 @@ def stand(
     truth: TruthOpt = None,
     watchdog_periods: WatchdogOpt = 3,
     dry_run: DryRunOpt = False,
+    payload: PayloadOpt = None,
+    plant_error: PlantErrorOpt = 0.0,
+    controller_model: ControllerModelOpt = None,
     output: OutputOpt = None,
     quiet: QuietOpt = False,
     video: VideoOpt = False,
@@ -66,7 +79,8 @@ def stand(
                               interface=interface, domain=domain, network_interface=network_interface,
                               latency_ms=latency_ms, jitter_ms=jitter_ms, drop=drop, imu_noise=imu_noise,
                               estimate=estimate, link_seed=link_seed, truth=truth,
-                              watchdog_periods=watchdog_periods, dry_run=dry_run)
+                              watchdog_periods=watchdog_periods, dry_run=dry_run,
+                              payload=payload, plant_error=plant_error, controller_model=controller_model)
     execute(G1_STAND, params, output, quiet, video_spec(video, video_size))
 
 
@@ -76,6 +90,9 @@ def track(
     zeta: Zeta = 1.0,
     max_rms_rad: MaxRms = None,
     model_dir: ModelDirOpt = None,
+    payload: PayloadOpt = None,
+    plant_error: PlantErrorOpt = 0.0,
+    controller_model: ControllerModelOpt = None,
     output: OutputOpt = None,
     quiet: QuietOpt = False,
     video: VideoOpt = False,
@@ -89,7 +106,8 @@ def track(
     from mbctl.jobs.g1 import G1_TRACK
 
     params = options.g1_track(duration=duration, omega=omega, zeta=zeta, max_rms_rad=max_rms_rad,
-                              model_dir=model_dir)
+                              model_dir=model_dir, payload=payload, plant_error=plant_error,
+                              controller_model=controller_model)
     execute(G1_TRACK, params, output, quiet, video_spec(video, video_size))
 
 
@@ -114,6 +132,9 @@ def arm_pd(
     truth: TruthOpt = None,
     watchdog_periods: WatchdogOpt = 3,
     dry_run: DryRunOpt = False,
+    payload: PayloadOpt = None,
+    plant_error: PlantErrorOpt = 0.0,
+    controller_model: ControllerModelOpt = None,
     output: OutputOpt = None,
     quiet: QuietOpt = False,
     video: VideoOpt = False,
@@ -132,7 +153,8 @@ def arm_pd(
                                network_interface=network_interface, latency_ms=latency_ms,
                                jitter_ms=jitter_ms, drop=drop, imu_noise=imu_noise, estimate=estimate,
                                link_seed=link_seed, truth=truth, watchdog_periods=watchdog_periods,
-                               dry_run=dry_run)
+                               dry_run=dry_run, payload=payload, plant_error=plant_error,
+                               controller_model=controller_model)
     execute(G1_ARM_PD, params, output, quiet, video_spec(video, video_size))
 
 

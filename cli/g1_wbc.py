@@ -6,7 +6,17 @@ from typing import Annotated
 
 import typer
 
-from mbctl.cli._run import OutputOpt, QuietOpt, VideoOpt, VideoSizeOpt, execute, video_spec
+from mbctl.cli._run import (
+    ControllerModelOpt,
+    OutputOpt,
+    PayloadOpt,
+    PlantErrorOpt,
+    QuietOpt,
+    VideoOpt,
+    VideoSizeOpt,
+    execute,
+    video_spec,
+)
 from mbctl.cli.plant_options import (
     DomainOpt,
     DropOpt,
@@ -58,6 +68,9 @@ def g1_wbc(
     truth: TruthOpt = None,
     watchdog_periods: WatchdogOpt = 3,
     dry_run: DryRunOpt = False,
+    payload: PayloadOpt = None,
+    plant_error: PlantErrorOpt = 0.0,
+    controller_model: ControllerModelOpt = None,
     output: OutputOpt = None,
     quiet: QuietOpt = False,
     video: VideoOpt = False,
@@ -75,7 +88,8 @@ def g1_wbc(
                             model_error=model_error, model_dir=model_dir, interface=interface, domain=domain,
                             network_interface=network_interface, latency_ms=latency_ms, jitter_ms=jitter_ms,
                             drop=drop, imu_noise=imu_noise, estimate=estimate, link_seed=link_seed,
-                            truth=truth, watchdog_periods=watchdog_periods, dry_run=dry_run)
+                            truth=truth, watchdog_periods=watchdog_periods, dry_run=dry_run,
+                              payload=payload, plant_error=plant_error, controller_model=controller_model)
     execute(G1_WBC, params, output, quiet, video_spec(video, video_size))
 
 

@@ -6,7 +6,17 @@ from typing import Annotated
 
 import typer
 
-from mbctl.cli._run import OutputOpt, QuietOpt, VideoOpt, VideoSizeOpt, execute, video_spec
+from mbctl.cli._run import (
+    ControllerModelOpt,
+    OutputOpt,
+    PayloadOpt,
+    PlantErrorOpt,
+    QuietOpt,
+    VideoOpt,
+    VideoSizeOpt,
+    execute,
+    video_spec,
+)
 from mbctl.cli.robots import ModelDirOpt, SceneOpt
 from mbctl.jobs.choices import TWO_LINK_ROBOTS
 
@@ -37,6 +47,9 @@ def joint_step(
     sensor: Annotated[list[str] | None, typer.Option(help="Sensor to record (repeatable).")] = None,
     scene: SceneOpt = None,
     model_dir: ModelDirOpt = None,
+    payload: PayloadOpt = None,
+    plant_error: PlantErrorOpt = 0.0,
+    controller_model: ControllerModelOpt = None,
     output: OutputOpt = None,
     quiet: QuietOpt = False,
     video: VideoOpt = False,
@@ -47,7 +60,8 @@ def joint_step(
     from mbctl.jobs.joint_step import JOINT_STEP
 
     params = options.joint_step(robot=robot, joint=joint, delta=delta, steps=steps, keyframe=keyframe,
-                                sensor=sensor, scene=scene, model_dir=model_dir)
+                                sensor=sensor, scene=scene, model_dir=model_dir, payload=payload,
+                                plant_error=plant_error, controller_model=controller_model)
     execute(JOINT_STEP, params, output, quiet, video_spec(video, video_size))
 
 

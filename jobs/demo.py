@@ -19,6 +19,9 @@ the start; PD + gravity also for g(q)): heavier model masses make them stiffer, 
 the loop runs at ``omega sqrt(I_model / I_plant)``, so plain PD tracks *better* as the masses
 grow (measured: 24.2 mm exact, 17.2 mm at +40 %; the exact model at 35.4 rad/s gives 17.1 mm).
 That is a gain change, not a model-cancellation error; the job says so (:func:`pd_gain_note`).
+The model options (``--payload``, ``--plant-error``, ``--controller-model``;
+:mod:`mbctl.jobs.model_options`) change the plant instead, or give the controller a model from a
+file (an identified one).
 """
 
 from __future__ import annotations
@@ -39,6 +42,7 @@ from mbctl.control.pd import JointPD
 from mbctl.control.pd_gravity import PDGravity
 from mbctl.control.task_space import TaskSpaceComputedTorque
 from mbctl.jobs.choices import CONTROLLERS
+from mbctl.jobs.model_options import ModelOptions, build_models, models_line
 from mbctl.jobs.plots import new_figure
 from mbctl.jobs.recording import LoopRows, PlantSite, command_columns
 from mbctl.jobs.runner import Job, Outcome, RunContext, Work
@@ -80,6 +84,7 @@ class DemoConfig:
         compare: Also run every controller (exact model) on the same reference.
         max_rms_error_m: Bound on the chosen controller's Cartesian RMS error [m] (exit 1 above
             it); None: no bound.
+        plant: Hidden plant changes and the controller's model file.
     """
 
     controller: str = "ct"
@@ -97,6 +102,7 @@ class DemoConfig:
     branch: str = "down"
     compare: bool = False
     max_rms_error_m: float | None = None
+    models: ModelOptions = ModelOptions()
 
     def __post_init__(self) -> None:
         if self.controller not in CONTROLLERS:
@@ -234,15 +240,18 @@ def track_square(
     controller_name: str | None = None,
     model_error_pct: float | None = None,
     ctx: RunContext | None = None,
+    controller_model: pin.Model | None = None,
 ) -> tuple[Tracking, Simulator]:
     """Run one controller on the square from rest at its first corner; measure on the plant.
 
     With ``ctx``, the simulator is the run's plant (its report sections) and every cycle streams
-    a row to the run's CSV as it happens.
+    a row to the run's CSV as it happens. ``robot`` is the plant; the controller uses
+    ``controller_model`` (default: the plant's own model), scaled by the model error.
     """
     name = controller_name or config.controller
     pct = config.model_error_pct if model_error_pct is None else model_error_pct
-    pin_model = scale_masses(robot.pin_model, 1.0 + pct / 100.0) if pct else None
+    base = controller_model if controller_model is not None else robot.pin_model
+    pin_model = scale_masses(base, 1.0 + pct / 100.0) if pct else controller_model
     q_traj, cart = reference.joints, reference.cartesian
     sim = Simulator(robot)
     sim.reset(q=q_traj.q[0])
@@ -373,7 +382,8 @@ def prepare(config: DemoConfig, robot: Robot | None = None) -> Work:
     Raises:
         PlanningError: A square outside the workspace or through a singularity.
     """
-    robot = robot or load_robot("two_link_torque", gravity=config.gravity)
+    models = build_models(robot or load_robot("two_link_torque", gravity=config.gravity), config.models)
+    robot, model = models.plant, models.controller_model
     reference = square_reference(robot, config, robot.timestep_s)
 
     def work(ctx: RunContext) -> Outcome:
@@ -385,12 +395,13 @@ def prepare(config: DemoConfig, robot: Robot | None = None) -> Work:
             # the square in W (x, y, z in the arm's plane), as the video and the web replay draw it
             "path_m": path_points(reference).tolist(),
         }
-        main, _ = track_square(robot, reference, config, ctx=ctx)
+        ctx.sections["plant"] = models.section()
+        main, _ = track_square(robot, reference, config, ctx=ctx, controller_model=model)
         ctx.values.update(main.row())
         exact = None
         notes: list[str] = []
         if config.model_error_pct:
-            exact, _ = track_square(robot, reference, config, model_error_pct=0.0)
+            exact, _ = track_square(robot, reference, config, model_error_pct=0.0, controller_model=model)
             ctx.sections["exact_model"] = exact.row()
             if config.controller in ("pd", "pd_gravity"):
                 notes, gain_values = pd_gain_note(robot, config, reference.joints.q[0])
@@ -399,12 +410,16 @@ def prepare(config: DemoConfig, robot: Robot | None = None) -> Work:
         if config.compare:
             for name in CONTROLLERS:
                 same = name == main.controller and not config.model_error_pct
-                runs.append(main if same else track_square(robot, reference, config, name, 0.0)[0])
+                runs.append(main if same else track_square(robot, reference, config, name, 0.0,
+                                                           controller_model=model)[0])
             ctx.sections["compare"] = [t.row() for t in runs]
         plot(ctx, main, exact, tuple(runs), config)
         bound = config.max_rms_error_m
         passed = bound is None or main.rms_error_m <= bound
-        return Outcome(passed, tuple(summary_lines(main, exact, tuple(runs)) + notes),
+        lines = summary_lines(main, exact, tuple(runs)) + notes
+        if config.models.hidden or config.models.controller_model:
+            lines.insert(0, models_line(models.section()))
+        return Outcome(passed, tuple(lines),
                        None if bound is None else f"Cartesian RMS error <= {bound * 1e3:g} mm")
 
     return work

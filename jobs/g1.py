@@ -45,6 +45,7 @@ from mbctl.control.gains import PDGains, gains_from_frequency
 from mbctl.control.loop import RunLog, run
 from mbctl.control.pd_gravity import PDGravity
 from mbctl.control.position_pd import PositionTargetPD
+from mbctl.jobs.model_options import ModelOptions, build_models, models_line
 from mbctl.jobs.plant import Plant, PlantOptions, dry_run, plant_lines, prepare_plant, report_plant
 from mbctl.jobs.plots import coincident_groups, joint_colors, most_moved, new_figure, tracking_panels
 from mbctl.jobs.recording import LoopRows, command_columns
@@ -152,15 +153,17 @@ def _positive(name: str, value: float | None, allow_none: bool = True) -> None:
 
 @dataclass(frozen=True)
 class StandParams:
-    """``mbctl g1-stand``: duration [s], closed-loop omega [rad/s], zeta [-], model directory, plant."""
+    """``mbctl g1-stand``: duration [s], omega [rad/s], zeta [-], model directory, plant, models."""
 
     duration_s: float = 10.0
     omega_rad_s: float = 10.0
     zeta: float = 1.0
     model_dir: str | None = None
     plant: PlantOptions = PlantOptions()
+    models: ModelOptions = ModelOptions()
 
     def __post_init__(self) -> None:
+        self.plant.check_models(self.models)
         check_duration(self.duration_s)
         for name in ("duration_s", "omega_rad_s", "zeta"):
             _positive(name, getattr(self, name), allow_none=False)
@@ -175,6 +178,7 @@ class TrackParams:
     zeta: float = 1.0
     max_rms_error_rad: float | None = None
     model_dir: str | None = None
+    models: ModelOptions = ModelOptions()
 
     def __post_init__(self) -> None:
         check_duration(self.duration_s)
@@ -194,8 +198,10 @@ class ArmPDParams:
     max_rms_error_rad: float | None = None
     model_dir: str | None = None
     plant: PlantOptions = PlantOptions()
+    models: ModelOptions = ModelOptions()
 
     def __post_init__(self) -> None:
+        self.plant.check_models(self.models)
         if self.side not in ("left", "right"):
             raise ControlError(f"side must be 'left' or 'right'; got {self.side!r}")
         check_duration(self.duration_s)
@@ -332,26 +338,29 @@ def _tracking_plot(ctx: RunContext, name: str, log: RunLog, joints: tuple[str, .
 
 def prepare_stand(params: StandParams, robot: Robot | None = None) -> Work:
     """Load the G1, convert its actuators to motors and derive the standing gains (no output yet)."""
-    robot = position_to_motor(robot or load_robot("g1", model_dir=params.model_dir))
+    models = build_models(position_to_motor(robot or load_robot("g1", model_dir=params.model_dir)),
+                          params.models, position_to_motor)
+    robot = models.plant
     q0 = robot.keyframe_q(KEYFRAME)
     probe = PDGravity(robot, PDGains(np.ones(1), np.ones(1)))
-    inertia = stance_inertia(robot, q0, probe.joints)
+    inertia = stance_inertia(models.controller, q0, probe.joints)
     gains = gains_from_frequency(params.omega_rad_s, params.zeta, inertia)
     plant = prepare_plant(params.plant, robot, KEYFRAME)
 
     def work(ctx: RunContext) -> Outcome:
         with plant(ctx) as p:
-            return _stand(ctx, params, robot, gains, inertia, q0, p)
+            ctx.sections["models"] = models.section()
+            return _stand(ctx, params, robot, gains, inertia, q0, p, models.controller_model)
 
     return work
 
 
 def _stand(ctx: RunContext, params: StandParams, robot: Robot, gains: PDGains, inertia: np.ndarray,
-           q0: np.ndarray, p: Plant) -> Outcome:
+           q0: np.ndarray, p: Plant, pin_model: pin.Model) -> Outcome:
     sim = p.interface
     if p.options.dry_run:
         return dry_run(ctx, p, params.duration_s)
-    controller = PDGravity(robot, gains)
+    controller = PDGravity(robot, gains, pin_model=pin_model)
     ctx.sections["inputs"] = {"keyframe": KEYFRAME, "controller": "pd_gravity"}
     ctx.sections["gains"] = {
         "kp_N_m_rad": dict(zip(controller.joints, controller.gains.kp.tolist(), strict=True)),
@@ -390,7 +399,17 @@ def _stand(ctx: RunContext, params: StandParams, robot: Robot, gains: PDGains, i
         f"{params.zeta:g}): {'FELL (' + str(reason) + ')' if fell else 'stood'}, pelvis max "
         f"deviation {v['pelvis_max_deviation_m'] * 1e3:.2f} mm, joint RMS error "
         f"{v['joint_rms_error_rad']:.3e} rad, saturated cycles {v['saturated_cycles']}", *plant_lines(v),
+        *_models_lines(ctx),
     ), f"did not fall; pelvis within {PELVIS_BOUND_M * 1e3:g} mm of the keyframe height")
+
+
+def _models_lines(ctx: RunContext) -> list[str]:
+    """The summary line of the model options, when the plant or the controller's model is not the robot's."""
+    section = ctx.sections.get("models")
+    if not section or (section["payload"] is None and not section["plant_error_pct"]
+                       and section["controller_model"] == "the robot's own"):
+        return []
+    return [models_line(section)]
 
 
 def _fall_monitor(p: Plant) -> PlantMonitor | None:
@@ -444,7 +463,11 @@ def _stand_plot(ctx: RunContext, log: RunLog, dz_m: np.ndarray, deviation: np.nd
 
 def prepare_track(params: TrackParams, robot: Robot | None = None) -> Work:
     """Load and weld the G1, convert to motors, plan the ruckig trajectory (no output yet)."""
-    robot = position_to_motor(weld_base(robot or load_robot("g1", model_dir=params.model_dir), KEYFRAME))
+    def edit(r: Robot) -> Robot:
+        return position_to_motor(weld_base(r, KEYFRAME))
+
+    models = build_models(edit(robot or load_robot("g1", model_dir=params.model_dir)), params.models, edit)
+    robot = models.plant
     names = tuple(robot.joints)
     waypoints = track_waypoints(robot)
     limits = JointLimits.uniform(len(names), *TRACK_LIMITS)
@@ -453,7 +476,9 @@ def prepare_track(params: TrackParams, robot: Robot | None = None) -> Work:
     def work(ctx: RunContext) -> Outcome:
         sim = Simulator(robot)
         sim.reset(q=waypoints[0])
-        controller = ComputedTorque(robot, gains_from_frequency(params.omega_rad_s, params.zeta))
+        controller = ComputedTorque(robot, gains_from_frequency(params.omega_rad_s, params.zeta),
+                                    pin_model=models.controller_model)
+        ctx.sections["models"] = models.section()
         duration = params.duration_s or traj.duration_s + 0.2
         ctx.sections["inputs"] = {
             "duration_s": duration, "controller": "computed_torque",
@@ -509,6 +534,7 @@ def _tracking_outcome(ctx: RunContext, name: str, log: RunLog, err: np.ndarray, 
         bounds.append(f"did not fall; pelvis within {PELVIS_BOUND_M * 1e3:g} mm of the keyframe height")
         lines.append(f"pelvis max deviation {dz * 1e3:.2f} mm "
                      f"({'FELL (' + fall_reason + ')' if fall_reason is not None else 'stood'})")
+    lines += _models_lines(ctx)
     _tracking_plot(ctx, name, log, controller.joints, err, f"{title}: joint RMS {rms:.3g} rad", body)
     passed = (bound is None or rms <= bound) and not fell
     return Outcome(passed, tuple(lines), "; ".join(bounds) or None)
@@ -516,15 +542,18 @@ def _tracking_outcome(ctx: RunContext, name: str, log: RunLog, err: np.ndarray, 
 
 def prepare_arm_pd(params: ArmPDParams, robot: Robot | None = None) -> Work:
     """Load the G1 (position actuators) and plan the arm's trajectory (no output yet)."""
-    robot = robot or load_robot("g1", model_dir=params.model_dir)
+    models = build_models(robot or load_robot("g1", model_dir=params.model_dir), params.models)
+    robot = models.plant
     traj = arm_trajectory(robot, params.side, robot.timestep_s)
-    controller = PositionTargetPD(robot, traj.names, gravity_feedforward=params.gravity_feedforward)
+    controller = PositionTargetPD(robot, traj.names, gravity_feedforward=params.gravity_feedforward,
+                                  pin_model=models.controller_model)
     others = tuple(a.joint for a in robot.actuators.values() if a.joint not in traj.names)
     # every actuator holds the keyframe's target (DDS: the pose at start); the arm's are overwritten
     plant = prepare_plant(params.plant, robot, KEYFRAME)
 
     def work(ctx: RunContext) -> Outcome:
         with plant(ctx) as p:
+            ctx.sections["models"] = models.section()
             return _arm_pd(ctx, params, robot, traj, controller, others, p)
 
     return work

@@ -30,6 +30,8 @@ from mbctl.control.exceptions import WBCSetupError
 from mbctl.control.loop import run
 from mbctl.control.wbc import Scheduled, Standing, WBCConfig, standing_controller
 from mbctl.hardware import UnitreeG1
+from mbctl.jobs.choices import WBC_DEFAULT_DURATION_S, WBC_SCENARIOS
+from mbctl.jobs.model_options import ModelOptions, build_models
 from mbctl.jobs.plant import Plant, PlantOptions, dry_run, plant_lines, prepare_plant, report_plant
 from mbctl.jobs.recording import q_columns
 from mbctl.jobs.runner import Job, Outcome, RunContext, Work
@@ -43,9 +45,9 @@ from mbctl.robots.model_pair import Robot
 from mbctl.robots.registry import load_robot
 from mbctl.sim.monitor import PlantMonitor
 
-SCENARIOS = ("stand", "squat", "one-foot", "reach", "push")
-#: Default simulated time [s] per scenario.
-DEFAULT_DURATION_S = {"stand": 10.0, "squat": 10.0, "one-foot": 14.0, "reach": 8.0, "push": 17.0}
+#: The scenarios and their default simulated time [s] (the CLI's help lists them from jobs/choices).
+SCENARIOS = WBC_SCENARIOS
+DEFAULT_DURATION_S = WBC_DEFAULT_DURATION_S
 #: Default push impulse [N s].
 DEFAULT_IMPULSE_N_S = 10.0
 
@@ -93,6 +95,8 @@ class WBCParams:
         model_dir: Explicit G1 folder (else MENAGERIE_ROOT, the package cache).
         plant: In-process (with an optional link model: latency, jitter, drops, IMU noise, the
             estimator) or the G1 over DDS (no pushes there: the bridge has no push input).
+        models: A hidden payload or mass error on the in-process plant, or the controller's model
+            from a file (e.g. an ``identified.xml``); ``model_error`` then scales that model.
     """
 
     scenario: str = "stand"
@@ -102,8 +106,10 @@ class WBCParams:
     model_error: float = 0.0
     model_dir: str | None = None
     plant: PlantOptions = PlantOptions()
+    models: ModelOptions = ModelOptions()
 
     def __post_init__(self) -> None:
+        self.plant.check_models(self.models)
         if self.scenario not in SCENARIOS:
             raise WBCSetupError(f"unknown scenario {self.scenario!r}; choose one of {', '.join(SCENARIOS)}")
         check_duration(self.duration)
@@ -146,14 +152,21 @@ def g1_whole_body(robot: Robot, pin_model: pin.Model | None = None,
 
 def prepare(params: WBCParams, robot: Robot | None = None) -> Work:
     """Load the G1 (or take ``robot``, a Menagerie G1), in torque mode with palm sites (no output yet)."""
-    robot = position_to_motor(with_palm_sites(robot or load_robot("g1", model_dir=params.model_dir)))
+    def edit(r: Robot) -> Robot:
+        return position_to_motor(with_palm_sites(r))
+
+    models = build_models(edit(robot or load_robot("g1", model_dir=params.model_dir)), params.models, edit)
+    robot = models.plant
     factor = 1.0 + params.model_error / 100.0
-    pin_model = scale_masses(robot.pin_model, factor) if params.model_error else None
+    pin_model = models.controller_model
+    if params.model_error:
+        pin_model = scale_masses(pin_model, factor)
     # over DDS this connects now: no robot, or one outside its limits, is bad input (exit 2)
     plant = prepare_plant(params.plant, robot, KEYFRAME, start_q=crouched_start(robot), contact_forces=True)
 
     def work(ctx: RunContext) -> Outcome:
         with plant(ctx) as p:
+            ctx.sections["models"] = models.section()
             if p.options.dry_run:
                 return dry_run(ctx, p, params.duration_s)
             return _run(ctx, params, robot, pin_model, p)

@@ -6,6 +6,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from mbctl.jobs.model_options import ModelOptions, build_models, models_line
 from mbctl.jobs.runner import Job, Outcome, RunContext, Work
 from mbctl.limits import MAX_STEPS, check_limit
 from mbctl.robots.commands import position_target
@@ -36,6 +37,8 @@ class JointStepParams:
         sensors: Sensors to record, every channel.
         scene: Scene MJCF for MuJoCo when ``robot`` is a path.
         model_dir: Explicit Menagerie model directory for a known robot (the G1).
+        plant: Hidden plant changes (payload, mass error); a controller model is checked but unused
+            (the position actuators are MuJoCo's own PD: no model).
     """
 
     robot: str
@@ -46,6 +49,7 @@ class JointStepParams:
     sensors: tuple[str, ...] = ()
     scene: str | None = None
     model_dir: str | None = None
+    models: ModelOptions = ModelOptions()
 
     def __post_init__(self) -> None:
         if self.steps < 1:
@@ -65,7 +69,9 @@ def prepare(params: JointStepParams, robot: Robot | None = None) -> Work:
         UnknownNameError: Unknown joint, keyframe or sensor.
         CommandError: The joint has no position actuator.
     """
-    robot = robot or load_robot(params.robot, params.scene, model_dir=params.model_dir)
+    models = build_models(robot or load_robot(params.robot, params.scene, model_dir=params.model_dir),
+                          params.models)
+    robot = models.plant
     joint, keyframe, sensors = params.joint, params.keyframe, params.sensors
     info = robot.actuator_for_joint(joint)
     if info.kind != "position":
@@ -80,6 +86,7 @@ def prepare(params: JointStepParams, robot: Robot | None = None) -> Work:
 
     def work(ctx: RunContext) -> Outcome:
         sim = ctx.attach(Simulator(robot))
+        ctx.sections["plant"] = {**models.section(), "controller_model_used": False}
         sim.reset(keyframe)
         q0 = sim.q
         position_actuators = [a for a in robot.actuators.values() if a.kind == "position"]
@@ -121,6 +128,9 @@ def prepare(params: JointStepParams, robot: Robot | None = None) -> Work:
         if robot.has_floating_base:
             lines.append(f"base height: before {z0:.4f} m, final {sim.base_z_m:.4f} m")
         lines.append(f"MuJoCo warnings: {sim.warnings or 'none'}")
+        if params.models.hidden or params.models.controller_model:
+            lines.append(models_line(models.section()) + " (not used: joint-step commands MuJoCo's "
+                         "position actuators)")
         return Outcome(True, tuple(lines))
 
     return work

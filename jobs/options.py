@@ -17,10 +17,13 @@ from pathlib import Path
 
 from mbctl.jobs import ik_params
 from mbctl.jobs.demo import DemoConfig
+from mbctl.jobs.excite import ExciteParams
 from mbctl.jobs.g1 import ArmPDParams, StandParams, TrackParams
 from mbctl.jobs.g1_wbc import WBCParams
+from mbctl.jobs.identify import IdentifyParams
 from mbctl.jobs.ik_params import IKParams
 from mbctl.jobs.joint_step import JointStepParams
+from mbctl.jobs.model_options import ModelOptions
 from mbctl.jobs.plant import PlantOptions
 from mbctl.jobs.serve import ServeParams
 from mbctl.jobs.workspace import WorkspaceParams
@@ -30,39 +33,50 @@ from mbctl.robots.joint_pairing import parse_joint_map
 
 def demo(controller: str = "ct", compare: bool = False, model_error: float = 0.0,
          duration: float | None = None, side: float = 0.2, speed: float = 0.5, omega: float = 30.0,
-         gravity: bool = True, max_rms_mm: float | None = None) -> DemoConfig:
-    """``mbctl demo``: model_error in %, duration in s, side in m, speed in m/s, omega in rad/s, mm."""
+         gravity: bool = True, max_rms_mm: float | None = None, payload: str | None = None,
+         plant_error: float = 0.0, controller_model: str | None = None) -> DemoConfig:
+    """``mbctl demo``: model_error in %, duration in s, side in m, speed in m/s, omega in rad/s, mm.
+
+    The model options: payload KG@BODY[:X,Y,Z], plant_error in %, controller_model an MJCF file.
+    """
     return DemoConfig(controller=controller, side_m=side, max_speed_m_s=speed, omega_rad_s=omega,
                       duration_s=duration, model_error_pct=model_error, gravity=gravity, compare=compare,
-                      max_rms_error_m=None if max_rms_mm is None else max_rms_mm * 1e-3)
+                      max_rms_error_m=None if max_rms_mm is None else max_rms_mm * 1e-3,
+                      models=ModelOptions(payload, plant_error, controller_model))
 
 
 def g1_stand(duration: float = 10.0, omega: float = 10.0, zeta: float = 1.0,
              model_dir: str | None = None, interface: str = "sim", domain: int = 0,
              network_interface: str = "lo", latency_ms: float = 0.0, jitter_ms: float = 0.0,
              drop: float = 0.0, imu_noise: float = 0.0, estimate: bool = False, link_seed: int = 0,
-             truth: Path | None = None, watchdog_periods: int = 3, dry_run: bool = False) -> StandParams:
-    """``mbctl g1-stand``: duration in s, omega in rad/s, zeta (-); the plant options (see ``plant``)."""
+             truth: Path | None = None, watchdog_periods: int = 3, dry_run: bool = False,
+             payload: str | None = None, plant_error: float = 0.0,
+             controller_model: str | None = None) -> StandParams:
+    """``mbctl g1-stand``: duration in s, omega in rad/s, zeta (-); the plant and model options."""
     return StandParams(duration, omega, zeta, model_dir, plant(
         interface, domain, network_interface, latency_ms, jitter_ms, drop, imu_noise, estimate, link_seed,
-        truth, watchdog_periods, dry_run))
+        truth, watchdog_periods, dry_run), ModelOptions(payload, plant_error, controller_model))
 
 
 def g1_track(duration: float | None = None, omega: float = 40.0, zeta: float = 1.0,
-             max_rms_rad: float | None = None, model_dir: str | None = None) -> TrackParams:
-    """``mbctl g1-track``: duration in s, omega in rad/s, zeta (-), max_rms_rad in rad."""
-    return TrackParams(duration, omega, zeta, max_rms_rad, model_dir)
+             max_rms_rad: float | None = None, model_dir: str | None = None, payload: str | None = None,
+             plant_error: float = 0.0, controller_model: str | None = None) -> TrackParams:
+    """``mbctl g1-track``: duration in s, omega in rad/s, zeta (-), max_rms_rad in rad; model options."""
+    return TrackParams(duration, omega, zeta, max_rms_rad, model_dir,
+                       ModelOptions(payload, plant_error, controller_model))
 
 
 def g1_arm_pd(duration: float | None = None, side: str = "left", gravity_feedforward: bool = True,
               max_rms_rad: float | None = None, model_dir: str | None = None, interface: str = "sim",
               domain: int = 0, network_interface: str = "lo", latency_ms: float = 0.0, jitter_ms: float = 0.0,
               drop: float = 0.0, imu_noise: float = 0.0, estimate: bool = False, link_seed: int = 0,
-              truth: Path | None = None, watchdog_periods: int = 3, dry_run: bool = False) -> ArmPDParams:
-    """``mbctl g1-arm-pd``: duration in s, side left or right, max_rms_rad in rad; the plant options."""
+              truth: Path | None = None, watchdog_periods: int = 3, dry_run: bool = False,
+              payload: str | None = None, plant_error: float = 0.0,
+              controller_model: str | None = None) -> ArmPDParams:
+    """``mbctl g1-arm-pd``: duration in s, side left or right, max_rms_rad in rad; plant and model options."""
     return ArmPDParams(duration, side, gravity_feedforward, max_rms_rad, model_dir, plant(
         interface, domain, network_interface, latency_ms, jitter_ms, drop, imu_noise, estimate, link_seed,
-        truth, watchdog_periods, dry_run))
+        truth, watchdog_periods, dry_run), ModelOptions(payload, plant_error, controller_model))
 
 
 def plant(interface: str = "sim", domain: int = 0, network_interface: str = "lo", latency_ms: float = 0.0,
@@ -92,18 +106,21 @@ def g1_wbc(scenario: str = "stand", duration: float | None = None, impulse: floa
            interface: str = "sim", domain: int = 0, network_interface: str = "lo", latency_ms: float = 0.0,
            jitter_ms: float = 0.0, drop: float = 0.0, imu_noise: float = 0.0, estimate: bool = False,
            link_seed: int = 0, truth: Path | None = None, watchdog_periods: int = 3,
-           dry_run: bool = False) -> WBCParams:
+           dry_run: bool = False, payload: str | None = None, plant_error: float = 0.0,
+           controller_model: str | None = None) -> WBCParams:
     """``mbctl g1-wbc``: duration in s, impulse in N s, direction in deg, model_error %; plant options."""
     return WBCParams(scenario, duration, impulse, direction, model_error, model_dir, plant(
         interface, domain, network_interface, latency_ms, jitter_ms, drop, imu_noise, estimate, link_seed,
-        truth, watchdog_periods, dry_run))
+        truth, watchdog_periods, dry_run), ModelOptions(payload, plant_error, controller_model))
 
 
 def joint_step(robot: str, joint: str, delta: float, steps: int = 250, keyframe: str | None = None,
                sensor: list[str] | None = None, scene: str | None = None,
-               model_dir: str | None = None) -> JointStepParams:
-    """``mbctl joint-step``: delta in rad (m for a slide joint), steps of the physics."""
-    return JointStepParams(robot, joint, delta, steps, keyframe, tuple(sensor or ()), scene, model_dir)
+               model_dir: str | None = None, payload: str | None = None, plant_error: float = 0.0,
+               controller_model: str | None = None) -> JointStepParams:
+    """``mbctl joint-step``: delta in rad (m for a slide joint), steps of the physics; model options."""
+    return JointStepParams(robot, joint, delta, steps, keyframe, tuple(sensor or ()), scene, model_dir,
+                           ModelOptions(payload, plant_error, controller_model))
 
 
 def xcheck(robot: str, scene: str | None = None, states: int = 100, seed: int = 0,
@@ -162,3 +179,22 @@ def ik(robot: str, target: list[str] | None = None, com: str | None = None, back
         damping_cost=damping,
         clip_start=clip_start,
     )
+
+
+def excite(robot: str, duration: float | None = None, seed: int = 0, period: float = 5.0, harmonics: int = 5,
+           gravity: bool = True, scene: str | None = None, model_dir: str | None = None,
+           payload: str | None = None, plant_error: float = 0.0,
+           controller_model: str | None = None) -> ExciteParams:
+    """``mbctl excite``: duration and period in s; model options (payload KG@BODY[:X,Y,Z], %, MJCF)."""
+    return ExciteParams(robot, duration, seed, period, harmonics, gravity, scene, model_dir,
+                        ModelOptions(payload, plant_error, controller_model))
+
+
+def identify(runs: list[str], robot: str | None = None, bodies: str | None = None, friction: bool = False,
+             armature: bool = False, contact: str = "projected", cutoff_hz: float = 10.0,
+             rate_hz: float = 100.0, validation: float = 0.25, torque_noise: float = 0.0,
+             encoder_noise: float = 0.0, seed: int = 0, model_dir: str | None = None) -> IdentifyParams:
+    """``mbctl identify``: bodies comma-separated; cutoff and rate in Hz (0: off); noise in % and rad."""
+    names = tuple(b.strip() for b in (bodies or "").split(",") if b.strip())
+    return IdentifyParams(tuple(runs), robot, names, friction, armature, contact, cutoff_hz, rate_hz,
+                          validation, torque_noise, encoder_noise, seed, model_dir)

@@ -30,6 +30,7 @@ from mbctl.control.estimation import LegKinematicsEstimator
 from mbctl.control.loop import RunLog
 from mbctl.control.wbc.contacts import foot_contact_from_model
 from mbctl.hardware import DdsOptions, UnitreeG1
+from mbctl.jobs.model_options import ModelOptions
 from mbctl.jobs.recording import q_columns
 from mbctl.jobs.runner import JobError, Outcome, RunContext
 from mbctl.jobs.truth import truth_checks
@@ -98,6 +99,17 @@ class PlantOptions:
         elif self.truth is not None or self.dry_run:
             raise PlantOptionError("--truth and --dry-run are for --interface dds (in-process, the plant "
                                    "is the truth and is always commanded)")
+
+    def check_models(self, models: ModelOptions) -> None:
+        """Refuse a hidden plant change over DDS: there the plant is the robot (or the bridge's model).
+
+        Raises:
+            PlantOptionError: ``--payload`` or ``--plant-error`` with ``--interface dds``.
+        """
+        if self.interface == "dds" and models.hidden:
+            raise PlantOptionError("--payload and --plant-error change the in-process plant; over "
+                                   "--interface dds the plant is the robot (or `mbctl serve g1`'s "
+                                   "model). --controller-model works on both")
 
     @property
     def link(self) -> LinkSpec:

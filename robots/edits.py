@@ -8,7 +8,12 @@ import mujoco
 import numpy as np
 import pinocchio as pin
 
+from mbctl.robots.exceptions import RobotError
 from mbctl.robots.model_pair import Robot
+
+#: Radius [m] of the small solid sphere a payload is (its rotational inertia 2/5 m r^2 about its
+#: centre): close to a point mass, and MuJoCo writes an inertial only with some inertia.
+PAYLOAD_RADIUS_M = 0.01
 
 
 def position_to_motor(robot: Robot, actuators: Iterable[str] | None = None) -> Robot:
@@ -187,3 +192,115 @@ def scale_masses(model: pin.Model, factor: float) -> pin.Model:
         inertia = out.inertias[i]
         out.inertias[i] = pin.Inertia(inertia.mass * factor, inertia.lever, inertia.inertia * factor)
     return out
+
+
+def set_inertial(body: mujoco.MjsBody, mass_kg: float, com_m: Iterable[float],
+                 inertia_com: np.ndarray) -> None:
+    """Write an explicit ``<inertial>`` into an MjSpec body: mass, CoM and the 3x3 inertia.
+
+    The inertia (about the CoM, in the body frame) is stored as MuJoCo does after compiling: its
+    principal moments (``inertia``) and principal axes (``iquat``, a right-handed frame).
+
+    Args:
+        body: The MjSpec body (edited in place).
+        mass_kg: Mass [kg] (> 0).
+        com_m: Centre of mass (3,) [m] in the body frame.
+        inertia_com: Rotational inertia (3, 3) [kg m^2] about the CoM, body axes (symmetric).
+    """
+    moments, axes = np.linalg.eigh(0.5 * (inertia_com + inertia_com.T))
+    if np.linalg.det(axes) < 0:
+        axes[:, 0] = -axes[:, 0]
+    quat_wxyz = np.zeros(4)
+    mujoco.mju_mat2Quat(quat_wxyz, axes.ravel())
+    body.explicitinertial = True
+    body.mass = float(mass_kg)
+    body.ipos = np.asarray(list(com_m), dtype=float)  # set even when zero: MuJoCo writes it then
+    body.iquat = quat_wxyz
+    body.inertia = moments
+    body.fullinertia = np.array([np.nan, 0, 0, 0, 0, 0])
+
+
+def body_inertial(m: mujoco.MjModel, b: int) -> tuple[float, np.ndarray, np.ndarray]:
+    """Compiled body ``b``'s mass [kg], CoM (3,) [m] and inertia about the CoM (3, 3), body frame."""
+    R = np.zeros(9)
+    mujoco.mju_quat2Mat(R, m.body_iquat[b])
+    R_BI = R.reshape(3, 3)
+    return float(m.body_mass[b]), np.array(m.body_ipos[b]), R_BI @ np.diag(m.body_inertia[b]) @ R_BI.T
+
+
+def scale_link_masses(robot: Robot, factor: float) -> Robot:
+    """The plant's link masses and rotational inertias times ``factor`` (CoMs unchanged).
+
+    What ``--plant-error PCT`` does to the plant (``factor = 1 + PCT/100``), as
+    :func:`scale_masses` (``--model-error``) does to a controller's model. Every body of the
+    robot gets an explicit inertial with the compiled values scaled, so inertias MuJoCo derived
+    from geoms scale too; scene bodies are unchanged.
+
+    Raises:
+        RobotError: ``factor`` is not finite and > 0.
+    """
+    if not (np.isfinite(factor) and factor > 0):
+        raise RobotError(f"mass factor must be finite and > 0; got {factor}")
+    m = robot.mj_model
+    names = dict(zip(robot.robot_body_ids, robot.bodies, strict=True))
+
+    def edit(spec: mujoco.MjSpec) -> None:
+        for b, name in names.items():
+            mass, com, inertia = body_inertial(m, b)
+            if mass > 0:
+                set_inertial(spec.body(name), mass * factor, com, inertia * factor)
+
+    return robot.with_edits(f"plant link masses and inertias x {factor:g}", mj_edit=edit)
+
+
+def add_payload(robot: Robot, mass_kg: float, body: str, offset_m: Iterable[float] = (0.0, 0.0, 0.0)
+                ) -> Robot:
+    """Fix a payload (a small solid sphere, nearly a point mass) to ``body``, in both engines.
+
+    MuJoCo: a child body ``payload_<body>`` at ``offset_m`` in ``body``'s frame with mass
+    ``mass_kg`` and the inertia of a solid sphere of radius :data:`PAYLOAD_RADIUS_M`, and a red
+    visual sphere (no collisions). Pinocchio (rebuilt from the plant) adds it to the body's joint.
+
+    Args:
+        robot: The robot (unchanged).
+        mass_kg: Payload mass [kg] (> 0).
+        body: A body of the robot.
+        offset_m: Payload centre (3,) [m] in the body frame.
+
+    Raises:
+        UnknownNameError: ``body`` is not a body of the robot.
+        RobotError: A mass that is not > 0 or an offset that is not 3 finite numbers.
+    """
+    if body not in robot.bodies:
+        from mbctl.robots.exceptions import UnknownNameError
+
+        raise UnknownNameError("robot body", body, robot.bodies)
+    offset = np.asarray(list(offset_m), dtype=float)
+    if not (np.isfinite(mass_kg) and mass_kg > 0):
+        raise RobotError(f"payload mass must be finite and > 0 kg; got {mass_kg}")
+    if offset.shape != (3,) or not np.all(np.isfinite(offset)):
+        raise RobotError(f"payload offset must be 3 finite numbers [m]; got {offset_m!r}")
+    name = f"payload_{body}"
+    inertia = 0.4 * mass_kg * PAYLOAD_RADIUS_M**2
+
+    def edit(spec: mujoco.MjSpec) -> None:
+        child = spec.body(body).add_body(name=name, pos=offset)
+        set_inertial(child, mass_kg, np.zeros(3), np.eye(3) * inertia)
+        child.add_geom(type=mujoco.mjtGeom.mjGEOM_SPHERE, size=[max(PAYLOAD_RADIUS_M, 0.02), 0, 0],
+                       contype=0, conaffinity=0, group=1, rgba=[0.9, 0.2, 0.2, 1.0])
+
+    return robot.with_edits(f"payload {mass_kg:g} kg on {body} at {np.round(offset, 6).tolist()} m "
+                            f"(body frame), body {name}", mj_edit=edit)
+
+
+def standalone_xml(robot: Robot, spec: mujoco.MjSpec | None = None) -> str:
+    """The MJCF of ``robot`` (or of ``spec``, an edited copy of its spec), loadable from any folder.
+
+    Mesh and texture folders are made absolute (relative to the scene file), so the XML can be
+    written anywhere (a run folder's ``model.xml``, an ``identified.xml``).
+    """
+    spec = (spec or robot.mj_spec).copy()
+    base = robot.source.scene_file.parent
+    spec.meshdir = str((base / spec.meshdir).resolve()) if spec.meshdir else str(base)
+    spec.texturedir = str((base / spec.texturedir).resolve()) if spec.texturedir else str(base)
+    return spec.to_xml()

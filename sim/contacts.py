@@ -11,11 +11,14 @@ contacts that concern them.
 
 from __future__ import annotations
 
-from collections.abc import Iterable, Mapping
+from collections.abc import Iterable, Iterator, Mapping, Sequence
 from dataclasses import dataclass
+from typing import TypeVar
 
 import mujoco
 import numpy as np
+
+_K = TypeVar("_K")
 
 
 @dataclass(frozen=True)
@@ -149,3 +152,59 @@ def touching(model: mujoco.MjModel, data: mujoco.MjData, body_geoms: Iterable[in
              allowed: Iterable[int]) -> list[str]:
     """Names of bodies (other than ``allowed`` geoms) touching any of ``body_geoms`` (e.g. the floor)."""
     return FloorContacts(model, body_geoms, allowed).bodies(data)
+
+
+def contact_wrenches(model: mujoco.MjModel, data: mujoco.MjData, groups: Sequence[Iterable[int]],
+                     points_W: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Whether each group of geoms touches, and the wrench the contacts apply to it (a force sensor).
+
+    Args:
+        model: The plant's model.
+        data: Its data, right after ``mj_step`` (the contacts of the step just taken).
+        groups: Geom ids per group (e.g. a foot's collision geoms), c groups.
+        points_W: Reference point of each group (c, 3) [m] in W (e.g. the foot body's origin).
+
+    Returns:
+        touching (c,) bool (at least one contact), and wrenches (c, 6): force [N] then moment
+        about the group's point [N m], world axes W.
+    """
+    n = len(points_W)
+    touching = np.zeros(n, dtype=bool)
+    wrench = np.zeros((n, 6))
+    for group, f_W, p_W in _forces_on(model, data, enumerate(groups)):
+        touching[group] = True
+        wrench[group, :3] += f_W
+        wrench[group, 3:] += np.cross(p_W - points_W[group], f_W)
+    return touching, wrench
+
+
+def _forces_on(model: mujoco.MjModel, data: mujoco.MjData, groups: Iterable[tuple[_K, Iterable[int]]]
+               ) -> Iterator[tuple[_K, np.ndarray, np.ndarray]]:
+    """(group, force on it f_W (3,) [N], contact point p_W (3,) [m]) for every contact on a group's geom."""
+    owner = {int(g): key for key, geoms in groups for g in geoms}
+    f6 = np.zeros(6)
+    for i in range(data.ncon):
+        con = data.contact[i]
+        for geom, sign in ((con.geom2, 1.0), (con.geom1, -1.0)):
+            group = owner.get(int(geom))
+            if group is None:
+                continue
+            mujoco.mj_contactForce(model, data, i, f6)
+            yield group, sign * (con.frame.reshape(3, 3).T @ f6[:3]), np.array(con.pos)
+
+
+def contacts_elsewhere(model: mujoco.MjModel, data: mujoco.MjData, bodies: Iterable[int],
+                       allowed: Iterable[int]) -> int:
+    """Contacts that touch any of ``bodies`` through a geom not in ``allowed``.
+
+    Self-collisions, a hand on a table: forces a model of the ``allowed`` contacts does not explain.
+    """
+    mine, ok = {int(b) for b in bodies}, {int(g) for g in allowed}
+    count = 0
+    for i in range(data.ncon):
+        con = data.contact[i]
+        for geom in (int(con.geom1), int(con.geom2)):
+            if geom not in ok and int(model.geom_bodyid[geom]) in mine:
+                count += 1
+                break
+    return count

@@ -16,6 +16,7 @@ from pathlib import Path
 import mujoco
 import numpy as np
 
+from mbctl.robots.edits import standalone_xml
 from mbctl.robots.model_pair import Robot
 from mbctl.sim.atomic import write_bytes_atomic, write_text_atomic
 from mbctl.sim.exceptions import TrajectoryError
@@ -27,11 +28,7 @@ MODEL_NAME = "model.xml"
 
 def plant_xml(robot: Robot) -> str:
     """The plant's MJCF (with its load-time edits), asset paths absolute so it loads from anywhere."""
-    spec = robot.mj_spec.copy()
-    base = robot.source.scene_file.parent
-    spec.meshdir = str((base / spec.meshdir).resolve()) if spec.meshdir else str(base)
-    spec.texturedir = str((base / spec.texturedir).resolve()) if spec.texturedir else str(base)
-    return spec.to_xml()
+    return standalone_xml(robot)
 
 
 class TrajectoryRecorder:

@@ -41,7 +41,7 @@ def test_every_example_is_tested_and_listed():
     assert scripts == [
         "01_load_and_step.py", "02_pd_hold.py", "03_computed_torque_square.py",
         "04_g1_joint_step.py", "05_crosscheck_your_robot.py", "06_g1_whole_body_ik.py",
-        "07_g1_whole_body_control.py", "08_arm_tool_pose.py",
+        "07_g1_whole_body_control.py", "08_arm_tool_pose.py", "09_identify_your_arm.py",
     ]
     readme = (EXAMPLES / "README.md").read_text()
     for script in scripts:
@@ -177,3 +177,9 @@ def test_08_arm_tool_pose_on_a_users_arm_and_scene(tmp_path):
     bad = _run("08_arm_tool_pose.py", "--robot", str(tmp_path / "arm7.xml"), "--keyframe", "ready",
                "--tool", "hand", expect=2)
     assert "Unknown frame 'hand'" in bad.stderr and "gripper" in bad.stderr
+
+
+def test_09_identify_your_arm():
+    out = _run("09_identify_your_arm.py", "--duration", "6").stdout
+    assert _figure(r"largest base-parameter error {n} \(bound 0.01\): ok", out) < 0.01
+    assert "identified.xml: cross-check PASS" in out

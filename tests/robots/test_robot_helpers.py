@@ -277,3 +277,34 @@ def test_mass_matrix_bias_and_gravity_against_finite_differences(name, request):
             for e in np.eye(robot.nv)
         ])
         np.testing.assert_allclose(robot.gravity(q), grad, rtol=0, atol=1e-5 * max(1.0, np.abs(grad).max()))
+
+
+def test_plant_mass_scaling_and_payload_in_both_engines(two_link_torque_gravity):
+    import numpy as np
+
+    from mbctl.robots.edits import add_payload, scale_link_masses
+
+    heavy = scale_link_masses(two_link_torque_gravity, 1.25)
+    for b, name in zip(heavy.robot_body_ids, heavy.bodies, strict=True):
+        nominal = two_link_torque_gravity.mj_model.body_mass[two_link_torque_gravity.body_id(name)]
+        assert heavy.mj_model.body_mass[b] == 1.25 * nominal
+    np.testing.assert_allclose(heavy.mj_model.body_inertia[heavy.body_id("link2")],
+                               1.25 * two_link_torque_gravity.mj_model.body_inertia[
+                                   two_link_torque_gravity.body_id("link2")])
+    loaded = add_payload(two_link_torque_gravity, 0.5, "link2", (0.1, 0.02, 0.0))
+    assert "payload_link2" in loaded.bodies
+    q = np.array([0.3, -0.4])
+    g0, g1 = two_link_torque_gravity.gravity(q), loaded.gravity(q)  # the model pair's own check passed
+    assert not np.allclose(g0, g1)
+
+
+def test_standalone_xml_loads_from_any_folder(two_link_torque, tmp_path, monkeypatch):
+    from mbctl.robots.edits import add_payload, standalone_xml
+    from mbctl.robots.registry import load_robot
+
+    path = tmp_path / "elsewhere" / "model.xml"
+    path.parent.mkdir()
+    path.write_text(standalone_xml(add_payload(two_link_torque, 0.2, "ee_body")))  # payload at the origin
+    monkeypatch.chdir(tmp_path)
+    robot = load_robot(path)
+    assert robot.mj_model.body_mass[robot.body_id("payload_ee_body")] == 0.2  # its inertial survived

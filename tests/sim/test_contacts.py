@@ -103,3 +103,27 @@ def test_a_contact_between_two_groups_counts_for_both_with_opposite_signs():
     assert FloorContacts(m, floor).bodies(d) == ["low"]
     up_body = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_BODY, "up")
     assert FloorContacts(m, floor, bodies=[up_body]).bodies(d) == []
+
+
+def test_contact_wrenches_and_contacts_elsewhere():
+    """A 2 kg box resting on the floor: the floor pushes m g up, with no moment about its centre."""
+    import mujoco
+    import numpy as np
+
+    from mbctl.sim.contacts import contact_wrenches, contacts_elsewhere
+
+    m = mujoco.MjModel.from_xml_string(
+        '<mujoco><worldbody><geom name="floor" type="plane" size="1 1 0.1"/><body name="box" pos="0 0 0.05">'
+        '<freejoint/><geom name="b" type="box" size="0.05 0.05 0.05" mass="2"/></body><body name="ball" '
+        'pos="0.3 0 0.05"><freejoint/><geom name="s" type="sphere" size="0.05" mass="1"/></body></worldbody>'
+        "</mujoco>")
+    d = mujoco.MjData(m)
+    for _ in range(500):
+        mujoco.mj_step(m, d)
+    box = m.body("box").id
+    box_geom = m.geom("b").id
+    touching, wrench = contact_wrenches(m, d, [[box_geom]], d.xpos[[box]])
+    assert touching.tolist() == [True]
+    np.testing.assert_allclose(wrench[0, :3], [0, 0, 2 * 9.81], atol=1e-2)
+    np.testing.assert_allclose(wrench[0, 3:], 0.0, atol=1e-3)
+    assert contacts_elsewhere(m, d, [box, m.body("ball").id], [box_geom]) == 1  # the ball on the floor

@@ -1,0 +1,215 @@
+"""``mbctl excite ROBOT``: drive the plant through an exciting motion and record what identification needs.
+
+Fixed-base robots (torque motors; position actuators are turned into motors): a Fourier-series
+trajectory of every actuated joint, optimised for the condition number of the regressor within
+the joint, speed and torque limits (:func:`mbctl.planners.excitation.design_excitation`, on the
+controller's model: the nominal one, which is all a real excitation design knows), tracked by
+joint-space computed torque. The Menagerie G1: a whole-body excitation on its feet
+(:mod:`mbctl.jobs.excite_g1`).
+
+The plant may hide a truth (``--payload``, ``--plant-error``); the controller and the design never
+see it. Every cycle streams a row of the identification log (:mod:`mbctl.jobs.ident_log`).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from mbctl.control.computed_torque import ComputedTorque
+from mbctl.control.controller import JointReference
+from mbctl.control.exceptions import ControllerSetupError
+from mbctl.control.gains import gains_from_frequency
+from mbctl.jobs.ident_log import CSV_NAME, SECTION, header
+from mbctl.jobs.model_options import ModelOptions, Models, build_models, models_line
+from mbctl.jobs.plots import joint_colors, new_figure
+from mbctl.jobs.recording import q_columns, v_columns
+from mbctl.jobs.runner import Job, Outcome, RunContext, Work
+from mbctl.planners.excitation import ExcitationDesign, design_excitation
+from mbctl.robots.edits import position_to_motor
+from mbctl.robots.g1 import is_menagerie_g1
+from mbctl.robots.identification import model_fingerprint
+from mbctl.robots.identification.threads import single_threaded_blas
+from mbctl.robots.model_pair import Robot
+from mbctl.robots.registry import load_robot
+from mbctl.sim.contacts import contacts_elsewhere
+from mbctl.sim.simulator import Simulator
+
+#: Length [s] of an excitation unless asked otherwise.
+DEFAULT_DURATION_S = 30.0
+#: Computed-torque gains of the fixed-base excitation: natural frequency [rad/s], damping ratio.
+TRACKING_OMEGA_RAD_S = 30.0
+TRACKING_ZETA = 1.0
+
+
+@dataclass(frozen=True)
+class ExciteParams:
+    """What ``mbctl excite`` runs (field names are the CLI options).
+
+    Attributes:
+        robot: Known robot name or MJCF file.
+        duration: Simulated time [s] (None: 30 s).
+        seed: Seed of the excitation design's random start.
+        period: Period of the Fourier series' fundamental [s].
+        harmonics: Harmonics per joint.
+        gravity: Switch on the robot's gravity (the 2-link arm's, in its plane).
+        scene: Scene MJCF for MuJoCo that includes the robot.
+        model_dir: Explicit Menagerie folder (the G1).
+        plant: Hidden plant changes and the controller's model.
+    """
+
+    robot: str
+    duration: float | None = None
+    seed: int = 0
+    period: float = 5.0
+    harmonics: int = 5
+    gravity: bool = True
+    scene: str | None = None
+    model_dir: str | None = None
+    models: ModelOptions = ModelOptions()
+
+    def __post_init__(self) -> None:
+        if self.duration is not None and not (np.isfinite(self.duration) and self.duration > 0):
+            raise ControllerSetupError(f"duration must be a positive number of seconds; got {self.duration}")
+        if not (np.isfinite(self.period) and self.period > 0):
+            raise ControllerSetupError(f"period must be a positive number of seconds; got {self.period}")
+        if self.harmonics < 1:
+            raise ControllerSetupError(f"harmonics must be >= 1; got {self.harmonics}")
+        if self.seed < 0:
+            raise ControllerSetupError(f"seed must be >= 0; got {self.seed}")
+
+
+def log_section(params: ExciteParams, robot: Robot, joints: tuple[str, ...], bodies: tuple[str, ...],
+                period_s: float, excitation: dict[str, Any]) -> dict[str, Any]:
+    """The report's ``identification_log`` section (see :mod:`mbctl.jobs.ident_log`)."""
+    return {
+        "robot": params.robot, "scene": params.scene, "gravity": params.gravity,
+        "model_dir": params.model_dir, "gravity_m_s2": [float(g) for g in robot.mj_model.opt.gravity],
+        "model_fingerprint": model_fingerprint(robot), "joints": list(joints),
+        "q_columns": q_columns(robot), "v_columns": v_columns(robot), "contact_bodies": list(bodies),
+        "timestep_s": robot.timestep_s, "control_period_s": period_s, "csv": CSV_NAME,
+        "excitation": excitation,
+    }
+
+
+def prepare(params: ExciteParams, robot: Robot | None = None) -> Work:
+    """Load the robot, check it can be excited, design the excitation (no output yet).
+
+    Raises:
+        ControllerSetupError: A floating-base robot other than the Menagerie G1, or unactuated joints.
+        ToolkitError: Unknown robot, bad plant options, an infeasible design.
+    """
+    loaded = robot or load_robot(params.robot, params.scene, gravity=params.gravity,
+                                 model_dir=params.model_dir)
+    if is_menagerie_g1(loaded):
+        from mbctl.jobs.excite_g1 import prepare_g1
+
+        return prepare_g1(params, loaded)
+    if loaded.has_floating_base:
+        raise ControllerSetupError(
+            f"{loaded.name!r} has a floating base; excite runs fixed-base robots (computed torque on a "
+            "Fourier excitation) and the Menagerie G1 on its feet (whole-body control)")
+
+    def to_torque(r: Robot) -> Robot:
+        kinds = {a.kind for a in r.actuators.values()}
+        return position_to_motor(r) if kinds & {"position", "velocity"} else r
+
+    models = build_models(to_torque(loaded), params.models, to_torque)
+    nominal = models.controller
+    joints = tuple(dict.fromkeys(a.joint for a in nominal.actuators.values() if a.joint))
+    unactuated = [j for j, layout in nominal.joints.items() if j not in joints]
+    if unactuated or not joints:
+        raise ControllerSetupError(f"excite needs every joint actuated; {unactuated or 'all'} are not "
+                                   f"({nominal.name!r})")
+    q_start = nominal.keyframe_q(nominal.keyframes[0]) if nominal.keyframes else nominal.neutral_q()
+    design = design_excitation(nominal, joints, q_start, period_s=params.period, harmonics=params.harmonics,
+                               seed=params.seed)
+    duration = params.duration or DEFAULT_DURATION_S
+
+    def work(ctx: RunContext) -> Outcome:
+        with single_threaded_blas():  # small matrices: threads only cost (robots/identification/threads)
+            return _run_fixed(ctx, params, models, joints, q_start, design, duration)
+
+    return work
+
+
+def _run_fixed(ctx: RunContext, params: ExciteParams, models: Models, joints: tuple[str, ...],
+               q_start: np.ndarray, design: ExcitationDesign, duration: float) -> Outcome:
+    plant = models.plant
+    sim = ctx.attach(Simulator(plant))
+    sim.reset(q=q_start)
+    ct = ComputedTorque(plant, gains_from_frequency(TRACKING_OMEGA_RAD_S, TRACKING_ZETA), joints,
+                        pin_model=models.controller_model)
+    traj = design.trajectory
+    dt = sim.control_period_s
+    n = max(1, int(round(duration / dt)))
+    q_ref, v_ref, a_ref = traj.sample(np.arange(n) * dt)
+    dofs = np.array([plant.joint(j).dofadr for j in joints])
+    robot_bodies = plant.robot_body_ids
+    excitation = {"kind": "Fourier series, computed torque", "period_s": traj.period_s,
+                  "harmonics": traj.harmonics, "max_frequency_hz": traj.max_frequency_hz,
+                  "condition_number": design.condition_number,
+                  "initial_condition_number": design.initial_condition_number,
+                  "structural_rank": design.structural_rank, "limit_use_q_v_tau": design.limit_use.tolist(),
+                  "tracking": {"omega_rad_s": TRACKING_OMEGA_RAD_S, "zeta": TRACKING_ZETA}}
+    ctx.sections[SECTION] = log_section(params, models.controller, joints, (), dt, excitation)
+    ctx.sections["plant"] = models.section()
+    csv = ctx.open_csv(header(plant, joints, ()), CSV_NAME)
+    ctx.progress.start(n, f"excite {params.robot}")
+    tau_log = np.empty((n, len(joints)))
+    q_log = np.empty((n, len(joints)))
+    others = 0
+    idx_q = [plant.joint(j).idx_q for j in joints]
+    for k in range(n):
+        state = sim.read_state()
+        command = ct.compute(state, JointReference(q_ref[k], v_ref[k], a_ref[k]))
+        sim.step(command)
+        tau = sim.data.qfrc_actuator[dofs]
+        elsewhere = contacts_elsewhere(sim.model, sim.data, robot_bodies, ())
+        others += elsewhere > 0
+        csv.write([state.time_s, *state.q, *state.v, *tau, elsewhere])
+        tau_log[k] = tau
+        q_log[k] = state.q[idx_q]
+        ctx.progress.advance()
+    ctx.values.update({"duration_s": n * dt, "rows": n, "condition_number": design.condition_number,
+                       "joint_rms_error_rad": float(np.sqrt(np.mean((q_ref - q_log) ** 2))),
+                       "max_torque_N_m": dict(zip(joints, np.abs(tau_log).max(0).tolist(), strict=True)),
+                       "samples_with_other_contacts": int(others)})
+    _plot(ctx, np.arange(n) * dt, joints, q_ref, q_log, tau_log, design)
+    lines = [f"excite {params.robot}: {n * dt:g} s of a {traj.harmonics}-harmonic Fourier excitation "
+             f"(period {traj.period_s:g} s), regressor condition number {design.condition_number:.3g} "
+             f"(random start {design.initial_condition_number:.3g}); tracking RMS "
+             f"{ctx.values['joint_rms_error_rad']:.2e} rad",
+             f"log: {n} rows in {CSV_NAME}; identify it with: mbctl identify {ctx.output_dir}"]
+    if params.models.hidden or params.models.controller_model:
+        lines.insert(1, models_line(models.section()))
+    return Outcome(True, tuple(lines))
+
+
+def _plot(ctx: RunContext, t: np.ndarray, joints: tuple[str, ...], q_ref: np.ndarray, q: np.ndarray,
+          tau: np.ndarray, design: ExcitationDesign) -> None:
+    """Joint angles (reference dashed, plant solid) and the applied torques, same colours."""
+    shown = list(range(min(len(joints), 8)))
+    colors = joint_colors([joints[i] for i in shown])
+    fig, axes = new_figure(2, 1, (12.0, 7.0), layout="constrained")
+    ax_q, ax_tau = axes[0][0], axes[1][0]
+    for i in shown:
+        c = colors[joints[i]]
+        ax_q.plot(t, q_ref[:, i], "--", color=c, lw=1.0)
+        ax_q.plot(t, q[:, i], color=c, lw=1.2, label=joints[i])
+        ax_tau.plot(t, tau[:, i], color=c, lw=1.0)
+    ax_q.set_ylabel("joint angle (rad)")
+    ax_q.set_title(f"excitation (dashed: reference; solid: plant), condition number "
+                   f"{design.condition_number:.3g}", fontsize=10)
+    ax_q.legend(fontsize=8, loc="upper right")
+    ax_tau.set_ylabel("applied torque (N m)")
+    ax_tau.set_xlabel("time (s)")
+    for ax in (ax_q, ax_tau):
+        ax.grid(True, alpha=0.3)
+    ctx.save_figure(fig, "excite.png")
+
+
+#: The ``mbctl excite`` job.
+EXCITE = Job("excite", prepare)

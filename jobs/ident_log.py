@@ -1,0 +1,114 @@
+"""The identification log: what ``mbctl excite`` records and ``mbctl identify`` reads, in one place.
+
+A run folder holds ``excite.csv`` (one row per control cycle, streamed) and ``report.json``,
+whose ``identification_log`` section says how to read it. Columns, Pinocchio's convention:
+
+* ``time_s``; the full q (:func:`~mbctl.jobs.recording.q_columns`) and v (``v_columns``),
+* ``tau_<joint>_N_m``: the torque the actuators applied to each actuated joint over the cycle
+  that starts at the row's state (MuJoCo's ``qfrc_actuator`` after the step: clamped, geared),
+* per contact body B (the feet of a robot that stands): ``contact_<B>`` (1 while touching) and
+  its contact wrench ``w_<B>_fx_N`` ... ``w_<B>_mz_N_m`` (force, and moment about B's origin,
+  world axes: what a foot force sensor would give; ``identify`` uses it only when asked),
+* ``other_contacts``: contacts on the robot elsewhere (samples identification must not use).
+
+The section: the robot (name or file, scene, gravity, Menagerie folder), the dynamics
+fingerprint of the nominal model, the joints of the torque columns, the contact bodies, the
+timestep and control period, and the excitation.
+"""
+
+from __future__ import annotations
+
+import json
+import warnings
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from mbctl.jobs.recording import q_columns, v_columns
+from mbctl.robots.identification import BadLogError, RecordedLog
+from mbctl.robots.model_pair import Robot
+
+SECTION = "identification_log"
+CSV_NAME = "excite.csv"
+WRENCH = ("fx_N", "fy_N", "fz_N", "mx_N_m", "my_N_m", "mz_N_m")
+
+
+def tau_columns(joints: tuple[str, ...]) -> list[str]:
+    """``tau_<joint>_N_m`` per joint."""
+    return [f"tau_{j}_N_m" for j in joints]
+
+
+def contact_columns(bodies: tuple[str, ...]) -> list[str]:
+    """``contact_<B>`` and the six wrench columns per contact body."""
+    out: list[str] = []
+    for b in bodies:
+        out += [f"contact_{b}", *(f"w_{b}_{w}" for w in WRENCH)]
+    return out
+
+
+def header(robot: Robot, joints: tuple[str, ...], bodies: tuple[str, ...]) -> list[str]:
+    """The CSV's columns (see the module docstring)."""
+    return ["time_s", *q_columns(robot), *v_columns(robot), *tau_columns(joints), *contact_columns(bodies),
+            "other_contacts"]
+
+
+def read_run(run_dir: Path) -> tuple[RecordedLog, dict[str, Any]]:
+    """The log of an ``mbctl excite`` run folder and its ``identification_log`` section.
+
+    Raises:
+        BadLogError: No such folder, no report or CSV, a report without the section (not an
+            excite run), missing columns, or rows that do not parse.
+    """
+    run_dir = Path(run_dir)
+    report_path, csv_path = run_dir / "report.json", run_dir / CSV_NAME
+    if not run_dir.is_dir():
+        raise BadLogError(f"{run_dir} is not a folder; give the run folder of an `mbctl excite` run")
+    if not report_path.is_file():
+        raise BadLogError(f"{run_dir} has no report.json: not a run folder (record one with mbctl excite)")
+    try:
+        report = json.loads(report_path.read_text())
+    except (OSError, ValueError) as exc:
+        raise BadLogError(f"{report_path} cannot be read: {exc}") from None
+    section = report.get(SECTION) if isinstance(report, dict) else None
+    if not isinstance(section, dict):
+        raise BadLogError(f"{run_dir} was recorded by `mbctl {report.get('job', '?')}`, not `mbctl excite`: "
+                          f"its report has no {SECTION!r} section; record an excitation with mbctl excite")
+    if not csv_path.is_file():
+        raise BadLogError(f"{run_dir} has no {CSV_NAME}; the run wrote no rows")
+    with csv_path.open() as f:
+        names = f.readline().strip().split(",")
+    joints = tuple(section["joints"])
+    bodies = tuple(section.get("contact_bodies", ()))
+    needed = ["time_s", *section["q_columns"], *section["v_columns"], *tau_columns(joints)]
+    if bodies:
+        needed += [f"contact_{b}" for b in bodies]
+    missing = [c for c in needed if c not in names]
+    if missing:
+        raise BadLogError(f"{csv_path} lacks the columns {missing[:6]}" + (" ..." if len(missing) > 6 else "")
+                          + f" ({len(missing)} missing); identification needs q, v and the applied torques")
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", UserWarning)  # "input contained no data": reported below
+            data = np.loadtxt(csv_path, delimiter=",", skiprows=1, ndmin=2)
+    except ValueError as exc:
+        raise BadLogError(f"{csv_path} has a row that is not numbers: {exc}") from None
+    if data.size == 0:
+        raise BadLogError(f"{csv_path} has no rows: the log is too short (record a longer excitation)")
+    if data.shape[1] != len(names):
+        raise BadLogError(f"{csv_path} has {data.shape[1]} values per row and {len(names)} column names")
+    col = {n: i for i, n in enumerate(names)}
+
+    def cols(keys: list[str]) -> np.ndarray:
+        return data[:, [col[k] for k in keys]]
+
+    contacts = wrenches = None
+    if bodies:
+        contacts = cols([f"contact_{b}" for b in bodies]) > 0.5
+        wrench_cols = [f"w_{b}_{w}" for b in bodies for w in WRENCH]
+        if all(c in col for c in wrench_cols):
+            wrenches = cols(wrench_cols).reshape(len(data), len(bodies), 6)
+    others = data[:, col["other_contacts"]].astype(int) if "other_contacts" in col else None
+    log = RecordedLog(data[:, col["time_s"]], cols(section["q_columns"]), cols(section["v_columns"]),
+                      cols(tau_columns(joints)), joints, bodies, contacts, wrenches, others)
+    return log, section
