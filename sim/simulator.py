@@ -226,6 +226,23 @@ class Simulator:
         for observer in self._observers:
             observer(self)
 
+    def hold(self, n: int = 1) -> None:
+        """Let ``n`` physics steps of time pass with the robot held still: nothing is integrated.
+
+        A plant waiting for its first command (a robot in its harness, the DDS bridge before the
+        first LowCmd) keeps its state while its clock runs; derived quantities are those of that
+        state. Observers are called as after a step; ``n_steps`` counts physics steps only.
+
+        Raises:
+            SimError: ``n`` < 1.
+        """
+        if n < 1:
+            raise SimError(f"n must be a positive number of steps; got {n}")
+        self.forward()
+        self.data.time += n * self.model.opt.timestep
+        for observer in self._observers:
+            observer(self)
+
     def _perturbed_steps(self, n: int) -> None:
         for _ in range(n):
             for perturbation in self._perturbations:

@@ -271,3 +271,19 @@ def test_observers_run_after_each_step_and_can_be_removed():
     sim.remove_observer(obs)
     sim.step()
     assert len(seen) == 2
+
+
+def test_hold_lets_time_pass_with_the_state_still(two_link_torque_gravity):
+    sim = Simulator(two_link_torque_gravity)
+    sim.set_state([0.3, -0.2], [0.0, 0.0])
+    seen = []
+    sim.add_observer(lambda s: seen.append(s.time_s))
+    q0 = sim.q
+    sim.hold()
+    sim.hold(3)
+    assert np.array_equal(sim.q, q0) and sim.n_steps == 0
+    assert seen == pytest.approx([0.002, 0.008])
+    sim.step()
+    assert not np.array_equal(sim.q, q0)  # gravity: uncommanded, it moves once stepped
+    with pytest.raises(SimError, match="positive number of steps; got 0"):
+        sim.hold(0)
