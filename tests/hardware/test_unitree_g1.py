@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import gc
 import time
 
 import numpy as np
@@ -194,6 +195,21 @@ def test_dry_run_never_commands(g1, fake_g1, dds_domain):
         assert robot.stats()["cycles"] >= 5
     time.sleep(0.05)
     assert fake.commands == []
+
+
+def test_the_loop_freezes_the_collector_until_close(g1, fake_g1, dds_domain):
+    """Objects made before the loop leave the collector's generations for the loop (gc.freeze), not after."""
+    fake_g1()
+    before = gc.get_freeze_count()
+    with UnitreeG1(g1, StillBase(), DdsOptions(domain=dds_domain, watchdog_periods=50)) as robot:
+        assert gc.get_freeze_count() == before  # connected, the loop not started
+        run(robot, ConstantTorque(g1), HOLD, 0.01)
+        assert gc.get_freeze_count() > before
+    assert gc.get_freeze_count() == before
+    options = DdsOptions(domain=dds_domain, watchdog_periods=50, freeze_gc=False)
+    with UnitreeG1(g1, StillBase(), options) as robot:
+        run(robot, ConstantTorque(g1), HOLD, 0.01)
+        assert gc.get_freeze_count() == before
 
 
 def test_estimator_protocol_is_what_the_interface_needs():
