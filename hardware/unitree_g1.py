@@ -126,9 +126,10 @@ class UnitreeG1:
         self.bad_crc = self.bad_format = self.stale = self.watchdog_events = 0
         self._valid = 0
         self._ticks: list[int] = []  # first and last valid tick, smallest step
-        #: The LowState tick of the state each ``read_state`` returned (aligns a run with the
-        #: bridge's truth log).
+        #: The LowState tick of the state each cycle used, the last ``read_state`` before its
+        #: ``sync`` (aligns a run's cycles with the bridge's truth log, one entry per cycle).
         self.state_ticks: list[int] = []
+        self._read_this_cycle = False
         self._commanded = False
         self._froze_gc = False
         self._fresh = False
@@ -255,7 +256,11 @@ class UnitreeG1:
             self._fresh = False
         else:
             self.stale += 1
-        self.state_ticks.append(self._ticks[1])
+        if self._read_this_cycle:  # read again before the cycle's sync: this is the state it uses
+            self.state_ticks[-1] = self._ticks[1]
+        else:
+            self.state_ticks.append(self._ticks[1])
+            self._read_this_cycle = True
         return self._state
 
     # ------------------------------------------------------------------ commanding
@@ -305,6 +310,7 @@ class UnitreeG1:
                 self._lost(limit_s)
             self._drain()
         clock.mark(overran)
+        self._read_this_cycle = False
 
     def _start_loop(self) -> None:
         """Cycle 0 starts now: the clock, and (``freeze_gc``) the collector leaves the objects made so far."""
