@@ -36,8 +36,9 @@ from collections.abc import Callable, Mapping
 
 import numpy as np
 
-from mbctl.robots.crosscheck.evaluator import CHUNK_SIZE, Evaluator, match_frames
+from mbctl.robots.crosscheck.evaluator import CHUNK_SIZE, Evaluator
 from mbctl.robots.crosscheck.exceptions import CrossCheckError
+from mbctl.robots.crosscheck.frames import match_frames
 from mbctl.robots.crosscheck.locate import describe_entry, dof_labels
 from mbctl.robots.crosscheck.plant import comparison_model
 from mbctl.robots.crosscheck.report import (
