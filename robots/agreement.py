@@ -3,18 +3,18 @@
 Sizes, joint names and order, the robot's total mass, armature, and forward kinematics of every
 body and site at the neutral pose and at random configurations (Pinocchio's frames against
 MuJoCo's own ``mj_kinematics``). The full dynamics comparison is the cross-check
-(``robots/crosscheck``); this one runs on every load and costs a few milliseconds.
+(``robots/crosscheck``); this one runs on every load.
 """
 
 from __future__ import annotations
 
 from typing import TYPE_CHECKING
 
-import mujoco
 import numpy as np
 import pinocchio as pin
 
 from mbctl.robots.exceptions import ModelMismatchError
+from mbctl.robots.plant_kinematics import PlantKinematics
 
 if TYPE_CHECKING:
     from mbctl.robots.model_pair import Robot
@@ -72,8 +72,8 @@ FK_ATOL = 1e-9
 
 def _kinematics_problems(robot: Robot, n_random: int = 2, seed: int = 0) -> list[str]:
     """FK of every body and site, both engines, at the neutral pose and random configurations."""
-    pm, m = robot.pin_model, robot.mj_model
-    data, d = pm.createData(), mujoco.MjData(m)
+    pm = robot.pin_model
+    data, kinematics = pm.createData(), PlantKinematics(robot=robot)
     lower = np.where(np.isfinite(pm.lowerPositionLimit), pm.lowerPositionLimit, -1.0).clip(-1e3, 1e3)
     upper = np.where(np.isfinite(pm.upperPositionLimit), pm.upperPositionLimit, 1.0).clip(-1e3, 1e3)
     np.random.seed(seed)  # pin.randomConfiguration draws from numpy's global generator
@@ -90,8 +90,7 @@ def _kinematics_problems(robot: Robot, n_random: int = 2, seed: int = 0) -> list
     worst: tuple[float, str] = (0.0, "")
     for q in configurations:
         pin.framesForwardKinematics(pm, data, q)
-        robot.plant_qpos(q, d.qpos)
-        mujoco.mj_kinematics(m, d)
+        d = kinematics.at(q)
         for kind, name, i, fid in frames:
             pos, rot = (d.xpos[i], d.xmat[i]) if kind == "body" else (d.site_xpos[i], d.site_xmat[i])
             oMf = data.oMf[fid]
