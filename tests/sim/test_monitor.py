@@ -18,10 +18,11 @@ from mbctl.sim.simulator import Simulator
 
 
 def _leg(name: str, x: float, y: float) -> str:
-    return (f'<body name="leg_{name}" pos="{x} {y} -0.02"><joint name="hip_{name}" axis="0 1 0" stiffness="40" '
-            f'damping="2"/><geom type="capsule" fromto="0 0 0 0 0 -0.2" size="0.01" mass="0.2" contype="0" '
-            f'conaffinity="0"/><body name="foot_{name}" pos="0 0 -0.2"><geom name="sole_{name}" type="sphere" '
-            f'size="0.02" mass="0.1"/></body></body>')
+    return (f'<body name="leg_{name}" pos="{x} {y} -0.02">'
+            f'<joint name="hip_{name}" axis="0 1 0" stiffness="40" damping="2"/>'
+            f'<geom type="capsule" fromto="0 0 0 0 0 -0.2" size="0.01" mass="0.2" contype="0" conaffinity="0"/>'
+            f'<body name="foot_{name}" pos="0 0 -0.2"><geom name="sole_{name}" type="sphere" size="0.02" '
+            f'mass="0.1"/></body></body>')
 
 
 # A stool: a seat on three legs whose hips are springs with motors, and a ball beside it (scene).
@@ -96,7 +97,8 @@ def test_the_monitor_refuses_joints_it_cannot_sample_and_unknown_bodies(stool):
         PlantMonitor(sim, joints=("knee",))
     idle = PlantMonitor(sim).attach()  # nothing asked: nothing sampled but the CoM and the floor
     sim.step(torque([0.0, 0.0, 0.0]))
-    assert idle.joint_torques.shape == (0,) and idle.wrenches_W.shape == (0, 6) and idle.contacts_elsewhere == 0
+    assert idle.joint_torques.shape == (0,) and idle.wrenches_W.shape == (0, 6)
+    assert idle.contacts_elsewhere == 0
 
 
 def test_plant_kinematics_places_the_robot_like_the_simulator(stool):
