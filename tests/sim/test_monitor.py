@@ -20,7 +20,8 @@ from mbctl.sim.simulator import Simulator
 def _leg(name: str, x: float, y: float) -> str:
     return (f'<body name="leg_{name}" pos="{x} {y} -0.02">'
             f'<joint name="hip_{name}" axis="0 1 0" stiffness="40" damping="2"/>'
-            f'<geom type="capsule" fromto="0 0 0 0 0 -0.2" size="0.01" mass="0.2" contype="0" conaffinity="0"/>'
+            f'<geom type="capsule" fromto="0 0 0 0 0 -0.2" size="0.01" mass="0.2" contype="0" '
+            f'conaffinity="0"/>'
             f'<body name="foot_{name}" pos="0 0 -0.2"><geom name="sole_{name}" type="sphere" size="0.02" '
             f'mass="0.1"/></body></body>')
 
