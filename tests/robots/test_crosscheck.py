@@ -10,7 +10,6 @@ import json
 import os
 import subprocess
 import sys
-from pathlib import Path
 
 import numpy as np
 import pytest
@@ -21,20 +20,6 @@ from mbctl.robots.crosscheck.sampling import sample_states
 from mbctl.robots.registry import ASSETS
 
 ALL_QUANTITIES = ("structure", *TOLERANCES)
-
-
-TEST_ASSETS = Path(__file__).resolve().parent / "assets"
-
-
-def _asset(name: str) -> str:
-    """A test model's text (tests/robots/assets/, each commented on what it exercises)."""
-    return (TEST_ASSETS / name).read_text()
-
-
-def _write(tmp_path: Path, name: str, text: str) -> Path:
-    path = tmp_path / name
-    path.write_text(text)
-    return path
 
 
 # ---------------------------------------------------------------- report and errors
@@ -97,10 +82,10 @@ def test_progress_counts_states_up_to_the_total(two_link_torque):
     assert {total for _, total in calls} == {report.n_states} == {39}
 
 
-def test_progress_is_not_called_without_states_to_evaluate(tmp_path):
-    chain = _write(tmp_path, "chain.xml", _asset("chain.xml"))
-    lhs, rhs = _asset("chain.xml").split('        <joint name="j2" axis="0 0 1"/>\n')
-    robot = load_robot(chain, pin_model_file=_write(tmp_path, "two.xml", lhs + rhs), check=False)
+def test_progress_is_not_called_without_states_to_evaluate(write_model, asset):
+    chain = asset("chain.xml")
+    lhs, rhs = asset("chain.xml").read_text().split('        <joint name="j2" axis="0 0 1"/>\n')
+    robot = load_robot(chain, pin_model_file=write_model("two.xml", lhs + rhs), check=False)
     calls: list[tuple[int, int]] = []
     crosscheck(robot, n_states=5, progress=lambda done, total: calls.append((done, total)))
     assert calls == []
@@ -110,7 +95,6 @@ def test_chunking_does_not_change_results(g1):
     a = crosscheck(g1, n_states=20, seed=5, chunk_size=3)
     b = crosscheck(g1, n_states=20, seed=5, chunk_size=64)
     assert [q.max_abs_error for q in a.quantities] == [q.max_abs_error for q in b.quantities]
-
 
 
 # ---------------------------------------------------------------- CLI
@@ -136,14 +120,13 @@ def test_cli_xcheck_passes_and_writes_json(tmp_path):
     assert data["n_states"] == 22 and data["seed"] == 3 and data["passed"] is True
 
 
-def test_cli_xcheck_exits_1_on_a_different_pin_model(tmp_path):
+def test_cli_xcheck_exits_1_on_a_different_pin_model(write_model):
     text = (ASSETS / "two_link_arm.xml").read_text().replace(' armature="0.002"', "")
-    arm = _write(tmp_path, "arm.xml", text)
+    arm = write_model("arm.xml", text)
     out = _mbctl("xcheck", "two_link_torque", "--states", "10", "--pin-model", str(arm))
     assert out.returncode == 1, out.stderr
     assert "load-time agreement check found differences" in out.stdout
     assert out.stdout.splitlines()[-1] == "result: FAIL"
-
 
 
 # ---------------------------------------------------------------- the batched evaluation
@@ -162,11 +145,11 @@ def _evaluator(robot, n_states=20, seed=0, chunk=8):
 
 
 @pytest.mark.parametrize("name", ["g1", "leg"])
-def test_batched_frame_jacobians_equal_get_frame_jacobian(name, request, tmp_path):
+def test_batched_frame_jacobians_equal_get_frame_jacobian(name, request, asset):
     import pinocchio as pin
 
     robot = (request.getfixturevalue("g1") if name == "g1"
-             else load_robot(_write(tmp_path, "leg.xml", _asset("ball_free_leg.xml")), check=False))
+             else load_robot(asset("ball_free_leg.xml"), check=False))
     evaluator, states = _evaluator(robot)
     P, _ = evaluator.aligned(evaluator.chunk, full=True)
     pm, pd = robot.pin_model, robot.pin_model.createData()

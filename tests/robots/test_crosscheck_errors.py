@@ -2,8 +2,6 @@
 
 from __future__ import annotations
 
-from pathlib import Path
-
 import pytest
 
 from mbctl.robots import load_robot
@@ -11,22 +9,11 @@ from mbctl.robots.crosscheck import TOLERANCES, crosscheck
 from mbctl.robots.crosscheck.locate import ROLES
 from mbctl.robots.registry import ASSETS
 
-TEST_ASSETS = Path(__file__).resolve().parent / "assets"
 
-
-def _write(tmp_path: Path, name: str, text: str) -> Path:
-    path = tmp_path / name
-    path.write_text(text)
-    return path
-
-
-# ---------------------------------------------------------------- the check catches real errors
-
-
-def _mutated_arm(tmp_path: Path, old: str, new: str):
+def _mutated_arm(write_model, old: str, new: str):
     text = (ASSETS / "two_link_arm.xml").read_text()
     assert text.count(old) == 1
-    path = _write(tmp_path, "arm.xml", text.replace(old, new))
+    path = write_model("arm.xml", text.replace(old, new))
     robot = load_robot("two_link_torque", gravity=True, pin_model_file=path, check=False)
     return crosscheck(robot, n_states=30, seed=0)
 
@@ -34,16 +21,16 @@ def _mutated_arm(tmp_path: Path, old: str, new: str):
 DYNAMICS = ("mass_matrix", "gravity", "bias", "forward_dynamics", "inverse_dynamics")
 
 
-def test_one_percent_mass_change_fails_mass_matrix_and_gravity(tmp_path):
-    report = _mutated_arm(tmp_path, 'pos="0.15 0 0" mass="0.7"', 'pos="0.15 0 0" mass="0.707"')
+def test_one_percent_mass_change_fails_mass_matrix_and_gravity(write_model):
+    report = _mutated_arm(write_model, 'pos="0.15 0 0" mass="0.7"', 'pos="0.15 0 0" mass="0.707"')
     assert set(DYNAMICS) <= set(report.failed)
     assert {"fk_position", "fk_rotation", "jacobian_linear", "jacobian_angular"}.isdisjoint(report.failed)
     assert report.quantity("gravity").max_rel_error > 1e-3
     assert any("robot mass differs: Pinocchio 1.757 kg, MuJoCo 1.75 kg" in n for n in report.notes)
 
 
-def test_flipped_axis_fails_kinematics(tmp_path):
-    report = _mutated_arm(tmp_path, '<joint name="elbow"/>', '<joint name="elbow" axis="0 0 -1"/>')
+def test_flipped_axis_fails_kinematics(write_model):
+    report = _mutated_arm(write_model, '<joint name="elbow"/>', '<joint name="elbow" axis="0 0 -1"/>')
     for name in ("fk_position", "fk_rotation", "jacobian_linear", "jacobian_angular"):
         assert report.quantity(name).status == "fail"
         assert report.quantity(name).max_rel_error > 1e-2
@@ -51,8 +38,8 @@ def test_flipped_axis_fails_kinematics(tmp_path):
     assert any("agreement check" in n and "forward kinematics differ" in n for n in report.notes)
 
 
-def test_missing_armature_fails_mass_matrix_only_where_armature_enters(tmp_path):
-    report = _mutated_arm(tmp_path, ' armature="0.002"', "")
+def test_missing_armature_fails_mass_matrix_only_where_armature_enters(write_model):
+    report = _mutated_arm(write_model, ' armature="0.002"', "")
     assert report.failed == ("mass_matrix", "forward_dynamics", "inverse_dynamics", "kinetic_energy")
     mass_matrix = report.quantity("mass_matrix")
     assert mass_matrix.max_abs_error == pytest.approx(0.002, rel=1e-9)
@@ -63,8 +50,8 @@ def test_missing_armature_fails_mass_matrix_only_where_armature_enters(tmp_path)
     )
 
 
-def test_failing_rows_say_why_in_the_text_report(tmp_path):
-    report = _mutated_arm(tmp_path, '<joint name="elbow"/>', '<joint name="elbow" axis="0 0 -1"/>')
+def test_failing_rows_say_why_in_the_text_report(write_model):
+    report = _mutated_arm(write_model, '<joint name="elbow"/>', '<joint name="elbow" axis="0 0 -1"/>')
     lines = report.to_text().splitlines()
     for name in report.failed:
         q = report.quantity(name)
@@ -95,8 +82,8 @@ def test_every_quantity_has_named_axes():
     assert list(ROLES) == list(TOLERANCES)
 
 
-def test_shifted_inertial_frame_fails_com_and_mass_matrix(tmp_path):
-    report = _mutated_arm(tmp_path, 'pos="0.15 0 0" mass="0.7"', 'pos="0.16 0 0" mass="0.7"')
+def test_shifted_inertial_frame_fails_com_and_mass_matrix(write_model):
+    report = _mutated_arm(write_model, 'pos="0.15 0 0" mass="0.7"', 'pos="0.16 0 0" mass="0.7"')
     assert {"com", "com_jacobian", "mass_matrix"} <= set(report.failed)
     assert {"fk_position", "jacobian_linear"}.isdisjoint(report.failed)
     # Same total mass: invisible to the load-time check, but located among the model differences.
@@ -106,8 +93,8 @@ def test_shifted_inertial_frame_fails_com_and_mass_matrix(tmp_path):
     )
 
 
-def test_urdf_pin_model_differs_only_by_armature(tmp_path):
-    path = _write(tmp_path, "arm.urdf", (TEST_ASSETS / "two_link_arm.urdf").read_text())
+def test_urdf_pin_model_differs_only_by_armature(write_model, asset):
+    path = write_model("arm.urdf", asset("two_link_arm.urdf").read_text())
     robot = load_robot("two_link_torque", gravity=True, pin_model_file=path, check=False)
     report = crosscheck(robot, n_states=30, seed=0)
     assert report.failed == ("mass_matrix", "forward_dynamics", "inverse_dynamics", "kinetic_energy")

@@ -6,7 +6,6 @@ Test models are in tests/robots/assets/.
 from __future__ import annotations
 
 import json
-from pathlib import Path
 
 import mujoco
 import numpy as np
@@ -18,19 +17,6 @@ from mbctl.robots.crosscheck.report import ACCOUNTED, EXCLUDED, NOT_COMPARED
 from mbctl.robots.crosscheck.sampling import sample_states
 
 ALL_QUANTITIES = ("structure", *TOLERANCES)
-
-TEST_ASSETS = Path(__file__).resolve().parent / "assets"
-
-
-def _asset(name: str) -> str:
-    """A test model's text (tests/robots/assets/, each commented on what it exercises)."""
-    return (TEST_ASSETS / name).read_text()
-
-
-def _write(tmp_path: Path, name: str, text: str) -> Path:
-    path = tmp_path / name
-    path.write_text(text)
-    return path
 
 
 def _assert_clean_pass(report, bound: float = 1e-12) -> None:
@@ -97,12 +83,11 @@ def test_g1_edge_states_sit_on_the_limits(g1):
     assert np.all((rand >= m.jnt_range[jids, 0]) & (rand <= m.jnt_range[jids, 1]))
 
 
-
 # ---------------------------------------------------------------- robots users bring
 
 
-def test_free_and_ball_joints_agree(tmp_path):
-    robot = load_robot(_write(tmp_path, "leg.xml", _asset("ball_free_leg.xml")), check=False)
+def test_free_and_ball_joints_agree(asset):
+    robot = load_robot(asset("ball_free_leg.xml"), check=False)
     assert [j.kind for j in robot.joints.values()] == ["free", "ball", "hinge", "slide", "ball", "hinge"]
     report = crosscheck(robot, n_states=200, seed=3)
     assert report.passed and report.failed == ()
@@ -121,8 +106,8 @@ def test_free_and_ball_joints_agree(tmp_path):
     assert parsed.passed and parsed.notes == ()
 
 
-def test_one_hinge_robot_agrees(tmp_path):
-    robot = load_robot(_write(tmp_path, "one_hinge.xml", _asset("one_hinge.xml")), check=False)
+def test_one_hinge_robot_agrees(asset):
+    robot = load_robot(asset("one_hinge.xml"), check=False)
     assert robot.nv == 1
     for chunk_size in (1, 16):
         report = crosscheck(robot, n_states=40, seed=0, chunk_size=chunk_size)
@@ -131,9 +116,10 @@ def test_one_hinge_robot_agrees(tmp_path):
     assert report.quantity("gravity").max_abs_error > 0.0  # compared, not vanishing
 
 
-def test_one_hinge_failure_names_the_joint(tmp_path):
-    robot_file = _write(tmp_path, "one_hinge.xml", _asset("one_hinge.xml"))
-    heavier = _write(tmp_path, "heavier.xml", _asset("one_hinge.xml").replace('mass="1"', 'mass="1.01"'))
+def test_one_hinge_failure_names_the_joint(write_model, asset):
+    robot_file = asset("one_hinge.xml")
+    heavier_xml = asset("one_hinge.xml").read_text().replace('mass="1"', 'mass="1.01"')
+    heavier = write_model("heavier.xml", heavier_xml)
     robot = load_robot(robot_file, pin_model_file=heavier, check=False)
     report = crosscheck(robot, n_states=10, seed=0)
     assert "gravity" in report.failed
@@ -141,8 +127,8 @@ def test_one_hinge_failure_names_the_joint(tmp_path):
     assert report.quantity("mass_matrix").worst_entry == "row v[0] (hinge), column v[0] (hinge)"
 
 
-def test_tendon_equality_gravcomp_are_not_compared(tmp_path):
-    robot = load_robot(_write(tmp_path, "coupled.xml", _asset("coupled.xml")), check=False)
+def test_tendon_equality_gravcomp_are_not_compared(asset):
+    robot = load_robot(asset("coupled.xml"), check=False)
     report = crosscheck(robot, n_states=50, seed=0)
     handled = {f.feature: f.handling for f in report.features}
     assert handled == {
@@ -158,8 +144,8 @@ def test_tendon_equality_gravcomp_are_not_compared(tmp_path):
     assert report.to_dict()["complete"] is False
 
 
-def test_kinetic_energy_counts_armature_on_both_sides(tmp_path):
-    robot = load_robot(_write(tmp_path, "armature.xml", _asset("armature.xml")))
+def test_kinetic_energy_counts_armature_on_both_sides(asset):
+    robot = load_robot(asset("armature.xml"))
     assert robot.pin_model.joints[2].shortname() == "JointModelRevoluteUnaligned"
     report = crosscheck(robot, n_states=50, seed=3)
     _assert_clean_pass(report)
@@ -174,21 +160,22 @@ def test_kinetic_energy_counts_armature_on_both_sides(tmp_path):
     assert report.to_dict()["quantities"][list(ALL_QUANTITIES).index("kinetic_energy")]["note"] == how
 
 
-def test_kinetic_energy_without_armature_in_pinocchio_fails(tmp_path):
-    robot_file = _write(tmp_path, "armature.xml", _asset("armature.xml"))
-    bare = _write(tmp_path, "bare.xml", _asset("armature.xml").replace(' armature="0.05"', ""))
+def test_kinetic_energy_without_armature_in_pinocchio_fails(write_model, asset):
+    robot_file = asset("armature.xml")
+    bare = write_model("bare.xml", asset("armature.xml").read_text().replace(' armature="0.05"', ""))
     report = crosscheck(load_robot(robot_file, pin_model_file=bare, check=False), n_states=20, seed=0)
     assert "kinetic_energy" in report.failed and "mass_matrix" in report.failed
 
 
-def test_unaligned_hinge_armature_passes_on_the_leg(tmp_path):
-    xml = _asset("ball_free_leg.xml").replace('axis="0 1 0.2" range', 'axis="0 1 0.2" armature="0.02" range')
-    report = crosscheck(load_robot(_write(tmp_path, "leg_arm.xml", xml), check=False), n_states=50, seed=3)
+def test_unaligned_hinge_armature_passes_on_the_leg(write_model, asset):
+    xml = asset("ball_free_leg.xml").read_text()
+    xml = xml.replace('axis="0 1 0.2" range', 'axis="0 1 0.2" armature="0.02" range')
+    report = crosscheck(load_robot(write_model("leg_arm.xml", xml), check=False), n_states=50, seed=3)
     assert report.passed and report.failed == (), report.to_text()
 
 
-def test_robot_after_another_top_level_body_fails_structure(tmp_path):
-    first, rest = _asset("ball_free_leg.xml").split('    <body name="pedestal"')
+def test_robot_after_another_top_level_body_fails_structure(write_model, asset):
+    first, rest = asset("ball_free_leg.xml").read_text().split('    <body name="pedestal"')
     pedestal, tail = rest.split("    </body>\n  </worldbody>")
     xml = (
         first.replace(
@@ -198,7 +185,7 @@ def test_robot_after_another_top_level_body_fails_structure(tmp_path):
         + "  </worldbody>"
         + tail
     )
-    path = _write(tmp_path, "pedestal_first.xml", xml)
+    path = write_model("pedestal_first.xml", xml)
     # the default analytic model is built from the compiled plant: every tree, in order
     assert crosscheck(load_robot(path, check=False), n_states=10, seed=0).passed
     # Pinocchio's parser builds only the first tree: the report says so
@@ -215,10 +202,10 @@ def test_robot_after_another_top_level_body_fails_structure(tmp_path):
     json.dumps(report.to_dict(), allow_nan=False)  # NaN errors become null
 
 
-def test_structure_mismatch_names_the_joints_that_differ(tmp_path):
-    chain = _write(tmp_path, "chain.xml", _asset("chain.xml"))
-    lhs, rhs = _asset("chain.xml").split('        <joint name="j2" axis="0 0 1"/>\n')
-    two = _write(tmp_path, "two.xml", lhs + rhs)
+def test_structure_mismatch_names_the_joints_that_differ(write_model, asset):
+    chain = asset("chain.xml")
+    lhs, rhs = asset("chain.xml").read_text().split('        <joint name="j2" axis="0 0 1"/>\n')
+    two = write_model("two.xml", lhs + rhs)
     robot = load_robot(chain, pin_model_file=two, check=False)
     report = crosscheck(robot, n_states=5, seed=0)
     assert report.failed == ("structure",)
@@ -229,14 +216,14 @@ def test_structure_mismatch_names_the_joints_that_differ(tmp_path):
     assert f"    -> structure failed: {why}" in report.to_text().splitlines()
 
 
-def test_plant_without_gravity_fails_gravity_terms_springs_and_fluid_excluded(tmp_path):
-    xml = _asset("coupled.xml").replace('gravcomp="1"', "").replace(
+def test_plant_without_gravity_fails_gravity_terms_springs_and_fluid_excluded(write_model, asset):
+    xml = asset("coupled.xml").read_text().replace('gravcomp="1"', "").replace(
         '<option gravity="0 0 -9.81"/>',
         '<option gravity="0 0 -9.81" density="1.2" viscosity="1e-5"><flag gravity="disable"/></option>',
     )
     xml = xml.split("  <tendon>")[0] + "</mujoco>\n"
     xml = xml.replace('<joint name="j1" axis="0 1 0"/>', '<joint name="j1" axis="0 1 0" stiffness="5"/>')
-    robot = load_robot(_write(tmp_path, "no_gravity.xml", xml), check=False)
+    robot = load_robot(write_model("no_gravity.xml", xml), check=False)
     report = crosscheck(robot, n_states=20, seed=0)
     handled = {f.feature: f.handling for f in report.features}
     assert handled == {
