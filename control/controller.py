@@ -321,7 +321,7 @@ class ControllerBase:
 
     Raises:
         ControllerSetupError: An actuator of another kind than ``command_kind`` (the message is
-            :func:`~mbctl.robots.commands.kind_mismatch`'s, after what the controller outputs).
+            ``mbctl.robots.commands.kind_mismatch``'s, after what the controller outputs).
 
     Attributes:
         robot: The robot.
