@@ -14,7 +14,7 @@ x = 0.0708 m, so 0.08 m is about mid-palm along the hand's long axis.
 
 Falling. The G1 has fallen when its pelvis is below :data:`FALL_HEIGHT_M` or when a body other than
 its feet touches the floor (:data:`G1_FALL`); the plant measures both
-(:class:`mbctl.sim.monitor.FallMonitor`).
+(:class:`mbctl.sim.monitor.PlantMonitor`).
 """
 
 from __future__ import annotations
