@@ -365,7 +365,7 @@ def _run(ctx: RunContext, params: ExciteParams, models: Models, q_start: np.ndar
     ctx.progress.start(max(1, int(round(duration / dt))), "excite g1")
     # the schedule moves the task targets from the measured state (the swing leg's IK starts at the
     # base's pose): the plant's state now is the one the loop just read (no time passes between)
-    controller = Scheduled(wb.controller, lambda t: schedule.update(t, sim.read_state()))
+    controller = Scheduled(wb.controller, schedule.update)
     run(sim, controller, None, duration, on_step=log.on_step)
     fell = (None if monitor.fall_reason is None
             else f"{monitor.fall_reason} at t={monitor.fall_time_s:.2f} s")

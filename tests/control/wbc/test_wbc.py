@@ -190,7 +190,7 @@ def test_the_biped_squats_in_mujoco(tiny_biped, crouch):
     c0 = wb.com.target
     w = np.pi
 
-    def squat(t):
+    def squat(t, state):
         wb.com.set_target(c0 - [0, 0, 0.03 * (1 - np.cos(w * t))], [0, 0, -0.03 * w * np.sin(w * t)],
                           [0, 0, -0.03 * w * w * np.cos(w * t)])
 
