@@ -83,7 +83,7 @@ def test_the_monitor_measures_what_the_plant_did_each_period(stool):
     for _ in range(400):
         sim.step(torque([150.0, 150.0, 150.0]))
     assert monitor.contacts_elsewhere >= 1 and monitor.floor_bodies == ("seat",)
-    assert monitor.fall_reason is not None and monitor.fall_reason.startswith("pelvis at 0.14")
+    assert monitor.fall_reason is not None and monitor.fall_reason.startswith("base at 0.14")
     assert 0.8 < monitor.fall_time_s < 1.6
 
 
