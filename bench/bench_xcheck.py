@@ -39,7 +39,8 @@ import pinocchio as pin  # noqa: E402
 
 from mbctl.robots import Robot, load_robot  # noqa: E402
 from mbctl.robots.crosscheck import crosscheck  # noqa: E402
-from mbctl.robots.crosscheck.evaluator import CHUNK_SIZE, Evaluator, match_frames  # noqa: E402
+from mbctl.robots.crosscheck.evaluator import CHUNK_SIZE, Evaluator  # noqa: E402
+from mbctl.robots.crosscheck.frames import match_frames  # noqa: E402
 from mbctl.robots.crosscheck.plant import comparison_model  # noqa: E402
 from mbctl.robots.crosscheck.sampling import sample_states  # noqa: E402
 

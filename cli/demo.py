@@ -2,24 +2,23 @@
 
 from __future__ import annotations
 
-from typing import Annotated
+from typing import Annotated, Any
 
 import typer
 
 from mbctl.cli._run import (
-    ControllerModelOpt,
     OutputOpt,
-    PayloadOpt,
-    PlantErrorOpt,
     QuietOpt,
     VideoOpt,
     VideoSizeOpt,
     execute,
     video_spec,
 )
+from mbctl.cli.plant_options import MODEL_PARAMETERS, with_options
 from mbctl.jobs.choices import CONTROLLERS
 
 
+@with_options(MODEL_PARAMETERS)
 def demo(
     controller: Annotated[str, typer.Option(help=f"One of: {', '.join(CONTROLLERS)}.")] = "ct",
     compare: Annotated[
@@ -40,13 +39,11 @@ def demo(
     max_rms_mm: Annotated[
         float | None, typer.Option("--max-rms-mm", help="Exit 1 above this Cartesian RMS error (mm).")
     ] = None,
-    payload: PayloadOpt = None,
-    plant_error: PlantErrorOpt = 0.0,
-    controller_model: ControllerModelOpt = None,
     output: OutputOpt = None,
     quiet: QuietOpt = False,
     video: VideoOpt = False,
     video_size: VideoSizeOpt = "640x480",
+    extra: dict[str, Any] | None = None,
 ) -> None:
     """Track a Cartesian square on the 2-link torque arm; print RMS and max Cartesian error."""
     from mbctl.jobs import options
@@ -54,7 +51,7 @@ def demo(
 
     config = options.demo(controller=controller, compare=compare, model_error=model_error, duration=duration,
                           side=side, speed=speed, omega=omega, gravity=gravity, max_rms_mm=max_rms_mm,
-                          payload=payload, plant_error=plant_error, controller_model=controller_model)
+                          **(extra or {}))
     execute(DEMO, config, output, quiet, video_spec(video, video_size))
 
 

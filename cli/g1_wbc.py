@@ -2,39 +2,24 @@
 
 from __future__ import annotations
 
-from typing import Annotated
+from typing import Annotated, Any
 
 import typer
 
 from mbctl.cli._run import (
-    ControllerModelOpt,
     OutputOpt,
-    PayloadOpt,
-    PlantErrorOpt,
     QuietOpt,
     VideoOpt,
     VideoSizeOpt,
     execute,
     video_spec,
 )
-from mbctl.cli.plant_options import (
-    DomainOpt,
-    DropOpt,
-    DryRunOpt,
-    EstimateOpt,
-    ImuNoiseOpt,
-    InterfaceOpt,
-    JitterOpt,
-    LatencyOpt,
-    LinkSeedOpt,
-    NetworkOpt,
-    TruthOpt,
-    WatchdogOpt,
-)
+from mbctl.cli.plant_options import MODEL_PARAMETERS, PLANT_PARAMETERS, with_options
 from mbctl.cli.robots import ModelDirOpt
 from mbctl.jobs.choices import WBC_DEFAULT_DURATION_S, WBC_SCENARIOS
 
 
+@with_options(PLANT_PARAMETERS, MODEL_PARAMETERS)
 def g1_wbc(
     scenario: Annotated[str, typer.Argument(help=f"One of: {', '.join(WBC_SCENARIOS)}.")] = "stand",
     duration: Annotated[
@@ -56,25 +41,11 @@ def g1_wbc(
         float, typer.Option("--model-error", help="Controller model link masses off by PCT (%).")
     ] = 0.0,
     model_dir: ModelDirOpt = None,
-    interface: InterfaceOpt = "sim",
-    domain: DomainOpt = 0,
-    network_interface: NetworkOpt = "lo",
-    latency_ms: LatencyOpt = 0.0,
-    jitter_ms: JitterOpt = 0.0,
-    drop: DropOpt = 0.0,
-    imu_noise: ImuNoiseOpt = 0.0,
-    estimate: EstimateOpt = False,
-    link_seed: LinkSeedOpt = 0,
-    truth: TruthOpt = None,
-    watchdog_periods: WatchdogOpt = 3,
-    dry_run: DryRunOpt = False,
-    payload: PayloadOpt = None,
-    plant_error: PlantErrorOpt = 0.0,
-    controller_model: ControllerModelOpt = None,
     output: OutputOpt = None,
     quiet: QuietOpt = False,
     video: VideoOpt = False,
     video_size: VideoSizeOpt = "640x480",
+    extra: dict[str, Any] | None = None,
 ) -> None:
     """Whole-body inverse dynamics (QP) on the G1 in torque mode; exit 1 if it fell or missed a bound.
 
@@ -85,11 +56,7 @@ def g1_wbc(
     from mbctl.jobs.g1_wbc import G1_WBC
 
     params = options.g1_wbc(scenario=scenario, duration=duration, impulse=impulse, direction=direction,
-                            model_error=model_error, model_dir=model_dir, interface=interface, domain=domain,
-                            network_interface=network_interface, latency_ms=latency_ms, jitter_ms=jitter_ms,
-                            drop=drop, imu_noise=imu_noise, estimate=estimate, link_seed=link_seed,
-                            truth=truth, watchdog_periods=watchdog_periods, dry_run=dry_run,
-                              payload=payload, plant_error=plant_error, controller_model=controller_model)
+                            model_error=model_error, model_dir=model_dir, **(extra or {}))
     execute(G1_WBC, params, output, quiet, video_spec(video, video_size))
 
 

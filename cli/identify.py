@@ -3,24 +3,23 @@
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Annotated
+from typing import Annotated, Any
 
 import typer
 
 from mbctl.cli._run import (
-    ControllerModelOpt,
     OutputOpt,
-    PayloadOpt,
-    PlantErrorOpt,
     QuietOpt,
     VideoOpt,
     VideoSizeOpt,
     execute,
     video_spec,
 )
+from mbctl.cli.plant_options import MODEL_PARAMETERS, with_options
 from mbctl.cli.robots import ModelDirOpt, RobotArg, SceneOpt
 
 
+@with_options(MODEL_PARAMETERS)
 def excite(
     robot: RobotArg,
     duration: Annotated[
@@ -36,21 +35,18 @@ def excite(
     ] = True,
     scene: SceneOpt = None,
     model_dir: ModelDirOpt = None,
-    payload: PayloadOpt = None,
-    plant_error: PlantErrorOpt = 0.0,
-    controller_model: ControllerModelOpt = None,
     output: OutputOpt = None,
     quiet: QuietOpt = False,
     video: VideoOpt = False,
     video_size: VideoSizeOpt = "640x480",
+    extra: dict[str, Any] | None = None,
 ) -> None:
     """Drive the plant through an optimised excitation and record the identification log."""
     from mbctl.jobs import options
     from mbctl.jobs.excite import EXCITE
 
     params = options.excite(robot=robot, duration=duration, seed=seed, period=period, harmonics=harmonics,
-                            gravity=gravity, scene=scene, model_dir=model_dir, payload=payload,
-                            plant_error=plant_error, controller_model=controller_model)
+                            gravity=gravity, scene=scene, model_dir=model_dir, **(extra or {}))
     execute(EXCITE, params, output, quiet, video_spec(video, video_size))
 
 

@@ -2,10 +2,16 @@
 
 from __future__ import annotations
 
+import functools
+import inspect
+import typing
+from collections.abc import Callable
 from pathlib import Path
-from typing import Annotated
+from typing import Annotated, Any
 
 import typer
+
+from mbctl.cli._run import ControllerModelOpt, PayloadOpt, PlantErrorOpt
 
 InterfaceOpt = Annotated[str, typer.Option("--interface", help="sim (in-process) or dds (the G1's low-level "
                                                                "DDS: a robot or `mbctl serve g1`).")]
@@ -28,3 +34,52 @@ WatchdogOpt = Annotated[int, typer.Option("--watchdog-periods", help="DDS: perio
                                                                      "the link counts as lost.")]
 DryRunOpt = Annotated[bool, typer.Option("--dry-run", help="DDS: read and print the robot's state; never "
                                                            "command it.")]
+
+
+def _params(*spec: tuple[str, Any, Any]) -> tuple[inspect.Parameter, ...]:
+    return tuple(inspect.Parameter(name, inspect.Parameter.KEYWORD_ONLY, default=default, annotation=opt)
+                 for name, opt, default in spec)
+
+
+#: ``--interface`` and the link: the G1 jobs that can run on the robot (g1-stand, g1-arm-pd, g1-wbc).
+PLANT_PARAMETERS = _params(
+    ("interface", InterfaceOpt, "sim"), ("domain", DomainOpt, 0), ("network_interface", NetworkOpt, "lo"),
+    ("latency_ms", LatencyOpt, 0.0), ("jitter_ms", JitterOpt, 0.0), ("drop", DropOpt, 0.0),
+    ("imu_noise", ImuNoiseOpt, 0.0), ("estimate", EstimateOpt, False), ("link_seed", LinkSeedOpt, 0),
+    ("truth", TruthOpt, None), ("watchdog_periods", WatchdogOpt, 3), ("dry_run", DryRunOpt, False))
+
+#: ``--payload``, ``--plant-error``, ``--controller-model``: every simulating job.
+MODEL_PARAMETERS = _params(("payload", PayloadOpt, None), ("plant_error", PlantErrorOpt, 0.0),
+                           ("controller_model", ControllerModelOpt, None))
+
+
+Command = Callable[..., None]
+
+
+def with_options(*groups: tuple[inspect.Parameter, ...]) -> Callable[[Command], Command]:
+    """Add option groups to a command, before its ``--output``; they reach it as one dict ``extra``.
+
+    One definition per option: the commands that share the plant or model options take them from
+    here (typer reads the wrapper's signature), and pass ``**extra`` on to the job's options.
+    """
+    added = tuple(p for group in groups for p in group)
+
+    def decorate(command: Command) -> Command:
+        own = [p for p in inspect.signature(command).parameters.values() if p.name != "extra"]
+        cut = next(i for i, p in enumerate(own) if p.name == "output")
+        names = [p.name for p in added]
+
+        @functools.wraps(command)
+        def wrapper(**kwargs: Any) -> None:
+            extra = {name: kwargs.pop(name) for name in names}
+            command(**kwargs, extra=extra)
+
+        hints = typing.get_type_hints(command, include_extras=True)
+        hints.pop("extra", None)
+        wrapper.__annotations__ = {**hints, **{p.name: p.annotation for p in added}}
+        wrapper.__signature__ = inspect.Signature(  # type: ignore[attr-defined]
+            [p.replace(kind=inspect.Parameter.KEYWORD_ONLY, annotation=hints.get(p.name, p.annotation))
+             for p in (*own[:cut], *added, *own[cut:])])
+        return wrapper
+
+    return decorate

@@ -2,21 +2,19 @@
 
 from __future__ import annotations
 
-from typing import Annotated
+from typing import Annotated, Any
 
 import typer
 
 from mbctl.cli._run import (
-    ControllerModelOpt,
     OutputOpt,
-    PayloadOpt,
-    PlantErrorOpt,
     QuietOpt,
     VideoOpt,
     VideoSizeOpt,
     execute,
     video_spec,
 )
+from mbctl.cli.plant_options import MODEL_PARAMETERS, with_options
 from mbctl.cli.robots import ModelDirOpt, SceneOpt
 from mbctl.jobs.choices import TWO_LINK_ROBOTS
 
@@ -38,6 +36,7 @@ def verify(
         raise typer.Exit(1)
 
 
+@with_options(MODEL_PARAMETERS)
 def joint_step(
     robot: Annotated[str, typer.Argument(help="Known robot name or MJCF path.")],
     joint: Annotated[str, typer.Option(help="Joint whose position target is raised.")],
@@ -47,21 +46,18 @@ def joint_step(
     sensor: Annotated[list[str] | None, typer.Option(help="Sensor to record (repeatable).")] = None,
     scene: SceneOpt = None,
     model_dir: ModelDirOpt = None,
-    payload: PayloadOpt = None,
-    plant_error: PlantErrorOpt = 0.0,
-    controller_model: ControllerModelOpt = None,
     output: OutputOpt = None,
     quiet: QuietOpt = False,
     video: VideoOpt = False,
     video_size: VideoSizeOpt = "640x480",
+    extra: dict[str, Any] | None = None,
 ) -> None:
     """Reset, raise one joint's position target by DELTA, step N times, record, summarize."""
     from mbctl.jobs import options
     from mbctl.jobs.joint_step import JOINT_STEP
 
     params = options.joint_step(robot=robot, joint=joint, delta=delta, steps=steps, keyframe=keyframe,
-                                sensor=sensor, scene=scene, model_dir=model_dir, payload=payload,
-                                plant_error=plant_error, controller_model=controller_model)
+                                sensor=sensor, scene=scene, model_dir=model_dir, **(extra or {}))
     execute(JOINT_STEP, params, output, quiet, video_spec(video, video_size))
 
 

@@ -24,9 +24,8 @@ import numpy as np
 import pinocchio as pin
 
 from mbctl.control.controller import JointFeedbackController, JointReference
-from mbctl.control.exceptions import ControllerSetupError
 from mbctl.control.gains import PDGains
-from mbctl.robots.commands import Command, CommandKind, kind_mismatch
+from mbctl.robots.commands import Command, CommandKind
 from mbctl.robots.interface import RobotState
 from mbctl.robots.model_pair import Robot
 
@@ -67,10 +66,7 @@ class ComputedTorque(JointFeedbackController):
         friction_feedforward: bool = True,
         saturate: bool = True,
     ):
-        super().__init__(robot, gains, joints, saturate=saturate)
-        wrong = kind_mismatch(CommandKind.TORQUE, [robot.actuator(a) for a in self.joint_map.actuators])
-        if wrong is not None:  # here, not at the first step
-            raise ControllerSetupError(f"ComputedTorque outputs torques. {wrong}")
+        super().__init__(robot, gains, joints, saturate=saturate)  # checks the actuators take torques
         self._require_every_dof("computed torque")
         self._use_model(pin_model)
         friction = np.asarray(self.model.friction)[self._idx_v]

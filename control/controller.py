@@ -28,7 +28,7 @@ import pinocchio as pin
 
 from mbctl.control.exceptions import ControllerSetupError, ReferenceMismatch
 from mbctl.control.gains import PDGains
-from mbctl.robots.commands import Command
+from mbctl.robots.commands import Command, CommandKind, kind_mismatch
 from mbctl.robots.fastmath import SMALL_VECTOR_MAX, any_outside
 from mbctl.robots.interface import RobotState
 from mbctl.robots.model_pair import Robot
@@ -306,10 +306,22 @@ class TorqueSaturation:
         }
 
 
+#: What a controller's output is called in the construction-time check's message.
+_OUTPUT_WORDS = {CommandKind.TORQUE: "torques", CommandKind.POSITION: "position targets",
+                 CommandKind.VELOCITY: "velocity targets", CommandKind.CTRL: "raw ctrl values"}
+
+
 class ControllerBase:
     """Plumbing the controllers share: joint map, output clipping, command names, analytic model.
 
-    Subclasses set ``name`` and ``reference_type`` and implement ``compute``.
+    Subclasses set ``name``, ``reference_type`` and ``command_kind`` (the kind of command their
+    ``compute`` returns: torque unless they say otherwise) and implement ``compute``. The
+    constructor checks that the controlled joints' actuators take that kind, so a torque law on
+    position actuators fails when it is built, not at the first step.
+
+    Raises:
+        ControllerSetupError: An actuator of another kind than ``command_kind`` (the message is
+            ``mbctl.robots.commands.kind_mismatch``'s, after what the controller outputs).
 
     Attributes:
         robot: The robot.
@@ -321,10 +333,15 @@ class ControllerBase:
 
     name: str
     reference_type: type[JointReference] | type[TaskReference] = JointReference
+    command_kind: CommandKind = CommandKind.TORQUE
     model: pin.Model
     data: pin.Data
 
     def __init__(self, robot: Robot, joint_map: JointMap, saturate: bool = True):
+        wrong = kind_mismatch(self.command_kind, [robot.actuator(a) for a in joint_map.actuators])
+        if wrong is not None:  # here, not at the first step
+            what = _OUTPUT_WORDS[self.command_kind]
+            raise ControllerSetupError(f"{type(self).__name__} outputs {what}. {wrong}")
         self.robot = robot
         self.joint_map = joint_map
         self.saturation = TorqueSaturation(joint_map, saturate)

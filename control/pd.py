@@ -26,7 +26,8 @@ class JointPD(JointFeedbackController):
 
     Raises:
         GainsError: Gains that do not match the number of joints.
-        ControllerSetupError: Joints that cannot be controlled (see ``JointMap.from_robot``).
+        ControllerSetupError: Joints that cannot be controlled (see ``JointMap.from_robot``), or
+            actuators that do not take torques (position, velocity).
         UnknownNameError: An unknown joint name.
     """
 

@@ -39,7 +39,8 @@ class PDGravity(JointPD):
 
     Raises:
         GainsError: Gains that do not match the number of joints.
-        ControllerSetupError: Uncontrollable joints, or a model of another size.
+        ControllerSetupError: Uncontrollable joints, actuators that do not take torques
+            (position, velocity), or a model of another size.
         UnknownNameError: An unknown joint name.
     """
 

@@ -43,6 +43,7 @@ class PositionTargetPD(ControllerBase):
     """
 
     name = "position_pd"
+    command_kind = CommandKind.POSITION
 
     def __init__(
         self,

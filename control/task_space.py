@@ -45,8 +45,8 @@ class TaskSpaceComputedTorque(ControllerBase):
         saturate: Clip torques to the actuator limits (and count the clips).
 
     Raises:
-        ControllerSetupError: Unknown axes, a floating base or unactuated dofs, a model of
-            another size.
+        ControllerSetupError: Unknown axes, actuators that do not take torques (position,
+            velocity), a floating base or unactuated dofs, a model of another size.
         UnknownNameError: Unknown frame or joint.
         GainsError: Gains that do not match the number of axes.
 

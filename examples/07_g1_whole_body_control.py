@@ -41,7 +41,7 @@ from mbctl.control.tasks import (
     PostureTask,
 )
 from mbctl.control.wbc import Scheduled, WholeBodyController, foot_contact_from_model
-from mbctl.robots import ModelFileError, ModelNotFoundError, load_robot
+from mbctl.robots import ModelFileError, ModelNotFoundError, RobotState, load_robot
 from mbctl.robots.edits import position_to_motor
 from mbctl.robots.g1 import FEET, G1_FALL, KEYFRAME, crouched_start
 from mbctl.sim import Simulator
@@ -87,7 +87,7 @@ def main() -> int:
     c0 = controller.state.com().copy()
     w = 2 * np.pi * SQUAT_HZ
 
-    def squat(t: float) -> None:
+    def squat(t: float, state: RobotState) -> None:
         """The CoM target at time t [s]: position [m], velocity [m/s], acceleration [m/s^2]."""
         com.set_target(c0 - [0, 0, SQUAT_M * (1 - np.cos(w * t))], [0, 0, -SQUAT_M * w * np.sin(w * t)],
                        [0, 0, -SQUAT_M * w * w * np.cos(w * t)])

@@ -19,22 +19,24 @@ from typing import Any
 import numpy as np
 
 from mbctl.control.computed_torque import ComputedTorque
-from mbctl.control.controller import JointReference
 from mbctl.control.exceptions import ControllerSetupError
 from mbctl.control.gains import gains_from_frequency
-from mbctl.jobs.ident_log import CSV_NAME, SECTION, header
+from mbctl.control.loop import run
+from mbctl.jobs.ident_log import CSV_NAME, SECTION, header, log_row
 from mbctl.jobs.model_options import ModelOptions, Models, build_models, models_line
 from mbctl.jobs.plots import joint_colors, new_figure
 from mbctl.jobs.recording import q_columns, v_columns
 from mbctl.jobs.runner import Job, Outcome, RunContext, Work
 from mbctl.planners.excitation import ExcitationDesign, design_excitation
+from mbctl.robots.commands import Command
 from mbctl.robots.edits import position_to_motor
 from mbctl.robots.g1 import is_menagerie_g1
 from mbctl.robots.identification import model_fingerprint
 from mbctl.robots.identification.threads import single_threaded_blas
+from mbctl.robots.interface import RobotState
 from mbctl.robots.model_pair import Robot
 from mbctl.robots.registry import load_robot
-from mbctl.sim.contacts import contacts_elsewhere
+from mbctl.sim.monitor import PlantMonitor
 from mbctl.sim.simulator import Simulator
 
 #: Length [s] of an excitation unless asked otherwise.
@@ -142,12 +144,13 @@ def _run_fixed(ctx: RunContext, params: ExciteParams, models: Models, joints: tu
     sim.reset(q=q_start)
     ct = ComputedTorque(plant, gains_from_frequency(TRACKING_OMEGA_RAD_S, TRACKING_ZETA), joints,
                         pin_model=models.controller_model)
+    # what the log records, measured by the plant each period: the actuators' torques and the
+    # contacts on the robot (a fixed-base robot has no contact it is meant to have)
+    monitor = PlantMonitor(sim, joints=joints, count_elsewhere=True).attach()
     traj = design.trajectory
     dt = sim.control_period_s
     n = max(1, int(round(duration / dt)))
-    q_ref, v_ref, a_ref = traj.sample(np.arange(n) * dt)
-    dofs = np.array([plant.joint(j).dofadr for j in joints])
-    robot_bodies = plant.robot_body_ids
+    reference = traj.trajectory(dt, n * dt)  # one sample past the last cycle: every cycle's v and a
     excitation = {"kind": "Fourier series, computed torque", "period_s": traj.period_s,
                   "harmonics": traj.harmonics, "max_frequency_hz": traj.max_frequency_hz,
                   "condition_number": design.condition_number,
@@ -159,20 +162,18 @@ def _run_fixed(ctx: RunContext, params: ExciteParams, models: Models, joints: tu
     csv = ctx.open_csv(header(plant, joints, ()), CSV_NAME)
     ctx.progress.start(n, f"excite {params.robot}")
     tau_log = np.empty((n, len(joints)))
-    q_log = np.empty((n, len(joints)))
     others = 0
-    idx_q = [plant.joint(j).idx_q for j in joints]
-    for k in range(n):
-        state = sim.read_state()
-        command = ct.compute(state, JointReference(q_ref[k], v_ref[k], a_ref[k]))
-        sim.step(command)
-        tau = sim.data.qfrc_actuator[dofs]
-        elsewhere = contacts_elsewhere(sim.model, sim.data, robot_bodies, ())
-        others += elsewhere > 0
-        csv.write([state.time_s, *state.q, *state.v, *tau, elsewhere])
-        tau_log[k] = tau
-        q_log[k] = state.q[idx_q]
+
+    def on_step(k: int, state: RobotState, ref: object, command: Command) -> None:
+        nonlocal others
+        csv.write(log_row(state, monitor))
+        tau_log[k] = monitor.joint_torques
+        others += monitor.contacts_elsewhere > 0
         ctx.progress.advance()
+
+    log = run(sim, ct, reference, n * dt, on_step)
+    idx_q = [plant.joint(j).idx_q for j in joints]
+    q_ref, q_log = log.reference, log.q[:, idx_q]
     ctx.values.update({"duration_s": n * dt, "rows": n, "condition_number": design.condition_number,
                        "joint_rms_error_rad": float(np.sqrt(np.mean((q_ref - q_log) ** 2))),
                        "max_torque_N_m": dict(zip(joints, np.abs(tau_log).max(0).tolist(), strict=True)),

@@ -14,39 +14,53 @@ references move it:
   back where it left the floor (the posture task, its leg solved by inverse kinematics each
   cycle), and reloaded, with the CoM over the other foot.
 
-Every cycle is a row of the identification log, with the feet's contact flags and wrenches and the
-count of contacts elsewhere. A fall (pelvis low, or a body other than a foot on the floor) ends the
+It runs in the control loop every job uses (``control.loop.run``, the controller
+``Scheduled``). Every cycle is a row of the identification log, measured by the plant
+(:class:`~mbctl.sim.monitor.PlantMonitor`): the actuators' torques, the feet's contact flags and
+wrenches and the count of contacts elsewhere. A fall by the G1's one rule
+(:data:`~mbctl.robots.g1.G1_FALL`: pelvis low, or a body other than a foot on the floor) ends the
 run with exit 1, every row kept.
 """
 
 from __future__ import annotations
 
-import copy
+from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
 
-import mujoco
 import numpy as np
 import pinocchio as pin
 
+from mbctl.control.loop import run
+from mbctl.control.wbc import Scheduled
 from mbctl.jobs.excite import DEFAULT_DURATION_S, ExciteParams, log_section
 from mbctl.jobs.g1_wbc import g1_whole_body
-from mbctl.jobs.ident_log import CSV_NAME, SECTION, header
+from mbctl.jobs.ident_log import CSV_NAME, SECTION, header, log_row
 from mbctl.jobs.model_options import Models, build_models, models_line
 from mbctl.jobs.plots import new_figure
 from mbctl.jobs.runner import Outcome, RunContext, Work
 from mbctl.planners.excitation import ExcitationDesign, ExcitationLimits, design_excitation
 from mbctl.planners.fourier import FourierTrajectory
+from mbctl.robots.collision import SelfClearance
+from mbctl.robots.commands import Command
 from mbctl.robots.edits import position_to_motor, weld_base
-from mbctl.robots.g1 import FEET, KEYFRAME, PELVIS, TORSO, crouched_start, with_palm_sites
+from mbctl.robots.g1 import (
+    FEET,
+    FOOT_BODIES,
+    G1_FALL,
+    KEYFRAME,
+    PELVIS,
+    TORSO,
+    crouched_start,
+    with_palm_sites,
+)
 from mbctl.robots.identification.threads import single_threaded_blas
 from mbctl.robots.interface import RobotState
 from mbctl.robots.model_pair import Robot
-from mbctl.sim.contacts import contact_wrenches, contacts_elsewhere, touching
+from mbctl.sim.monitor import PlantMonitor
+from mbctl.sim.recorder import CsvStream
 from mbctl.sim.simulator import Simulator
 
-#: Pelvis height [m] below which the robot has fallen (as g1-wbc judges it).
-FALL_HEIGHT_M = 0.5
 #: Range [rad] of each upper-body joint around the keyframe, (below, above); the shoulder roll
 #: only opens the arms outward and the elbow stays bent, away from the body.
 UPPER_RANGES_RAD = {
@@ -99,37 +113,6 @@ def _limits(robot: Robot, joints: tuple[str, ...], q0: np.ndarray, torque_fracti
     return ExcitationLimits(lo, hi, np.full(len(joints), 2.0), base.tau_max)
 
 
-class _Clearance:
-    """Self-collision check: pairs of the robot's geoms that come closer than a margin.
-
-    Pairs already that close at the start configuration (neighbouring links) are not counted.
-    """
-
-    def __init__(self, robot: Robot, margin_m: float, q_start: np.ndarray):
-        self.robot = robot
-        self.m = copy.copy(robot.mj_model)
-        self.m.geom_margin[:] = np.maximum(self.m.geom_margin, margin_m)
-        self.d = mujoco.MjData(self.m)
-        self.floor = {g for g in range(self.m.ngeom) if self.m.geom_bodyid[g] == 0}
-        self.neighbours: set[tuple[int, int]] = set()
-        self.neighbours = self._pairs(q_start)
-
-    def _pairs(self, q: np.ndarray) -> set[tuple[int, int]]:
-        self.robot.plant_qpos(q, self.d.qpos)
-        mujoco.mj_kinematics(self.m, self.d)
-        mujoco.mj_collision(self.m, self.d)
-        out = set()
-        for c in self.d.contact[:self.d.ncon]:
-            g1, g2 = int(c.geom1), int(c.geom2)
-            if g1 not in self.floor and g2 not in self.floor:
-                out.add((min(g1, g2), max(g1, g2)))
-        return out - self.neighbours
-
-    def touches(self, q: np.ndarray) -> bool:
-        """Whether two of the robot's geoms (not neighbours at the start) come within the margin at q."""
-        return bool(self._pairs(q))
-
-
 def _mirror(traj: FourierTrajectory, names: tuple[str, ...], q_start: np.ndarray) -> FourierTrajectory:
     """The left arm's excitation on the right arm, mirrored in the sagittal plane (roll and yaw negated).
 
@@ -168,7 +151,7 @@ def design_upper_body(nominal: Robot, q_start: np.ndarray, params: ExciteParams
     right_names = tuple(n.replace("left_", "right_", 1) for n in left.names)
     right_q0 = np.array([q_w[welded.joint(n).idx_q] for n in right_names])
     right = _mirror(left, right_names, right_q0)
-    check = _Clearance(welded, CLEARANCE_M, q_w)
+    check = SelfClearance(welded, CLEARANCE_M, q_w)
     t = np.linspace(0.0, period, 120, endpoint=False)
     scale = 1.0
     for _ in range(30):
@@ -339,17 +322,6 @@ def prepare_g1(params: ExciteParams, loaded: Robot) -> Work:
     return work
 
 
-def _foot_groups(robot: Robot) -> tuple[tuple[str, ...], list[list[int]]]:
-    m = robot.mj_model
-    bodies, groups = [], []
-    for site in FEET:
-        b = int(m.site_bodyid[robot.site_id(site)])
-        bodies.append(mujoco.mj_id2name(m, mujoco.mjtObj.mjOBJ_BODY, b))
-        groups.append([g for g in range(m.ngeom) if m.geom_bodyid[g] == b
-                       and (m.geom_contype[g] or m.geom_conaffinity[g])])
-    return tuple(bodies), groups
-
-
 def _run(ctx: RunContext, params: ExciteParams, models: Models, q_start: np.ndarray,
          upper: FourierTrajectory, designs: list[ExcitationDesign], shrink: float, duration: float
          ) -> Outcome:
@@ -358,21 +330,18 @@ def _run(ctx: RunContext, params: ExciteParams, models: Models, q_start: np.ndar
     sim.reset(KEYFRAME)
     sim.set_state(q_start, np.zeros(plant.nv))
     wb = g1_whole_body(plant, models.controller_model)
-    state = sim.read_state()
-    wb.hold(state)
-    ctrl = wb.controller
+    wb.hold(sim.read_state())
     steps: list[tuple[str, float]] = []
     if duration >= MIN_DURATION_FOR_STEPS_S:
         total = sum(STEP_TIMES_S)
         steps = [(FEET[0], 0.45 * duration - total), (FEET[1], 0.8 * duration - total)]
     schedule = _Schedule(wb, plant, models.controller_model, upper, q_start.copy(), steps)
-    m, d = sim.model, sim.data
-    bodies, groups = _foot_groups(plant)
-    foot_ids = [plant.body_id(b) for b in bodies]
-    allowed = [g for grp in groups for g in grp]
-    floor = [g for g in range(m.ngeom) if m.geom_bodyid[g] == 0]
+    bodies = FOOT_BODIES
     joints = tuple(a.joint for a in plant.actuators.values())  # the controller's order: actuators
-    dofs = np.array([plant.joint(j).dofadr for j in joints])
+    # what the log records, measured by the plant each period: the actuators' torques, the feet's
+    # contact wrenches, contacts elsewhere on the robot, its CoM, and whether it fell (G1_FALL)
+    monitor = PlantMonitor(sim, fall_rule=G1_FALL.reason, joints=joints, wrench_bodies=bodies,
+                           count_elsewhere=True).attach()
     excitation: dict[str, Any] = {
         "kind": "whole-body control on the feet: upper-body Fourier excitation, CoM squat and sway, pelvis "
                 "roll and pitch, steps",
@@ -392,45 +361,20 @@ def _run(ctx: RunContext, params: ExciteParams, models: Models, q_start: np.ndar
     dt = sim.control_period_s
     ctx.sections[SECTION] = log_section(params, models.controller, joints, bodies, dt, excitation)
     ctx.sections["plant"] = models.section()
-    csv = ctx.open_csv(header(plant, joints, bodies), CSV_NAME)
-    n = int(round(duration / dt))
-    ctx.progress.start(n, "excite g1")
-    log: dict[str, list[Any]] = {k: [] for k in ("t", "com_ref", "com", "fz", "tau")}
-    pelvis_id = plant.body_id(PELVIS)
-    fell = None
-    others_rows = 0
-    for _ in range(n):
-        t = sim.time_s
-        state = sim.read_state()
-        schedule.update(t, state)
-        command = ctrl.compute(state)
-        sim.step(command)
-        tau = d.qfrc_actuator[dofs]
-        on, wrench = contact_wrenches(m, d, groups, d.xpos[foot_ids])
-        elsewhere = contacts_elsewhere(m, d, plant.robot_body_ids, allowed)
-        others_rows += elsewhere > 0
-        row = [state.time_s, *state.q, *state.v, *tau]
-        for k in range(len(bodies)):
-            row += [float(on[k]), *wrench[k]]
-        csv.write([*row, elsewhere])
-        mujoco.mj_forward(m, d)
-        log["t"].append(t)
-        log["com_ref"].append(schedule.com_ref.copy())
-        log["com"].append(d.subtree_com[pelvis_id].copy())
-        log["fz"].append(wrench[:, 2].copy())
-        log["tau"].append(tau.copy())
-        ctx.progress.advance()
-        on_floor = touching(m, d, floor, allowed)
-        if d.qpos[2] < FALL_HEIGHT_M or on_floor:
-            fell = (f"pelvis at {d.qpos[2]:.3f} m" if d.qpos[2] < FALL_HEIGHT_M
-                    else f"{', '.join(on_floor)} touched the floor") + f" at t={sim.time_s:.2f} s"
-            break
-    com_err = np.asarray(log["com"]) - np.asarray(log["com_ref"])
-    ctx.values.update({"duration_s": sim.time_s, "rows": len(log["t"]), "fell": fell is not None,
+    log = _Log(ctx.open_csv(header(plant, joints, bodies), CSV_NAME), schedule, monitor, ctx.progress.advance)
+    ctx.progress.start(max(1, int(round(duration / dt))), "excite g1")
+    # the schedule moves the task targets from the measured state (the swing leg's IK starts at the
+    # base's pose): the plant's state now is the one the loop just read (no time passes between)
+    controller = Scheduled(wb.controller, schedule.update)
+    run(sim, controller, None, duration, on_step=log.on_step)
+    fell = (None if monitor.fall_reason is None
+            else f"{monitor.fall_reason} at t={monitor.fall_time_s:.2f} s")
+    com_err = np.asarray(log.com) - np.asarray(log.com_ref)
+    ctx.values.update({"duration_s": sim.time_s, "rows": len(log.t), "fell": fell is not None,
                        "fall_reason": fell, "com_error_rms_m": float(np.sqrt(np.mean(np.sum(com_err**2, 1)))),
                        "waist_condition_number": designs[0].condition_number,
                        "arm_condition_number": designs[1].condition_number,
-                       "samples_with_other_contacts": int(others_rows)})
+                       "samples_with_other_contacts": log.rows_with_other_contacts})
     _plot(ctx, log, bodies, joints, fell)
     lines = [f"excite g1: {sim.time_s:.1f} s on its feet ({'FELL: ' + fell if fell else 'stood'}); "
              f"regressor condition numbers: waist {designs[0].condition_number:.3g} (random start "
@@ -438,31 +382,61 @@ def _run(ctx: RunContext, params: ExciteParams, models: Models, q_start: np.ndar
              f"start {designs[1].initial_condition_number:.3g}); amplitude x{shrink:.2f} for "
              f"{CLEARANCE_M * 100:g} cm clearance, {len(steps)} steps, CoM RMS "
              f"{ctx.values['com_error_rms_m'] * 1e3:.1f} mm, "
-             f"{others_rows} rows with contacts elsewhere",
-             f"log: {len(log['t'])} rows in {CSV_NAME}; identify it with: mbctl identify {ctx.output_dir}"]
+             f"{log.rows_with_other_contacts} rows with contacts elsewhere",
+             f"log: {len(log.t)} rows in {CSV_NAME}; identify it with: mbctl identify {ctx.output_dir}"]
     if models.options.hidden or models.options.controller_model:
         lines.insert(1, models_line(models.section()))
     return Outcome(fell is None, tuple(lines), "did not fall")
 
 
-def _plot(ctx: RunContext, log: dict[str, list[Any]], bodies: tuple[str, ...], joints: tuple[str, ...],
+class _Log:
+    """Each control cycle (the loop's ``on_step``): the identification log's row, from the plant monitor.
+
+    Also kept for the report and the plot: times [s], the CoM reference and the plant's CoM (3,)
+    [m] at the row's time, the feet's normal forces [N] and the actuators' torques [N m].
+    """
+
+    def __init__(self, csv: CsvStream, schedule: _Schedule, monitor: PlantMonitor, tick: Callable[[], None]):
+        self.csv, self.schedule, self.monitor, self.tick = csv, schedule, monitor, tick
+        self.t: list[float] = []
+        self.com_ref: list[np.ndarray] = []
+        self.com: list[np.ndarray] = []
+        self.fz: list[np.ndarray] = []
+        self.tau: list[np.ndarray] = []
+        self.rows_with_other_contacts = 0
+
+    def on_step(self, k: int, state: RobotState, reference: object, command: Command) -> bool:
+        """Write cycle ``k``'s row; True (end the run) once the robot fell."""
+        monitor = self.monitor
+        self.csv.write(log_row(state, monitor))
+        self.rows_with_other_contacts += monitor.contacts_elsewhere > 0
+        self.t.append(state.time_s)
+        self.com_ref.append(self.schedule.com_ref.copy())
+        self.com.append(monitor.com_W)
+        self.fz.append(monitor.wrenches_W[:, 2].copy())
+        self.tau.append(monitor.joint_torques)
+        self.tick()
+        return monitor.fall_reason is not None
+
+
+def _plot(ctx: RunContext, log: _Log, bodies: tuple[str, ...], joints: tuple[str, ...],
           fell: str | None) -> None:
     """CoM (reference dashed), the feet's normal forces, and the torques of the most loaded joints."""
-    t = np.asarray(log["t"])
+    t = np.asarray(log.t)
     fig, axes = new_figure(3, 1, (12.0, 9.0), layout="constrained")
-    com, ref = np.asarray(log["com"]), np.asarray(log["com_ref"])
+    com, ref = np.asarray(log.com), np.asarray(log.com_ref)
     for i, (axis, color) in enumerate(zip("xyz", ("tab:red", "tab:green", "tab:blue"), strict=True)):
         axes[0][0].plot(t, (com[:, i] - ref[0, i]) * 1e3, color=color, lw=1.2, label=f"CoM {axis}")
         axes[0][0].plot(t, (ref[:, i] - ref[0, i]) * 1e3, "--", color=color, lw=0.8)
     axes[0][0].set_ylabel("CoM - start (mm)")
     axes[0][0].set_title("CoM measured in MuJoCo (solid) and its reference (dashed)"
                          + (f"; FELL: {fell}" if fell else ""), fontsize=10)
-    fz = np.asarray(log["fz"])
+    fz = np.asarray(log.fz)
     for k, b in enumerate(bodies):
         axes[1][0].plot(t, fz[:, k], lw=1.0, label=b)
     axes[1][0].set_ylabel("normal force (N)")
     axes[1][0].set_title("contact force on each foot (MuJoCo)", fontsize=10)
-    tau = np.asarray(log["tau"])
+    tau = np.asarray(log.tau)
     top = np.argsort(-np.abs(tau).max(0))[:6]
     for i in top:
         axes[2][0].plot(t, tau[:, i], lw=0.9, label=joints[i])

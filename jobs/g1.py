@@ -24,10 +24,7 @@ and a PNG. The verdict (exit 1 when missed): the robot on the floor did not fall
 measured by a ``PlantMonitor`` in-process, from the bridge's truth log over DDS) and, when given,
 the joint RMS error bound.
 
-Plots: reference dashed, plant solid; at most eight labelled traces per panel. The tracking jobs
-draw one row per limb that moves, coloured by the joint's role in the limb (the knee has one
-colour in both legs); the standing job draws the pelvis height change [mm] on its own panel and
-the joints that moved most, with mirror pairs that move identically drawn once.
+Plots: ``jobs/g1_plots.py``.
 """
 
 from __future__ import annotations
@@ -45,24 +42,21 @@ from mbctl.control.gains import PDGains, gains_from_frequency
 from mbctl.control.loop import RunLog, run
 from mbctl.control.pd_gravity import PDGravity
 from mbctl.control.position_pd import PositionTargetPD
+from mbctl.jobs.g1_plots import stand_plot, tracking_plot
 from mbctl.jobs.model_options import ModelOptions, build_models, models_line
 from mbctl.jobs.plant import Plant, PlantOptions, dry_run, plant_lines, prepare_plant, report_plant
-from mbctl.jobs.plots import coincident_groups, joint_colors, most_moved, new_figure, tracking_panels
 from mbctl.jobs.recording import LoopRows, command_columns
 from mbctl.jobs.runner import Job, Outcome, RunContext, Work
 from mbctl.limits import check_duration
 from mbctl.planners.ruckig_planner import JointLimits, plan_ruckig, plan_waypoints
 from mbctl.planners.trajectory import JointTrajectory
 from mbctl.robots.edits import position_to_motor, weld_base
-from mbctl.robots.g1 import G1_FALL, KEYFRAME, LEG_WORDS, joint_role, limb_of
+from mbctl.robots.g1 import G1_FALL, KEYFRAME, LEG_WORDS
 from mbctl.robots.interface import RobotInterface, RobotState
 from mbctl.robots.model_pair import Robot
 from mbctl.robots.registry import load_robot
 from mbctl.sim.monitor import PlantMonitor
 from mbctl.sim.simulator import Simulator
-
-#: A limb whose reference moves less than this [rad] is left out of the tracking plots.
-MOVED_RAD = 1e-6
 
 #: Joint limits of the tracking trajectories: velocity [rad/s], acceleration [rad/s^2],
 #: jerk [rad/s^3] (well inside the G1's actuator capabilities).
@@ -247,95 +241,6 @@ def _loop(ctx: RunContext, sim: RobotInterface, controller: PDGravity | Computed
     return run(sim, controller, reference, duration_s, rows)
 
 
-def limb_rows(joints: tuple[str, ...], reference: np.ndarray,
-              per_row: int = 8) -> list[tuple[str, list[int]]]:
-    """Columns of ``reference`` (N, n) grouped by limb, limbs whose reference moves only.
-
-    Args:
-        joints: Names of the columns (n).
-        reference: Reference angles (N, n) [rad].
-        per_row: At most this many joints per limb (the ones that moved most).
-
-    Returns:
-        (limb, column indices) in the order the limbs first appear in ``joints``; every limb when
-        no reference moves (a run shorter than the first motion).
-    """
-    limbs: dict[str, list[int]] = {}
-    for i, name in enumerate(joints):
-        limbs.setdefault(limb_of(name), []).append(i)
-    rows = []
-    for limb, idx in limbs.items():
-        if len(idx) > per_row:
-            idx = sorted(idx[k] for k in most_moved(reference[:, idx], per_row))
-        rows.append((limb, idx))
-    moved = [(limb, idx) for limb, idx in rows if np.ptp(reference[:, idx]) > MOVED_RAD]
-    return moved or rows
-
-
-def _held_joints_panel(ax: Any, t_s: np.ndarray, deviation: np.ndarray, joints: tuple[str, ...],
-                       also_coincide: tuple[np.ndarray, ...] = (),
-                       k: int = 8) -> tuple[list[list[int]], list[Any]]:
-    """Draw the ``k`` joints that moved most from a held pose, q - q_held [mrad].
-
-    Mirror pairs that move identically (in ``deviation`` and every ``also_coincide`` signal)
-    share one trace and one label, so every label names a line the reader can see.
-
-    Returns:
-        The groups of columns drawn and their colours.
-    """
-    candidates = most_moved(deviation, 2 * k)
-    groups = coincident_groups((deviation, *also_coincide), candidates)[:k]
-    labels = [" = ".join(joints[i].removesuffix("_joint") for i in g[:2])
-              + (f" (+ {len(g) - 2} more)" if len(g) > 2 else "") for g in groups]
-    colors = list(joint_colors(labels).values())
-    ax.axhline(0.0, ls="--", lw=0.8, color="k", label="held pose (reference)")
-    for g, label, color in zip(groups, labels, colors, strict=True):
-        ax.plot(t_s, deviation[:, g[0]] * 1e3, lw=1.2, color=color, label=label)
-    ax.set_xlabel("time (s)")
-    ax.set_ylabel("q - q_held (mrad)")
-    ax.grid(True, alpha=0.3)
-    return groups, colors
-
-
-def _pelvis_panel(ax: Any, t_s: np.ndarray, dz_m: np.ndarray, max_m: float) -> None:
-    """Pelvis height change [mm] over time; ``max_m`` [m] is the run's value (final state included)."""
-    ax.plot(t_s, dz_m * 1e3, color="k", lw=1.2)
-    ax.axhline(0.0, ls="--", lw=0.8, color="0.4")
-    ax.set_xlabel("time (s)")
-    ax.set_ylabel("pelvis height - keyframe (mm)")
-    ax.set_title(f"pelvis height change (max |change| {max_m * 1e3:.2f} mm; "
-                 f"bound {PELVIS_BOUND_M * 1e3:g} mm)", fontsize=9)
-    ax.grid(True, alpha=0.3)
-
-
-def _tracking_plot(ctx: RunContext, name: str, log: RunLog, joints: tuple[str, ...], err: np.ndarray,
-                   title: str, body: tuple[np.ndarray, np.ndarray, tuple[str, ...]] | None = None) -> None:
-    """One row per limb that moves: angles (plant solid, reference dashed) and errors in mrad.
-
-    Colours follow the joint's role in its limb (the knee has one colour in both legs). With
-    ``body`` = (pelvis height change (N,) [m], deviation of the other joints from their held
-    targets (N, m) [rad], their names), a last row shows how the rest of the robot held still.
-    """
-    q = log.reference - err
-    limbs = limb_rows(joints, log.reference)
-    n_rows = len(limbs) + (body is not None)
-    fig, axes = new_figure(n_rows, 2, (13.0, 2.9 * n_rows + 0.7), layout="constrained")
-    for r, (limb, idx) in enumerate(limbs):
-        roles = [joint_role(joints[i]) for i in idx]
-        colors = joint_colors(roles)
-        tracking_panels(axes[r][0], axes[r][1], log.t_s, log.reference[:, idx], q[:, idx], roles,
-                        [colors[x] for x in roles], limb)
-    if body is not None:
-        dz, deviation, others = body
-        _pelvis_panel(axes[-1][0], log.t_s, dz, ctx.values["pelvis_max_deviation_m"])
-        groups, _ = _held_joints_panel(axes[-1][1], log.t_s, deviation, others)
-        axes[-1][1].set_title(f"the {len(groups)} other joints that moved most from the keyframe",
-                              fontsize=9)
-        axes[-1][1].legend(fontsize=8, loc="upper left", bbox_to_anchor=(1.01, 1.0))
-    fig.suptitle(title)
-    ctx.save_figure(fig, f"{name}.png")
-
-
 def prepare_stand(params: StandParams, robot: Robot | None = None) -> Work:
     """Load the G1, convert its actuators to motors and derive the standing gains (no output yet)."""
     models = build_models(position_to_motor(robot or load_robot("g1", model_dir=params.model_dir)),
@@ -392,7 +297,8 @@ def _stand(ctx: RunContext, params: StandParams, robot: Robot, gains: PDGains, i
         "wall_time_s": log.wall_time_s,
     })
     ctx.sections["controller_saturation"] = controller.saturation.summary()
-    _stand_plot(ctx, log, dev[:-1], -joint_err, controller.joints, params)
+    stand_plot(ctx, log, dev[:-1], -joint_err, controller.joints, params.omega_rad_s, params.zeta,
+               PELVIS_BOUND_M)
     v = ctx.values
     return Outcome(not (fell or off), (
         f"g1-stand {params.duration_s:g} s, PD + gravity (omega {params.omega_rad_s:g} rad/s, zeta "
@@ -433,32 +339,6 @@ def _off_bound(ctx: RunContext, estimated_deviation_m: float) -> bool:
     """The pelvis moved more than PELVIS_BOUND_M (the truth log's word over the estimate's)."""
     deviation = ctx.values.get("truth_pelvis_max_deviation_m", estimated_deviation_m)
     return bool(deviation > PELVIS_BOUND_M)
-
-
-def _stand_plot(ctx: RunContext, log: RunLog, dz_m: np.ndarray, deviation: np.ndarray,
-                joints: tuple[str, ...], params: StandParams) -> None:
-    """Pelvis height change [mm] on its own panel, then the joints that moved most.
-
-    The joints' deviation from the keyframe [mrad] and their torques [N m] share one colour per
-    joint.
-    """
-    fig, axes = new_figure(1, 3, (17.0, 5.0), layout="constrained")
-    ax_z, ax_q, ax_tau = axes[0]
-    max_m = ctx.values["pelvis_max_deviation_m"]
-    _pelvis_panel(ax_z, log.t_s, dz_m, max_m)
-    groups, colors = _held_joints_panel(ax_q, log.t_s, deviation, joints, (log.command,))
-    ax_q.set_title(f"the {len(groups)} joints that moved most from the keyframe", fontsize=9)
-    for g, color in zip(groups, colors, strict=True):
-        ax_tau.plot(log.t_s, log.command[:, g[0]], lw=1.2, color=color)
-    ax_tau.set_xlabel("time (s)")
-    ax_tau.set_ylabel("joint torque (N m)")
-    ax_tau.set_title("their torques (PD + gravity), same colours", fontsize=9)
-    ax_tau.grid(True, alpha=0.3)
-    handles, labels = ax_q.get_legend_handles_labels()
-    ax_tau.legend(handles, labels, fontsize=8, loc="upper left", bbox_to_anchor=(1.01, 1.0))
-    fig.suptitle(f"G1 standing, PD + gravity in torque mode (omega {params.omega_rad_s:g} rad/s, "
-                 f"zeta {params.zeta:g}): max pelvis height change {max_m * 1e3:.2f} mm")
-    ctx.save_figure(fig, "g1_stand.png")
 
 
 def prepare_track(params: TrackParams, robot: Robot | None = None) -> Work:
@@ -535,7 +415,8 @@ def _tracking_outcome(ctx: RunContext, name: str, log: RunLog, err: np.ndarray, 
         lines.append(f"pelvis max deviation {dz * 1e3:.2f} mm "
                      f"({'FELL (' + fall_reason + ')' if fall_reason is not None else 'stood'})")
     lines += _models_lines(ctx)
-    _tracking_plot(ctx, name, log, controller.joints, err, f"{title}: joint RMS {rms:.3g} rad", body)
+    tracking_plot(ctx, name, log, controller.joints, err, f"{title}: joint RMS {rms:.3g} rad", body,
+                  bound_m=PELVIS_BOUND_M)
     passed = (bound is None or rms <= bound) and not fell
     return Outcome(passed, tuple(lines), "; ".join(bounds) or None)
 

@@ -27,7 +27,9 @@ import numpy as np
 
 from mbctl.jobs.recording import q_columns, v_columns
 from mbctl.robots.identification import BadLogError, RecordedLog
+from mbctl.robots.interface import RobotState
 from mbctl.robots.model_pair import Robot
+from mbctl.sim.monitor import PlantMonitor
 
 SECTION = "identification_log"
 CSV_NAME = "excite.csv"
@@ -51,6 +53,21 @@ def header(robot: Robot, joints: tuple[str, ...], bodies: tuple[str, ...]) -> li
     """The CSV's columns (see the module docstring)."""
     return ["time_s", *q_columns(robot), *v_columns(robot), *tau_columns(joints), *contact_columns(bodies),
             "other_contacts"]
+
+
+def log_row(state: RobotState, monitor: PlantMonitor) -> list[float]:
+    """One row of the log (the columns of :func:`header`): the cycle's state and what the plant measured.
+
+    Args:
+        state: The state the cycle's command was computed from.
+        monitor: The plant's monitor right after the cycle, built with the header's ``joints``,
+            its contact bodies as ``wrench_bodies`` and ``count_elsewhere=True``.
+    """
+    row = [state.time_s, *state.q, *state.v, *monitor.joint_torques]
+    for on, wrench in zip(monitor.touching, monitor.wrenches_W, strict=True):
+        row += [float(on), *wrench]
+    row.append(monitor.contacts_elsewhere)
+    return row
 
 
 def read_run(run_dir: Path) -> tuple[RecordedLog, dict[str, Any]]:

@@ -16,13 +16,13 @@ from __future__ import annotations
 
 from typing import NamedTuple
 
-import mujoco
 import numpy as np
 import pinocchio as pin
 
 from mbctl.control.ik import WholeBodyIK, mujoco_frame_type
 from mbctl.robots.collision import GeomPairs, closest_pairs
 from mbctl.robots.model_pair import Robot
+from mbctl.robots.plant_kinematics import PlantKinematics
 from mbctl.robots.scene import bodies_com
 
 
@@ -68,10 +68,7 @@ def plant_frames(robot: Robot, q: np.ndarray, frames: tuple[str, ...]) -> PlantF
     Raises:
         IKSetupError: A frame that is neither a site nor a body (the message lists them).
     """
-    m = robot.mj_model
-    data = mujoco.MjData(m)
-    robot.plant_qpos(q, data.qpos)
-    mujoco.mj_kinematics(m, data)
+    data = PlantKinematics(robot=robot).at(q)
     positions, rotations = {}, {}
     for frame in frames:
         if mujoco_frame_type(robot, frame) == "site":
@@ -81,7 +78,7 @@ def plant_frames(robot: Robot, q: np.ndarray, frames: tuple[str, ...]) -> PlantF
             i = robot.body_id(frame)
             positions[frame], rotations[frame] = data.xpos[i].copy(), data.xmat[i].reshape(3, 3)
     return PlantFrames(positions, {f: R.copy() for f, R in rotations.items()},
-                       bodies_com(m, data, robot.robot_body_ids))
+                       bodies_com(robot.mj_model, data, robot.robot_body_ids))
 
 
 def plant_residuals(robot: Robot, ik: WholeBodyIK, q: np.ndarray) -> PlantResiduals:

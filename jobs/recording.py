@@ -10,12 +10,12 @@ from __future__ import annotations
 from collections.abc import Callable, Sequence
 from typing import Any
 
-import mujoco
 import numpy as np
 
 from mbctl.robots.commands import Command
 from mbctl.robots.interface import RobotState
 from mbctl.robots.model_pair import Robot
+from mbctl.robots.plant_kinematics import PlantKinematics
 from mbctl.sim.recorder import CsvStream
 
 _FREE_Q = ("x_m", "y_m", "z_m", "qx", "qy", "qz", "qw")
@@ -119,21 +119,19 @@ def command_columns(names: Sequence[str], unit: str) -> list[str]:
 class PlantSite:
     """A site's world position p_WS [m] computed by the *plant's* kinematics from a state's q.
 
-    Uses MuJoCo's ``mj_kinematics`` on a scratch ``MjData`` (never the simulator's), so the
-    measurement does not depend on the Pinocchio model a controller used.
+    Uses MuJoCo's own kinematics on a scratch ``MjData`` (never the simulator's:
+    :class:`~mbctl.robots.plant_kinematics.PlantKinematics`), so the measurement does not depend on
+    the Pinocchio model a controller used.
     """
 
     def __init__(self, robot: Robot, site: str):
         self.robot = robot
-        self.m = robot.mj_model
-        self.d = mujoco.MjData(self.m)
+        self._kinematics = PlantKinematics(robot=robot)
         self.sid = robot.site_id(site)
 
     def __call__(self, q: np.ndarray) -> np.ndarray:
         """p_WS (3,) [m] at configuration ``q`` (Pinocchio convention)."""
-        self.robot.plant_qpos(q, self.d.qpos)
-        mujoco.mj_kinematics(self.m, self.d)
-        return self.d.site_xpos[self.sid].copy()
+        return self._kinematics.at(q).site_xpos[self.sid].copy()
 
     def many(self, q_log: np.ndarray) -> np.ndarray:
         """p_WS (N, 3) [m] at each logged configuration (N, nq)."""

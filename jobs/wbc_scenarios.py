@@ -24,6 +24,7 @@ from mbctl.control.tasks import AccelerationGains, FramePoseTask, FramePositionT
 from mbctl.control.wbc import Standing
 from mbctl.planners.polynomial import minimum_jerk_at
 from mbctl.robots.g1 import FEET, PALM_SITES, PELVIS
+from mbctl.robots.interface import RobotState
 from mbctl.sim.perturb import Push, PushSchedule
 
 #: CoM drop [m] at the bottom of the squat is twice this. The G1's ankle pitch (range down to
@@ -37,7 +38,7 @@ PUSH_HOLD_S = 0.1
 PUSH_PERIOD_S = 2.0
 
 #: Sets the task targets for a time [s] since the start.
-Schedule = Callable[[float], None]
+Schedule = Callable[[float, RobotState], None]
 
 
 def sole_center_W(wb: Standing, foot: str) -> np.ndarray:
@@ -66,13 +67,13 @@ def scenario(name: str, wb: Standing, model: mujoco.MjModel, impulse_n_s: float 
         wb.torso.set_target(pin.SE3.Identity())
     wb.posture.set_target(s.q.copy())
 
-    def hold_com(t: float) -> None:
+    def hold_com(t: float, state: RobotState) -> None:
         wb.com.set_target(*minimum_jerk_at(c0, home, t, 0.0, 1.0))
 
     if name == "squat":
         w, A = 2 * np.pi * SQUAT_FREQUENCY_HZ, SQUAT_AMPLITUDE_M
 
-        def squat(t: float) -> None:
+        def squat(t: float, state: RobotState) -> None:
             p, v, a = minimum_jerk_at(c0, home, t, 0.0, 1.0)  # x, y over the feet
             wb.com.set_target(p - [0, 0, A * (1 - np.cos(w * t))], v - [0, 0, A * w * np.sin(w * t)],
                               a - [0, 0, A * w * w * np.cos(w * t)])
@@ -89,8 +90,8 @@ def scenario(name: str, wb: Standing, model: mujoco.MjModel, impulse_n_s: float 
             wb.extra[site] = task
             hands[site] = (task, p0)
 
-        def reach(t: float) -> None:
-            hold_com(t)
+        def reach(t: float, state: RobotState) -> None:
+            hold_com(t, state)
             for task, p0 in hands.values():
                 p1 = p0 + [REACH_M, 0.0, 0.0]
                 task.set_target(*(minimum_jerk_at(p0, p1, t, 1.0, 2.5) if t < 4.0
@@ -120,7 +121,7 @@ def _one_foot(wb: Standing, c0: np.ndarray, home: np.ndarray) -> Schedule:
     wb.extra["swing"] = swing
     poses: dict[str, pin.SE3] = {}
 
-    def one_foot(t: float) -> None:
+    def one_foot(t: float, state: RobotState) -> None:
         wb.com.set_target(*(minimum_jerk_at(c0, over_left, t, 0.0, 2.0) if t < 10.0
                             else minimum_jerk_at(over_left, home, t, 10.0, 2.0)))
         if t >= 2.0 and "down" not in poses and ctrl.contacts[right].target_weight > 0:

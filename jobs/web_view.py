@@ -19,6 +19,7 @@ import mujoco
 import numpy as np
 
 from mbctl.robots.model_pair import Robot
+from mbctl.robots.plant_kinematics import PlantKinematics
 from mbctl.sim.recorder import read_csv
 from mbctl.sim.trajectory import base_body, load_trajectory
 from mbctl.sim.web import Timeline, WebView
@@ -31,11 +32,10 @@ MEASURED_RGB, PREDICTED_RGB = (220, 60, 30), (40, 90, 220)
 
 def robot_view(robot: Robot, keyframe: str | None = None, port: int = 0) -> WebView:
     """``robot`` at ``keyframe`` (default qpos0), served on loopback."""
-    data = mujoco.MjData(robot.mj_model)
-    if keyframe is not None:
-        mujoco.mj_resetDataKeyframe(robot.mj_model, data, robot.keyframe_id(keyframe))
-    view = WebView(robot.mj_model, port, base_body(robot), title=f"mbctl: {robot.name}")
-    view.show(data.qpos)
+    m = robot.mj_model
+    qpos = m.qpos0 if keyframe is None else m.key_qpos[robot.keyframe_id(keyframe)]
+    view = WebView(m, port, base_body(robot), title=f"mbctl: {robot.name}")
+    view.show(qpos)
     view.note(f"**{robot.name}**: nq {robot.nq}, nv {robot.nv}, nu {robot.mj_model.nu}"
               + (f"; keyframe `{keyframe}`" if keyframe else ""))
     return view
@@ -57,6 +57,14 @@ def floor_z(model: mujoco.MjModel) -> float | None:
     return None
 
 
+def _site_id(model: mujoco.MjModel, name: str) -> int | None:
+    """The id of site ``name``, None when the model has no such site."""
+    try:
+        return int(model.site(name).id)
+    except KeyError:
+        return None
+
+
 def contact_arrows(table: dict[str, np.ndarray], model: mujoco.MjModel, frame_rows: np.ndarray,
                    qpos: np.ndarray, source: str) -> tuple[np.ndarray, np.ndarray] | None:
     """Per-frame normal-force arrows of the CSV's feet: (start, vector) (n, feet, 3) [m] in W.
@@ -66,21 +74,23 @@ def contact_arrows(table: dict[str, np.ndarray], model: mujoco.MjModel, frame_ro
     the floor (at the site's height without a floor) and points down, 1 mm per N. Frames before
     the CSV's first row (``frame_rows`` -1) have none. None when the CSV has no such columns.
     """
-    feet = [c[: -len(f"_fz_{source}_N")] for c in table if c.endswith(f"_fz_{source}_N")]
-    feet = [f for f in feet if mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_SITE, f) >= 0
-            and f"{f}_cop_x_{source}_m" in table and f"{f}_cop_y_{source}_m" in table]
+    feet: list[str] = []
+    sites: list[int] = []
+    for f in (c[: -len(f"_fz_{source}_N")] for c in table if c.endswith(f"_fz_{source}_N")):
+        site = _site_id(model, f)
+        if site is not None and f"{f}_cop_x_{source}_m" in table and f"{f}_cop_y_{source}_m" in table:
+            feet.append(f)
+            sites.append(site)
     if not feet:
         return None
-    data = mujoco.MjData(model)
+    kinematics = PlantKinematics(model)
     floor = floor_z(model)
-    sites = [mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_SITE, f) for f in feet]
     start = np.zeros((len(frame_rows), len(feet), 3))
     vec = np.zeros_like(start)
     for i, (row, q) in enumerate(zip(frame_rows, qpos, strict=True)):
         if row < 0:
             continue  # before the first control cycle: no force known
-        data.qpos[:] = q
-        mujoco.mj_kinematics(model, data)
+        data = kinematics.at_qpos(q)
         for k, (f, s) in enumerate(zip(feet, sites, strict=True)):
             start[i, k] = (table[f"{f}_cop_x_{source}_m"][row], table[f"{f}_cop_y_{source}_m"][row],
                            data.site_xpos[s][2] if floor is None else floor)

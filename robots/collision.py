@@ -22,11 +22,13 @@ itself with adjacent bodies excluded.
 
 Distances come from ``mj_geomDistance(m, d, g1, g2, distmax, fromto)``: the signed distance [m]
 (negative: penetration depth), capped at ``distmax``, and the witness points ``fromto`` (p1 on g1,
-p2 on g2, world frame).
+p2 on g2, world frame). :class:`SelfClearance` asks the other way round, with MuJoCo's collision
+detection: which of the robot's geom pairs come within a margin at a configuration.
 """
 
 from __future__ import annotations
 
+import copy
 from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import NamedTuple
@@ -38,6 +40,7 @@ import numpy.typing as npt
 from mbctl.robots.exceptions import CollisionPairError, UnknownNameError
 from mbctl.robots.model_pair import Robot
 from mbctl.robots.names import mj_name
+from mbctl.robots.plant_kinematics import PlantKinematics
 
 #: Distance cap [m] of a full measurement (the plant check): pairs farther apart read as this.
 FAR_M = 10.0
@@ -102,6 +105,11 @@ def collision_geoms(m: mujoco.MjModel) -> np.ndarray:
     return np.flatnonzero((m.geom_contype != 0) | (m.geom_conaffinity != 0))
 
 
+def body_geoms(m: mujoco.MjModel, body: int) -> tuple[int, ...]:
+    """Ids of the geoms of body ``body`` (an id) that can collide (e.g. a foot's soles)."""
+    return tuple(int(k) for k in collision_geoms(m) if int(m.geom_bodyid[k]) == body)
+
+
 def geom_set(robot: Robot, name: str) -> tuple[int, ...]:
     """The geoms one name stands for (see the module docstring for the order of lookup).
 
@@ -112,10 +120,10 @@ def geom_set(robot: Robot, name: str) -> tuple[int, ...]:
     g = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_GEOM, name)
     if g >= 0:
         return (g,)
-    colliding = collision_geoms(m)
     body = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_BODY, name)
     if body > 0:
-        return tuple(int(k) for k in colliding if int(m.geom_bodyid[k]) == body)
+        return body_geoms(m, body)
+    colliding = collision_geoms(m)
     in_robot = np.isin(m.geom_bodyid[colliding], robot.robot_body_ids)
     if name == "robot":
         return tuple(int(k) for k in colliding[in_robot])
@@ -236,12 +244,48 @@ def closest_pairs(robot: Robot, qs: npt.ArrayLike, pairs: GeomPairs) -> list[Clo
         pairs: The pairs to measure (at least one).
     """
     m = robot.mj_model
-    data = mujoco.MjData(m)
+    kinematics = PlantKinematics(robot=robot)
     out = []
     for q in np.atleast_2d(np.asarray(qs, dtype=float)):
-        robot.plant_qpos(q, data.qpos)
-        mujoco.mj_kinematics(m, data)
-        dist = pair_distances(m, data, pairs.ids)
+        dist = pair_distances(m, kinematics.at(q), pairs.ids)
         k = int(np.argmin(dist))
         out.append(ClosestPair(float(dist[k]), pairs.labels[k]))
     return out
+
+
+class SelfClearance:
+    """Which pairs of the robot's own geoms come within a margin of each other at a configuration.
+
+    MuJoCo's collision detection (``mj_collision``, with the model's contype/conaffinity, parent-
+    child and exclude filters) on a copy of the model whose geom margins are at least
+    ``margin_m``; contacts with geoms that are not the robot's (the floor, props) do not count,
+    nor do pairs already that close at ``q_start`` (neighbouring links).
+
+    Args:
+        robot: The model pair (its model is copied, never stepped).
+        margin_m: Clearance [m] a pair must keep.
+        q_start: The start configuration (nq,), Pinocchio convention.
+    """
+
+    def __init__(self, robot: Robot, margin_m: float, q_start: npt.ArrayLike):
+        m = copy.copy(robot.mj_model)
+        m.geom_margin[:] = np.maximum(m.geom_margin, margin_m)
+        self._kinematics = PlantKinematics(m, robot)
+        self._robot_geoms = set(np.flatnonzero(np.isin(m.geom_bodyid, robot.robot_body_ids)).tolist())
+        self.neighbours: frozenset[tuple[int, int]] = frozenset()
+        self.neighbours = frozenset(self.pairs(q_start))
+
+    def pairs(self, q: npt.ArrayLike) -> set[tuple[int, int]]:
+        """Geom id pairs (min, max) of the robot within the margin at ``q`` (nq,), neighbours left out."""
+        self._kinematics.at(q)
+        d = self._kinematics.collide()
+        out = set()
+        for c in d.contact[: d.ncon]:
+            g1, g2 = int(c.geom1), int(c.geom2)
+            if g1 in self._robot_geoms and g2 in self._robot_geoms:
+                out.add((min(g1, g2), max(g1, g2)))
+        return out - self.neighbours
+
+    def touches(self, q: npt.ArrayLike) -> bool:
+        """Whether two of the robot's geoms (not neighbours at the start) come within the margin at ``q``."""
+        return bool(self.pairs(q))

@@ -61,7 +61,7 @@ def weld_base(robot: Robot, keyframe: str | None = None) -> Robot:
     entries, and contacts between the base and its child bodies are excluded (MuJoCo does not
     filter parent-child contacts of a body welded to the world, so they would start to collide).
     Pinocchio: the model is rebuilt from the edited spec
-    (:func:`~mbctl.robots.model_pair.pin_model_from_spec`), so it has no free-flyer and the same
+    (:func:`~mbctl.robots.model_files.pin_model_from_spec`), so it has no free-flyer and the same
     fixed base pose. The pair is then checked for agreement like any loaded robot.
 
     Args:
@@ -78,7 +78,7 @@ def weld_base(robot: Robot, keyframe: str | None = None) -> Robot:
         RobotError: The robot has no floating base.
     """
     from mbctl.robots.exceptions import RobotError
-    from mbctl.robots.model_pair import pin_model_from_spec
+    from mbctl.robots.model_files import pin_model_from_spec
 
     if not robot.has_floating_base:
         raise RobotError(

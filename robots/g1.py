@@ -14,7 +14,7 @@ x = 0.0708 m, so 0.08 m is about mid-palm along the hand's long axis.
 
 Falling. The G1 has fallen when its pelvis is below :data:`FALL_HEIGHT_M` or when a body other than
 its feet touches the floor (:data:`G1_FALL`); the plant measures both
-(:class:`mbctl.sim.monitor.FallMonitor`).
+(:class:`mbctl.sim.monitor.PlantMonitor`).
 """
 
 from __future__ import annotations
@@ -91,10 +91,12 @@ class FallRule:
     Attributes:
         base_min_z_m: Base (free-joint) height [m] below which it has fallen.
         support_bodies: Bodies allowed to touch the floor (the feet).
+        base_name: What the messages call the base (the G1's is its pelvis).
     """
 
     base_min_z_m: float
     support_bodies: tuple[str, ...]
+    base_name: str = "base"
 
     def reason(self, base_z_m: float, floor_bodies: Sequence[str]) -> str | None:
         """Why the robot has fallen (None: it has not).
@@ -104,7 +106,7 @@ class FallRule:
             floor_bodies: Names of the robot's bodies touching the floor.
         """
         if base_z_m < self.base_min_z_m:
-            return f"pelvis at {base_z_m:.3f} m (below {self.base_min_z_m:g} m)"
+            return f"{self.base_name} at {base_z_m:.3f} m (below {self.base_min_z_m:g} m)"
         others = sorted(set(floor_bodies) - set(self.support_bodies))
         if others:
             return f"{', '.join(others)} touched the floor"
@@ -112,7 +114,7 @@ class FallRule:
 
 
 #: The G1's fall rule.
-G1_FALL = FallRule(FALL_HEIGHT_M, FOOT_BODIES)
+G1_FALL = FallRule(FALL_HEIGHT_M, FOOT_BODIES, "pelvis")
 
 
 def is_menagerie_g1(robot: Robot) -> bool:

@@ -28,7 +28,7 @@ import pinocchio as pin
 
 #: Relative tolerance on masses and inertias, absolute tolerance [m] on positions and [-] on unit
 #: axes and rotation entries: both sides come from the same decimal strings, so anything beyond
-#: round-off is a real difference (as the load-time check, ``model_pair``).
+#: round-off is a real difference (as the load-time check, ``agreement``).
 RTOL = 1e-9
 ATOL = 1e-9
 

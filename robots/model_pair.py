@@ -2,15 +2,14 @@
 
 Both come from the same MJCF: Pinocchio reads the robot file, MuJoCo the scene file (which may
 ``<include>`` the robot file, something Pinocchio's parser cannot follow). On construction the
-pair is checked for agreement (joint names and order, nq, nv, total mass, armature, gravity).
+pair is checked for agreement (``robots/agreement.py``: joint names and order, nq, nv, total mass,
+armature, forward kinematics). Where the models come from and how their files are read is in
+``robots/model_files.py``; ``ModelSource``, the loaders and ``check_agreement`` are re-exported here.
 """
 
 from __future__ import annotations
 
-import tempfile
 from collections.abc import Callable, Mapping
-from dataclasses import dataclass, field
-from pathlib import Path
 from types import MappingProxyType
 from typing import TypeVar
 
@@ -19,12 +18,23 @@ import numpy as np
 import numpy.typing as npt
 import pinocchio as pin
 
+from mbctl.robots.agreement import check_agreement
 from mbctl.robots.conventions import JointLayout, StateConverter
-from mbctl.robots.exceptions import ModelFileError, ModelMismatchError, UnknownNameError
+from mbctl.robots.exceptions import UnknownNameError
 from mbctl.robots.indexing import as_slice
+from mbctl.robots.model_files import (
+    ModelSource,
+    compile_spec,
+    load_mj_spec,
+    load_pin_model,
+    pin_model_from_spec,
+)
 from mbctl.robots.names import ActuatorInfo, SensorInfo, actuator_infos, mj_name, names_of, sensor_infos
 from mbctl.robots.pin_from_mj import pin_model_from_mj
 from mbctl.robots.scene import describe_body, robot_bodies, scene_bodies
+
+__all__ = ["JACOBIAN_REFERENCES", "ModelSource", "Robot", "check_agreement", "compile_spec", "load_mj_spec",
+           "load_pin_model", "pin_model_from_spec"]
 
 _T = TypeVar("_T")
 
@@ -43,90 +53,6 @@ JACOBIAN_REFERENCES: Mapping[str, pin.ReferenceFrame] = MappingProxyType(
         "world": pin.ReferenceFrame.WORLD,
     }
 )
-
-#: Relative tolerance on total mass and absolute tolerance on armature [kg m^2] in the
-#: load-time agreement check: both engines parse the same decimal strings, so anything beyond
-#: floating-point round-off is a real difference.
-MASS_RTOL = 1e-9
-ARMATURE_ATOL = 1e-12
-
-
-@dataclass(frozen=True)
-class ModelSource:
-    """Where a robot's two models come from, for reports and hashing.
-
-    Attributes:
-        name: Robot name (a known robot) or the robot file's stem.
-        robot_file: The robot's file (MJCF or URDF); Pinocchio's parser reads it when
-            ``analytic`` is "parser".
-        scene_file: MJCF file MuJoCo reads (may include ``robot_file``).
-        origin: Human-readable provenance (e.g. "embedded", "menagerie unitree_g1 @ <dir>").
-        edits: Load-time edits applied on top of the files (MjSpec or Pinocchio), in order.
-        analytic: How the Pinocchio model was built: "mujoco" (from MuJoCo's compiled model,
-            ``robots.pin_from_mj``; the default) or "parser" (Pinocchio's own parser reading
-            ``robot_file``: the independent path, e.g. a URDF checked against its MJCF).
-        roots: Bodies whose trees are the robot (empty: the trees the actuators drive; see
-            ``robots/scene.py``).
-    """
-
-    name: str
-    robot_file: Path
-    scene_file: Path
-    origin: str
-    edits: tuple[str, ...] = field(default=())
-    analytic: str = "parser"
-    roots: tuple[str, ...] = field(default=())
-
-    def files(self) -> dict[str, Path]:
-        """The model files by role (deduplicated)."""
-        out = {"robot": self.robot_file}
-        if self.scene_file != self.robot_file:
-            out["scene"] = self.scene_file
-        return out
-
-
-def load_mj_spec(path: Path) -> mujoco.MjSpec:
-    """Parse an MJCF file into an MjSpec; a bad file raises ModelFileError naming it."""
-    if not path.is_file():
-        raise ModelFileError(f"Model file {str(path)!r} does not exist.")
-    try:
-        return mujoco.MjSpec.from_file(str(path))
-    except ValueError as exc:
-        raise ModelFileError(f"MuJoCo cannot parse {str(path)!r}: {exc}") from exc
-
-
-def compile_spec(spec: mujoco.MjSpec, path: Path) -> mujoco.MjModel:
-    """Compile an MjSpec; a failure raises ModelFileError naming the file."""
-    try:
-        return spec.compile()
-    except ValueError as exc:
-        raise ModelFileError(f"MuJoCo cannot compile {str(path)!r}: {exc}") from exc
-
-
-def load_pin_model(path: Path) -> pin.Model:
-    """Build a Pinocchio model from an MJCF (or URDF, by suffix) file; errors name the file."""
-    if not path.is_file():
-        raise ModelFileError(f"Model file {str(path)!r} does not exist.")
-    try:
-        if path.suffix.lower() == ".urdf":
-            return pin.buildModelFromUrdf(str(path))
-        return pin.buildModelFromMJCF(str(path))
-    except (ValueError, RuntimeError, IndexError) as exc:
-        raise ModelFileError(f"Pinocchio cannot parse {str(path)!r}: {exc}") from exc
-
-
-def pin_model_from_spec(spec: mujoco.MjSpec) -> pin.Model:
-    """Build a Pinocchio model from an (edited) MjSpec via its XML.
-
-    Pinocchio has no MjSpec reader, so the spec is written to a temporary MJCF next to nothing:
-    mesh files are irrelevant to Pinocchio's dynamics (inertias are explicit in ``<inertial>``).
-    """
-    xml = spec.to_xml()
-    with tempfile.NamedTemporaryFile("w", suffix=".xml", delete=True) as tmp:
-        tmp.write(xml)
-        tmp.flush()
-        return pin.buildModelFromMJCF(tmp.name)
-
 
 class Robot:
     """A robot's Pinocchio model and MuJoCo model, with name maps and convention conversions.
@@ -475,82 +401,3 @@ def _lookup(kind: str, table: Mapping[str, _T], name: str) -> _T:
         return table[name]
     except KeyError:
         raise UnknownNameError(kind, name, table) from None
-
-
-def check_agreement(robot: Robot) -> None:
-    """Check both engines describe the same mechanism; ModelMismatchError lists what differs."""
-    pm, m = robot.pin_model, robot.mj_model
-    problems = []
-    nq, nv = robot.converter.nq, robot.converter.nv
-    if (pm.nq, pm.nv) != (nq, nv):
-        problems.append(f"sizes differ: Pinocchio nq={pm.nq}, nv={pm.nv}; MuJoCo robot nq={nq}, nv={nv}")
-    pin_names = list(pm.names)[1:]
-    mj_names = list(robot.joints)
-    if pin_names != mj_names:
-        diff = [
-            f"#{i}: {a!r} vs {b!r}"
-            for i, (a, b) in enumerate(zip(pin_names, mj_names, strict=False))
-            if a != b
-        ]
-        problems.append(
-            f"joint names/order differ (Pinocchio vs MuJoCo): {len(pin_names)} vs "
-            f"{len(mj_names)} joints; " + ", ".join(diff[:5])
-        )
-    pin_mass = sum(inertia.mass for inertia in pm.inertias)
-    mj_mass = float(np.sum(m.body_mass[list(robot.robot_body_ids)]))  # the robot's, not the scene's
-    if not np.isclose(pin_mass, mj_mass, rtol=MASS_RTOL, atol=0):
-        problems.append(f"robot mass differs: Pinocchio {pin_mass:.9g} kg, MuJoCo {mj_mass:.9g} kg")
-    if pm.nv == nv:
-        mj_arm = m.dof_armature[robot.qvel_index]
-        bad = np.flatnonzero(np.abs(np.asarray(pm.armature) - mj_arm) > ARMATURE_ATOL)
-        if bad.size:
-            problems.append(
-                f"armature differs at dofs {bad[:8].tolist()}: Pinocchio "
-                f"{np.asarray(pm.armature)[bad[:8]].tolist()}, MuJoCo {mj_arm[bad[:8]].tolist()}"
-            )
-    if not problems:
-        problems += _kinematics_problems(robot)
-    if problems:
-        raise ModelMismatchError(
-            f"Pinocchio model ({robot.source.robot_file}) and MuJoCo model "
-            f"({robot.source.scene_file}) of {robot.name!r} disagree: " + "; ".join(problems)
-        )
-
-
-#: Largest FK difference [m, or rotation-matrix entry] the load-time check accepts.
-FK_ATOL = 1e-9
-
-
-def _kinematics_problems(robot: Robot, n_random: int = 2, seed: int = 0) -> list[str]:
-    """FK of every body and site, both engines, at the neutral pose and random configurations."""
-    pm, m = robot.pin_model, robot.mj_model
-    data, d = pm.createData(), mujoco.MjData(m)
-    lower = np.where(np.isfinite(pm.lowerPositionLimit), pm.lowerPositionLimit, -1.0).clip(-1e3, 1e3)
-    upper = np.where(np.isfinite(pm.upperPositionLimit), pm.upperPositionLimit, 1.0).clip(-1e3, 1e3)
-    np.random.seed(seed)  # pin.randomConfiguration draws from numpy's global generator
-    configurations = [pin.neutral(pm)] + [pin.randomConfiguration(pm, lower, upper) for _ in range(n_random)]
-    frames = [(kind, name, i, pm.getFrameId(name, ftype))
-              for kind, names, ids, ftype in (
-                  ("body", robot.bodies, robot.robot_body_ids, pin.FrameType.BODY),
-                  ("site", robot.sites, robot.robot_site_ids, pin.FrameType.OP_FRAME))
-              for name, i in zip(names, ids, strict=True)]
-    missing = [f"{kind} {name!r}" for kind, name, _, fid in frames if fid >= pm.nframes]
-    if missing:
-        return [f"missing in Pinocchio: {', '.join(missing[:8])}"
-                + (f" and {len(missing) - 8} more" if len(missing) > 8 else "")]
-    worst: tuple[float, str] = (0.0, "")
-    for q in configurations:
-        pin.framesForwardKinematics(pm, data, q)
-        robot.plant_qpos(q, d.qpos)
-        mujoco.mj_kinematics(m, d)
-        for kind, name, i, fid in frames:
-            pos, rot = (d.xpos[i], d.xmat[i]) if kind == "body" else (d.site_xpos[i], d.site_xmat[i])
-            oMf = data.oMf[fid]
-            err = max(float(np.abs(oMf.translation - pos).max()),
-                      float(np.abs(oMf.rotation.ravel() - rot).max()))
-            if err > worst[0]:
-                worst = (err, f"{kind} {name!r}")
-    if worst[0] > FK_ATOL:
-        return [f"forward kinematics differ by {worst[0]:.3g} (m or rotation entry) at {worst[1]} "
-                f"(tolerance {FK_ATOL:g})"]
-    return []

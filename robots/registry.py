@@ -14,7 +14,8 @@ import pinocchio as pin
 from mbctl.robots.exceptions import ModelFileError, ModelNotFoundError, RobotError, UnknownNameError
 from mbctl.robots.joint_pairing import pair_joints
 from mbctl.robots.menagerie import resolve_menagerie_dir
-from mbctl.robots.model_pair import ModelSource, Robot, compile_spec, load_mj_spec, load_pin_model
+from mbctl.robots.model_files import ModelSource, compile_spec, load_mj_spec, load_pin_model
+from mbctl.robots.model_pair import Robot
 from mbctl.robots.model_size import check_model_file_size, check_robot_dof
 from mbctl.robots.names import mj_name
 from mbctl.robots.pin_from_mj import pin_model_from_mj

@@ -18,6 +18,7 @@ import mujoco
 import numpy as np
 
 from mbctl.robots.exceptions import UnknownNameError
+from mbctl.robots.indexing import as_slice
 
 
 def tree_roots(m: mujoco.MjModel) -> np.ndarray:
@@ -111,12 +112,36 @@ def describe_body(m: mujoco.MjModel, b: int) -> str:
     return f"{name} ({kind}, {float(m.body_mass[b]):.4g} kg)"
 
 
+class BodiesCom:
+    """The centre of mass of a fixed set of bodies, read from any ``MjData`` of the model.
+
+    From ``body_mass`` and ``xipos`` (set by ``mj_kinematics``, and by a step for the step's start):
+    the robot's CoM when the bodies are the robot's, whatever else the scene holds
+    (``subtree_com[0]`` is the whole plant's). The ids (a slice when contiguous, as the robot's
+    are) and the mass weights are gathered once, so a control loop can read it every period.
+
+    Args:
+        m: The model.
+        bodies: Body ids.
+
+    Attributes:
+        mass_kg: The bodies' total mass [kg].
+    """
+
+    def __init__(self, m: mujoco.MjModel, bodies: Iterable[int]):
+        self._ids = as_slice(sorted(int(b) for b in bodies))
+        mass = np.array(m.body_mass[self._ids], dtype=float)
+        self.mass_kg = float(mass.sum())
+        self._weights = mass / self.mass_kg
+
+    def __call__(self, d: mujoco.MjData) -> np.ndarray:
+        """Centre of mass (3,) [m], world frame, at ``d``'s kinematics (a new array)."""
+        return self._weights @ d.xipos[self._ids]
+
+
 def bodies_com(m: mujoco.MjModel, d: mujoco.MjData, bodies: Iterable[int]) -> np.ndarray:
     """Centre of mass (3,) [m], world frame, of ``bodies`` (ids) at ``d``'s kinematics.
 
-    From ``body_mass`` and ``xipos`` (set by ``mj_kinematics``): the robot's CoM when ``bodies`` are
-    the robot's, whatever else the scene holds (``subtree_com[0]`` is the whole plant's).
+    A one-off :class:`BodiesCom`; in a loop, build one once instead.
     """
-    ids = np.fromiter(bodies, dtype=int)
-    mass = m.body_mass[ids]
-    return mass @ d.xipos[ids] / float(mass.sum())
+    return BodiesCom(m, bodies)(d)

@@ -22,7 +22,7 @@ import mujoco
 
 from mbctl.robots.exceptions import SceneMismatchError, UnknownNameError
 from mbctl.robots.model_diff import model_differences
-from mbctl.robots.model_pair import compile_spec, load_mj_spec
+from mbctl.robots.model_files import compile_spec, load_mj_spec
 from mbctl.robots.pin_from_mj import pin_model_from_mj
 from mbctl.robots.scene import robot_bodies
 

@@ -8,6 +8,9 @@ control cycle gets, for the state its command was computed from (time t): the ro
 the sites MuJoCo placed, the contact forces that MuJoCo applied on groups of geoms (e.g. each
 foot) while executing the command, which robot bodies touch the floor, and whether the robot has
 fallen, without a second ``mj_forward`` (that would cost as much as the step itself on the G1).
+On request it also samples what an identification log records: the torque the actuators applied
+to named joints over the period, the contact wrench on named bodies (a foot force sensor), and
+the contacts on the robot elsewhere.
 """
 
 from __future__ import annotations
@@ -16,7 +19,16 @@ from collections.abc import Callable, Iterable, Mapping, Sequence
 
 import numpy as np
 
-from mbctl.sim.contacts import ContactSensor, FloorContacts, MeasuredContact
+from mbctl.robots.collision import body_geoms
+from mbctl.robots.indexing import as_slice
+from mbctl.robots.scene import BodiesCom
+from mbctl.sim.contacts import (
+    ContactSensor,
+    FloorContacts,
+    MeasuredContact,
+    contact_wrenches,
+    contacts_elsewhere,
+)
 from mbctl.sim.exceptions import SimError
 from mbctl.sim.simulator import Simulator
 
@@ -34,28 +46,42 @@ class PlantMonitor:
         sites: Robot sites whose world positions are sampled each period.
         fall_rule: Decides from the base height and the bodies touching the floor whether the
             robot has fallen (needs a floating base); the first fall is latched.
+        joints: Joints whose actuator torque is sampled each period.
+        wrench_bodies: Robot bodies whose contact wrench (on their colliding geoms, about their
+            origin) is measured each period.
+        count_elsewhere: Count each period the contacts on the robot through geoms outside the
+            contact groups and the wrench bodies (self-collisions, a knee on the floor).
 
     Raises:
         SimError: A fall rule for a fixed-base robot.
+        UnknownNameError: An unknown site, joint or body.
 
     Attributes:
         time_s: Start time [s] of the last period sampled (the state its command saw).
         contacts: Measured contact per group over the last period (world frame).
-        com_W: Robot CoM (3,) [m] at ``time_s`` (MuJoCo's subtree CoMs of the robot's roots).
+        com_W: Robot CoM (3,) [m] at ``time_s`` (its bodies' masses at MuJoCo's ``xipos``).
         site_positions_W: Position (3,) [m] of each sampled site at ``time_s``.
         floor_bodies: Robot bodies touching the floor at ``time_s``.
         fall_reason: Why the robot fell (None while it has not), with ``fall_time_s`` [s].
+        joint_torques: The actuators' torque (n,) [N m] on each of ``joints`` over the period
+            (MuJoCo's ``qfrc_actuator``: clamped, geared; [N] on a slide joint).
+        touching: Whether each wrench body touches something (c,).
+        wrenches_W: Contact wrench on each wrench body (c, 6): force [N], then moment [N m] about
+            the body's origin, world axes.
+        contacts_elsewhere: The number of contacts counted by ``count_elsewhere`` (0 without it).
     """
 
     def __init__(self, sim: Simulator, contact_groups: Mapping[str, Iterable[int]] | None = None,
-                 sites: Sequence[str] = (), fall_rule: FallRule | None = None):
+                 sites: Sequence[str] = (), fall_rule: FallRule | None = None, *,
+                 joints: Sequence[str] = (), wrench_bodies: Sequence[str] = (),
+                 count_elsewhere: bool = False):
         self.sim = sim
         m, robot = sim.model, sim.robot
         self._sensor = ContactSensor(m, contact_groups) if contact_groups else None
         self._roots = [b for b in robot.robot_body_ids if int(m.body_parentid[b]) == 0]
-        self._root_mass = m.body_subtreemass[self._roots]
+        self._com = BodiesCom(m, robot.robot_body_ids)
         #: The robot's mass [kg] in the plant.
-        self.mass_kg = float(self._root_mass.sum())
+        self.mass_kg = self._com.mass_kg
         self._site_ids = {name: robot.site_id(name) for name in sites}
         self._floor = FloorContacts(m, np.flatnonzero(m.geom_bodyid == 0), bodies=robot.robot_body_ids)
         if fall_rule is not None and not robot.has_floating_base:
@@ -69,6 +95,20 @@ class PlantMonitor:
         self.fall_reason: str | None = None
         self.fall_time_s: float | None = None
         self.base_z_m = float("nan")
+        layouts = [robot.joint(j) for j in joints]
+        multi = [j.name for j in layouts if j.nv != 1]
+        if multi:
+            raise SimError(f"joint torques are sampled on one-dof joints (hinge, slide); {multi} are not")
+        self._dofs = as_slice([j.dofadr for j in layouts]) if layouts else None
+        self.joint_torques = np.zeros(len(joints))
+        self._wrench_ids = [robot.body_id(b) for b in wrench_bodies]
+        self._wrench_groups = [body_geoms(m, b) for b in self._wrench_ids]
+        self.touching = np.zeros(len(wrench_bodies), dtype=bool)
+        self.wrenches_W = np.zeros((len(wrench_bodies), 6))
+        self._count_elsewhere = count_elsewhere
+        grouped = [g for group in (*(contact_groups or {}).values(), *self._wrench_groups) for g in group]
+        self._allowed = sorted({int(g) for g in grouped})
+        self.contacts_elsewhere = 0
 
     def attach(self) -> PlantMonitor:
         """Register as the simulator's observer; returns self."""
@@ -81,8 +121,7 @@ class PlantMonitor:
         self.time_s = float(d.time) - sim.control_period_s
         if self._sensor is not None:
             self.contacts = self._sensor.measure(d)
-        sub = d.subtree_com[self._roots]
-        self.com_W = self._root_mass @ sub / self.mass_kg
+        self.com_W = self._com(d)
         self.site_positions_W = {name: d.site_xpos[i].copy() for name, i in self._site_ids.items()}
         self.floor_bodies = tuple(self._floor.bodies(d))
         if self._fall_rule is not None and self.fall_reason is None:
@@ -91,3 +130,11 @@ class PlantMonitor:
             reason = self._fall_rule(self.base_z_m, self.floor_bodies)
             if reason is not None:
                 self.fall_reason, self.fall_time_s = reason, self.time_s
+        if self._dofs is not None:
+            self.joint_torques = np.array(d.qfrc_actuator[self._dofs])
+        if self._wrench_ids:
+            self.touching, self.wrenches_W = contact_wrenches(sim.model, d, self._wrench_groups,
+                                                              d.xpos[self._wrench_ids])
+        if self._count_elsewhere:
+            self.contacts_elsewhere = contacts_elsewhere(sim.model, d, sim.robot.robot_body_ids,
+                                                         self._allowed)

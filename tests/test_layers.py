@@ -184,3 +184,36 @@ def test_the_example_check_sees_violations(tmp_path):
         "e.py: mbctl.control _x (private)",
         "e.py: mbctl.sim Perturbation (not in mbctl.sim.__all__)",
     ]
+
+
+#: MuJoCo's C API as Python calls: ``mj_*`` and ``mju_*``.
+MJ_CALL_PREFIXES = ("mj_", "mju_")
+
+
+def _raw_mujoco_calls(path: Path) -> list[str]:
+    """``mujoco.mj_*`` / ``mujoco.mju_*`` used in ``path`` (under any alias, or imported by name)."""
+    tree = ast.parse(path.read_text(), filename=str(path))
+    aliases = {a.asname or a.name for node in ast.walk(tree) if isinstance(node, ast.Import)
+               for a in node.names if a.name == "mujoco"}
+    bad = []
+    for node in ast.walk(tree):
+        if (isinstance(node, ast.Attribute) and isinstance(node.value, ast.Name) and node.value.id in aliases
+                and node.attr.startswith(MJ_CALL_PREFIXES)):
+            bad.append(f"{path.name}:{node.lineno}: mujoco.{node.attr}")
+        elif isinstance(node, ast.ImportFrom) and node.module == "mujoco":
+            bad += [f"{path.name}:{node.lineno}: from mujoco import {a.name}" for a in node.names
+                    if a.name.startswith(MJ_CALL_PREFIXES)]
+    return bad
+
+
+def test_jobs_make_no_raw_mujoco_calls():
+    """Jobs run the plant through sim/ and measure it through sim/ and robots/, never MuJoCo's C API."""
+    bad = [b for path in sorted((ROOT / "jobs").rglob("*.py")) for b in _raw_mujoco_calls(path)]
+    assert bad == [], "move these into sim/ (the plant) or robots/"
+
+
+def test_the_raw_mujoco_check_sees_calls(tmp_path):
+    (tmp_path / "bad.py").write_text("import mujoco as mj\nfrom mujoco import mju_zero, MjData\n"
+                                     "mj.mj_forward(m, d)\nmj.mjtObj.mjOBJ_BODY\nx = mj.MjData(m)\n")
+    assert _raw_mujoco_calls(tmp_path / "bad.py") == ["bad.py:2: from mujoco import mju_zero",
+                                                       "bad.py:3: mujoco.mj_forward"]

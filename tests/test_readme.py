@@ -50,3 +50,26 @@ def test_every_mbctl_line_names_a_command(commands):
     used.discard("--version")
     assert used, "the README shows no mbctl command"
     assert used <= commands, sorted(used - commands)
+
+
+def _layout_rows() -> dict[str, str]:
+    layout = README.read_text().split("## Layout", 1)[1]
+    rows = {}
+    for line in layout.splitlines():
+        if line.startswith("| `"):
+            rows[line.split("`")[1]] = line
+    return rows
+
+
+def test_the_layout_section_names_every_package_and_module():
+    """The README's Layout and the house agree: each package a row, each public module named in it."""
+    root = README.parent
+    rows = _layout_rows()
+    packages = sorted(str(p.parent.relative_to(root)) + "/" for p in root.glob("*/**/__init__.py")
+                      if ".venv" not in p.parts and "tests" not in p.parts and "docs" not in p.parts
+                      and "bench" not in p.parts and "examples" not in p.parts)
+    missing_rows = [p for p in packages if p not in rows]
+    assert not missing_rows, f"packages without a Layout row: {missing_rows}"
+    unnamed = [f"{pkg}{m.stem}" for pkg in packages for m in sorted((root / pkg).glob("*.py"))
+               if not m.stem.startswith("_") and m.stem != "exceptions" and f"`{m.stem}`" not in rows[pkg]]
+    assert not unnamed, f"modules the Layout row of their package does not name: {unnamed}"

@@ -40,3 +40,37 @@ def test_every_package_is_in_pyprojects_list():
              for p in ROOT.rglob("__init__.py") if not skip & set(p.relative_to(ROOT).parts)}
     assert found - listed == set(), "add these to [tool.setuptools] packages"
     assert listed - found == set(), "these packages do not exist"
+
+
+#: The longest a source file may be [lines] (the brief: small modules, one idea each).
+MAX_LINES = 500
+
+
+def _python_files(root: Path) -> list[Path]:
+    """The repository's tracked .py files (package, tests, bench, examples), or every .py outside
+    virtual environments and build folders when the tree is not a git checkout."""
+    out = subprocess.run(["git", "ls-files", "-z", "--", "*.py"], capture_output=True, cwd=root)
+    if out.returncode == 0 and out.stdout:
+        return [root / p for p in out.stdout.decode().split("\0") if p]
+    skip = {".venv", "venv", "build", ".git", "node_modules"}
+    return [p for p in root.rglob("*.py") if not skip & set(p.relative_to(root).parts)]
+
+
+def _too_long(root: Path, limit: int = MAX_LINES) -> list[str]:
+    lengths = ((p, len(p.read_text().splitlines())) for p in _python_files(root) if p.is_file())
+    return sorted(f"{p.relative_to(root)}: {n} lines" for p, n in lengths if n > limit)
+
+
+def test_no_source_file_is_over_500_lines():
+    assert _python_files(ROOT), "no Python files found"
+    long = _too_long(ROOT)
+    assert not long, f"split these by idea (at most {MAX_LINES} lines each): " + "; ".join(long)
+
+
+def test_the_length_check_sees_a_long_file(tmp_path):
+    (tmp_path / "pkg").mkdir()
+    (tmp_path / "pkg" / "long.py").write_text("x = 1\n" * (MAX_LINES + 1))
+    (tmp_path / "pkg" / "short.py").write_text("x = 1\n" * MAX_LINES)
+    (tmp_path / ".venv").mkdir()
+    (tmp_path / ".venv" / "dep.py").write_text("x = 1\n" * 1000)
+    assert _too_long(tmp_path) == [f"pkg/long.py: {MAX_LINES + 1} lines"]

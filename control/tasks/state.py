@@ -8,8 +8,9 @@ mass and its Jacobian) and differ in what ``update`` computes:
   needs it, the CoM and its Jacobian (``pin.jacobianCenterOfMass``).
 * :class:`DynamicsState` ``update(q, v)``, for inverse dynamics: ``pin.computeAllTerms`` (M, the
   bias forces, the joint Jacobians, the CoM and its Jacobian, and the body accelerations at zero
-  vdot, i.e. the drifts ``Jdot v``), the frame placements, and the centroidal map and its time
-  variation (``A_g``, ``dA_g``).
+  vdot, i.e. the drifts ``Jdot v``, and the centroidal map ``A_g``) and the frame placements. The
+  centroidal drift ``dA_g v`` comes from the bias forces when the root is a free flyer (see
+  :meth:`DynamicsState.centroidal_drift`), else from ``pin.computeCentroidalMapTimeVariation``.
 
 The two are siblings, not parent and child: their ``update`` signatures differ, so neither can
 stand in for the other where an update is called.
@@ -29,6 +30,12 @@ import pinocchio as pin
 
 from mbctl.control.exceptions import TaskSetupError
 from mbctl.robots.exceptions import UnknownNameError
+
+
+def _skew(p: np.ndarray) -> np.ndarray:
+    """``[p]x`` (3, 3): ``[p]x w = p x w``."""
+    x, y, z = p.tolist()
+    return np.array([[0.0, -z, y], [z, 0.0, -x], [-y, x, 0.0]])
 
 
 class TaskState:
@@ -158,11 +165,16 @@ class DynamicsState(TaskState):
         super().__init__(model)
         self.v = np.zeros(model.nv)
         self._M_buffer = np.zeros((model.nv, model.nv))
-        self._lower = np.tril_indices(model.nv, -1)
+        self._lower = np.tril(np.ones((model.nv, model.nv), dtype=bool), -1)
         self._M_view = self._M_buffer.view()
         self._M_view.setflags(write=False)
         self._M: np.ndarray | None = None
         self._centroidal_drift: np.ndarray | None = None
+        # a free-flyer root (joint 1, the only child of the universe): its rows of the dynamics
+        # are the whole robot's momentum balance, which gives dA_g v without another pass
+        self._free_root = (model.njoints > 1 and model.joints[1].shortname() == "JointModelFreeFlyer"
+                           and list(model.parents[1:]).count(0) == 1)
+        self._F = np.zeros((6, 6))  # the wrench map from the root frame to G (world axes)
         self.mass = float(sum(inertia.mass for inertia in model.inertias))
         self.update(self._q if q is None else q, v)
 
@@ -184,9 +196,8 @@ class DynamicsState(TaskState):
             if not math.isfinite(self.v @ self.v):
                 raise TaskSetupError(f"v must be finite; got {self.v.tolist()}")
         model, data = self.model, self.data
-        pin.computeAllTerms(model, data, q_new, self.v)
+        pin.computeAllTerms(model, data, q_new, self.v)  # also A_g (data.Ag)
         pin.updateFramePlacements(model, data)
-        pin.computeCentroidalMapTimeVariation(model, data, q_new, self.v)
         self._M = None
         self._centroidal_drift = None
 
@@ -196,7 +207,7 @@ class DynamicsState(TaskState):
         if self._M is None:  # Pinocchio fills the upper triangle (the lower holds other values)
             M = self._M_buffer
             np.copyto(M, self.data.M)
-            M[self._lower] = M.T[self._lower]
+            np.copyto(M, M.T, where=self._lower)  # mirror the upper triangle (reads never written)
             self._M = self._M_view
         return self._M
 
@@ -229,9 +240,28 @@ class DynamicsState(TaskState):
         return self.data.Ag
 
     def centroidal_drift(self) -> np.ndarray:
-        """``dA_g v`` (6,): the rate of centroidal momentum at zero vdot [N; N m] (once per update)."""
+        """``dA_g v`` (6,): the rate of centroidal momentum at zero vdot [N; N m] (once per update).
+
+        With a free-flyer root its six rows of ``M vdot + b = tau_ext`` are the robot's momentum
+        balance in the root frame B, so the rate of the centroidal momentum at zero vdot is the
+        root's bias wrench moved to the CoM G (world axes) plus gravity's: ``dA_g v = X_GB^* b_B +
+        [m g; 0]`` (gravity, inside b, cancels). The same as Pinocchio's
+        ``computeCentroidalMapTimeVariation`` to 1e-12 (tested) without its second pass over the tree.
+        """
         if self._centroidal_drift is None:
-            self._centroidal_drift = self.data.dAg @ self.v
+            data = self.data
+            if self._free_root:
+                X_WB = data.oMi[1]
+                R, F = X_WB.rotation, self._F
+                F[:3, :3] = R
+                F[3:, 3:] = R
+                F[3:, :3] = _skew(X_WB.translation - data.com[0]) @ R
+                drift = F @ data.nle[:6]
+                drift[:3] += self.mass * self.model.gravity.linear
+            else:
+                pin.computeCentroidalMapTimeVariation(self.model, data, self._q, self.v)
+                drift = data.dAg @ self.v
+            self._centroidal_drift = drift
         return self._centroidal_drift
 
     def angular_momentum(self) -> np.ndarray:

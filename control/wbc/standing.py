@@ -104,20 +104,21 @@ def standing_controller(robot: Robot, feet: Sequence[str], base_frame: str, tors
 
 
 class Scheduled:
-    """A whole-body controller whose targets follow ``schedule(t)`` (t [s] since the run's first state).
+    """A whole-body controller whose targets follow ``schedule(t, state)`` (t [s] since the first state).
 
     A :class:`~mbctl.control.controller.Controller` for :func:`mbctl.control.loop.run` (pass
-    ``reference=None``): each ``compute`` first calls ``schedule(state.time_s - t_start)``, which
-    sets task targets (and may add tasks, release or put down feet), then solves.
+    ``reference=None``): each ``compute`` first calls ``schedule(state.time_s - t_start, state)``,
+    which sets task targets (and may add tasks, release or put down feet; the measured state is
+    there for schedules that react to it, e.g. a swing leg placed from the current base), then solves.
 
     Args:
         controller: The whole-body controller.
-        schedule: Sets the targets for a time [s] since the start.
+        schedule: Sets the targets for a time [s] since the start, given the state being controlled.
     """
 
     reference_type = None
 
-    def __init__(self, controller: WholeBodyController, schedule: Callable[[float], None]):
+    def __init__(self, controller: WholeBodyController, schedule: Callable[[float, RobotState], None]):
         self.controller = controller
         self.schedule = schedule
         self._t_start: float | None = None
@@ -131,5 +132,5 @@ class Scheduled:
         """Targets at the schedule's time, then the whole-body torques for ``state``."""
         if self._t_start is None:
             self._t_start = state.time_s
-        self.schedule(state.time_s - self._t_start)
+        self.schedule(state.time_s - self._t_start, state)
         return self.controller.compute(state)

@@ -36,8 +36,10 @@ from collections.abc import Callable, Mapping
 
 import numpy as np
 
-from mbctl.robots.crosscheck.evaluator import CHUNK_SIZE, Evaluator, match_frames
+from mbctl.robots.agreement import check_agreement
+from mbctl.robots.crosscheck.evaluator import CHUNK_SIZE, Evaluator
 from mbctl.robots.crosscheck.exceptions import CrossCheckError
+from mbctl.robots.crosscheck.frames import match_frames
 from mbctl.robots.crosscheck.locate import describe_entry, dof_labels
 from mbctl.robots.crosscheck.plant import comparison_model
 from mbctl.robots.crosscheck.report import (
@@ -53,7 +55,7 @@ from mbctl.robots.crosscheck.structure import first as _first
 from mbctl.robots.crosscheck.structure import located_differences, structure_problems
 from mbctl.robots.crosscheck.tolerances import TOLERANCES, Tolerance
 from mbctl.robots.exceptions import ModelMismatchError
-from mbctl.robots.model_pair import Robot, check_agreement
+from mbctl.robots.model_pair import Robot
 
 _DEFAULT_SAMPLING = Sampling()
 

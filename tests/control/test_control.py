@@ -9,6 +9,7 @@ import pytest
 from mbctl.control.computed_torque import ComputedTorque
 from mbctl.control.controller import (
     Controller,
+    ControllerBase,
     JointMap,
     JointReference,
     joint_reference,
@@ -240,16 +241,12 @@ def test_saturation_is_counted_and_clipped(two_link_torque):
     assert c.saturation.saturated_cycles == 0 and not c.saturation.by_joint()
 
 
-def test_torque_controller_on_position_actuators_is_an_error(two_link):
+def test_a_torque_command_on_position_actuators_is_an_error_in_the_simulator(two_link):
     """The 2-link arm with position actuators rejects torque commands, through the simulator."""
-    c = PDGravity(two_link, gains_from_frequency(10.0, 1.0, 0.1))
-    sim = Simulator(two_link)
-    cmd = c.compute(sim.read_state(), joint_reference([0.1, 0.2]))
-    assert cmd.kind is CommandKind.TORQUE
+    from mbctl.robots.commands import torque
+
     with pytest.raises(CommandError, match="torque command cannot drive shoulder"):
-        sim.send(cmd)
-    with pytest.raises(CommandError):
-        run(sim, c, joint_reference([0.1, 0.2]), 0.01)
+        Simulator(two_link).send(torque([0.1, 0.2]))
 
 
 def test_position_target_pd_on_position_actuators(two_link_gravity_pos):
@@ -317,15 +314,53 @@ def test_a_reference_of_the_wrong_length_is_refused_by_name(two_link_torque):
                 controller.compute(state, bad)
 
 
-def test_computed_torque_on_position_actuators_fails_at_construction(two_link):
-    """Its message is the simulator's for a torque sent to a position actuator, said up front."""
+class _UserTorqueLaw(ControllerBase):
+    """A user's control law that says nothing about its output: torques, as ControllerBase assumes."""
+
+    name = "user_torque"
+
+    def compute(self, state, reference):  # never reached: construction fails
+        raise AssertionError
+
+
+class _UserVelocityLaw(ControllerBase):
+    """A user's control law that outputs velocity targets."""
+
+    name = "user_velocity"
+    command_kind = CommandKind.VELOCITY
+
+    def compute(self, state, reference):  # never reached: construction fails
+        raise AssertionError
+
+
+@pytest.mark.parametrize(("law", "build"), [
+    ("JointPD", lambda r: JointPD(r, gains_from_frequency(10.0))),
+    ("PDGravity", lambda r: PDGravity(r, gains_from_frequency(10.0))),
+    ("ComputedTorque", lambda r: ComputedTorque(r, gains_from_frequency(10.0))),
+    ("TaskSpaceComputedTorque", lambda r: TaskSpaceComputedTorque(r, gains_from_frequency(10.0))),
+    ("_UserTorqueLaw", lambda r: _UserTorqueLaw(r, JointMap.from_robot(r))),
+])
+def test_torque_laws_on_position_actuators_fail_at_construction(two_link, law, build):
+    """Every torque law, in ControllerBase: the simulator's message for the same mistake, said up front."""
     from mbctl.robots.commands import torque
-    from mbctl.sim import Simulator
 
     with pytest.raises(CommandError) as at_step:
         Simulator(two_link).step(torque([0.0, 0.0]))
     with pytest.raises(ControllerSetupError) as at_build:
-        ComputedTorque(two_link, gains_from_frequency(10.0))
-    assert str(at_build.value) == f"ComputedTorque outputs torques. {at_step.value}"
+        build(two_link)
+    assert str(at_build.value) == f"{law} outputs torques. {at_step.value}"
     assert "shoulder (position), elbow (position)" in str(at_build.value)
     assert "position_to_motor" in str(at_build.value)
+
+
+def test_a_law_of_another_kind_is_checked_against_its_own_kind(two_link, two_link_torque):
+    from mbctl.robots.commands import velocity_target
+
+    with pytest.raises(CommandError) as at_step:
+        Simulator(two_link_torque).send(velocity_target([0.0, 0.0]))
+    with pytest.raises(ControllerSetupError) as at_build:
+        _UserVelocityLaw(two_link_torque, JointMap.from_robot(two_link_torque))
+    assert str(at_build.value) == f"_UserVelocityLaw outputs velocity targets. {at_step.value}"
+    assert PositionTargetPD(two_link).command_kind is CommandKind.POSITION  # position targets: accepted
+    with pytest.raises(ControllerSetupError, match="PositionTargetPD needs position actuators with kp > 0"):
+        PositionTargetPD(two_link_torque)

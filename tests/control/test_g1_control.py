@@ -70,12 +70,17 @@ def test_floating_base_setup_errors(g1):
 
 
 def test_torque_controller_on_menagerie_position_actuators_is_an_error(g1):
-    c = PDGravity(g1, gains_from_frequency(10.0, 1.0, 0.1))
-    sim = Simulator(g1)
-    sim.reset("stand")
-    cmd = c.compute(sim.read_state(), joint_reference(g1.keyframe_q("stand")[7:]))
-    with pytest.raises(CommandError, match="position_to_motor"):
-        sim.send(cmd)
+    """At construction, with the simulator's message; after position_to_motor the same law builds."""
+    from mbctl.robots.commands import torque
+
+    with pytest.raises(CommandError) as at_step:
+        Simulator(g1).send(torque(np.zeros(g1.nu)))
+    with pytest.raises(ControllerSetupError) as at_build:
+        PDGravity(g1, gains_from_frequency(10.0, 1.0, 0.1))
+    assert str(at_build.value) == f"PDGravity outputs torques. {at_step.value}"
+    assert "position_to_motor" in str(at_build.value)
+    motors = position_to_motor(g1)
+    assert PDGravity(motors, gains_from_frequency(10.0, 1.0, 0.1)).joints[0] == "left_hip_pitch_joint"
 
 
 def test_position_target_pd_commands_position_actuators(g1):

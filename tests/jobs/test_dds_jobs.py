@@ -130,6 +130,8 @@ def _running(folder: Path) -> bool:
     (("g1-arm-pd", "--interface", "can"), "interface must be one of sim, dds"),
     (("serve", "h1"), "speaks the G1's low-level messages only"),
     (("g1-wbc", "push", "--interface", "dds"), "push"),
+    (("g1-stand", "--interface", "dds", "--payload", "1@pelvis"), "--payload and --plant-error change the "
+                                                                   "in-process plant"),
 ])
 def test_bad_plant_options_exit_2(args, message, tmp_path):
     out = mbctl(*args, "--output", str(tmp_path))

@@ -18,11 +18,11 @@ from mbctl.jobs.g1 import (
     ArmPDParams,
     StandParams,
     TrackParams,
-    limb_rows,
     prepare_arm_pd,
     prepare_stand,
     prepare_track,
 )
+from mbctl.jobs.g1_plots import limb_rows
 from mbctl.jobs.plots import coincident_groups
 from mbctl.jobs.recording import q_columns, v_columns
 from mbctl.jobs.runner import LOCK_NAME, Job, run_job

@@ -135,3 +135,40 @@ def test_distances_are_mujocos_and_the_closest_pair_is_named(doll):
     expected = np.linalg.norm(head - (b + t * axis)) - 0.08 - 0.03
     assert d[0] == pytest.approx(expected, abs=1e-9) and closest[0].distance_m == pytest.approx(expected)
     assert np.linalg.norm(fromto[0, 3:] - fromto[0, :3]) == pytest.approx(expected, abs=1e-9)
+
+
+# Two upright arms on a base that slides down to the floor; each arm swings toward the other.
+TWO_ARMS = """
+<mujoco>
+  <worldbody>
+    <geom name="floor" type="plane" size="1 1 0.1"/>
+    <body name="base" pos="0 0 0.5">
+      <joint name="drop" type="slide" axis="0 0 1"/>
+      <geom name="base" type="box" size="0.05 0.05 0.05"/>
+      <body name="a" pos="0 0.1 0"><joint name="ja" axis="1 0 0"/>
+        <geom name="ga" type="capsule" fromto="0 0 0 0 0 0.3" size="0.02"/></body>
+      <body name="b" pos="0 -0.1 0"><joint name="jb" axis="1 0 0"/>
+        <geom name="gb" type="capsule" fromto="0 0 0 0 0 0.3" size="0.02"/></body>
+    </body>
+  </worldbody>
+  <actuator><motor joint="drop"/><motor joint="ja"/><motor joint="jb"/></actuator>
+</mujoco>
+"""
+
+
+def test_self_clearance_sees_the_robots_own_pairs_within_the_margin(tmp_path):
+    from mbctl.robots.collision import SelfClearance
+
+    path = tmp_path / "two_arms.xml"
+    path.write_text(TWO_ARMS)
+    robot = load_robot(path)
+    m = robot.mj_model
+    ga, gb = m.geom("ga").id, m.geom("gb").id
+    clearance = SelfClearance(robot, 0.03, [0.0, 0.0, 0.0])
+    assert robot.mj_model.geom_margin.max() == 0.0  # the robot's model is untouched (a copy has the margin)
+    # arm a tilted 0.5 rad: its tip 16 mm from arm b's surface, inside 30 mm; at 0.3 rad, 71 mm
+    assert clearance.pairs([0.0, 0.5, 0.0]) == {(ga, gb)}
+    assert not clearance.touches([0.0, 0.3, 0.0])
+    assert not clearance.touches([-0.47, 0.0, 0.0])  # the base on the floor: not a pair of the robot's own
+    # pairs already that close at the start are neighbours, not counted
+    assert not SelfClearance(robot, 0.03, [0.0, 0.5, 0.0]).touches([0.0, 0.5, 0.0])

@@ -215,3 +215,10 @@ def test_a_taken_port_is_named(two_link_torque):
     with robot_view(two_link_torque) as first:
         with pytest.raises(WebViewError, match=f"cannot serve on {LOOPBACK}:{first.port}"):
             robot_view(two_link_torque, port=first.port)
+
+
+def test_robot_view_shows_the_keyframe(g1):
+    with robot_view(g1, keyframe="stand") as view:
+        np.testing.assert_array_equal(view.data.qpos, g1.mj_model.key_qpos[g1.keyframe_id("stand")])
+    with robot_view(g1) as view:
+        np.testing.assert_array_equal(view.data.qpos, g1.mj_model.qpos0)

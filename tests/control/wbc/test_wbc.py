@@ -190,7 +190,7 @@ def test_the_biped_squats_in_mujoco(tiny_biped, crouch):
     c0 = wb.com.target
     w = np.pi
 
-    def squat(t):
+    def squat(t, state):
         wb.com.set_target(c0 - [0, 0, 0.03 * (1 - np.cos(w * t))], [0, 0, -0.03 * w * np.sin(w * t)],
                           [0, 0, -0.03 * w * w * np.cos(w * t)])
 
@@ -274,3 +274,21 @@ def test_a_joint_heading_for_its_limit_is_made_to_decelerate(tiny_biped, crouch)
     required = 2.0 * (q_lo + cfg.joint_limit_margin_rad - (q[knee.idx_q] + v[knee.idx_v] * Th)) / Th**2
     assert required > 0.0  # coasting would cross the limit within the horizon
     assert ctrl.solution.vdot[knee.idx_v] >= min(required, cfg.joint_limit_max_accel_rad_s2) - 1e-6
+
+
+@pytest.mark.parametrize("fixed", [False, True])
+def test_centroidal_map_and_drift_equal_pinocchios(tiny_biped, fixed):
+    """A_g from computeAllTerms and dA_g v from the root's bias wrench (free flyer) or Pinocchio's pass."""
+    model = tiny_biped.pin_model
+    if fixed:  # a fixed-base robot: the root's rows are not the momentum balance; Pinocchio's pass
+        model = pin.buildReducedModel(model, [1], pin.neutral(model))
+    rng = np.random.default_rng(5)
+    for _ in range(5):
+        q = pin.integrate(model, pin.neutral(model), 0.5 * rng.normal(size=model.nv))
+        v = rng.normal(size=model.nv)
+        state = DynamicsState(model, q, v)
+        data = model.createData()
+        pin.computeCentroidalMapTimeVariation(model, data, q, v)
+        np.testing.assert_allclose(state.centroidal_map(), data.Ag, atol=1e-12)
+        np.testing.assert_allclose(state.centroidal_drift(), data.dAg @ v, atol=1e-10)
+        assert state._free_root is not fixed

@@ -1,0 +1,122 @@
+"""The plant monitor on a three-legged stool built in code: CoM, joint torques, foot wrenches, falls."""
+
+from __future__ import annotations
+
+import mujoco
+import numpy as np
+import pytest
+
+from mbctl.robots import load_robot
+from mbctl.robots.commands import torque
+from mbctl.robots.exceptions import UnknownNameError
+from mbctl.robots.g1 import FallRule
+from mbctl.robots.scene import bodies_com
+from mbctl.sim.contacts import contact_wrenches
+from mbctl.sim.exceptions import SimError
+from mbctl.sim.monitor import PlantMonitor
+from mbctl.sim.simulator import Simulator
+
+
+def _leg(name: str, x: float, y: float) -> str:
+    return (f'<body name="leg_{name}" pos="{x} {y} -0.02">'
+            f'<joint name="hip_{name}" axis="0 1 0" stiffness="40" damping="2"/>'
+            f'<geom type="capsule" fromto="0 0 0 0 0 -0.2" size="0.01" mass="0.2" contype="0" '
+            f'conaffinity="0"/>'
+            f'<body name="foot_{name}" pos="0 0 -0.2"><geom name="sole_{name}" type="sphere" size="0.02" '
+            f'mass="0.1"/></body></body>')
+
+
+# A stool: a seat on three legs whose hips are springs with motors, and a ball beside it (scene).
+STOOL = f"""
+<mujoco model="stool">
+  <option timestep="0.002"/>
+  <worldbody>
+    <geom name="floor" type="plane" size="2 2 0.1"/>
+    <body name="seat" pos="0 0 0.265">
+      <freejoint name="root"/>
+      <geom name="seat" type="box" size="0.15 0.15 0.02" mass="2"/>
+      {_leg("a", 0.12, 0.0)}{_leg("b", -0.12, 0.1)}{_leg("c", -0.12, -0.1)}
+    </body>
+    <body name="ball" pos="1 1 0.3"><freejoint/><geom type="sphere" size="0.05" mass="5"/></body>
+  </worldbody>
+  <actuator>
+    <motor name="hip_a" joint="hip_a" ctrlrange="-150 150"/>
+    <motor name="hip_b" joint="hip_b" ctrlrange="-150 150"/>
+    <motor name="hip_c" joint="hip_c" ctrlrange="-150 150"/>
+  </actuator>
+</mujoco>
+"""
+FEET = ("foot_a", "foot_b", "foot_c")
+HIPS = ("hip_a", "hip_b", "hip_c")
+
+
+@pytest.fixture()
+def stool(tmp_path):
+    path = tmp_path / "stool.xml"
+    path.write_text(STOOL)
+    return load_robot(path)
+
+
+def test_the_monitor_measures_what_the_plant_did_each_period(stool):
+    sim = Simulator(stool)
+    monitor = PlantMonitor(sim, fall_rule=FallRule(0.15, FEET).reason, joints=HIPS, wrench_bodies=FEET,
+                           count_elsewhere=True).attach()
+    command = torque([0.5, -0.25, 0.0])
+    for _ in range(400):  # 0.8 s: settled on its feet
+        sim.step(command)
+    m, d = sim.model, sim.data
+    assert "ball" not in stool.bodies and monitor.mass_kg == pytest.approx(2.0 + 3 * 0.3)
+    # the CoM of the robot (not of the ball) at the step's start: its root's subtree CoM
+    np.testing.assert_allclose(monitor.com_W, d.subtree_com[m.body("seat").id], atol=1e-12)
+    np.testing.assert_allclose(monitor.com_W, bodies_com(m, d, stool.robot_body_ids), atol=1e-15)
+    np.testing.assert_array_equal(monitor.joint_torques, [0.5, -0.25, 0.0])  # motors, gear 1
+    # the feet carry the stool's weight; the wrenches are contact_wrenches' about each foot's origin
+    assert monitor.touching.tolist() == [True, True, True]
+    assert monitor.wrenches_W[:, 2].sum() == pytest.approx(monitor.mass_kg * 9.81, rel=1e-3)
+    feet = [m.body(f).id for f in FEET]
+    groups = [[m.geom(f"sole_{f[-1]}").id] for f in FEET]
+    _, expected = contact_wrenches(m, d, groups, d.xpos[feet])
+    np.testing.assert_array_equal(monitor.wrenches_W, expected)
+    assert monitor.contacts_elsewhere == 0 and monitor.fall_reason is None
+    assert monitor.time_s == pytest.approx(d.time - sim.control_period_s)
+    # the hips fold: the seat lands on the floor, which the rule calls a fall and the count sees
+    for _ in range(400):
+        sim.step(torque([150.0, 150.0, 150.0]))
+    assert monitor.contacts_elsewhere >= 1 and monitor.floor_bodies == ("seat",)
+    assert monitor.fall_reason is not None and monitor.fall_reason.startswith("base at 0.14")
+    assert 0.8 < monitor.fall_time_s < 1.6
+
+
+def test_the_monitor_refuses_joints_it_cannot_sample_and_unknown_bodies(stool):
+    sim = Simulator(stool)
+    with pytest.raises(SimError, match=r"joint torques are sampled on one-dof joints \(hinge, slide\); "
+                                       r"\['root'\] are not"):
+        PlantMonitor(sim, joints=("root",))
+    with pytest.raises(UnknownNameError, match="nope"):
+        PlantMonitor(sim, wrench_bodies=("nope",))
+    with pytest.raises(UnknownNameError, match="knee"):
+        PlantMonitor(sim, joints=("knee",))
+    idle = PlantMonitor(sim).attach()  # nothing asked: nothing sampled but the CoM and the floor
+    sim.step(torque([0.0, 0.0, 0.0]))
+    assert idle.joint_torques.shape == (0,) and idle.wrenches_W.shape == (0, 6)
+    assert idle.contacts_elsewhere == 0
+
+
+def test_plant_kinematics_places_the_robot_like_the_simulator(stool):
+    from mbctl.robots.plant_kinematics import PlantKinematics
+
+    sim = Simulator(stool)
+    sim.step(torque([1.0, 2.0, 3.0]), n=50)
+    sim.forward()
+    q = sim.read_state().q
+    data = PlantKinematics(robot=stool).at(q)
+    np.testing.assert_allclose(data.xpos[1:-1], sim.data.xpos[1:-1], atol=1e-12)  # the robot's bodies
+    np.testing.assert_allclose(data.qpos[-7:], stool.mj_model.qpos0[-7:])  # the scene's ball at qpos0
+    again = PlantKinematics(stool.mj_model).at_qpos(sim.data.qpos)
+    np.testing.assert_allclose(again.site_xpos, sim.data.site_xpos)
+    np.testing.assert_allclose(again.xipos, sim.data.xipos, atol=1e-12)
+    from mbctl.robots.exceptions import RobotError
+
+    with pytest.raises(RobotError, match="PlantKinematics.at takes a robot configuration: give the robot"):
+        PlantKinematics(stool.mj_model).at(q)
+    assert mujoco.mj_name2id(stool.mj_model, mujoco.mjtObj.mjOBJ_BODY, "ball") == stool.mj_model.nbody - 1
