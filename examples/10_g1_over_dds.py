@@ -40,7 +40,7 @@ from mbctl.hardware import DdsOptions, HardwareError, UnitreeG1
 from mbctl.robots import ModelFileError, ModelNotFoundError, Robot, load_robot
 from mbctl.robots.edits import position_to_motor
 from mbctl.robots.g1 import FEET, G1_FALL, KEYFRAME, PELVIS, TORSO, crouched_start
-from mbctl.robots.interface import RobotInterface
+from mbctl.robots.interface import RobotInterface, RobotState
 from mbctl.robots.unitree import G1_IMU, ChannelError
 from mbctl.robots.unitree.channel import check_domain
 from mbctl.sim import Simulator
@@ -61,7 +61,7 @@ def squat(plant: RobotInterface, standing: Standing, controller: Scheduled, dura
     c0 = standing.com.target.copy()
     w = 2 * np.pi * SQUAT_HZ
 
-    def schedule(t: float) -> None:
+    def schedule(t: float, state: RobotState) -> None:
         """The CoM target at t [s]: position [m], velocity [m/s], acceleration [m/s^2]."""
         a = SQUAT_M
         standing.com.set_target(c0 - [0, 0, a * (1 - np.cos(w * t))], [0, 0, -a * w * np.sin(w * t)],
@@ -155,7 +155,7 @@ def main() -> int:
         return 2
     start_q = crouched_start(robot)
     standing = standing_controller(robot, FEET, PELVIS, TORSO)
-    controller = Scheduled(standing.controller, lambda t: None)  # the one controller object
+    controller = Scheduled(standing.controller, lambda t, state: None)  # the one controller object
 
     # 1. In-process: the simulator is the plant; MuJoCo measures the CoM.
     sim = Simulator(robot)
