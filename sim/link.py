@@ -143,8 +143,8 @@ class LinkedSimulator:
         self._commands: DelayLine[Command] = DelayLine(spec, rng)
         self.estimator = estimator
         self._imu = ImuReader(sim, imu, spec.imu_noise, spec.seed + 1) if imu is not None else None
-        self._t_start = sim.time_s
-        self._first_command_s: float | None = None  # when the first command reached the plant
+        self.started = False  # whether a command has reached the plant (before, it is held still)
+        self._held_steps = 0
         if estimator is not None:
             estimator.reset(self._imu.proprioception(held=True))  # type: ignore[union-attr]
         self._latest = self._measure()
@@ -178,15 +178,9 @@ class LinkedSimulator:
         return self.sim.time_s
 
     @property
-    def started(self) -> bool:
-        """Whether a command has reached the plant (before, it is held still)."""
-        return self._first_command_s is not None
-
-    @property
     def held_s(self) -> float:
         """How long [s] the plant was held still waiting for its first command (so far, while it waits)."""
-        end = self.sim.time_s if self._first_command_s is None else self._first_command_s
-        return end - self._t_start
+        return self._held_steps * float(self.sim.model.opt.timestep)
 
     def read_state(self) -> RobotState:
         """The newest state the link has delivered (held while none arrives)."""
@@ -206,12 +200,12 @@ class LinkedSimulator:
             command = self._commands.receive(sim.time_s)
             if command is not None:
                 sim.send(command)
-                if self._first_command_s is None:
-                    self._first_command_s = sim.time_s
+                self.started = True
             if self.started:
                 sim.step()
             else:
                 sim.hold()
+                self._held_steps += 1
             self._states.send(sim.time_s, self._measure())
         arrived = self._states.receive(sim.time_s)
         if arrived is not None:
