@@ -287,3 +287,18 @@ def test_hold_lets_time_pass_with_the_state_still(two_link_torque_gravity):
     assert not np.array_equal(sim.q, q0)  # gravity: uncommanded, it moves once stepped
     with pytest.raises(SimError, match="positive number of steps; got 0"):
         sim.hold(0)
+
+
+def test_divergence_names_when_it_happened_not_mujocos_restarted_clock(tmp_path):
+    """MuJoCo resets a diverged state, its time included: the error gives the time before the steps."""
+    xml = """<mujoco><worldbody><body name="b"><joint name="j" type="slide" axis="1 0 0"/>
+    <geom size="0.1" mass="1"/></body></worldbody>
+    <actuator><motor name="m" joint="j"/></actuator></mujoco>"""
+    (tmp_path / "slider.xml").write_text(xml)
+    sim = Simulator(load_robot(tmp_path / "slider.xml"))
+    for _ in range(10):
+        sim.sync()
+    sim.set_state([0.0], [1e11])
+    with pytest.raises(SimulationDiverged, match=r"near t=0\.0200 s") as info:
+        sim.sync()
+    assert info.value.time_s == pytest.approx(0.02) and sim.time_s < 0.01  # MuJoCo's clock restarted
