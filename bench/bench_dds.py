@@ -1,6 +1,7 @@
 """The G1's low-level IO in Python, part by part, and g1-stand over DDS against the in-process run.
 
 Run: MENAGERIE_ROOT=../shared/menagerie python bench/bench_dds.py [--seconds 30] [--estimator 30,60]
+     python bench/bench_dds.py --wbc [stand,squat] [--wbc-seconds 10] [--runs 3]
 
 1. Per message [us], medians, ours against Unitree's SDK path in the same run: LowCmd pack + CRC
    (numpy, zlib) vs the SDK's CRC helper (repacks in Python) + cyclonedds' serializer; LowState
@@ -11,6 +12,16 @@ Run: MENAGERIE_ROOT=../shared/menagerie python bench/bench_dds.py [--seconds 30]
 3. ``mbctl serve g1`` and ``mbctl g1-stand --interface dds`` as two processes on loopback for
    ``--seconds``: period p50/p99, deadline misses, messages lost, the truth checks, and the CoM
    (truth) against the in-process g1-stand of the same length.
+
+``--wbc [stand,squat]`` instead measures issue 20's targets: for each scenario ``--wbc-seconds``
+(10 s) of ``mbctl g1-wbc SCENARIO --interface dds --truth ...`` against ``mbctl serve g1 --start
+crouched`` (a fresh bridge and domain per run), ``--runs`` times, and the same scenario in-process
+(deterministic: run once). Per scenario: deadline misses [% of cycles] and the cycles whose CPU
+time alone overran (the rest of the misses waited for a core), the client's period p50 and p99,
+its compute and IO p99 in wall and in CPU time, the bridge's own p99, misses and CPU time per
+period, the CoM RMS over DDS (the bridge's truth log) and in-process, and their difference;
+medians and [min, max] over the runs, with the load average at each run's start. Targets: misses
+< 1 %, p99 < 2.5 ms, |CoM RMS difference| < 1 mm.
 
 Everything on loopback (``lo``), on a domain derived from the pid. The machine has 2 cores shared
 with other work: the load average is printed before and after; absolute figures are noisy.
@@ -38,7 +49,7 @@ from mbctl.robots.unitree.channel import message_types  # noqa: E402
 
 
 def loadavg() -> str:
-    return Path("/proc/loadavg").read_text().split(" ", 3)[:3].__str__()
+    return " ".join(Path("/proc/loadavg").read_text().split(" ", 3)[:3])
 
 
 def io_parts(domain: int) -> None:
@@ -117,22 +128,35 @@ def _com_rms_mm(com: np.ndarray) -> float:
     return float(np.sqrt(np.mean(np.sum((com - com[0]) ** 2, axis=1))) * 1e3)
 
 
-def end_to_end(domain: int, seconds: float, folder: Path, watchdog: int) -> None:
-    serve_dir, dds_dir, sim_dir = folder / "serve", folder / "dds", folder / "sim"
+def over_dds(domain: int, folder: Path, client: list[str], *serve: str) -> subprocess.CompletedProcess:
+    """``mbctl serve g1`` on ``domain`` (lo) into ``folder/serve`` while ``client`` (a job's arguments
+    after ``--interface dds --domain D``, with ``--truth`` to its log) runs into ``folder/dds``;
+    both processes end before this returns."""
+    serve_dir = folder / "serve"
     bridge = subprocess.Popen(_mbctl("serve", "g1", "--domain", str(domain), "--idle-timeout", "1",
-                                     "--output", str(serve_dir), "-q"), stderr=subprocess.PIPE, text=True)
+                                     "--output", str(serve_dir), "-q", *serve),
+                              stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
     try:
-        assert "serving" in bridge.stderr.readline()
-        client = subprocess.run(_mbctl("g1-stand", "--interface", "dds", "--domain", str(domain),
-                                       "--duration", str(seconds), "--watchdog-periods", str(watchdog),
-                                       "--truth", str(serve_dir / "truth.csv"), "--output", str(dds_dir),
-                                       "-q"),
-                                capture_output=True, text=True)
+        line = bridge.stderr.readline()
+        if "serving" not in line:
+            raise RuntimeError(f"mbctl serve g1 did not start: {line}{bridge.stderr.read()}")
+        out = subprocess.run(_mbctl(*client, "--interface", "dds", "--domain", str(domain),
+                                    "--truth", str(serve_dir / "truth.csv"), "--output",
+                                    str(folder / "dds"), "-q"),
+                             capture_output=True, text=True)
         bridge.wait(timeout=30)
     finally:
         if bridge.poll() is None:
             bridge.send_signal(signal.SIGINT)
             bridge.wait(timeout=10)
+        bridge.stderr.close()
+    return out
+
+
+def end_to_end(domain: int, seconds: float, folder: Path, watchdog: int) -> None:
+    serve_dir, dds_dir, sim_dir = folder / "serve", folder / "dds", folder / "sim"
+    client = over_dds(domain, folder, ["g1-stand", "--duration", str(seconds), "--watchdog-periods",
+                                       str(watchdog)])
     subprocess.run(_mbctl("g1-stand", "--duration", str(seconds), "--output", str(sim_dir), "-q"),
                    check=True, capture_output=True)
     report = json.loads((dds_dir / "report.json").read_text())
@@ -168,6 +192,67 @@ def end_to_end(domain: int, seconds: float, folder: Path, watchdog: int) -> None
               f"difference {abs(_com_rms_mm(com_dds) - _com_rms_mm(com_sim)):.3f} mm")
 
 
+#: What a g1-wbc run over DDS gives the table, from its report and the bridge's.
+_WBC_FIGURES = ("misses_pct", "cpu_overruns_pct", "p50_ms", "p99_ms", "work_p99_ms", "work_cpu_p99_ms",
+                "bridge_p99_ms", "bridge_misses_pct", "bridge_work_cpu_p99_ms", "com_dds_mm", "com_sim_mm",
+                "com_diff_mm")
+
+
+def wbc_runs(scenarios: list[str], seconds: float, runs: int, folder: Path, watchdog: int) -> None:
+    """Issue 20's targets: g1-wbc over DDS against the bridge, ``runs`` times, and in-process once."""
+    print(f"4. g1-wbc over DDS against `mbctl serve g1 --start crouched` on lo, {seconds:g} s, {runs} runs "
+          f"each, watchdog {watchdog} periods (targets: misses < 1 %, p99 < 2.5 ms, CoM within 1 mm)")
+    com_sim = {}
+    for scenario in scenarios:  # deterministic: once, before the timed runs
+        out = folder / f"sim-{scenario}"
+        subprocess.run(_mbctl("g1-wbc", scenario, "--duration", str(seconds), "--output", str(out), "-q"),
+                       capture_output=True, check=False)
+        com_sim[scenario] = json.loads((out / "report.json").read_text())["values"]["com_error_rms_m"] * 1e3
+    rows: dict[str, list[dict[str, float]]] = {s: [] for s in scenarios}
+    for run in range(runs):
+        for scenario in scenarios:
+            domain = _fresh_domain()
+            run_dir = folder / f"{scenario}-{run}"
+            load = loadavg()
+            client = over_dds(domain, run_dir, ["g1-wbc", scenario, "--duration", str(seconds),
+                                                "--watchdog-periods", str(watchdog)], "--start", "crouched")
+            report = json.loads((run_dir / "dds" / "report.json").read_text())
+            v = report["values"]
+            b = json.loads((run_dir / "serve" / "report.json").read_text())["values"]
+            if "cycles" not in v or v.get("com_error_source") != "truth log":
+                print(f"   {scenario} run {run + 1}: exit {client.returncode}, {report['status']}: "
+                      f"{report['message']} (load {load})")
+                continue
+            com_dds = v["com_error_rms_m"] * 1e3
+            row = {"misses_pct": 100 * v["deadline_misses"] / v["cycles"],
+                   "cpu_overruns_pct": 100 * v["cpu_overruns"] / v["cycles"], "p50_ms": v["period_p50_ms"],
+                   "p99_ms": v["period_p99_ms"], "work_p99_ms": v["work_p99_ms"],
+                   "work_cpu_p99_ms": v["work_cpu_p99_ms"], "bridge_p99_ms": b["period_p99_ms"],
+                   "bridge_misses_pct": 100 * b["deadline_misses"] / max(1, b["cycles"]),
+                   "bridge_work_cpu_p99_ms": b["work_cpu_p99_ms"],
+                   "com_dds_mm": com_dds, "com_sim_mm": com_sim[scenario],
+                   "com_diff_mm": com_dds - com_sim[scenario]}
+            rows[scenario].append(row)
+            print(f"   {scenario} run {run + 1} (exit {client.returncode}, load {load}): "
+                  + ", ".join(f"{k} {row[k]:.3f}" for k in _WBC_FIGURES)
+                  + f"; lost {v['messages_lost']}, watchdog {v['watchdog_events']}, fell {v['fell']}")
+    for scenario, got in rows.items():
+        if not got:
+            continue
+        print(f"   {scenario}: median [min, max] over {len(got)} runs")
+        for key in _WBC_FIGURES:
+            x = np.array([r[key] for r in got])
+            print(f"     {key:18s} {np.median(x):8.3f}  [{x.min():.3f}, {x.max():.3f}]")
+
+
+_domains = iter(range(1, 10**6))
+
+
+def _fresh_domain() -> int:
+    """A DDS domain of its own for each bridge (1..232, from the pid and a counter)."""
+    return 1 + (os.getpid() * 37 + next(_domains)) % 232
+
+
 def _sim_com(run: Path) -> np.ndarray:
     """The robot's CoM [m] along an in-process run, from its trajectory.npz (Pinocchio on each q)."""
     from mbctl.robots.registry import load_robot
@@ -183,9 +268,19 @@ def main() -> None:
     parser.add_argument("--seconds", type=float, default=30.0, help="g1-stand over DDS duration (s); 0 skips")
     parser.add_argument("--estimator", default="30,60", help="estimator run lengths (s), comma-separated")
     parser.add_argument("--watchdog-periods", type=int, default=3, help="the DDS client's watchdog")
+    parser.add_argument("--wbc", nargs="?", const="stand,squat", default=None,
+                        help="only issue 20's targets: g1-wbc SCENARIOS (default stand,squat) over DDS")
+    parser.add_argument("--wbc-seconds", type=float, default=10.0, help="g1-wbc run length (s)")
+    parser.add_argument("--runs", type=int, default=3, help="g1-wbc runs over DDS per scenario")
     args = parser.parse_args()
-    domain = 1 + (os.getpid() * 37) % 232
+    domain = _fresh_domain()
     print(f"load average before: {loadavg()} (2 cores, shared)")
+    if args.wbc is not None:
+        with tempfile.TemporaryDirectory() as tmp:
+            wbc_runs([s for s in args.wbc.split(",") if s], args.wbc_seconds, args.runs, Path(tmp),
+                     args.watchdog_periods)
+        print(f"load average after: {loadavg()}")
+        return
     io_parts(domain)
     estimator_runs([float(x) for x in args.estimator.split(",") if x])
     if args.seconds > 0:

@@ -230,8 +230,9 @@ def plant_lines(v: dict[str, Any]) -> tuple[str, ...]:
     if v.get("interface") != "dds":
         return ()
     lines: tuple[str, ...] = (f"dds: {v['cycles']} cycles, period p50 {v['period_p50_ms']:.3f} ms, p99 "
-             f"{v['period_p99_ms']:.3f} ms, {v['deadline_misses']} deadline misses, "
-             f"{v['messages_lost']} messages lost, "
+             f"{v['period_p99_ms']:.3f} ms, {v['deadline_misses']} deadline misses (compute and IO p99 "
+             f"{v['work_p99_ms']:.2f} ms, {v['work_cpu_p99_ms']:.2f} ms of it on the CPU; "
+             f"{v['cpu_overruns']} cycles over the period on the CPU), {v['messages_lost']} messages lost, "
              f"{v['watchdog_events']} watchdog events",)
     if "truth_pelvis_max_deviation_m" in v:
         lines += (f"truth: pelvis max deviation {v['truth_pelvis_max_deviation_m'] * 1e3:.2f} mm, foot slip "

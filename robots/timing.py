@@ -7,6 +7,11 @@ Cycle k should start at t_k = t_0 + k T. ``wait()`` ends cycle k: if the cycle's
 ran past t_{k+1} it counts a deadline miss and starts the next cycle at once, re-anchoring the
 grid there (no burst of catch-up cycles); otherwise it sleeps until t_{k+1} (``time.sleep`` is a
 ``clock_nanosleep``, which releases the GIL; Linux wakes within ~0.1 ms).
+
+Each cycle's work (its compute and IO, from its start to ``wait()`` or ``work_done()``) is timed
+twice: in wall-clock time and in the loop thread's CPU time. A cycle whose work took longer than
+the period in wall time but not in CPU time was waiting for a core (the machine's other work), not
+computing: ``cpu_overruns`` counts the cycles whose CPU time alone overran.
 """
 
 from __future__ import annotations
@@ -27,6 +32,9 @@ class PeriodStats:
         period_p99_ms: 99th percentile of it [ms].
         period_max_ms: Longest [ms].
         deadline_misses: Cycles whose compute and IO overran the period.
+        work_p99_ms: 99th percentile of a cycle's compute and IO, wall-clock time [ms].
+        work_cpu_p99_ms: The same in the loop thread's CPU time [ms].
+        cpu_overruns: Cycles whose CPU time alone exceeded the period.
     """
 
     cycles: int
@@ -34,6 +42,9 @@ class PeriodStats:
     period_p99_ms: float
     period_max_ms: float
     deadline_misses: int
+    work_p99_ms: float = float("nan")
+    work_cpu_p99_ms: float = float("nan")
+    cpu_overruns: int = 0
 
 
 class CycleClock:
@@ -47,26 +58,39 @@ class CycleClock:
     def __init__(self, period_s: float, capacity: int = 1 << 18):
         self.period_s = float(period_s)
         self._starts = np.empty(capacity)
+        self._work = np.full((capacity, 2), np.nan)  # per cycle: work wall, CPU time [s]
         self._n = 0
         self.deadline_misses = 0
         self._next = 0.0
+        self._cpu_start = 0.0
 
     def start(self) -> float:
         """Start cycle 0 now; its time (``time.perf_counter``) [s]."""
         now = time.perf_counter()
         self._n = 0
         self.deadline_misses = 0
+        self._work[:] = np.nan
         self._record(now)
         self._next = now + self.period_s
         return now
 
     def _record(self, t: float) -> None:
-        self._starts[self._n % len(self._starts)] = t
+        k = self._n % len(self._starts)
+        self._starts[k] = t
+        self._work[k] = np.nan
         self._n += 1
+        self._cpu_start = time.thread_time()
+
+    def work_done(self) -> float:
+        """The current cycle's compute and IO end now (its wait begins); the time [s]."""
+        now = time.perf_counter()
+        k = (self._n - 1) % len(self._starts)
+        self._work[k] = (now - self._starts[k], time.thread_time() - self._cpu_start)
+        return now
 
     def wait(self) -> float:
         """End the cycle: sleep to the next deadline, or count a miss; the next cycle's start [s]."""
-        now = time.perf_counter()
+        now = self.work_done()
         if now > self._next:
             self.deadline_misses += 1
             self._next = now
@@ -110,8 +134,15 @@ class CycleClock:
             starts = np.concatenate([self._starts[k:], self._starts[:k]])
         else:
             starts = self._starts[:n]
+        work = self._work[:n][~np.isnan(self._work[:n, 0])] * 1e3
+        if work.size:
+            work_stats = (float(np.percentile(work[:, 0], 99)), float(np.percentile(work[:, 1], 99)),
+                          int(np.count_nonzero(work[:, 1] > self.period_s * 1e3)))
+        else:
+            work_stats = (float("nan"), float("nan"), 0)
         periods_ms = np.diff(starts) * 1e3
         if periods_ms.size == 0:
-            return PeriodStats(self._n, float("nan"), float("nan"), float("nan"), self.deadline_misses)
+            return PeriodStats(self._n, float("nan"), float("nan"), float("nan"), self.deadline_misses,
+                               *work_stats)
         return PeriodStats(self._n, float(np.median(periods_ms)), float(np.percentile(periods_ms, 99)),
-                           float(periods_ms.max()), self.deadline_misses)
+                           float(periods_ms.max()), self.deadline_misses, *work_stats)

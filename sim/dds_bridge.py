@@ -25,7 +25,7 @@ from __future__ import annotations
 
 import time
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass
+from dataclasses import asdict, dataclass
 from typing import Any
 
 import mujoco
@@ -121,7 +121,6 @@ class G1Bridge:
         self.motors = MotorMap.for_robot(self.robot)
         self._act = self.motors.actuator
         self._imu = ImuReader(self.sim, imu, self.options.link.imu_noise, self.options.link.seed + 1)
-        self._imu_site = self.robot.site_id(imu.site)
         rng = np.random.default_rng(self.options.link.seed)
         self._commands: DelayLine[np.ndarray] = DelayLine(self.options.link, rng)
         self._states: DelayLine[bytes] = DelayLine(self.options.link, rng)
@@ -203,20 +202,13 @@ class G1Bridge:
         ms["q"][:n] = self._q_start
         ms["dq"][:n] = self._v_start
         ms["tau_est"][:n] = d.actuator_force[self._act]
-        imu = self._imu.imu(forward=False)
+        # held still before the first command: no rotation, the specific force is -g
+        imu = self._imu.imu(forward=False) if self.started else self._imu.at_rest(forward=False)
         msg["imu_state"]["quaternion"] = imu.quat_wxyz
-        if self.started:
-            msg["imu_state"]["gyroscope"] = imu.gyro_I
-            msg["imu_state"]["accelerometer"] = imu.accel_I
-        else:  # held still before the first command: no rotation, the specific force is -g
-            msg["imu_state"]["gyroscope"] = 0.0
-            msg["imu_state"]["accelerometer"] = -self._R_WI().T @ self.sim.model.opt.gravity
+        msg["imu_state"]["gyroscope"] = imu.gyro_I
+        msg["imu_state"]["accelerometer"] = imu.accel_I
         self._states.send(now, self._state.encode())
         return tick
-
-    def _R_WI(self) -> np.ndarray:
-        """The IMU site's rotation R_WI (3, 3) now."""
-        return self.sim.data.site_xmat[self._imu_site].reshape(3, 3)
 
     def truth_row(self, tick: int, wall_s: float) -> list[float]:
         """The plant's true state at the start of the last step, as a row of :data:`TRUTH_COLUMNS`.
@@ -297,12 +289,9 @@ class G1Bridge:
 
     def stats(self) -> dict[str, Any]:
         """What the bridge counted: messages, link drops, its own period statistics."""
-        p = self.clock.stats()
         return {**self.counts, "steps": self.sim.n_steps, "simulated_time_s": self.sim.time_s,
                 "commands_dropped_by_link": self._commands.dropped,
-                "states_dropped_by_link": self._states.dropped, "cycles": p.cycles,
-                "period_p50_ms": p.period_p50_ms, "period_p99_ms": p.period_p99_ms,
-                "deadline_misses": p.deadline_misses}
+                "states_dropped_by_link": self._states.dropped, **asdict(self.clock.stats())}
 
     def close(self) -> None:
         """Leave DDS (idempotent)."""

@@ -22,7 +22,8 @@ class SimulationDiverged(SimError):
 
     Attributes:
         warnings: The divergence warnings that fired, by MuJoCo name, with their counts.
-        time_s: Simulated time [s] of the last step before the check.
+        time_s: Simulated time [s] at which the steps that diverged began (MuJoCo's reset restarts
+            its own clock, so it is taken before them).
     """
 
     def __init__(self, warnings: dict[str, int], time_s: float, hint: str = ""):

@@ -85,7 +85,28 @@ class ImuReader:
             accel += self._rng.normal(0.0, self.noise.scale * self.noise.accel_m_s2, 3)
         return ImuReading(self._quat.copy(), gyro, accel)
 
-    def proprioception(self) -> Proprioception:
-        """Joint positions and velocities (Pinocchio convention, base excluded) and the IMU."""
+    def at_rest(self, forward: bool = True) -> ImuReading:
+        """The IMU of the robot held still (before its first command): no noise.
+
+        Its site's orientation, no rotation, and the specific force of a body at rest, -g in the
+        IMU's frame (the plant's own accelerometer would read the acceleration the uncommanded
+        robot would have).
+
+        Args:
+            forward: Bring the data up to date first (see :meth:`imu`).
+        """
+        sim = self._sim
+        if forward:
+            sim.forward()
+        R_WI = sim.data.site_xmat[self._site].reshape(3, 3)
+        mujoco.mju_mat2Quat(self._quat, sim.data.site_xmat[self._site])
+        return ImuReading(self._quat.copy(), np.zeros(3), -R_WI.T @ sim.model.opt.gravity)
+
+    def proprioception(self, held: bool = False) -> Proprioception:
+        """Joint positions and velocities (Pinocchio convention, base excluded) and the IMU.
+
+        Args:
+            held: The robot is held still (:meth:`at_rest` for the IMU).
+        """
         state = self._sim.read_state()
-        return Proprioception(state.time_s, state.q[7:], state.v[6:], self.imu())
+        return Proprioception(state.time_s, state.q[7:], state.v[6:], self.at_rest() if held else self.imu())

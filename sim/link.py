@@ -10,6 +10,11 @@ probability ``drop``; otherwise it arrives ``latency_ms + U(0, jitter_ms)`` afte
 receiver keeps the newest message that has arrived (an older one arriving after a newer one is
 discarded, as a robot keeps its latest command). Delivery happens at the physics step, so delays
 are rounded up to the plant's timestep (2 ms for the G1).
+
+Until the first command arrives through the link the plant is held still, as the bridge holds
+its physics until the first valid LowCmd: its clock runs, its state stays the start state, and
+the states it sends say so (the IMU at rest). Without the hold a plant behind a latency of L
+would run the first L of the run with no command at all (zero torque: a G1 sags).
 """
 
 from __future__ import annotations
@@ -113,8 +118,9 @@ class LinkedSimulator:
     """The in-process simulator seen through a link: a :class:`RobotInterface` with delays and drops.
 
     The controller reads the newest state that has arrived and its commands reach the plant after
-    the link's delay. With an ``estimator``, the state's base position and linear velocity are
-    estimated from the (noisy) IMU and the joints, as over DDS.
+    the link's delay; until the first one arrives the plant is held still (``Simulator.hold``).
+    With an ``estimator``, the state's base position and linear velocity are estimated from the
+    (noisy) IMU and the joints, as over DDS.
 
     Args:
         sim: The plant (its control period is the interface's).
@@ -137,8 +143,10 @@ class LinkedSimulator:
         self._commands: DelayLine[Command] = DelayLine(spec, rng)
         self.estimator = estimator
         self._imu = ImuReader(sim, imu, spec.imu_noise, spec.seed + 1) if imu is not None else None
+        self.started = False  # whether a command has reached the plant (before, it is held still)
+        self._held_steps = 0
         if estimator is not None:
-            estimator.reset(self._imu.proprioception())  # type: ignore[union-attr]
+            estimator.reset(self._imu.proprioception(held=True))  # type: ignore[union-attr]
         self._latest = self._measure()
         self._states.send(sim.time_s, self._latest)
         self._latest = self._states.receive(sim.time_s) or self._latest
@@ -146,7 +154,7 @@ class LinkedSimulator:
     def _measure(self) -> RobotState:
         if self.estimator is None:
             return self.sim.read_state()
-        reading = self._imu.proprioception()  # type: ignore[union-attr]
+        reading = self._imu.proprioception(held=not self.started)  # type: ignore[union-attr]
         q_base, v_base = self.estimator.update(reading)
         q = np.concatenate([q_base, reading.q_joints])
         v = np.concatenate([v_base, reading.v_joints])
@@ -166,8 +174,13 @@ class LinkedSimulator:
 
     @property
     def time_s(self) -> float:
-        """Simulated time [s]."""
+        """Simulated time [s] (it runs while the plant is held before its first command)."""
         return self.sim.time_s
+
+    @property
+    def held_s(self) -> float:
+        """How long [s] the plant was held still waiting for its first command (so far, while it waits)."""
+        return self._held_steps * float(self.sim.model.opt.timestep)
 
     def read_state(self) -> RobotState:
         """The newest state the link has delivered (held while none arrives)."""
@@ -178,13 +191,21 @@ class LinkedSimulator:
         self._commands.send(self.sim.time_s, command)
 
     def sync(self) -> None:
-        """Advance the plant one control period, one physics step at a time (deliveries between steps)."""
+        """Advance the plant one control period, one physics step at a time (deliveries between steps).
+
+        Before the first command has arrived the plant is held still for the step instead.
+        """
         sim = self.sim
         for _ in range(sim.n_substeps):
             command = self._commands.receive(sim.time_s)
             if command is not None:
                 sim.send(command)
-            sim.step()
+                self.started = True
+            if self.started:
+                sim.step()
+            else:
+                sim.hold()
+                self._held_steps += 1
             self._states.send(sim.time_s, self._measure())
         arrived = self._states.receive(sim.time_s)
         if arrived is not None:
@@ -194,6 +215,7 @@ class LinkedSimulator:
         """The link's counts for a report."""
         return {"interface": "sim", "latency_ms": self.spec.latency_ms, "jitter_ms": self.spec.jitter_ms,
                 "drop": self.spec.drop, "imu_noise": self.spec.imu_noise,
+                "held_s": self.held_s,
                 "states_dropped": self._states.dropped, "commands_dropped": self._commands.dropped,
                 "states_superseded": self._states.superseded,
                 "commands_superseded": self._commands.superseded}

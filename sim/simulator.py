@@ -100,6 +100,7 @@ class Simulator:
         self._qvel_view = self.data.qvel[self._vi] if isinstance(self._vi, slice) else None
         self._warn_numbers = self.data.warning.number
         self._warn_seen = self._warn_numbers.tolist()
+        self._t_step = 0.0  # time [s] at the last step_begin
         self._observers: tuple[Callable[[Simulator], None], ...] = ()
         self._perturbations: tuple[Perturbation, ...] = ()
         #: Commands in which at least one value was outside its actuator's ctrlrange (clamped).
@@ -192,6 +193,7 @@ class Simulator:
             SimulationDiverged: MuJoCo flagged bad qpos/qvel/qacc/ctrl during the period.
         """
         # step() inlined: this runs once per control cycle
+        t0 = self.data.time  # MuJoCo restarts its clock when it resets a diverged state
         if self._perturbations:
             self._perturbed_steps(self.n_substeps)
         else:
@@ -199,7 +201,7 @@ class Simulator:
         self.n_steps += self.n_substeps
         self._stale = True
         if self._warn_numbers.tolist() != self._warn_seen:  # the check, inlined: once per cycle
-            self._check_divergence()
+            self._check_divergence(t0)
         for observer in self._observers:
             observer(self)
 
@@ -214,6 +216,7 @@ class Simulator:
             self.send(command)
         if n < 1:
             raise SimError(f"n must be a positive number of steps; got {n}")
+        t0 = self.data.time
         if self._perturbations:
             self._perturbed_steps(n)
         elif n == 1:
@@ -222,7 +225,24 @@ class Simulator:
             mujoco.mj_step(self.model, self.data, n)
         self.n_steps += n
         self._stale = True
-        self._check_divergence()
+        self._check_divergence(t0)
+        for observer in self._observers:
+            observer(self)
+
+    def hold(self, n: int = 1) -> None:
+        """Let ``n`` physics steps of time pass with the robot held still: nothing is integrated.
+
+        A plant waiting for its first command (a robot in its harness, the DDS bridge before the
+        first LowCmd) keeps its state while its clock runs; derived quantities are those of that
+        state. Observers are called as after a step; ``n_steps`` counts physics steps only.
+
+        Raises:
+            SimError: ``n`` < 1.
+        """
+        if n < 1:
+            raise SimError(f"n must be a positive number of steps; got {n}")
+        self.forward()
+        self.data.time += n * self.model.opt.timestep
         for observer in self._observers:
             observer(self)
 
@@ -240,6 +260,7 @@ class Simulator:
         ``step_end`` adds the acceleration-stage sensors (accelerometer, contact forces) of the same
         state and integrates. Together they equal ``step()`` exactly.
         """
+        self._t_step = self.data.time
         mujoco.mj_step1(self.model, self.data)
         self._stale = False
 
@@ -254,11 +275,12 @@ class Simulator:
         mujoco.mj_step2(self.model, self.data)
         self.n_steps += 1
         self._stale = True
-        self._check_divergence()
+        self._check_divergence(self._t_step)
         for observer in self._observers:
             observer(self)
 
-    def _check_divergence(self) -> None:
+    def _check_divergence(self, t0: float) -> None:
+        """Raise SimulationDiverged if MuJoCo flagged a divergence in the steps begun at ``t0`` [s]."""
         counts = self._warn_numbers.tolist()  # one call; cheaper than per-warning struct access
         if counts == self._warn_seen:
             return
@@ -268,7 +290,7 @@ class Simulator:
                 fired[_WARNING_NAMES[wid]] = counts[wid] - self._warn_seen[wid]
         self._warn_seen = counts
         if fired:
-            raise SimulationDiverged(fired, float(self.data.time))
+            raise SimulationDiverged(fired, float(t0))
 
     def reset(
         self,

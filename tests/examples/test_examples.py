@@ -42,6 +42,7 @@ def test_every_example_is_tested_and_listed():
         "01_load_and_step.py", "02_pd_hold.py", "03_computed_torque_square.py",
         "04_g1_joint_step.py", "05_crosscheck_your_robot.py", "06_g1_whole_body_ik.py",
         "07_g1_whole_body_control.py", "08_arm_tool_pose.py", "09_identify_your_arm.py",
+        "10_g1_over_dds.py",
     ]
     readme = (EXAMPLES / "README.md").read_text()
     for script in scripts:
@@ -183,3 +184,29 @@ def test_09_identify_your_arm():
     out = _run("09_identify_your_arm.py", "--duration", "6").stdout
     assert _figure(r"largest base-parameter error {n} \(bound 0.01\): ok", out) < 0.01
     assert "identified.xml: cross-check PASS" in out
+
+
+def _processes_with(*args: str) -> list[str]:
+    """Command lines of this machine's processes that contain ``args`` in a row."""
+    needle = "\0".join(args) + "\0"
+    found = []
+    for proc in Path("/proc").glob("[0-9]*"):
+        try:
+            cmdline = (proc / "cmdline").read_bytes().decode(errors="replace")
+        except OSError:
+            continue
+        if needle in cmdline:
+            found.append(cmdline.replace("\0", " "))
+    return found
+
+
+def test_10_g1_over_dds(g1, dds_domain):
+    """The same controller in-process and over DDS (its own bridge on lo, stopped at the end)."""
+    out = _run("10_g1_over_dds.py", "--duration", "1", "--domain", str(dds_domain),
+               "--watchdog-periods", "50").stdout  # 2 shared cores: a stall is not a lost link here
+    in_process = _figure(r"CoM RMS error \[mm\]\s+{n}", out)
+    over_dds = _figure(r"CoM RMS error \[mm\]\s+[\d.]+\s+{n}", out)
+    assert in_process < 5.0 and over_dds < 5.0
+    assert abs(over_dds - in_process) < 1.0  # measured 0.15 mm (2 s squat)
+    assert re.search(r"fell\s+no\s+no", out) and re.search(r"cycles\s+500\s+500", out)
+    assert _processes_with("serve", "g1", "--start", "crouched", "--domain", str(dds_domain)) == []

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import gc
 import time
 
 import numpy as np
@@ -194,6 +195,35 @@ def test_dry_run_never_commands(g1, fake_g1, dds_domain):
         assert robot.stats()["cycles"] >= 5
     time.sleep(0.05)
     assert fake.commands == []
+
+
+def test_state_ticks_name_the_state_each_cycle_used(g1, fake_g1, dds_domain):
+    """One tick per cycle, that of its last read before ``sync``: a read before the loop (a
+    controller's hold) does not shift the truth log's alignment by a cycle."""
+    fake_g1()
+    with UnitreeG1(g1, StillBase(), DdsOptions(domain=dds_domain, watchdog_periods=50)) as robot:
+        robot.read_state()
+        held_at = robot.state_ticks[0]
+        time.sleep(0.02)  # newer states arrive before the loop's first cycle
+        log = run(robot, ConstantTorque(g1), HOLD, 0.02)
+        assert len(robot.state_ticks) == log.cycles == 10
+        assert robot.state_ticks[0] > held_at
+        assert robot.state_ticks == sorted(robot.state_ticks)
+
+
+def test_the_loop_freezes_the_collector_until_close(g1, fake_g1, dds_domain):
+    """Objects made before the loop leave the collector's generations for the loop (gc.freeze), not after."""
+    fake_g1()
+    before = gc.get_freeze_count()
+    with UnitreeG1(g1, StillBase(), DdsOptions(domain=dds_domain, watchdog_periods=50)) as robot:
+        assert gc.get_freeze_count() == before  # connected, the loop not started
+        run(robot, ConstantTorque(g1), HOLD, 0.01)
+        assert gc.get_freeze_count() > before
+    assert gc.get_freeze_count() == before
+    options = DdsOptions(domain=dds_domain, watchdog_periods=50, freeze_gc=False)
+    with UnitreeG1(g1, StillBase(), options) as robot:
+        run(robot, ConstantTorque(g1), HOLD, 0.01)
+        assert gc.get_freeze_count() == before
 
 
 def test_estimator_protocol_is_what_the_interface_needs():

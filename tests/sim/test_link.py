@@ -6,6 +6,8 @@ import numpy as np
 import pytest
 
 from mbctl.robots.commands import torque
+from mbctl.robots.registry import load_robot
+from mbctl.robots.unitree.g1 import ImuSpec
 from mbctl.sim.exceptions import SimError
 from mbctl.sim.link import DelayLine, LinkedSimulator, LinkSpec
 from mbctl.sim.simulator import Simulator
@@ -80,3 +82,91 @@ def test_ideal_link_is_the_plant(two_link_torque):
 def test_an_estimator_needs_the_imu(two_link_torque):
     with pytest.raises(SimError, match="needs the robot's IMU"):
         LinkedSimulator(Simulator(two_link_torque), LinkSpec(imu_noise=1.0))
+
+
+# A one-legged hopper standing on its foot: a free torso with a rotated IMU site and a motor at the
+# hip. Uncommanded, gravity folds the hip and the torso sags.
+HOPPER = """<mujoco><option timestep="0.002"/>
+  <worldbody><geom name="floor" type="plane" size="2 2 0.1"/>
+    <body name="torso" pos="0 0 0.399"><freejoint name="root"/>
+      <geom type="box" size="0.1 0.05 0.05" mass="4"/>
+      <site name="imu" euler="10 -20 30"/>
+      <body name="leg" pos="0.05 0 -0.05"><joint name="hip" type="hinge" axis="0 1 0"/>
+        <geom type="capsule" fromto="0 0 0 0.1 0 -0.33" size="0.02" mass="1"/>
+      </body>
+    </body>
+  </worldbody>
+  <actuator><motor name="hip" joint="hip"/></actuator>
+  <sensor><gyro name="gyro" site="imu"/><accelerometer name="accel" site="imu"/></sensor>
+</mujoco>"""
+HOPPER_IMU = ImuSpec("imu", "gyro", "accel")
+
+
+@pytest.fixture
+def hopper(tmp_path):
+    (tmp_path / "hopper.xml").write_text(HOPPER)
+    return load_robot(tmp_path / "hopper.xml")
+
+
+def test_the_plant_holds_still_until_the_first_command_arrives(hopper):
+    """As the bridge's physics waits for its first LowCmd: no sag during the first 20 ms of latency."""
+    sim = Simulator(hopper)
+    q0 = sim.q
+    linked = LinkedSimulator(sim, LinkSpec(latency_ms=20.0))
+    hold = torque([5.0])
+    for _ in range(10):  # 10 periods of 2 ms: the first command arrives at the start of the 11th
+        linked.send(hold)
+        linked.sync()
+        assert np.array_equal(sim.q, q0) and not linked.started
+        assert np.array_equal(linked.read_state().q, q0) and not linked.read_state().v.any()
+    assert sim.time_s == pytest.approx(0.020) and sim.n_steps == 0  # its clock ran, no physics
+    linked.send(hold)
+    linked.sync()
+    assert linked.started and sim.n_steps == 1 and (sim.ctrl == 5.0).all()
+    assert not np.array_equal(sim.q, q0)
+    assert linked.stats()["held_s"] == pytest.approx(0.020)
+
+
+def test_without_latency_the_plant_starts_with_the_first_command(hopper):
+    sim = Simulator(hopper)
+    linked = LinkedSimulator(sim, LinkSpec(imu_noise=1.0), imu=HOPPER_IMU)
+    linked.send(torque([0.0]))
+    linked.sync()
+    assert linked.started and sim.n_steps == 1 and linked.stats()["held_s"] == 0.0
+
+
+class Recorder:
+    """A base-state estimator that keeps the readings it was given and reports the plant's base."""
+
+    estimated = ("base_position",)
+
+    def __init__(self, sim):
+        self.sim, self.readings = sim, []
+
+    def reset(self, reading):
+        self.readings.append(reading)
+
+    def update(self, reading):
+        self.readings.append(reading)
+        return self.sim.q[:7], self.sim.v[:6]
+
+
+def test_a_held_plant_reports_its_imu_at_rest(hopper):
+    """Held still, the IMU reads no rotation and the specific force -g in its own (rotated) frame."""
+    sim = Simulator(hopper)
+    estimator = Recorder(sim)
+    linked = LinkedSimulator(sim, LinkSpec(latency_ms=6.0), estimator, HOPPER_IMU)
+    for _ in range(3):
+        linked.send(torque([0.0]))
+        linked.sync()
+    R_WI = sim.data.site_xmat[hopper.site_id("imu")].reshape(3, 3)
+    at_rest_I = R_WI.T @ [0.0, 0.0, 9.81]
+    assert abs(at_rest_I[2] - 9.81) > 0.5  # the site is rotated: not trivially (0, 0, g)
+    # reset and the first state at t = 0, then one per held physics step until the command arrives
+    assert [r.time_s for r in estimator.readings] == pytest.approx([0.0, 0.0, 0.002, 0.004, 0.006])
+    for r in estimator.readings:
+        assert not r.imu.gyro_I.any()
+        np.testing.assert_allclose(r.imu.accel_I, at_rest_I, atol=1e-12)
+    linked.send(torque([0.0]))
+    linked.sync()  # the command arrived: the plant's own sensors, the uncommanded hip folding
+    assert not np.allclose(estimator.readings[-1].imu.accel_I, at_rest_I, atol=1e-3)

@@ -271,3 +271,34 @@ def test_observers_run_after_each_step_and_can_be_removed():
     sim.remove_observer(obs)
     sim.step()
     assert len(seen) == 2
+
+
+def test_hold_lets_time_pass_with_the_state_still(two_link_torque_gravity):
+    sim = Simulator(two_link_torque_gravity)
+    sim.set_state([0.3, -0.2], [0.0, 0.0])
+    seen = []
+    sim.add_observer(lambda s: seen.append(s.time_s))
+    q0 = sim.q
+    sim.hold()
+    sim.hold(3)
+    assert np.array_equal(sim.q, q0) and sim.n_steps == 0
+    assert seen == pytest.approx([0.002, 0.008])
+    sim.step()
+    assert not np.array_equal(sim.q, q0)  # gravity: uncommanded, it moves once stepped
+    with pytest.raises(SimError, match="positive number of steps; got 0"):
+        sim.hold(0)
+
+
+def test_divergence_names_when_it_happened_not_mujocos_restarted_clock(tmp_path):
+    """MuJoCo resets a diverged state, its time included: the error gives the time before the steps."""
+    xml = """<mujoco><worldbody><body name="b"><joint name="j" type="slide" axis="1 0 0"/>
+    <geom size="0.1" mass="1"/></body></worldbody>
+    <actuator><motor name="m" joint="j"/></actuator></mujoco>"""
+    (tmp_path / "slider.xml").write_text(xml)
+    sim = Simulator(load_robot(tmp_path / "slider.xml"))
+    for _ in range(10):
+        sim.sync()
+    sim.set_state([0.0], [1e11])
+    with pytest.raises(SimulationDiverged, match=r"near t=0\.0200 s") as info:
+        sim.sync()
+    assert info.value.time_s == pytest.approx(0.02) and sim.time_s < 0.01  # MuJoCo's clock restarted
