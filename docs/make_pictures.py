@@ -1,4 +1,4 @@
-"""Make the README's pictures: a G1 still and the demo's tracking plot (small PNGs in docs/).
+"""Make the README's pictures: a G1 still, the demo's tracking plot, the g1-wbc latency sweep (docs/).
 
     MENAGERIE_ROOT=... python docs/make_pictures.py
 
@@ -20,6 +20,7 @@ from matplotlib import image  # noqa: E402
 
 from mbctl.jobs.demo import DEMO, DemoConfig  # noqa: E402
 from mbctl.jobs.runner import run_job  # noqa: E402
+from mbctl.jobs.sweep import SweepConfig, run_sweep  # noqa: E402
 from mbctl.robots import load_robot  # noqa: E402
 from mbctl.sim.trajectory import base_body  # noqa: E402
 from mbctl.sim.video import VideoSpec, still  # noqa: E402
@@ -42,7 +43,16 @@ def demo_plot(path: Path) -> None:
         shutil.copyfile(record.files["plot"], path)
 
 
+def latency_sweep(path: Path) -> None:
+    """Whether g1-wbc stand and squat fall with 0-45 ms of link latency each way (in-process, Dask)."""
+    with tempfile.TemporaryDirectory() as tmp:
+        grid = {"scenario": ["squat", "stand"], "latency_ms": [float(x) for x in range(0, 50, 5)]}
+        result = run_sweep(SweepConfig("g1-wbc", grid, Path(tmp) / "sweep", metric="fell"))
+        shutil.copyfile(result.files["plot"], path)
+
+
 if __name__ == "__main__":
     g1_still(DOCS / "g1_stand.png")
     demo_plot(DOCS / "demo.png")
-    print(f"wrote {DOCS / 'g1_stand.png'}, {DOCS / 'demo.png'}")
+    latency_sweep(DOCS / "g1_wbc_latency.png")
+    print(f"wrote {DOCS / 'g1_stand.png'}, {DOCS / 'demo.png'}, {DOCS / 'g1_wbc_latency.png'}")
