@@ -46,7 +46,8 @@ def demo_plot(path: Path) -> None:
 def latency_sweep(path: Path) -> None:
     """Whether g1-wbc stand and squat fall with 0-45 ms of link latency each way (in-process, Dask)."""
     with tempfile.TemporaryDirectory() as tmp:
-        grid = {"scenario": ["squat", "stand"], "latency_ms": [float(x) for x in range(0, 50, 5)]}
+        latencies_ms: list[object] = [float(x) for x in range(0, 50, 5)]
+        grid: dict[str, list[object]] = {"scenario": ["squat", "stand"], "latency_ms": latencies_ms}
         result = run_sweep(SweepConfig("g1-wbc", grid, Path(tmp) / "sweep", metric="fell"))
         shutil.copyfile(result.files["plot"], path)
 
