@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import os
+import signal
 import time
 
 import pytest
@@ -20,6 +21,12 @@ from mbctl.robots import ModelNotFoundError, Robot, load_robot  # noqa: E402 - a
 
 # CI runs property tests with a fixed derivation of examples (reproducible, no flakes); local
 # runs explore new examples each time.
+# A suite started in the background by a shell without job control inherits SIGINT ignored, and
+# so would every command the tests start: the Ctrl-C tests would then wait in vain. A handled
+# signal is reset to its default on exec, an ignored one is not; so handle it here.
+if signal.getsignal(signal.SIGINT) == signal.SIG_IGN:
+    signal.signal(signal.SIGINT, signal.default_int_handler)
+
 settings.register_profile("ci", derandomize=True, deadline=None)
 if os.environ.get("CI"):
     settings.load_profile("ci")
