@@ -195,12 +195,6 @@ def parse_numbers(text: str, counts: tuple[int, ...], what: str, form: str) -> t
     return values
 
 
-def parse_vector(text: str, n: int, what: str) -> tuple[float, ...]:
-    """``"X,Y,Z"`` -> n floats [m]; IKSetupError naming ``what`` and the expected form otherwise."""
-    form = ",".join("XYZ"[:n]) if n <= 3 else f"{n} numbers"
-    return parse_numbers(text, (n,), f"{what} (m)", f"{form} (e.g. {','.join(['0.3'] * n)})")
-
-
 def _unit_quat(values: tuple[float, ...], what: str) -> tuple[float, float, float, float]:
     norm = math.sqrt(sum(v * v for v in values))
     if norm < 1e-9:

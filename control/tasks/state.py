@@ -231,10 +231,6 @@ class DynamicsState(TaskState):
             return pin.getFrameAcceleration(self.model, self.data, frame_id, reference).vector
         return pin.getFrameClassicalAcceleration(self.model, self.data, frame_id, reference).vector
 
-    def frame_velocity(self, frame_id: int, reference: pin.ReferenceFrame) -> np.ndarray:
-        """The frame's twist (6,) [m/s, rad/s] in ``reference``."""
-        return pin.getFrameVelocity(self.model, self.data, frame_id, reference).vector
-
     def centroidal_map(self) -> np.ndarray:
         """``A_g`` (6, nv): the centroidal momentum ``h_G = A_g v`` [kg m/s; kg m^2/s] (about the CoM)."""
         return self.data.Ag
