@@ -292,3 +292,8 @@ def test_centroidal_map_and_drift_equal_pinocchios(tiny_biped, fixed):
         np.testing.assert_allclose(state.centroidal_map(), data.Ag, atol=1e-12)
         np.testing.assert_allclose(state.centroidal_drift(), data.dAg @ v, atol=1e-10)
         assert state._free_root is not fixed
+        # Jdot_com v: the CoM's acceleration at zero vdot, from Pinocchio's forward dynamics terms
+        pin.centerOfMass(model, data, q, v, np.zeros(model.nv))
+        fresh = DynamicsState(model, q, v)  # com_drift before centroidal_drift (its own path)
+        np.testing.assert_allclose(fresh.com_drift(), data.acom[0], atol=1e-10)
+        np.testing.assert_allclose(state.com_drift(), data.acom[0], atol=1e-10)
