@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-from pathlib import Path
 from typing import Annotated, Any
 
 import typer
@@ -93,7 +92,7 @@ def identify(
                               contact=contact, cutoff_hz=cutoff_hz, rate_hz=rate_hz, validation=validation,
                               torque_noise=torque_noise, encoder_noise=encoder_noise, seed=seed,
                               model_dir=model_dir)
-    execute(IDENTIFY, params, output if output is not None else Path("out") / "identify", quiet)
+    execute(IDENTIFY, params, output, quiet)  # run_job defaults to out/identify
 
 
 def register(app: typer.Typer) -> None:
