@@ -33,9 +33,10 @@ def test_help_keeps_units_and_documents_every_option(command):
 
 
 def test_every_job_has_output_and_quiet():
-    jobs = {"demo", "joint-step", "xcheck", "ik", "workspace", "g1-stand", "g1-track", "g1-arm-pd", "excite",
-            "identify"}
-    for command in jobs & set(COMMANDS):
+    jobs = {"demo", "joint-step", "xcheck", "ik", "workspace", "g1-stand", "g1-track", "g1-arm-pd", "g1-wbc",
+            "excite", "identify", "serve"}
+    assert jobs <= set(COMMANDS), sorted(jobs - set(COMMANDS))  # every job is a registered command
+    for command in sorted(jobs):
         out = CliRunner().invoke(app, [command, "--help"], terminal_width=200, env={"COLUMNS": "200"})
         assert "--output" in out.output and "--quiet" in out.output, command
 
