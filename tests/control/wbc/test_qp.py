@@ -106,10 +106,32 @@ def test_dependent_equality_rows_are_dropped_and_counted(consistent):
 
 
 def test_problem_export_round_trips_the_two_sided_rows():
-    qp = _problem(11, 0.0)
-    problem = qp.problem(M_EQ)
-    assert problem.G.shape == (2 * M_IN, NV + NF)  # each two-sided row as two one-sided rows
-    x = qp.solve(M_EQ).x
-    assert np.all(problem.G @ x <= problem.h + 1e-9)
-    with pytest.raises(AssertionError):
-        np.testing.assert_array_equal(problem.P[:NV, :NV], np.eye(NV))
+    # a hand-sized case, the expected matrices written out: nv = 2, n_f = 1, w_f = 0.5
+    qp = WholeBodyQP(2, 1, 2, 2, force_weight=0.5)
+    qp.H_vv[:] = [[2.0, 1.0], [1.0, 3.0]]
+    qp.c_v[:] = [1.0, -1.0]
+    qp.E[:] = [[1.0, 0.0, 2.0], [0.0, 1.0, 1.0]]
+    qp.e[:] = [0.5, 7.0]  # the second row is not exported with m_eq = 1
+    qp.G[:] = [[1.0, 2.0, 0.0], [0.0, 1.0, -1.0]]
+    qp.g_lo[:] = [-1.0, -np.inf]  # row 1 is one-sided: no -G row for it
+    qp.g_up[:] = [2.0, 3.0]
+    qp.lb[:] = [-5.0, -5.0, 0.0]
+    qp.ub[:] = [5.0, 5.0, np.inf]
+    problem = qp.problem(1)
+    P = np.array([[2.0, 1.0, 0.0], [1.0, 3.0, 0.0], [0.0, 0.0, 0.25]])  # blockdiag(H_vv, w_f^2 I)
+    np.testing.assert_array_equal(problem.P, P)
+    np.testing.assert_array_equal(problem.q, [1.0, -1.0, 0.0])  # [c_v; 0]
+    # each finite upper bound as G x <= g_up, each finite lower bound as -G x <= -g_lo
+    np.testing.assert_array_equal(problem.G, [[1.0, 2.0, 0.0], [0.0, 1.0, -1.0], [-1.0, -2.0, 0.0]])
+    np.testing.assert_array_equal(problem.h, [2.0, 3.0, 1.0])
+    np.testing.assert_array_equal(problem.A, [[1.0, 0.0, 2.0]])
+    np.testing.assert_array_equal(problem.b, [0.5])
+    np.testing.assert_array_equal(problem.lb, [-5.0, -5.0, 0.0])
+    np.testing.assert_array_equal(problem.ub, [5.0, 5.0, np.inf])
+    # copies: editing the export leaves the buffers alone
+    problem.A[0, 0] = problem.b[0] = problem.lb[0] = problem.ub[0] = 99.0
+    assert qp.E[0, 0] == 1.0 and qp.e[0] == 0.5 and qp.lb[0] == -5.0 and qp.ub[0] == 5.0
+    # the structured solve's optimum is the exported problem's
+    x = qp.solve(1).x
+    reference = qpsolvers.solve_problem(qp.problem(1), solver="daqp").x
+    np.testing.assert_allclose(x, reference, atol=1e-9)
