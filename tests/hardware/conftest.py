@@ -15,6 +15,10 @@ from mbctl.robots.unitree.channel import message_types
 class FakeG1:
     """Publishes a still robot's LowState every 2 ms from a thread; decodes the commands it gets.
 
+    Change what it publishes only through :meth:`set_q` and :meth:`stop_publishing`: they take the
+    lock the publishing thread holds while it builds and writes a message, so no message goes out
+    with half of a change (e.g. a new q with a still good CRC).
+
     Args:
         domain: The test's DDS domain (loopback).
         q: Motor positions (29,) [rad].
@@ -33,9 +37,9 @@ class FakeG1:
         m["motor_state"]["q"][:29] = q
         m["imu_state"]["quaternion"] = quat_wxyz
         m["imu_state"]["accelerometer"] = (0.0, 0.0, 9.81)
-        self.bad_crc = bad_crc
-        self.publishing = threading.Event()
-        self.publishing.set()
+        self._bad_crc = bad_crc
+        self._publishing = True
+        self._lock = threading.Lock()  # the published message and its flags, vs. the publishing thread
         self.commands: list[np.ndarray] = []  # each valid LowCmd's motor records
         self.bad_commands = 0
         self._stop = threading.Event()
@@ -45,19 +49,34 @@ class FakeG1:
     def _run(self) -> None:
         cmd = low_cmd_codec()
         while not self._stop.is_set():
-            if self.publishing.is_set():
-                m = self._state.message
-                m["tick"] = int(m["tick"]) + 1
-                wire = bytearray(self._state.encode())
-                if self.bad_crc:
-                    wire[-4] ^= 0xFF
-                self._writer.write(bytes(wire))
+            with self._lock:
+                if self._publishing:
+                    m = self._state.message
+                    m["tick"] = int(m["tick"]) + 1
+                    wire = bytearray(self._state.encode())
+                    if self._bad_crc:
+                        wire[-4] ^= 0xFF
+                    self._writer.write(bytes(wire))
             for data in self._reader.take(64):
                 if cmd.decode(data):
                     self.commands.append(cmd.message["motor_cmd"][:29].copy())
                 else:
                     self.bad_commands += 1
             time.sleep(0.002)
+
+    def set_q(self, q: np.ndarray, bad_crc: bool = False) -> None:
+        """Publish motor positions ``q`` (29,) [rad], with a bad CRC if ``bad_crc``, from the next message on.
+
+        Both change together: every message sent after this returns has both, none before has either.
+        """
+        with self._lock:
+            self._state.message["motor_state"]["q"][:29] = q
+            self._bad_crc = bad_crc
+
+    def stop_publishing(self) -> None:
+        """Go silent: no LowState is sent after this returns (commands are still recorded)."""
+        with self._lock:
+            self._publishing = False
 
     def close(self) -> None:
         self._stop.set()

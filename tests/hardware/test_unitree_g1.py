@@ -90,8 +90,9 @@ def test_bad_crc_mid_run_is_counted_not_used(g1, fake_g1, dds_domain):
     fake = fake_g1()
     with UnitreeG1(g1, StillBase(), DdsOptions(domain=dds_domain, watchdog_periods=50)) as robot:
         q0 = robot.read_state().q.copy()
-        fake._state.message["motor_state"]["q"][0] = 1.0  # a wrong value, in messages with a bad CRC
-        fake.bad_crc = True
+        wrong = g1.keyframe_q("stand")[7:].copy()  # what the fake publishes, with motor 0 wrong
+        wrong[0] = 1.0  # only ever in messages with a bad CRC
+        fake.set_q(wrong, bad_crc=True)
         assert _wait_for(lambda: robot.read_state() is not None and robot.bad_crc >= 5)
         assert robot.read_state().q[7] == q0[7]  # none of them was used
         assert robot.stats()["bad_crc"] == robot.bad_crc
@@ -167,7 +168,7 @@ def test_lost_link_sends_damping_and_says_link_lost(g1, fake_g1, dds_domain):
     fake = fake_g1()
     controller = ConstantTorque(g1)
     with UnitreeG1(g1, StillBase(), DdsOptions(domain=dds_domain, watchdog_periods=3)) as robot:
-        fake.publishing.clear()  # the robot goes silent
+        fake.stop_publishing()  # the robot goes silent
         t0 = time.monotonic()
         with pytest.raises(LinkLost, match="link lost: no LowState for"):
             run(robot, controller, HOLD, 5.0)
