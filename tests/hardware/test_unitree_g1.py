@@ -21,7 +21,7 @@ from mbctl.hardware import (
 )
 from mbctl.robots.commands import ctrl, position_target, torque, velocity_target
 from mbctl.robots.exceptions import CommandError
-from mbctl.robots.interface import BASE_LINEAR_VELOCITY, BASE_POSITION, BaseStateEstimator
+from mbctl.robots.interface import BASE_LINEAR_VELOCITY, BASE_POSITION
 from mbctl.robots.unitree import MotorMap
 
 
@@ -227,5 +227,19 @@ def test_the_loop_freezes_the_collector_until_close(g1, fake_g1, dds_domain):
         assert gc.get_freeze_count() == before
 
 
-def test_estimator_protocol_is_what_the_interface_needs():
-    assert isinstance(StillBase(), BaseStateEstimator)
+def test_the_estimator_starts_from_the_first_reading_and_gives_the_base(g1, fake_g1, dds_domain):
+    """``reset`` gets the robot's first reading (joints and IMU as published); the base of every state
+    is what ``update`` returns (the interface has no other source for it)."""
+    quat = (np.cos(0.1), 0.0, 0.0, np.sin(0.1))  # yawed 0.2 rad: not the identity
+    fake_g1(quat_wxyz=quat)
+    estimator = StillBase()
+    with UnitreeG1(g1, estimator, DdsOptions(domain=dds_domain, watchdog_periods=50)) as robot:
+        first = estimator.first
+        np.testing.assert_allclose(first.q_joints, g1.keyframe_q("stand")[7:], atol=1e-6)
+        assert not first.v_joints.any()
+        np.testing.assert_allclose(first.imu.quat_wxyz, quat, atol=1e-6)
+        np.testing.assert_allclose(first.imu.accel_I, [0.0, 0.0, 9.81], atol=1e-5)
+        q_base, v_base = estimator.update(first)
+        state = robot.read_state()
+        assert np.array_equal(state.q[:7], q_base) and np.array_equal(state.v[:6], v_base)
+        np.testing.assert_allclose(state.q[7:], first.q_joints, atol=1e-6)
