@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import os
+import re
 import time
 
 import numpy as np
@@ -184,9 +185,45 @@ def test_channel_checks_its_inputs_and_stays_on_loopback(dds_domain):
     config = domain_config("lo")
     assert 'multicast="false"' in config and "<AllowMulticast>false" in config
     assert '<Peer address="127.0.0.1"/>' in config
-    # two participants of one process share the domain's configuration (counted, released last)
-    with Channel(dds_domain) as a, Channel(dds_domain) as b:
-        assert a.domain == b.domain == dds_domain
+
+
+def _round_trip(channel: Channel) -> bytes | None:
+    """Publish a LowCmd on ``channel`` and take it back there: the bytes received, or None in 5 s."""
+    cmd_type, _ = message_types()
+    writer, reader = channel.writer(TOPIC_LOWCMD, cmd_type), channel.reader(TOPIC_LOWCMD, cmd_type)
+    wire = _random_cmd(np.random.default_rng(11))[0].encode()
+    deadline = time.monotonic() + 5
+    while time.monotonic() < deadline:  # until discovery matched them
+        writer.write(wire)
+        reader.wait(0.05)
+        got = reader.take()
+        if got:
+            assert got[-1] == wire
+            return got[-1]
+    return None
+
+
+def test_closing_one_channel_leaves_the_shared_domain_to_the_other(dds_domain):
+    """Two participants of one process share the domain's configuration (counted, released last)."""
+    a, b = Channel(dds_domain), Channel(dds_domain)
+    try:
+        a.close()
+        assert _round_trip(b) is not None
+    finally:
+        b.close()
+
+
+def test_a_domain_open_on_one_interface_is_refused_on_another(dds_domain, monkeypatch):
+    import mbctl.robots.unitree.channel as channel_module
+
+    # the refusal comes before any DDS entity is made, so the other interface need not exist here
+    monkeypatch.setattr(channel_module, "check_network_interface", lambda name: name)
+    with Channel(dds_domain) as a:
+        expected = (f"DDS domain {dds_domain} is already open on 'lo' in this process; "
+                    "cannot also open it on 'eth-test'")
+        with pytest.raises(ChannelError, match=f"^{re.escape(expected)}$"):
+            Channel(dds_domain, "eth-test")
+        assert _round_trip(a) is not None  # the refused open left the open one working
 
 
 def test_closing_a_channel_stops_its_threads(dds_domain):
