@@ -3,11 +3,9 @@
 from __future__ import annotations
 
 import os
-import sys
 import time
-from collections.abc import Callable
 from pathlib import Path
-from typing import TYPE_CHECKING, Annotated, Any, BinaryIO, cast
+from typing import TYPE_CHECKING, Annotated, BinaryIO, cast
 
 import typer
 
@@ -27,26 +25,6 @@ WebOpt = Annotated[bool, typer.Option(
     "--web", help="Serve a 3-D view to the browser on 127.0.0.1 (no display needed; Ctrl-C stops it).")]
 PortOpt = Annotated[int, typer.Option(
     "--port", help="With --web: the loopback TCP port (0: a free one; the URL is printed).")]
-
-
-def _serve(make_view: Callable[[], Any]) -> None:
-    """Build the web view, print its URL, serve until Ctrl-C (exit 0), then stop the server."""
-    from mbctl.sim.web import WebViewError
-
-    try:
-        view = make_view()
-    except (FileNotFoundError, ValueError) as exc:
-        raise WebViewError(f"cannot serve this run: {exc}") from exc
-    try:
-        typer.echo(f"serving {view.url} (loopback only; from another machine: ssh -L "
-                   f"{view.port}:127.0.0.1:{view.port} HOST); Ctrl-C stops it")
-        sys.stdout.flush()
-        while True:
-            time.sleep(3600)
-    except KeyboardInterrupt:
-        typer.echo("viewer stopped")
-    finally:
-        view.close()
 
 
 def _display() -> bool:
@@ -123,9 +101,9 @@ def replay(
             f"{str(run_dir)!r} holds no {TRAJECTORY_NAME}: not a run folder of a simulating job"
         )
     if web:
-        from mbctl.jobs.web_view import run_view
+        from mbctl.jobs.web_view import run_view, serve_until_interrupted
 
-        _serve(lambda: run_view(run_dir, port))
+        serve_until_interrupted(lambda: run_view(run_dir, port))
         return
     try:
         model, t, qpos, track = load_trajectory(run_dir)
@@ -160,10 +138,10 @@ def view(robot: RobotArg, keyframe: KeyframeOpt = None, scene: SceneOpt = None,
     from mbctl.robots import load_robot
 
     if web:
-        from mbctl.jobs.web_view import robot_view
+        from mbctl.jobs.web_view import robot_view, serve_until_interrupted
 
         loaded = load_robot(robot, scene, model_dir=model_dir)
-        _serve(lambda: robot_view(loaded, keyframe, port))
+        serve_until_interrupted(lambda: robot_view(loaded, keyframe, port))
         return
     if not _display():
         raise _no_display("mbctl view")

@@ -13,6 +13,8 @@ inside it, so where the two disagree one shows beyond the other.
 from __future__ import annotations
 
 import json
+import time
+from collections.abc import Callable
 from pathlib import Path
 
 import mujoco
@@ -22,7 +24,7 @@ from mbctl.robots.model_pair import Robot
 from mbctl.robots.plant_kinematics import PlantKinematics
 from mbctl.sim.recorder import read_csv
 from mbctl.sim.trajectory import base_body, load_trajectory
-from mbctl.sim.web import Timeline, WebView
+from mbctl.sim.web import Timeline, WebView, WebViewError
 
 #: Arrow length per newton of contact force [m/N]: 2 mm per N (a standing G1 foot: ~0.34 m).
 FORCE_SCALE_M_PER_N = 2e-3
@@ -149,3 +151,24 @@ def run_view(run_dir: Path, port: int = 0, fps: float = 30.0) -> WebView:
     view.note("  \n".join(lines))
     view.timeline(Timeline(frames_t, on_frame), fps)
     return view
+
+
+def serve_until_interrupted(make_view: Callable[[], WebView]) -> None:
+    """Build the web view, print its URL, serve until Ctrl-C (returns normally), then stop the server.
+
+    Raises:
+        WebViewError: ``make_view`` raised FileNotFoundError or ValueError (a run it cannot serve).
+    """
+    try:
+        view = make_view()
+    except (FileNotFoundError, ValueError) as exc:
+        raise WebViewError(f"cannot serve this run: {exc}") from exc
+    try:
+        print(f"serving {view.url} (loopback only; from another machine: ssh -L "
+              f"{view.port}:127.0.0.1:{view.port} HOST); Ctrl-C stops it", flush=True)
+        while True:
+            time.sleep(3600)
+    except KeyboardInterrupt:
+        print("viewer stopped", flush=True)
+    finally:
+        view.close()

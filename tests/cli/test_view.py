@@ -87,3 +87,31 @@ def test_render_and_replay_replace_a_symlink_never_follow_it(tmp_path):
     assert out.returncode == 0, out.stderr
     assert victim.read_text() == "the user's file" and not (run / "replay.mp4").is_symlink()
     assert iio.imread(run / "replay.mp4").shape[1:] == (48, 64, 3)
+
+
+def test_view_web_serves_until_ctrl_c_and_a_damaged_run_exits_2(tmp_path):
+    import signal
+
+    args = ["view", "two_link_torque", "--web", "--port", "0"]
+    proc = subprocess.Popen([sys.executable, "-m", "mbctl.cli", *args], stdout=subprocess.PIPE,
+                            stderr=subprocess.PIPE, text=True, env=ENV)
+    try:
+        line = proc.stdout.readline()  # blocks until the server is up (or the command failed)
+        assert line.startswith("serving http://127.0.0.1:") and "Ctrl-C stops it" in line, line
+    finally:
+        proc.send_signal(signal.SIGINT)
+        out, err = proc.communicate(timeout=60)
+    assert proc.returncode == 0 and "viewer stopped" in out and "Traceback" not in err, err
+    # a run whose saved model no longer loads: the error names it, no server starts
+    from mbctl.robots import load_robot
+    from mbctl.sim import Simulator
+    from mbctl.sim.trajectory import MODEL_NAME, TrajectoryRecorder
+
+    sim = Simulator(load_robot("two_link_torque"))
+    rec = TrajectoryRecorder(sim, tmp_path).attach()
+    sim.step()
+    rec.close()
+    (tmp_path / MODEL_NAME).write_text("<mujoco><worldbody><nonsense/></worldbody></mujoco>")
+    out = _mbctl("replay", str(tmp_path), "--web")
+    assert out.returncode == 2 and "cannot serve this run" in out.stderr, out.stderr
+    assert "Traceback" not in out.stderr and "serving" not in out.stdout
