@@ -7,18 +7,6 @@ import time
 from collections.abc import Callable
 
 
-def median_time(fn: Callable[[], object], repeats: int = 7, inner: int = 1) -> float:
-    """Median wall time [s] of one call of ``fn`` over ``repeats`` x ``inner`` calls."""
-    fn()  # warm-up
-    samples = []
-    for _ in range(repeats):
-        t0 = time.perf_counter()
-        for _ in range(inner):
-            fn()
-        samples.append((time.perf_counter() - t0) / inner)
-    return statistics.median(samples)
-
-
 def interleaved(fns: dict[str, Callable[[], object]], repeats: int = 9,
                 timer: Callable[[], float] = time.perf_counter) -> dict[str, float]:
     """Median time [s] of each function, runs interleaved so machine noise hits all alike.
