@@ -220,7 +220,7 @@ class DynamicsState(TaskState):
         """``Jdot_com v`` (3,) [m/s^2]: the CoM acceleration at zero vdot.
 
         With a free-flyer root, the linear rows of :meth:`centroidal_drift` alone: ``R_WB b_B[:3] / m
-        + g`` (the CoM task needs no angular part, ~5 us less per cycle on the G1).
+        + g`` (the CoM task needs no angular part: ~5 us less per cycle on a 35-dof humanoid).
         """
         if self._free_root and self._centroidal_drift is None:
             data = self.data
