@@ -34,7 +34,7 @@ from typing import NamedTuple
 import daqp
 import numpy as np
 import qpsolvers
-from scipy.linalg.lapack import dpotrf, dpotrs, dpstrf, dtrtri
+from scipy.linalg.lapack import dpotrf, dpotrs, dpstrf
 
 #: Largest violation [problem units: rad/s^2, N, N m] of an inequality or bound that the fast
 #: path's point may have and still count as feasible (daqp's own primal tolerance is 1e-6).
@@ -85,6 +85,7 @@ class WholeBodyQP:
         e: (m_eq_max,) their right-hand side.
         G: (m_in, n_x) inequality rows; ``g_lo``, ``g_up`` (m_in,) their bounds (+-inf: none).
         lb, ub: (n_x,) bounds on x (+-inf: none).
+        (g_lo, g_up, lb and ub are views into two buffers: write into them, never rebind them.)
     """
 
     def __init__(self, nv: int, n_f: int, m_in: int, m_eq_max: int, force_weight: float):
@@ -95,10 +96,12 @@ class WholeBodyQP:
         self.E = np.zeros((m_eq_max, self.n_x))
         self.e = np.zeros(m_eq_max)
         self.G = np.zeros((m_in, self.n_x))
-        self.g_lo = np.full(m_in, -np.inf)
-        self.g_up = np.full(m_in, np.inf)
-        self.lb = np.full(self.n_x, -np.inf)
-        self.ub = np.full(self.n_x, np.inf)
+        # the bounds, then the rows' bounds, in one array per side (one comparison checks them all)
+        self._lo = np.full(self.n_x + m_in, -np.inf)
+        self._up = np.full(self.n_x + m_in, np.inf)
+        self.lb, self.g_lo = self._lo[:self.n_x], self._lo[self.n_x:]
+        self.ub, self.g_up = self._up[:self.n_x], self._up[self.n_x:]
+        self._xg = np.zeros(self.n_x + m_in)  # [x; G x]
         self.force_weight = force_weight
         # daqp's buffers: the simple bounds first, then the rows (inequalities, then equalities)
         m_all = self.n_x + m_in + m_eq_max
@@ -108,6 +111,7 @@ class WholeBodyQP:
         self._sense = np.zeros(m_all, dtype=np.intc)
         self._H = np.zeros((self.n_x, self.n_x))
         self._rows = np.arange(m_eq_max)
+        self._rhs = np.zeros((nv, m_eq_max + 1), order="F")  # LAPACK's layout: solved in place
 
     @property
     def force_weight(self) -> float:
@@ -129,7 +133,7 @@ class WholeBodyQP:
         ``E H^-1 E^T``), and the result says how many were dropped: the dropped rows hold only as
         far as they agree with the kept ones.
         """
-        if (self.g_lo > self.g_up).any() or (self.lb > self.ub).any():
+        if (self._lo > self._up).any():
             return QPResult(None, False, CONTRADICTORY, 0)
         x, rows = self._equality_optimum(m_eq)
         dropped = m_eq - len(rows)
@@ -148,43 +152,47 @@ class WholeBodyQP:
         E, e = self.E[:m_eq], self.e[:m_eq]
         all_rows = self._rows[:m_eq]
         # LAPACK directly: numpy.linalg's wrappers cost several us of Python per call at this size
-        L, info = dpotrf(self.H_vv, lower=1, clean=1)  # H_vv = L L^T
-        if info != 0:
-            return None, all_rows
-        Linv, info = dtrtri(L, lower=1)  # L^-1, so H_vv^-1 = L^-T L^-1
+        L, info = dpotrf(self.H_vv, lower=1)  # H_vv = L L^T
         if info != 0:
             return None, all_rows
         E_v, E_f = E[:, :nv], E[:, nv:]
-        B = E_v @ Linv.T  # E_v L^-T: (m_eq, nv)
-        Lc = Linv @ self.c_v  # L^-1 c_v
-        S = B @ B.T
+        R = self._rhs[:, :m_eq + 1]  # [E_v^T, c_v], then H_vv^-1 [E_v^T, c_v] in one solve
+        R[:, :m_eq] = E_v.T
+        R[:, m_eq] = self.c_v
+        X, info = dpotrs(L, R, lower=1)
+        P = E_v @ X  # [E_v H^-1 E_v^T, E_v H^-1 c_v]
+        S = P[:, :m_eq]  # S = E H^-1 E^T (c_f = 0, H_ff = w_f^2 I)
         S += (E_f @ E_f.T) * self._inv_wf2
-        rhs = e + B @ Lc  # e + E H^-1 c   (c_f = 0)
-        # S = E H^-1 E^T: a plain Cholesky when E has full row rank (pivots well above round-off),
-        # else a pivoted one, whose rank is E's and whose pivots pick independent rows
+        rhs = P[:, m_eq]
+        rhs += e  # e + E H^-1 c
+        # S: a plain Cholesky when E has full row rank (pivots well above round-off), else a
+        # pivoted one, whose rank is E's and whose pivots pick independent rows
         scale = max(float(S.diagonal().max()), 1e-300)
         Ls, info = dpotrf(S, lower=1)
         if info == 0 and float(Ls.diagonal().min()) ** 2 > RANK_RTOL * scale:
             rows = all_rows
-            y, _ = dpotrs(Ls, rhs, lower=1)
-            lam = -y
+            y, _ = dpotrs(Ls, rhs, lower=1)  # y = -lambda
+            X_rows, E_f_rows = X[:, :m_eq], E_f
         else:
             _, piv, rank, _ = dpstrf(S, tol=RANK_RTOL * scale, lower=1)
             rows = np.sort(piv[:rank] - 1)
             Ls, _ = dpotrf(S[np.ix_(rows, rows)], lower=1)
             y, _ = dpotrs(Ls, rhs[rows], lower=1)
-            lam = -y
+            X_rows, E_f_rows = X[:, rows], E_f[rows]
+        # x = -H^-1 (c + E^T lambda)
         x = np.empty(self.n_x)
-        x[:nv] = -(Linv.T @ (Lc + B[rows].T @ lam))
-        x[nv:] = -(E_f[rows].T @ lam) * self._inv_wf2
+        np.matmul(X_rows, y, out=x[:nv])
+        x[:nv] -= X[:, m_eq]
+        np.matmul(E_f_rows.T, y, out=x[nv:])
+        x[nv:] *= self._inv_wf2
         return x, rows
 
     def _feasible(self, x: np.ndarray) -> bool:
-        tol = FEASIBILITY_TOL
-        if (x < self.lb - tol).any() or (x > self.ub + tol).any():
-            return False
-        gx = self.G @ x
-        return not ((gx < self.g_lo - tol).any() or (gx > self.g_up + tol).any())
+        xg = self._xg
+        xg[:self.n_x] = x
+        np.matmul(self.G, x, out=xg[self.n_x:])
+        return bool(np.subtract(self._lo, xg).max() <= FEASIBILITY_TOL
+                    and np.subtract(xg, self._up).max() <= FEASIBILITY_TOL)
 
     def _daqp(self, eq_rows: np.ndarray, dropped: int) -> QPResult:
         n, m_in, m_eq = self.n_x, self.m_in, len(eq_rows)
