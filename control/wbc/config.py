@@ -6,6 +6,7 @@ import functools
 from dataclasses import dataclass
 
 import numpy as np
+import pinocchio as pin
 import qpsolvers
 
 from mbctl.control.exceptions import WBCSetupError
@@ -78,14 +79,18 @@ class WBCConfig:
 
 @dataclass(frozen=True)
 class WBCSolution:
-    """What the last cycle commanded and the QP predicted (world frame W).
+    """What the last cycle commanded and the QP predicted.
+
+    The QP's forces are in each foot's frame F; the world-frame views (``forces_W``, ``points_W``,
+    ``foot_origins_W``, ``wrenches_W``, ``cop_W``) are computed when first read.
 
     Attributes:
         tau: Joint torques (n_actuated,) [N m], actuator order.
         vdot: Accelerations (nv,), Pinocchio convention (NaN under the fallback).
-        forces_W: Contact point forces by foot name, (n_points, 3) [N] in W (zero under the fallback).
-        points_W: Contact point positions by foot name, (n_points, 3) [m] in W.
-        foot_origins_W: Foot frame origins by foot name, (3,) [m] in W.
+        forces_F: Contact point forces by foot name, (n_points, 3) [N] in the foot's frame F
+            (zero under the fallback).
+        points_F: Contact points by foot name, (n_points, 3) [m] in F.
+        foot_poses_W: Foot frame poses ``X_WF`` by foot name (copies).
         controller_time_s: Wall time of the whole ``compute`` [s].
         qp_time_s: Wall time of the QP solve alone [s].
         fallback: The torques are the damping fallback's, not the QP's.
@@ -93,12 +98,28 @@ class WBCSolution:
 
     tau: np.ndarray
     vdot: np.ndarray
-    forces_W: dict[str, np.ndarray]
-    points_W: dict[str, np.ndarray]
-    foot_origins_W: dict[str, np.ndarray]
+    forces_F: dict[str, np.ndarray]
+    points_F: dict[str, np.ndarray]
+    foot_poses_W: dict[str, pin.SE3]
     controller_time_s: float
     qp_time_s: float
     fallback: bool = False
+
+    @functools.cached_property
+    def forces_W(self) -> dict[str, np.ndarray]:
+        """Contact point forces by foot name, (n_points, 3) [N] in W."""
+        return {name: F @ self.foot_poses_W[name].rotation.T for name, F in self.forces_F.items()}
+
+    @functools.cached_property
+    def points_W(self) -> dict[str, np.ndarray]:
+        """Contact point positions by foot name, (n_points, 3) [m] in W."""
+        return {name: P @ self.foot_poses_W[name].rotation.T + self.foot_poses_W[name].translation
+                for name, P in self.points_F.items()}
+
+    @functools.cached_property
+    def foot_origins_W(self) -> dict[str, np.ndarray]:
+        """Foot frame origins by foot name, (3,) [m] in W."""
+        return {name: X.translation.copy() for name, X in self.foot_poses_W.items()}
 
     @functools.cached_property
     def wrenches_W(self) -> dict[str, np.ndarray]:

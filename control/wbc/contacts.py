@@ -2,10 +2,13 @@
 
 A foot touches the ground through contact *points*: the lowest points of its collision geoms
 (MuJoCo point contacts, condim 3, e.g. the Menagerie G1's four sole spheres). Each point carries a
-force ``f`` (3,) [N] in the world frame W; the foot's wrench, centre of pressure and friction
-follow from them. With the corners of the sole as points and ``f_z >= 0``, the centre of pressure
-stays inside the sole rectangle by construction (it is a convex combination of the points), so
-no separate CoP constraint is needed.
+force ``f`` (3,) [N] in the foot frame F, whose z is the sole's normal (the friction pyramid is
+about it, as in TSID's 6-D contact); the foot's wrench, centre of pressure and friction follow
+from them. A point's velocity is ``G_P v_F`` with the foot's LOCAL twist ``v_F = J_F v`` and the
+constant ``G_P = [I, -[p_FP]x]``, so the points' Jacobian is one product ``G_F J_F``. With the
+corners of the sole as points and ``f_z >= 0``, the centre of pressure stays inside the sole
+rectangle by construction (it is a convex combination of the points), so no separate CoP
+constraint is needed.
 
 A foot's contact switches with a force ramp (:class:`ContactState`): its weight ``w_c`` goes from
 1 to 0 (release) or 0 to 1 (touch-down) over ``ramp_s`` of the state's time, while its
@@ -135,6 +138,7 @@ class ContactState:
         weight: Force ramp ``w_c`` in [0, 1] (scales the normal-force bounds).
         target_weight: Where the ramp goes (0: release, 1: load).
         X_WF0: The foot's pose when it was put down (its slip feedback holds it there).
+        G_F: (3 n_points, 6) the points' velocities in F from the foot's LOCAL twist (constant).
     """
 
     contact: FootContact
@@ -145,6 +149,16 @@ class ContactState:
     weight: float = 1.0
     target_weight: float = 1.0
     X_WF0: pin.SE3 = field(default_factory=pin.SE3.Identity)
+    #: (3 n_points, 6) the points' velocities in F from the foot's LOCAL twist: rows [I, -[p_FP]x].
+    G_F: np.ndarray = field(init=False, repr=False)
+
+    def __post_init__(self) -> None:
+        pts = self.contact.points_F
+        G = np.zeros((len(pts), 3, 6))
+        G[:, :, :3] = np.eye(3)
+        for i, (x, y, z) in enumerate(pts):  # v_P = v + w x p = v - [p]x w
+            G[i, :, 3:] = -np.array([[0.0, -z, y], [z, 0.0, -x], [-y, x, 0.0]])
+        self.G_F = G.reshape(-1, 6)
 
     def hold(self, X_WF: pin.SE3) -> None:
         """In contact at full weight, held at ``X_WF``."""

@@ -2,12 +2,12 @@
 
 Formulation (one QP per control cycle; W world, F a foot frame, P a contact point)::
 
-    x = [vdot (nv); f (3 n_p)]                 f_P: force on point P, in W [N]
+    x = [vdot (nv); f (3 n_p)]                 f_P: force on point P, in its foot's frame F [N]
 
     min   sum_tasks |W_t vdot - r_t|^2 + w_f^2 |f|^2 + w_r^2 |vdot|^2
     s.t.  M_u vdot + b_u = sum_P J_Pu^T f_P                 unactuated rows (the base)
           J_F vdot + Jdot_F v = kp S log6(X_F,F0) - kd v_F  each foot in contact (LOCAL; S: x, y, yaw)
-          |f_Px|, |f_Py| <= mu/sqrt(2) f_Pz                 friction pyramid, inscribed in the cone
+          |f_Px|, |f_Py| <= mu/sqrt(2) f_Pz                 friction pyramid about F's z (the sole's normal)
           w_c f_min <= f_Pz <= w_c f_max                    normal force; w_c in [0, 1] ramps
           tau_min <= M_a vdot + b_a - sum_P J_Pa^T f_P <= tau_max     torque limits
           vdot_lo(q, v) <= vdot_j <= vdot_hi(q, v)          joint limits reached in T_lim at most
@@ -60,10 +60,6 @@ from mbctl.robots.commands import Command, CommandKind
 from mbctl.robots.indexing import as_slice
 from mbctl.robots.interface import RobotState
 from mbctl.robots.model_pair import Robot
-
-#: ``r @ _SKEW`` is ``[r]x`` flattened row-major, for every row r: stacked cross-product matrices.
-_SKEW = np.array([[0, 0, 0, 0, 0, -1, 0, 1, 0], [0, 0, 1, 0, 0, 0, -1, 0, 0], [0, -1, 0, 1, 0, 0, 0, 0, 0]],
-                 dtype=float)
 
 
 class WholeBodyController:
@@ -121,6 +117,7 @@ class WholeBodyController:
                                                     slice(cols.start + 2, cols.stop, 3))
             col = cols.stop
         self.n_x = col
+        self._points_F = {name: cs.contact.points_F for name, cs in self.contacts.items()}
         n_f = col - nv
         self._n_fric = 4 * n_f // 3
         n_a = len(self._act)
@@ -138,7 +135,10 @@ class WholeBodyController:
                         qp.g_up[row] = 0.0
                         row += 1
         self._T = qp.G[self._n_fric:]  # torque rows: tau = T x + b_a (a view, written each cycle)
-        self._Jc = np.zeros((n_f, nv))
+        self._Jc = np.zeros((n_f, nv))  # the points' Jacobians, in their foot frames
+        self._Jc_rows = {name: self._Jc[cs.cols.start - nv:cs.cols.stop - nv]
+                         for name, cs in self.contacts.items()}
+        self._bound_weight: dict[str, float | None] = dict.fromkeys(self.contacts)  # weight in lb/ub
         self._H_vv_diag = np.einsum("ii->i", qp.H_vv)  # a writable view of its diagonal
         self.config = self._config  # the setter sets the weights
         self._stack = TaskStack(nv)
@@ -161,6 +161,7 @@ class WholeBodyController:
     def config(self, config: WBCConfig) -> None:
         self._config = config
         self._qp.force_weight = config.force_weight
+        self._bound_weight = dict.fromkeys(self.contacts)  # the force bounds are rewritten
 
     @property
     def tasks(self) -> tuple[Task, ...]:
@@ -275,33 +276,31 @@ class WholeBodyController:
         self._stack.acceleration_objective(s, qp.H_vv, qp.c_v)
         self._H_vv_diag += cfg.acceleration_weight**2
 
-        # contact Jacobians of the points, in W: J_P = J_lin - [p_WP - p_WF]x J_ang
-        Jc = self._Jc
+        # contact points' Jacobians, in their foot frame F: J_P = G_F J_F (J_F LOCAL)
         lb, ub = qp.lb, qp.ub
         m_eq = self._n_unact
         kp_c = cfg.contact_omega_rad_s**2
         kd_c = 2.0 * cfg.contact_omega_rad_s
-        points_W, origins_W = {}, {}
+        poses = {}
         for name, cs in self.contacts.items():
             X_WF = s.frame_pose(cs.fid)
-            R_WF = X_WF.rotation
-            J_lwa = s.frame_jacobian(cs.fid, pin.LOCAL_WORLD_ALIGNED)
-            J_lin, J_ang = J_lwa[:3], J_lwa[3:]
-            r_W = cs.contact.points_F @ R_WF.T  # (n, 3)
-            origins_W[name] = X_WF.translation.copy()
-            points_W[name] = r_W + origins_W[name]
-            block = Jc[cs.cols.start - nv:cs.cols.stop - nv].reshape(-1, 3, nv)
-            block[:] = J_lin - ((r_W @ _SKEW).reshape(-1, 3) @ J_ang).reshape(-1, 3, nv)
-            lb[cs.fz] = cs.weight * cfg.f_min_n
-            ub[cs.fz] = cs.weight * cfg.f_max_n
+            poses[name] = pin.SE3(X_WF)  # a copy: the state's is overwritten by the next update
+            J_F = s.frame_jacobian(cs.fid, pin.LOCAL)
+            np.matmul(cs.G_F, J_F, out=self._Jc_rows[name])
+            if self._bound_weight[name] != cs.weight:  # changes only while a force ramps
+                lb[cs.fz] = cs.weight * cfg.f_min_n
+                ub[cs.fz] = cs.weight * cfg.f_max_n
+                self._bound_weight[name] = cs.weight
             if cs.active:  # (the force columns of the foot rows stay zero)
-                eq = qp.E[m_eq:m_eq + 6]
-                eq[:, :nv] = s.frame_jacobian(cs.fid, pin.LOCAL)  # J_F: the foot's twist in F
-                drift = s.frame_drift(cs.fid, pin.LOCAL)
+                qp.E[m_eq:m_eq + 6, :nv] = J_F  # the foot's twist in F
                 err = pin.log6(X_WF.actInv(cs.X_WF0)).vector
                 err[2:5] = 0.0  # the ground sets height, roll and pitch; feedback corrects slip only
-                qp.e[m_eq:m_eq + 6] = kp_c * err - kd_c * (eq[:, :nv] @ s.v) - drift
+                err *= kp_c
+                err -= kd_c * (J_F @ s.v)
+                err -= s.frame_drift(cs.fid, pin.LOCAL)
+                qp.e[m_eq:m_eq + 6] = err
                 m_eq += 6
+        Jc = self._Jc
         M, b = s.M, s.b
         u, a = self._u, self._a
         dyn = qp.E[:self._n_unact]
@@ -352,12 +351,11 @@ class WholeBodyController:
                                     cfg.solver, state.time_s)
             self.infeasible_at_s, self.infeasible_message = state.time_s, message
             return self._fallback(state, t0)
-        vdot, f = x[:nv], x[nv:]
         tau = T @ x + b_a
         self.steps += 1
-        forces_W = {name: f[cs.cols.start - nv:cs.cols.stop - nv].reshape(-1, 3)
-                    for name, cs in self.contacts.items()}
-        self.last = WBCSolution(tau, vdot, forces_W, points_W, origins_W, time.perf_counter() - t0, qp_time)
+        forces_F = {name: x[cs.cols].reshape(-1, 3) for name, cs in self.contacts.items()}
+        self.last = WBCSolution(tau, x[:nv], forces_F, self._points_F, poses, time.perf_counter() - t0,
+                                qp_time)
         return Command(CommandKind.TORQUE, tau, self._command_names)
 
     def _fallback(self, state: RobotState, t0: float) -> Command:
@@ -365,14 +363,9 @@ class WholeBodyController:
         tau = -self._config.fallback_kd_n_m_s_rad * np.asarray(state.v)[self._a]
         np.maximum(tau, self.tau_low, out=tau)
         np.minimum(tau, self.tau_high, out=tau)
-        s = self.state
-        points_W, origins_W, forces_W = {}, {}, {}
-        for name, cs in self.contacts.items():
-            X_WF = s.frame_pose(cs.fid)
-            origins_W[name] = X_WF.translation.copy()
-            points_W[name] = cs.contact.points_F @ X_WF.rotation.T + origins_W[name]
-            forces_W[name] = np.zeros((cs.contact.n_points, 3))
+        poses = {name: pin.SE3(self.state.frame_pose(cs.fid)) for name, cs in self.contacts.items()}
+        forces_F = {name: np.zeros((cs.contact.n_points, 3)) for name, cs in self.contacts.items()}
         self.steps += 1
-        self.last = WBCSolution(tau, np.full(self.model.nv, np.nan), forces_W, points_W, origins_W,
+        self.last = WBCSolution(tau, np.full(self.model.nv, np.nan), forces_F, self._points_F, poses,
                                 time.perf_counter() - t0, 0.0, fallback=True)
         return Command(CommandKind.TORQUE, tau, self._command_names)
