@@ -2,9 +2,11 @@
 
 from __future__ import annotations
 
+import importlib
 import os
 import signal
 import time
+from typing import Any
 
 import pytest
 from hypothesis import settings
@@ -64,7 +66,7 @@ def two_link_torque_gravity() -> Robot:
 @pytest.fixture(scope="session")
 def dask_client():
     """A small local Dask cluster (2 processes x 1 thread) shared by the sweep tests."""
-    pytest.importorskip("dask.distributed")
+    require("dask.distributed")
     from dask.distributed import Client
 
     from mbctl.jobs.sweep_cluster import local_cluster
@@ -85,13 +87,27 @@ def dds_domain() -> int:
     Every DDS participant in the tests uses it on the loopback interface ``lo`` (the default of
     mbctl.robots.unitree.Channel), so tests never share a domain and never leave the machine.
     """
-    try:
-        import cyclonedds  # noqa: F401
-    except ImportError:
-        if os.environ.get("CI"):
-            pytest.fail("CI must have the hardware extra (pip install -e '.[test]')")
-        pytest.skip("DDS tests need the hardware extra")
+    require("cyclonedds")
     return 1 + (os.getpid() * 37 + next(_DDS_DOMAINS)) % 232
+
+
+# ------------------------------------------------------------------------ helpers for the tests
+# Test modules import these: ``from tests.conftest import require``.
+
+#: The extra that installs each optional module the tests need (all of them come with ``[test]``).
+EXTRAS = {"cyclonedds": "hardware", "dask": "sweep", "playwright": "test", "sphinx": "docs", "viser": "web"}
+
+
+def require(module: str) -> Any:
+    """``module`` imported. Missing, it fails the test under CI (CI installs every extra), naming the
+    extra that brings it, and skips it elsewhere (pytest.importorskip; also at module level)."""
+    extra = EXTRAS.get(module.split(".")[0], "test")
+    if not os.environ.get("CI"):
+        return pytest.importorskip(module, reason=f"{module} is not installed (pip install -e '.[{extra}]')")
+    try:
+        return importlib.import_module(module)
+    except ImportError as exc:
+        pytest.fail(f"CI must have {module} (pip install -e '.[{extra}]'): {exc}")
 
 
 # ------------------------------------------------------------------------ progress per file

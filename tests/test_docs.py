@@ -15,8 +15,9 @@ from pathlib import Path
 import pytest
 
 import mbctl
+from tests.conftest import require
 
-pytest.importorskip("sphinx")
+require("sphinx")
 DOCS = Path(mbctl.__file__).resolve().parent / "docs" / "api"
 EXAMPLES = Path(mbctl.__file__).resolve().parent / "examples"
 

@@ -18,6 +18,7 @@ from mbctl.jobs.xcheck import XcheckParams
 from mbctl.limits import SizeLimitError
 from mbctl.robots import load_robot
 from mbctl.robots.model_size import count_bodies
+from tests.conftest import require
 
 
 def _flat(n: int, joints: bool = True) -> str:
@@ -84,7 +85,7 @@ def test_limits_themselves_pass():
 
 
 def test_a_sweep_grid_over_the_task_limit_needs_force(tmp_path):
-    pytest.importorskip("dask.distributed")
+    require("dask.distributed")
     from mbctl.jobs.sweep import SweepConfig, prepare_sweep, run_sweep
 
     grid = parse_grid("demo", ["model_error=" + ",".join(str(i) for i in range(1000)),

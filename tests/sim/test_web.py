@@ -25,8 +25,9 @@ from mbctl.jobs.web_view import FORCE_SCALE_M_PER_N, contact_arrows, robot_view,
 from mbctl.sim.recorder import read_csv
 from mbctl.sim.trajectory import load_trajectory
 from mbctl.sim.web import LOOPBACK, WebViewError
+from tests.conftest import require
 
-pytest.importorskip("viser")
+require("viser")
 CHROMIUM = shutil.which("chromium") or shutil.which("chromium-browser")
 #: Headless, software WebGL (SwiftShader), nothing fetched from outside the loopback server.
 CHROMIUM_ARGS = ["--headless", "--no-sandbox", "--disable-gpu", "--disable-quic", "--no-first-run",
@@ -40,7 +41,7 @@ def browser():
         if os.environ.get("CI"):
             pytest.fail("CI must have Chromium (.ci/run installs Debian's chromium)")
         pytest.skip("no chromium on this machine (apt-get install chromium)")
-    playwright = pytest.importorskip("playwright.sync_api")
+    playwright = require("playwright.sync_api")
     with playwright.sync_playwright() as p:
         b = p.chromium.launch(executable_path=CHROMIUM, args=CHROMIUM_ARGS)
         yield b
