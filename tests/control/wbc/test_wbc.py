@@ -82,6 +82,31 @@ def test_every_fast_acceleration_path_equals_the_generic_rows(tiny_biped):
     np.testing.assert_allclose(state.angular_momentum(), state.centroidal_map()[3:] @ state.v, atol=1e-12)
 
 
+def test_contact_point_jacobian_is_the_points_velocity_in_the_foot_frame(tiny_biped):
+    """G_F J_F v (in F, rotated to W) equals the finite difference of the points' world positions."""
+    from mbctl.control.wbc import foot_contact_from_model
+    from mbctl.control.wbc.contacts import ContactState
+
+    model = tiny_biped.pin_model
+    rng = np.random.default_rng(8)
+    q = pin.integrate(model, pin.neutral(model), 0.4 * rng.normal(size=model.nv))
+    v = rng.normal(size=model.nv)
+    h = 1e-6
+    for frame in FEET:
+        foot = foot_contact_from_model(tiny_biped, frame)
+        fid = model.getFrameId(frame)
+        cs = ContactState(foot, fid, slice(0, 3 * foot.n_points), slice(2, 3 * foot.n_points, 3))
+
+        def points_W(q_, fid=fid, foot=foot):
+            X = DynamicsState(model, q_).frame_pose(fid)
+            return foot.points_F @ X.rotation.T + X.translation
+
+        fd = (points_W(pin.integrate(model, q, h * v)) - points_W(pin.integrate(model, q, -h * v))) / (2 * h)
+        state = DynamicsState(model, q, v)
+        v_F = (cs.G_F @ state.frame_jacobian(fid, pin.LOCAL) @ v).reshape(-1, 3)
+        np.testing.assert_allclose(v_F @ state.frame_pose(fid).rotation.T, fd, atol=1e-7)
+
+
 def test_a_task_without_an_acceleration_form_is_named(tiny_biped, crouch):
     wb = standing_controller(tiny_biped, FEET, "pelvis")
     wb.hold(RobotState(crouch(tiny_biped), np.zeros(tiny_biped.nv), 0.0))
