@@ -143,6 +143,8 @@ class WholeBodyController:
         self.config = self._config  # the setter sets the weights
         self._stack = TaskStack(nv)
         self._limits = self._joint_limits()
+        self._n_limits = len(self._limits[0])
+        self._limit_cache: tuple[WBCConfig | None, tuple] = (None, ())
         self.last: WBCSolution | None = None
         #: Cycles solved by the equality-constrained fast path / by daqp (see control/wbc/qp.py).
         self.fast_path_cycles = 0
@@ -200,6 +202,17 @@ class WholeBodyController:
                 lo.append(q_lo)
                 hi.append(q_hi)
         return np.array(iv, dtype=int), np.array(iq, dtype=int), np.array(lo), np.array(hi)
+
+    def _limit_terms(self) -> tuple[slice | np.ndarray, slice | np.ndarray, np.ndarray, np.ndarray]:
+        """(v index, q index, (q_min + margin) 2/Th^2, (q_max - margin) 2/Th^2), once per config."""
+        cfg = self._config
+        if self._limit_cache[0] is not cfg:
+            iv, iq, q_lo, q_hi = self._limits
+            scale = 2.0 / cfg.joint_limit_horizon_s**2
+            margin = cfg.joint_limit_margin_rad
+            self._limit_cache = (cfg, (as_slice(iv), as_slice(iq), (q_lo + margin) * scale,
+                                       (q_hi - margin) * scale))
+        return self._limit_cache[1]
 
     def add_task(self, task: Task) -> Task:
         """Add a task (kept until ``remove_task``); returns it.
@@ -305,12 +318,12 @@ class WholeBodyController:
         u, a = self._u, self._a
         dyn = qp.E[:self._n_unact]
         dyn[:, :nv] = M[u]
-        dyn[:, nv:] = -Jc[:, u].T
+        np.negative(Jc[:, u].T, out=dyn[:, nv:])
         np.negative(b[u], out=qp.e[:self._n_unact])
         # torque rows: tau = T x + b_a with T = [M_a, -Jc_a^T]; tau_min <= tau <= tau_max
         T = self._T
         T[:, :nv] = M[a]
-        T[:, nv:] = -Jc[:, a].T
+        np.negative(Jc[:, a].T, out=T[:, nv:])
         b_a = b[a]
         n_fric = self._n_fric
         np.subtract(self.tau_high, b_a, out=qp.g_up[n_fric:])
@@ -318,14 +331,16 @@ class WholeBodyController:
         # joint limits: q + v T + vdot T^2/2 within [q_min + margin, q_max - margin]: a joint heading
         # for a limit must decelerate (the bound turns positive), at most by the accel cap A, so
         # that lb <= ub and the bounds stay feasible under the torque limits
-        iv, iq, q_lo, q_hi = self._limits
-        if len(iv):
+        iv, iq, lo_scaled, hi_scaled = self._limit_terms()
+        if self._n_limits:
             Th = cfg.joint_limit_horizon_s
-            reach = s.q[iq] + s.v[iv] * Th  # where the joints coast to in Th
-            scale = 2.0 / Th**2
-            margin, cap = cfg.joint_limit_margin_rad, cfg.joint_limit_max_accel_rad_s2
-            lb[iv] = np.minimum((q_lo + margin - reach) * scale, cap)
-            ub[iv] = np.maximum((q_hi - margin - reach) * scale, -cap)
+            shift = s.v[iv] * Th
+            shift += s.q[iq]  # where the joints coast to in Th
+            shift *= -2.0 / Th**2
+            cap = cfg.joint_limit_max_accel_rad_s2
+            # (q_lim -+ margin - reach) 2 / Th^2, capped
+            lb[iv] = np.minimum(lo_scaled + shift, cap)
+            ub[iv] = np.maximum(hi_scaled + shift, -cap)
         t_qp = time.perf_counter()
         if cfg.solver == "daqp":
             result = qp.solve(m_eq)
