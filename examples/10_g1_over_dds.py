@@ -29,6 +29,8 @@ import signal
 import subprocess
 import sys
 import tempfile
+import threading
+import time
 from pathlib import Path
 
 import numpy as np
@@ -48,6 +50,7 @@ from mbctl.sim.monitor import PlantMonitor
 
 SQUAT_M, SQUAT_HZ = 0.03, 0.5  # CoM height = start - SQUAT_M (1 - cos(2 pi f t))
 MAX_COM_RMS_M = 5e-3
+BRIDGE_START_S = 120.0  # the bridge loads the G1 and joins DDS; killed if it has not served by then
 
 
 def squat(plant: RobotInterface, standing: Standing, controller: Scheduled, duration_s: float,
@@ -86,7 +89,7 @@ def start_bridge(domain: int, folder: Path, duration_s: float,
     """``mbctl serve g1`` on ``domain`` and ``lo``, crouched as the in-process start; returns once it serves.
 
     Raises:
-        RuntimeError: The bridge did not start (its message).
+        RuntimeError: The bridge did not start within ``BRIDGE_START_S`` (its message).
     """
     cmd = [sys.executable, "-m", "mbctl.cli", "serve", "g1", "--start", "crouched", "--domain", str(domain),
            "--network-interface", "lo", "--idle-timeout", "1", "--duration", str(duration_s + 60),
@@ -95,9 +98,16 @@ def start_bridge(domain: int, folder: Path, duration_s: float,
         cmd += ["--model-dir", model_dir]
     bridge = subprocess.Popen(cmd, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
     err = bridge.stderr
+    started = time.monotonic()
+    timer = threading.Timer(BRIDGE_START_S, bridge.kill)  # a bridge that never serves cannot hang us
+    timer.start()
     line = err.readline() if err else ""  # "serving on DDS domain ..." once it is up
-    if "serving" not in line:
+    timer.cancel()
+    late = time.monotonic() - started >= BRIDGE_START_S
+    if late or "serving" not in line:
         message = line + (err.read() if err else "")
+        if late:
+            message += f" (no 'serving' line within {BRIDGE_START_S:g} s: killed)"
         stop(bridge)
         raise RuntimeError(message.strip())
     return bridge

@@ -4,8 +4,12 @@ from __future__ import annotations
 
 import importlib
 import os
+import shlex
 import signal
+import subprocess
+import threading
 import time
+from collections.abc import Callable
 from typing import Any
 
 import pytest
@@ -92,7 +96,7 @@ def dds_domain() -> int:
 
 
 # ------------------------------------------------------------------------ helpers for the tests
-# Test modules import these: ``from tests.conftest import require``.
+# Test modules import these: ``from tests.conftest import first_line, require``.
 
 #: The extra that installs each optional module the tests need (all of them come with ``[test]``).
 EXTRAS = {"cyclonedds": "hardware", "dask": "sweep", "playwright": "test", "sphinx": "docs", "viser": "web"}
@@ -108,6 +112,44 @@ def require(module: str) -> Any:
         return importlib.import_module(module)
     except ImportError as exc:
         pytest.fail(f"CI must have {module} (pip install -e '.[{extra}]'): {exc}")
+
+
+def _within(call: Callable[[], str], timeout: float) -> str | None:
+    """``call()`` on a thread; its result, or None if it had not returned after ``timeout`` s."""
+    got: list[str] = []
+    thread = threading.Thread(target=lambda: got.append(call()), daemon=True)
+    thread.start()
+    thread.join(timeout)
+    return got[0] if got else None
+
+
+def first_line(proc: subprocess.Popen, stream: str = "stderr", timeout: float = 120) -> str:
+    """The first line ``proc`` writes on ``stream`` ("stdout" or "stderr", a text pipe).
+
+    One that ends without writing a line gives what it wrote (maybe ""). One that writes no line
+    within ``timeout`` s is killed and fails the test, naming the command and its stderr's tail.
+    """
+    pipe = getattr(proc, stream)
+    got: list[str] = []
+    reader = threading.Thread(target=lambda: got.append(pipe.readline()), daemon=True)
+    reader.start()
+    reader.join(timeout)
+    if got:
+        return got[0]
+    proc.kill()
+    proc.wait()
+    reader.join(5)  # at EOF now: the reader returns what was written without a newline
+    if stream == "stderr":
+        err = got[0] if got else ""
+    elif proc.stderr is None:
+        err = "(stderr not captured)"
+    else:
+        err = _within(proc.stderr.read, 5) or ""
+    for p in (proc.stdout, proc.stderr):
+        if p is not None:
+            p.close()
+    pytest.fail(f"{shlex.join(map(str, proc.args))} wrote no line on {stream} within {timeout:g} s "
+                f"(killed); its stderr ends with:\n{err[-2000:]}")
 
 
 # ------------------------------------------------------------------------ progress per file

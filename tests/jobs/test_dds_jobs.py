@@ -16,6 +16,8 @@ from pathlib import Path
 
 import pytest
 
+from tests.conftest import first_line
+
 #: The end-to-end runs share 2 cores with other work: a 6 ms stall of either process (the default
 #: watchdog, 3 periods) is not a lost link there. The 3-period watchdog itself is tested against a
 #: fake robot (tests/hardware).
@@ -37,7 +39,7 @@ def bridge(domain: int, folder: Path, *extra: str):
                                  "60", "--output", str(folder), "-q", *extra),
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=os.environ.copy())
     try:
-        line = proc.stderr.readline()  # the "serving" line, once DDS is up
+        line = first_line(proc, "stderr")  # the "serving" line, once DDS is up
         assert "serving on DDS domain" in line, line + proc.stderr.read()
         yield proc
     finally:

@@ -25,7 +25,7 @@ from mbctl.jobs.web_view import FORCE_SCALE_M_PER_N, contact_arrows, robot_view,
 from mbctl.sim.recorder import read_csv
 from mbctl.sim.trajectory import load_trajectory
 from mbctl.sim.web import LOOPBACK, WebViewError
-from tests.conftest import require
+from tests.conftest import first_line, require
 
 require("viser")
 CHROMIUM = shutil.which("chromium") or shutil.which("chromium-browser")
@@ -177,7 +177,7 @@ def test_g1_wbc_replay_draws_the_contact_forces(g1, browser, tmp_path):
 def _serve(*args):
     proc = subprocess.Popen([sys.executable, "-m", "mbctl.cli", *args], stdout=subprocess.PIPE,
                             stderr=subprocess.PIPE, text=True)
-    line = proc.stdout.readline()  # blocks until the server is up (or the command failed)
+    line = first_line(proc, "stdout")  # once the server is up (or the command failed)
     return proc, line
 
 
