@@ -7,9 +7,10 @@ import os
 import shlex
 import signal
 import subprocess
+import sys
 import threading
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Iterable, Mapping
 from typing import Any
 
 import pytest
@@ -24,6 +25,8 @@ except VideoError:  # the rendering tests fail with the message; the rest run
     GL_BACKEND = None
 
 from mbctl.robots import ModelNotFoundError, Robot, load_robot  # noqa: E402 - after the GL choice
+from mbctl.robots.edits import position_to_motor  # noqa: E402
+from mbctl.robots.g1 import with_palm_sites  # noqa: E402
 
 # CI runs property tests with a fixed derivation of examples (reproducible, no flakes); local
 # runs explore new examples each time.
@@ -47,6 +50,12 @@ def g1() -> Robot:
         if os.environ.get("CI"):
             pytest.fail(f"CI must have the G1 (set MENAGERIE_ROOT): {exc}")
         pytest.skip("G1 model not on this machine (set MENAGERIE_ROOT to run the G1 tests)")
+
+
+@pytest.fixture(scope="module")
+def g1_torque(g1: Robot) -> Robot:
+    """The G1 with torque motors and the palm sites (the whole-body controller's robot)."""
+    return position_to_motor(with_palm_sites(g1))
 
 
 @pytest.fixture(scope="session")
@@ -96,7 +105,7 @@ def dds_domain() -> int:
 
 
 # ------------------------------------------------------------------------ helpers for the tests
-# Test modules import these: ``from tests.conftest import first_line, require``.
+# Test modules import these: ``from tests.conftest import first_line, require, run_mbctl``.
 
 #: The extra that installs each optional module the tests need (all of them come with ``[test]``).
 EXTRAS = {"cyclonedds": "hardware", "dask": "sweep", "playwright": "test", "sphinx": "docs", "viser": "web"}
@@ -112,6 +121,26 @@ def require(module: str) -> Any:
         return importlib.import_module(module)
     except ImportError as exc:
         pytest.fail(f"CI must have {module} (pip install -e '.[{extra}]'): {exc}")
+
+
+def mbctl_command(*args: str) -> list[str]:
+    """The ``mbctl`` command line with ``args``, on this interpreter."""
+    return [sys.executable, "-m", "mbctl.cli", *args]
+
+
+def run_mbctl(*args: str, timeout: float = 300, env: Mapping[str, str] | None = None,
+              unset: Iterable[str] = ()) -> subprocess.CompletedProcess:
+    """Run ``mbctl args`` as a user would; its output as text.
+
+    Args:
+        timeout: Seconds before the command is killed (subprocess.TimeoutExpired).
+        env: Variables set on top of this process's environment.
+        unset: Variables removed from it.
+    """
+    dropped = set(unset)
+    environment = {k: v for k, v in os.environ.items() if k not in dropped}
+    return subprocess.run(mbctl_command(*args), capture_output=True, text=True, timeout=timeout,
+                          env={**environment, **(env or {})})
 
 
 def _within(call: Callable[[], str], timeout: float) -> str | None:

@@ -2,32 +2,23 @@
 
 from __future__ import annotations
 
-import os
-import subprocess
-import sys
-
 import pytest
 
 from mbctl import gl
 from mbctl.gl import INSTALL_HINT, VideoError
-
-ENV = {k: v for k, v in os.environ.items() if k not in ("MUJOCO_GL", "PYOPENGL_PLATFORM")}
-
-
-def _mbctl(*args: str, mujoco_gl: str) -> subprocess.CompletedProcess:
-    return subprocess.run([sys.executable, "-m", "mbctl.cli", *args], capture_output=True, text=True,
-                          timeout=120, env={**ENV, "MUJOCO_GL": mujoco_gl})
+from tests.conftest import run_mbctl
 
 
 @pytest.mark.parametrize("value", ["bogus", "osmesa"])
 def test_a_bad_mujoco_gl_breaks_no_command_that_does_not_render(value):
-    out = _mbctl("inspect", "two_link", mujoco_gl=value)
+    out = run_mbctl("inspect", "two_link", timeout=120, env={"MUJOCO_GL": value}, unset=["PYOPENGL_PLATFORM"])
     assert out.returncode == 0, out.stderr
     assert "shoulder" in out.stdout and out.stderr == ""
 
 
 def test_a_command_that_renders_exits_2_naming_the_value(tmp_path):
-    out = _mbctl("render", "two_link", "--output", str(tmp_path / "a.png"), mujoco_gl="bogus")
+    out = run_mbctl("render", "two_link", "--output", str(tmp_path / "a.png"), timeout=120,
+                    env={"MUJOCO_GL": "bogus"}, unset=["PYOPENGL_PLATFORM"])
     assert out.returncode == 2, out.stderr
     assert out.stderr.startswith("error: MUJOCO_GL=bogus cannot render here (bogus: RuntimeError: invalid "
                                  "value for environment variable MUJOCO_GL: bogus)")

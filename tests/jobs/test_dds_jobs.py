@@ -9,14 +9,14 @@ import json
 import os
 import signal
 import subprocess
-import sys
 import time
 from contextlib import contextmanager
+from functools import partial
 from pathlib import Path
 
 import pytest
 
-from tests.conftest import first_line
+from tests.conftest import first_line, mbctl_command, run_mbctl
 
 #: The end-to-end runs share 2 cores with other work: a 6 ms stall of either process (the default
 #: watchdog, 3 periods) is not a lost link there. The 3-period watchdog itself is tested against a
@@ -24,19 +24,14 @@ from tests.conftest import first_line
 WATCHDOG = ("--watchdog-periods", "50")
 
 
-def _cmd(*args: str) -> list[str]:
-    return [sys.executable, "-m", "mbctl.cli", *args]
-
-
-def mbctl(*args: str, timeout: float = 120) -> subprocess.CompletedProcess:
-    return subprocess.run(_cmd(*args), capture_output=True, text=True, timeout=timeout, env=os.environ.copy())
+mbctl = partial(run_mbctl, timeout=120)  # the shared runner with this file's 2-minute bound
 
 
 @contextmanager
 def bridge(domain: int, folder: Path, *extra: str):
     """``mbctl serve g1`` on ``domain`` (lo) until the block ends; yields the process once it serves."""
-    proc = subprocess.Popen(_cmd("serve", "g1", "--domain", str(domain), "--idle-timeout", "1", "--duration",
-                                 "60", "--output", str(folder), "-q", *extra),
+    proc = subprocess.Popen(mbctl_command("serve", "g1", "--domain", str(domain), "--idle-timeout", "1",
+                                          "--duration", "60", "--output", str(folder), "-q", *extra),
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=os.environ.copy())
     try:
         line = first_line(proc, "stderr")  # the "serving" line, once DDS is up
@@ -100,8 +95,9 @@ def test_no_robot_exits_2_naming_domain_and_interface(g1, dds_domain, tmp_path):
 def test_ctrl_c_damps_and_exits_130(g1, dds_domain, tmp_path):
     serve_dir, run_dir = tmp_path / "serve", tmp_path / "stand"
     with bridge(dds_domain, serve_dir):
-        client = subprocess.Popen(_cmd("g1-stand", "--interface", "dds", "--domain", str(dds_domain),
-                                       "--duration", "30", *WATCHDOG, "--output", str(run_dir), "-q"),
+        client = subprocess.Popen(mbctl_command("g1-stand", "--interface", "dds", "--domain", str(dds_domain),
+                                                "--duration", "30", *WATCHDOG, "--output", str(run_dir),
+                                                "-q"),
                                   stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
         try:
             deadline = time.monotonic() + 30

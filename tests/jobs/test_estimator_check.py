@@ -2,16 +2,7 @@
 
 from __future__ import annotations
 
-import pytest
-
 from mbctl.jobs.estimator_check import squat_check
-from mbctl.robots.edits import position_to_motor
-from mbctl.robots.g1 import with_palm_sites
-
-
-@pytest.fixture(scope="module")
-def g1_torque(g1):
-    return position_to_motor(with_palm_sites(g1))
 
 
 def test_estimate_follows_the_plant_through_a_squat(g1_torque):

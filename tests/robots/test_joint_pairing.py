@@ -7,9 +7,6 @@ changes one thing in the URDF: the joint order, the names, the base, a mass.
 
 from __future__ import annotations
 
-import os
-import subprocess
-import sys
 from pathlib import Path
 
 import numpy as np
@@ -19,6 +16,7 @@ import pytest
 from mbctl.robots import JointMapError, UnknownNameError, load_robot
 from mbctl.robots.crosscheck import crosscheck
 from mbctl.robots.joint_pairing import pair_joints, parse_joint_map
+from tests.conftest import run_mbctl
 
 # (link, parent link, joint, joint type, axis, origin [m], mass [kg], CoM [m], principal inertia [kg m^2]),
 # in the MJCF's order: the rear leg first. Pinocchio's URDF parser orders a link's children by name,
@@ -200,24 +198,19 @@ def test_pairing_an_agreeing_model_changes_nothing(files):
     np.testing.assert_array_equal(same.model.armature, robot.pin_model.armature)
 
 
-def _mbctl(*args: str) -> subprocess.CompletedProcess:
-    return subprocess.run([sys.executable, "-m", "mbctl.cli", *args], capture_output=True, text=True,
-                          timeout=300, env=dict(os.environ))
-
-
 def test_cli_joint_map_and_floating_base(files, tmp_path):
     robot_file, urdf_file = files(rename={"neck": "head_yaw"})
     base = ("xcheck", str(robot_file), "--pin-model", str(urdf_file), "--states", "10", "--quiet")
-    out = _mbctl(*base, "--joint-map", "head_yaw=neck", "--output", str(tmp_path / "a"))
+    out = run_mbctl(*base, "--joint-map", "head_yaw=neck", "--output", str(tmp_path / "a"))
     assert out.returncode == 0, out.stdout + out.stderr
     assert "  - joints renamed: head_yaw -> neck" in out.stdout and "result: PASS" in out.stdout
-    out = _mbctl(*base, "--output", str(tmp_path / "b"))
+    out = run_mbctl(*base, "--output", str(tmp_path / "b"))
     assert out.returncode == 1 and "only in Pinocchio: head_yaw" in out.stdout
-    out = _mbctl(*base, "--joint-map", "head_yaw=nek", "--output", str(tmp_path / "c"))
+    out = run_mbctl(*base, "--joint-map", "head_yaw=nek", "--output", str(tmp_path / "c"))
     assert out.returncode == 2 and "Did you mean 'neck'" in out.stderr
-    out = _mbctl(*base, "--joint-map", "head_yaw=neck", "--fixed-base", "--output", str(tmp_path / "d"))
+    out = run_mbctl(*base, "--joint-map", "head_yaw=neck", "--fixed-base", "--output", str(tmp_path / "d"))
     assert out.returncode == 1 and "--floating-base" in out.stdout
-    out = _mbctl("xcheck", str(robot_file), "--joint-map", "a=b", "--output", str(tmp_path / "e"))
+    out = run_mbctl("xcheck", str(robot_file), "--joint-map", "a=b", "--output", str(tmp_path / "e"))
     assert out.returncode == 2 and "use them with pin_model_file (--pin-model)" in out.stderr
 
 

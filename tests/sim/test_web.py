@@ -11,7 +11,6 @@ import os
 import shutil
 import signal
 import subprocess
-import sys
 import time
 from functools import partial
 
@@ -25,7 +24,7 @@ from mbctl.jobs.web_view import FORCE_SCALE_M_PER_N, contact_arrows, robot_view,
 from mbctl.sim.recorder import read_csv
 from mbctl.sim.trajectory import load_trajectory
 from mbctl.sim.web import LOOPBACK, WebViewError
-from tests.conftest import first_line, require
+from tests.conftest import first_line, mbctl_command, require, run_mbctl
 
 require("viser")
 CHROMIUM = shutil.which("chromium") or shutil.which("chromium-browser")
@@ -175,8 +174,7 @@ def test_g1_wbc_replay_draws_the_contact_forces(g1, browser, tmp_path):
 
 
 def _serve(*args):
-    proc = subprocess.Popen([sys.executable, "-m", "mbctl.cli", *args], stdout=subprocess.PIPE,
-                            stderr=subprocess.PIPE, text=True)
+    proc = subprocess.Popen(mbctl_command(*args), stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     line = first_line(proc, "stdout")  # once the server is up (or the command failed)
     return proc, line
 
@@ -207,8 +205,7 @@ def test_cli_serves_on_loopback_and_stops_on_ctrl_c(demo_run):
 ])
 def test_cli_bad_input_exits_2(args, message, tmp_path):
     args = [str(tmp_path) if a == "NOWHERE" else a for a in args]
-    proc = subprocess.run([sys.executable, "-m", "mbctl.cli", *args], capture_output=True, text=True,
-                          timeout=120)
+    proc = run_mbctl(*args, timeout=120)
     assert proc.returncode == 2 and message in proc.stderr and "Traceback" not in proc.stderr
 
 

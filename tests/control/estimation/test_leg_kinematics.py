@@ -8,17 +8,11 @@ import pytest
 
 from mbctl.control.estimation import EstimatorError, LegKinematicsEstimator, LegKinematicsNoise
 from mbctl.control.wbc import foot_contact_from_model
-from mbctl.robots.edits import position_to_motor
-from mbctl.robots.g1 import FEET, with_palm_sites
+from mbctl.robots.g1 import FEET
 from mbctl.robots.interface import BASE_POSITION, BaseStateEstimator
 from mbctl.robots.unitree import G1_IMU
 from mbctl.sim.imu import ImuReader
 from mbctl.sim.simulator import Simulator
-
-
-@pytest.fixture(scope="module")
-def g1_torque(g1):
-    return position_to_motor(with_palm_sites(g1))
 
 
 def g1_estimator(robot):
