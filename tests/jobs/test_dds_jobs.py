@@ -127,7 +127,8 @@ def _running(folder: Path) -> bool:
     (("g1-stand", "--truth", "x.csv"), "--truth and --dry-run are for --interface dds"),
     (("g1-arm-pd", "--interface", "can"), "interface must be one of sim, dds"),
     (("serve", "h1"), "speaks the G1's low-level messages only"),
-    (("g1-wbc", "push", "--interface", "dds"), "push"),
+    (("g1-wbc", "push", "--interface", "dds"), "the push scenario needs the in-process plant "
+                                               "(--interface sim): over DDS nothing can push the robot"),
     (("g1-stand", "--interface", "dds", "--payload", "1@pelvis"), "--payload and --plant-error change the "
                                                                    "in-process plant"),
 ])
