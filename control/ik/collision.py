@@ -51,11 +51,6 @@ from mbctl.robots.names import mj_name
 #: How many times :meth:`CollisionAvoidanceLimit.guard_step` may halve a step.
 MAX_HALVINGS = 6
 
-# a x b row-wise = a[:, _Y_Z_X] * b[:, _Z_X_Y] - a[:, _Z_X_Y] * b[:, _Y_Z_X] (np.cross has ~8 us of overhead)
-_Y_Z_X = np.array([1, 2, 0])
-_Z_X_Y = np.array([2, 0, 1])
-
-
 def body_dof_masks(robot: Robot) -> np.ndarray:
     """(nbody, nv) 0/1: the tangent dofs that move each MuJoCo body (zero rows for scene bodies).
 
@@ -128,6 +123,9 @@ class CollisionAvoidanceLimit(Limit):
         self._unbounded = (rbound[self._g1] <= 0.0) | (rbound[self._g2] <= 0.0)  # planes: always kept
         self._pair_list = [(int(a), int(b)) for a, b in ids]
         self._seg = np.zeros((len(ids), 6))  # witness points of each pair's last measurement
+        self._seg_rows = list(self._seg)  # a view per pair, made once (MuJoCo writes into it)
+        self._w = np.zeros((2 * len(ids), 6))  # [n; p x n] of each witness point
+        self._reach2: tuple[float, np.ndarray] | None = None  # (detection distance, squared reach)
         masks = body_dof_masks(robot)
         self._mask1 = masks[m.geom_bodyid[self._g1]]
         self._mask2 = masks[m.geom_bodyid[self._g2]]
@@ -137,12 +135,15 @@ class CollisionAvoidanceLimit(Limit):
 
     def candidates(self) -> np.ndarray:
         """Indices of the pairs the broad phase keeps at the last synced kinematics."""
+        dmax = self.detection_distance_m
+        if self._reach2 is None or self._reach2[0] != dmax:
+            reach2 = (self._rsum + dmax) ** 2
+            reach2[self._unbounded] = np.inf  # planes: always kept
+            self._reach2 = (dmax, reach2)
         xpos = self._data.geom_xpos
         diff = xpos[self._g1]
         diff -= xpos[self._g2]
-        diff *= diff
-        reach = self._rsum + self.detection_distance_m
-        return np.flatnonzero((diff.sum(axis=1) <= reach * reach) | self._unbounded)
+        return np.flatnonzero(np.einsum("ij,ij->i", diff, diff) <= self._reach2[1])
 
     def sync(self, q: np.ndarray) -> None:
         """Put MuJoCo's scratch data at ``q`` (nq,), Pinocchio convention (geom poses only)."""
@@ -160,14 +161,13 @@ class CollisionAvoidanceLimit(Limit):
         self.sync(q)
         m, d = self.robot.mj_model, self._data
         dmax = self.detection_distance_m
-        dist, seg, pairs = self.distances_m, self._seg, self._pair_list
+        dist, rows, pairs = self.distances_m, self._seg_rows, self._pair_list
         dist.fill(dmax)
         candidates = self.candidates()
-        for k in candidates.tolist():
-            geom_a, geom_b = pairs[k]
-            dist[k] = mujoco.mj_geomDistance(m, d, geom_a, geom_b, dmax, seg[k])
+        distance = mujoco.mj_geomDistance
+        dist[candidates] = [distance(m, d, *pairs[k], dmax, rows[k]) for k in candidates.tolist()]
         idx = candidates[dist[candidates] < dmax]
-        out = (idx, dist[idx], seg[idx])
+        out = (idx, dist[idx], self._seg[idx])
         self._cache = (key, out, d.geom_xpos.copy())
         return out
 
@@ -177,20 +177,22 @@ class CollisionAvoidanceLimit(Limit):
         nv, k = state.nv, len(idx)
         if not k:
             return Constraint(np.zeros((0, nv)), np.zeros(0))
-        points = seg.reshape(2 * k, 3)  # p1 and p2 of each pair, interleaved
         n = seg[:, 3:] - seg[:, :3]
-        norm = np.sqrt(np.einsum("ij,ij->i", n, n))
-        if norm.min() < 1e-12:  # witness points coincide: use the line between the geoms' centres
-            touching = norm < 1e-12
+        nn = np.einsum("ij,ij->i", n, n)
+        if nn.min() < 1e-24:  # witness points coincide: use the line between the geoms' centres
+            touching = nn < 1e-24
             xpos = self._cache[2] if self._cache is not None else self._data.geom_xpos
             n[touching] = xpos[self._g2[idx[touching]]] - xpos[self._g1[idx[touching]]]
-            norm = np.sqrt(np.einsum("ij,ij->i", n, n))
-        n *= np.copysign(1.0 / np.maximum(norm, 1e-300), dists)[:, None]  # separating direction
-        normals = np.repeat(n, 2, axis=0)
+            nn = np.einsum("ij,ij->i", n, n)
+        n *= np.copysign(1.0 / np.sqrt(np.maximum(nn, 1e-300)), dists)[:, None]  # separating direction
         # n^T J_p = [n; p x n]^T J_B: one (2k, 6) @ (6, nv) product for every witness point
-        moments = points[:, _Y_Z_X] * normals[:, _Z_X_Y]
-        moments -= points[:, _Z_X_Y] * normals[:, _Y_Z_X]
-        w = np.hstack([normals, moments])
+        w = self._w[:2 * k]
+        w.reshape(k, 2, 6)[:, :, :3] = n[:, None, :]
+        p, nrm = seg.reshape(2 * k, 3), w[:, :3]  # p1 and p2 of each pair, interleaved
+        for i, (a, b) in enumerate(((1, 2), (2, 0), (0, 1))):  # (p x n)_i = p_a n_b - p_b n_a
+            col = w[:, 3 + i]
+            np.multiply(p[:, a], nrm[:, b], out=col)
+            col -= p[:, b] * nrm[:, a]
         rows = w @ state.data.J
         G = rows[0::2] * self._mask1[idx]
         G -= rows[1::2] * self._mask2[idx]  # -d'(dq) = n^T J_p1 dq - n^T J_p2 dq
