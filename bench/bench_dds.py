@@ -23,15 +23,16 @@ period, the CoM RMS over DDS (the bridge's truth log) and in-process, and their 
 medians and [min, max] over the runs, with the load average at each run's start. Targets: misses
 < 1 %, p99 < 2.5 ms, |CoM RMS difference| < 1 mm.
 
-Everything on loopback (``lo``), on a domain derived from the pid. The machine has 2 cores shared
-with other work: the load average is printed before and after; absolute figures are noisy.
+Everything on loopback (``lo``), on DDS domains reserved machine-wide while in use
+(``mbctl.robots.unitree.domain_lock``: a test run or another bench at the same time never shares
+one). The machine has 2 cores shared with other work: the load average is printed before and
+after; absolute figures are noisy.
 """
 
 from __future__ import annotations
 
 import argparse
 import json
-import os
 import signal
 import subprocess
 import sys
@@ -48,6 +49,7 @@ from harness import interleaved  # noqa: E402
 
 from mbctl.robots.unitree import TOPIC_LOWCMD, Channel, low_cmd_codec, low_state_codec  # noqa: E402
 from mbctl.robots.unitree.channel import message_types  # noqa: E402
+from mbctl.robots.unitree.domain_lock import reserve_domain  # noqa: E402
 
 
 def loadavg() -> str:
@@ -223,11 +225,11 @@ def wbc_runs(scenarios: list[str], seconds: float, runs: int, folder: Path, watc
     rows: dict[str, list[dict[str, float]]] = {s: [] for s in scenarios}
     for run in range(runs):
         for scenario in scenarios:
-            domain = _fresh_domain()
             run_dir = folder / f"{scenario}-{run}"
             load = loadavg()
-            client = over_dds(domain, run_dir, ["g1-wbc", scenario, "--duration", str(seconds),
-                                                "--watchdog-periods", str(watchdog)], "--start", "crouched")
+            job = ["g1-wbc", scenario, "--duration", str(seconds), "--watchdog-periods", str(watchdog)]
+            with reserve_domain() as domain:  # a fresh domain for each bridge
+                client = over_dds(domain, run_dir, job, "--start", "crouched")
             report = json.loads((run_dir / "dds" / "report.json").read_text())
             v = report["values"]
             b = json.loads((run_dir / "serve" / "report.json").read_text())["values"]
@@ -257,14 +259,6 @@ def wbc_runs(scenarios: list[str], seconds: float, runs: int, folder: Path, watc
             print(f"     {key:18s} {np.median(x):8.3f}  [{x.min():.3f}, {x.max():.3f}]")
 
 
-_domains = iter(range(1, 10**6))
-
-
-def _fresh_domain() -> int:
-    """A DDS domain of its own for each bridge (1..232, from the pid and a counter)."""
-    return 1 + (os.getpid() * 37 + next(_domains)) % 232
-
-
 def _sim_com(run: Path) -> np.ndarray:
     """The robot's CoM [m] along an in-process run, from its trajectory.npz (Pinocchio on each q)."""
     from mbctl.robots.registry import load_robot
@@ -285,7 +279,6 @@ def main() -> None:
     parser.add_argument("--wbc-seconds", type=float, default=10.0, help="g1-wbc run length (s)")
     parser.add_argument("--runs", type=int, default=3, help="g1-wbc runs over DDS per scenario")
     args = parser.parse_args()
-    domain = _fresh_domain()
     print(f"load average before: {loadavg()} (2 cores, shared)")
     if args.wbc is not None:
         with tempfile.TemporaryDirectory() as tmp:
@@ -293,10 +286,11 @@ def main() -> None:
                      args.watchdog_periods)
         print(f"load average after: {loadavg()}")
         return
-    io_parts(domain)
+    with reserve_domain() as domain:
+        io_parts(domain)
     estimator_runs([float(x) for x in args.estimator.split(",") if x])
     if args.seconds > 0:
-        with tempfile.TemporaryDirectory() as tmp:
+        with reserve_domain() as domain, tempfile.TemporaryDirectory() as tmp:
             end_to_end(domain, args.seconds, Path(tmp), args.watchdog_periods)
     print(f"load average after: {loadavg()}")
 

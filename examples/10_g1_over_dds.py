@@ -24,13 +24,13 @@ DDS, and 1 if the robot fell on either plant, the CoM RMS error exceeds 5 mm, or
 from __future__ import annotations
 
 import argparse
-import os
 import signal
 import subprocess
 import sys
 import tempfile
 import threading
 import time
+from contextlib import nullcontext
 from pathlib import Path
 
 import numpy as np
@@ -45,6 +45,7 @@ from mbctl.robots.g1 import FEET, G1_FALL, KEYFRAME, PELVIS, TORSO, crouched_sta
 from mbctl.robots.interface import RobotInterface, RobotState
 from mbctl.robots.unitree import G1_IMU, ChannelError
 from mbctl.robots.unitree.channel import check_domain
+from mbctl.robots.unitree.domain_lock import reserve_domain
 from mbctl.sim import Simulator
 from mbctl.sim.monitor import PlantMonitor
 
@@ -150,7 +151,8 @@ def main() -> int:
     """Squat in-process, then over DDS; print both side by side; returns the exit code."""
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--duration", type=float, default=4.0, help="time on each plant [s]")
-    parser.add_argument("--domain", type=int, default=1 + os.getpid() % 232, help="DDS domain id (1..232)")
+    parser.add_argument("--domain", type=int, default=None,
+                        help="DDS domain id (1..232); default: a free one, reserved while the script runs")
     parser.add_argument("--watchdog-periods", type=int, default=3,
                         help="periods without a state before the link counts as lost")
     parser.add_argument("--model-dir", default=None, help="Menagerie unitree_g1 directory")
@@ -158,7 +160,8 @@ def main() -> int:
     if not args.duration > 0:
         parser.error(f"--duration must be > 0 s; got {args.duration}")
     try:
-        check_domain(args.domain)
+        if args.domain is not None:
+            check_domain(args.domain)
         robot = position_to_motor(load_robot("g1", model_dir=args.model_dir))
     except (ModelNotFoundError, ModelFileError, ChannelError) as exc:
         print(f"error: {exc}", file=sys.stderr)
@@ -177,15 +180,16 @@ def main() -> int:
     fell_sim = monitor.fall_reason
 
     # 2. Over DDS: the same controller object, against the bridge on loopback.
-    with tempfile.TemporaryDirectory() as tmp:
+    domain_held = reserve_domain() if args.domain is None else nullcontext(args.domain)
+    with domain_held as domain, tempfile.TemporaryDirectory() as tmp:
         try:
-            bridge = start_bridge(args.domain, Path(tmp), args.duration, args.model_dir)
+            bridge = start_bridge(domain, Path(tmp), args.duration, args.model_dir)
         except RuntimeError as exc:
             print(f"error: mbctl serve g1 did not start: {exc}", file=sys.stderr)
             return 2
         lost = None
         try:
-            options = DdsOptions(domain=args.domain, watchdog_periods=args.watchdog_periods)
+            options = DdsOptions(domain=domain, watchdog_periods=args.watchdog_periods)
             with UnitreeG1(robot, estimator(robot, start_q), options) as g1:
                 try:
                     target_dds, _ = squat(g1, standing, controller, args.duration)
@@ -215,7 +219,7 @@ def main() -> int:
     print(f"  {'deadline misses':28s} {'-':>14s} {stats['deadline_misses']:16d}")
     print(f"  {'messages lost':28s} {'-':>14s} {stats['messages_lost']:16d}")
     print(f"  {'fell':28s} {fell_sim or 'no':>14s} {'yes' if fell_dds else 'no':>16s}")
-    print(f"  CoM RMS difference, DDS - in-process: {rms_dds - rms_sim:+.2f} mm; DDS domain {args.domain}")
+    print(f"  CoM RMS difference, DDS - in-process: {rms_dds - rms_sim:+.2f} mm; DDS domain {domain}")
     ok = not fell_sim and not fell_dds and max(rms_sim, rms_dds) < MAX_COM_RMS_M * 1e3
     return 0 if ok else 1
 

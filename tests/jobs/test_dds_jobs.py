@@ -9,6 +9,7 @@ import json
 import os
 import signal
 import subprocess
+import sys
 import time
 from contextlib import contextmanager
 from functools import partial
@@ -16,6 +17,8 @@ from pathlib import Path
 
 import pytest
 
+from mbctl.robots.unitree import ChannelError
+from mbctl.robots.unitree.domain_lock import reserve_domain
 from tests.conftest import first_line, mbctl_command, run_mbctl
 
 #: The end-to-end runs share 2 cores with other work: a 6 ms stall of either process (the default
@@ -143,3 +146,21 @@ def test_in_process_link_reports_its_losses(g1, tmp_path):
     assert out.returncode == 0, out.stderr
     values = json.loads((tmp_path / "report.json").read_text())["values"]
     assert values["interface"] == "sim" and values["states_dropped"] > 0 and values["commands_dropped"] > 0
+
+
+def test_a_reserved_domain_is_skipped_by_every_process_until_released():
+    """Domains come from mbctl.robots.unitree.domain_lock: a lock file each, so two test runs (or a
+    test run and bench/bench_dds.py) at once never share one."""
+    with reserve_domain() as first:
+        with reserve_domain(first) as second:  # another reservation in this process
+            assert second != first
+        code = ("from mbctl.robots.unitree.domain_lock import reserve_domain\n"
+                f"with reserve_domain({first}) as d: print(d)")
+        other = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=60)
+        assert other.returncode == 0, other.stderr
+        assert int(other.stdout) != first  # another process
+    with reserve_domain(first) as again:  # released at the end of the block
+        assert again == first
+    with pytest.raises(ChannelError, match="0 is DDS's default domain"):
+        with reserve_domain(0):
+            pass
