@@ -93,6 +93,8 @@ class StepQP:
         self._no_rows = np.zeros((0, nv))
         self._box_sense = np.zeros(nv, dtype=c_int)
         self._no_bounds = np.zeros(0)
+        self._upper, self._lower = np.empty(0), np.empty(0)  # daqp's bounds and row senses
+        self._sense = np.zeros(0, dtype=c_int)
 
     def solve(self, qp: QPData) -> QPOutcome:
         """Solve ``qp``; ``x`` is None when the backend finds no solution."""
@@ -130,9 +132,13 @@ class StepQP:
             A = rows[0] if len(rows) == 1 else np.vstack(rows)
             m_in = 0 if qp.G is None else qp.G.shape[0]
             m_eq = 0 if qp.A is None else qp.A.shape[0]
-            upper = np.empty(n_box + m_in + m_eq)
-            lower = np.full(n_box + m_in + m_eq, -QP_INFINITY)
-            sense = np.zeros(n_box + m_in + m_eq, dtype=c_int)
+            m = n_box + m_in + m_eq
+            if len(self._upper) < m:  # buffers grow to the most rows seen, then are reused
+                self._upper, self._lower = np.empty(2 * m), np.empty(2 * m)
+                self._sense = np.zeros(2 * m, dtype=c_int)
+            upper, lower, sense = self._upper[:m], self._lower[:m], self._sense[:m]
+            lower.fill(-QP_INFINITY)
+            sense.fill(0)
             if n_box:
                 upper[:n_box] = qp.ub
                 lower[:n_box] = qp.lb if qp.lb is not None else -QP_INFINITY
