@@ -10,7 +10,9 @@ point p moving with its body, from the model pair's Pinocchio Jacobians::
     J_p dq = v_O + w x p  =>  n^T J_p = [n; p x n]^T J_B
 
 with ``J_B = [v_O; w]`` the WORLD-frame Jacobian of the body's joint (``data.J`` after
-``pin.computeJointJacobians``, restricted to the joints that move the body). The limit is the
+``pin.computeJointJacobians``, restricted to the joints that move the body). Since ``p2 - p1`` is
+along n, ``p2 x n = p1 x n``: one row ``[n; p1 x n]^T data.J`` serves both points, with the dofs
+that move only geom 1 counted +1 and only geom 2 counted -1 (the ones moving both cancel). The limit is the
 velocity damper (Kanoun et al.; mink's ``CollisionAvoidanceLimit``)::
 
     -d'(dq) <= gain (d - d_min)    if d > d_min,    -d'(dq) <= 0  otherwise
@@ -124,11 +126,12 @@ class CollisionAvoidanceLimit(Limit):
         self._pair_list = [(int(a), int(b)) for a, b in ids]
         self._seg = np.zeros((len(ids), 6))  # witness points of each pair's last measurement
         self._seg_rows = list(self._seg)  # a view per pair, made once (MuJoCo writes into it)
-        self._w = np.zeros((2 * len(ids), 6))  # [n; p x n] of each witness point
+        self._w = np.zeros((len(ids), 6))  # [n; p1 x n] of each pair
         self._reach2: tuple[float, np.ndarray] | None = None  # (detection distance, squared reach)
         masks = body_dof_masks(robot)
-        self._mask1 = masks[m.geom_bodyid[self._g1]]
-        self._mask2 = masks[m.geom_bodyid[self._g2]]
+        # the dofs moving geom 1 but not geom 2 (+1), geom 2 but not 1 (-1); shared dofs move both
+        # witness points rigidly, which leaves their distance unchanged
+        self._dmask = masks[m.geom_bodyid[self._g1]] - masks[m.geom_bodyid[self._g2]]
         self.distances_m = np.full(len(self.pairs), self.detection_distance_m)
         self._fromto = np.empty(6)
         self._cache: tuple[bytes, tuple[np.ndarray, np.ndarray, np.ndarray], np.ndarray] | None = None
@@ -185,17 +188,17 @@ class CollisionAvoidanceLimit(Limit):
             n[touching] = xpos[self._g2[idx[touching]]] - xpos[self._g1[idx[touching]]]
             nn = np.einsum("ij,ij->i", n, n)
         n *= np.copysign(1.0 / np.sqrt(np.maximum(nn, 1e-300)), dists)[:, None]  # separating direction
-        # n^T J_p = [n; p x n]^T J_B: one (2k, 6) @ (6, nv) product for every witness point
-        w = self._w[:2 * k]
-        w.reshape(k, 2, 6)[:, :, :3] = n[:, None, :]
-        p, nrm = seg.reshape(2 * k, 3), w[:, :3]  # p1 and p2 of each pair, interleaved
+        # n^T J_p = [n; p x n]^T J_B, and p2 x n = p1 x n (p2 - p1 is along n): both witness points
+        # share one row w, so -d'(dq) = w^T J (mask_1 - mask_2) dq, one (k, 6) @ (6, nv) product
+        w = self._w[:k]
+        w[:, :3] = n
+        p = seg[:, :3]
         for i, (a, b) in enumerate(((1, 2), (2, 0), (0, 1))):  # (p x n)_i = p_a n_b - p_b n_a
             col = w[:, 3 + i]
-            np.multiply(p[:, a], nrm[:, b], out=col)
-            col -= p[:, b] * nrm[:, a]
-        rows = w @ state.data.J
-        G = rows[0::2] * self._mask1[idx]
-        G -= rows[1::2] * self._mask2[idx]  # -d'(dq) = n^T J_p1 dq - n^T J_p2 dq
+            np.multiply(p[:, a], n[:, b], out=col)
+            col -= p[:, b] * n[:, a]
+        G = w @ state.data.J
+        G *= self._dmask[idx]
         h = dists - self.min_distance_m
         np.maximum(h, 0.0, out=h)
         h *= self.gain
