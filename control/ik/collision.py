@@ -169,7 +169,7 @@ class CollisionAvoidanceLimit(Limit):
         candidates = self.candidates()
         distance = mujoco.mj_geomDistance
         dist[candidates] = [distance(m, d, *pairs[k], dmax, rows[k]) for k in candidates.tolist()]
-        idx = candidates[dist[candidates] < dmax]
+        idx = np.flatnonzero(dist < dmax)  # (the others hold dmax)
         out = (idx, dist[idx], self._seg[idx])
         self._cache = (key, out, d.geom_xpos.copy())
         return out
@@ -215,7 +215,8 @@ class CollisionAvoidanceLimit(Limit):
         for _ in range(MAX_HALVINGS + 1):
             self._measure(pin.integrate(model, q, dq))
             after = self.distances_m
-            if not np.any((after < self.min_distance_m) & (after < before - 1e-12)):
+            if after.min() >= self.min_distance_m or not np.any(
+                    (after < self.min_distance_m) & (after < before - 1e-12)):
                 return dq
             dq = 0.5 * dq
         self._measure(q)  # no step: keep the rows of where we stay
