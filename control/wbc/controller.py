@@ -122,7 +122,7 @@ class WholeBodyController:
         self._n_fric = 4 * n_f // 3
         n_a = len(self._act)
         self._qp = WholeBodyQP(nv, n_f, self._n_fric + n_a, self._n_unact + 6 * len(self.contacts),
-                               self._config.force_weight)
+                               self._config.force_weight, m_force=self._n_unact)  # foot rows: no f
         qp = self._qp
         row = 0
         for cs in self.contacts.values():  # friction pyramid rows: |f_x|, |f_y| <= mu / sqrt(2) f_z

@@ -77,6 +77,8 @@ class WholeBodyQP:
         m_in: Number of two-sided inequality rows.
         m_eq_max: The most equality rows a cycle may have.
         force_weight: ``w_f`` [cost]/[N]: the force block of H is ``w_f^2 I``.
+        m_force: Only the first ``m_force`` equality rows have non-zero force columns (default:
+            any row may); the others are skipped in ``E_f E_f^T``.
 
     Attributes:
         H_vv: (nv, nv) the acceleration block of H (symmetric positive definite).
@@ -88,8 +90,10 @@ class WholeBodyQP:
         (g_lo, g_up, lb and ub are views into two buffers: write into them, never rebind them.)
     """
 
-    def __init__(self, nv: int, n_f: int, m_in: int, m_eq_max: int, force_weight: float):
+    def __init__(self, nv: int, n_f: int, m_in: int, m_eq_max: int, force_weight: float,
+                 m_force: int | None = None):
         self.nv, self.n_f, self.n_x = nv, n_f, nv + n_f
+        self.m_force = m_eq_max if m_force is None else m_force
         self.m_in, self.m_eq_max = m_in, m_eq_max
         self.H_vv = np.zeros((nv, nv))
         self.c_v = np.zeros(nv)
@@ -162,7 +166,8 @@ class WholeBodyQP:
         X, info = dpotrs(L, R, lower=1)
         P = E_v @ X  # [E_v H^-1 E_v^T, E_v H^-1 c_v]
         S = P[:, :m_eq]  # S = E H^-1 E^T (c_f = 0, H_ff = w_f^2 I)
-        S += (E_f @ E_f.T) * self._inv_wf2
+        F = E_f[:self.m_force]  # the rows with force columns (the others are zero there)
+        S[:len(F), :len(F)] += (F @ F.T) * self._inv_wf2
         rhs = P[:, m_eq]
         rhs += e  # e + E H^-1 c
         # S: a plain Cholesky when E has full row rank (pivots well above round-off), else a
