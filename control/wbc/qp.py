@@ -34,7 +34,7 @@ from typing import NamedTuple
 import daqp
 import numpy as np
 import qpsolvers
-from scipy.linalg.lapack import dpotrf, dpotrs, dpstrf
+from scipy.linalg.lapack import dposv, dpotrf, dpotrs, dpstrf
 
 #: Largest violation [problem units: rad/s^2, N, N m] of an inequality or bound that the fast
 #: path's point may have and still count as feasible (daqp's own primal tolerance is 1e-6).
@@ -156,14 +156,13 @@ class WholeBodyQP:
         E, e = self.E[:m_eq], self.e[:m_eq]
         all_rows = self._rows[:m_eq]
         # LAPACK directly: numpy.linalg's wrappers cost several us of Python per call at this size
-        L, info = dpotrf(self.H_vv, lower=1)  # H_vv = L L^T
-        if info != 0:
-            return None, all_rows
         E_v, E_f = E[:, :nv], E[:, nv:]
-        R = self._rhs[:, :m_eq + 1]  # [E_v^T, c_v], then H_vv^-1 [E_v^T, c_v] in one solve
+        R = self._rhs[:, :m_eq + 1]  # [E_v^T, c_v], then H_vv^-1 [E_v^T, c_v]: factor and solve in one
         R[:, :m_eq] = E_v.T
         R[:, m_eq] = self.c_v
-        X, info = dpotrs(L, R, lower=1)
+        _, X, info = dposv(self.H_vv, R, lower=1)  # H_vv = L L^T
+        if info != 0:
+            return None, all_rows
         P = E_v @ X  # [E_v H^-1 E_v^T, E_v H^-1 c_v]
         S = P[:, :m_eq]  # S = E H^-1 E^T (c_f = 0, H_ff = w_f^2 I)
         F = E_f[:self.m_force]  # the rows with force columns (the others are zero there)
@@ -173,10 +172,9 @@ class WholeBodyQP:
         # S: a plain Cholesky when E has full row rank (pivots well above round-off), else a
         # pivoted one, whose rank is E's and whose pivots pick independent rows
         scale = max(float(S.diagonal().max()), 1e-300)
-        Ls, info = dpotrf(S, lower=1)
+        Ls, y, info = dposv(S, rhs, lower=1)  # y = -lambda
         if info == 0 and float(Ls.diagonal().min()) ** 2 > RANK_RTOL * scale:
             rows = all_rows
-            y, _ = dpotrs(Ls, rhs, lower=1)  # y = -lambda
             X_rows, E_f_rows = X[:, :m_eq], E_f
         else:
             _, piv, rank, _ = dpstrf(S, tol=RANK_RTOL * scale, lower=1)
