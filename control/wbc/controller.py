@@ -136,8 +136,14 @@ class WholeBodyController:
                         row += 1
         self._T = qp.G[self._n_fric:]  # torque rows: tau = T x + b_a (a view, written each cycle)
         self._Jc = np.zeros((n_f, nv))  # the points' Jacobians, in their foot frames
-        self._Jc_rows = {name: self._Jc[cs.cols.start - nv:cs.cols.stop - nv]
-                         for name, cs in self.contacts.items()}
+        n_feet = len(self.contacts)
+        self._JF = np.zeros((6 * n_feet, nv))  # every foot's LOCAL Jacobian, stacked
+        self._foot_err = np.zeros(6 * n_feet)  # log6(X_FF0) of each foot, then its row's target
+        self._foot_drift = np.zeros(6 * n_feet)  # Jdot_F v of each foot
+        self._G_blk = np.zeros((n_f, 6 * n_feet))  # Jc = blockdiag(G_F) J_F, one product
+        for i, cs in enumerate(self.contacts.values()):
+            self._G_blk[cs.cols.start - nv:cs.cols.stop - nv, 6 * i:6 * i + 6] = cs.G_F
+        self._foot_gains: tuple[WBCConfig | None, np.ndarray] = (None, np.zeros(0))
         self._bound_weight: dict[str, float | None] = dict.fromkeys(self.contacts)  # weight in lb/ub
         self._H_vv_diag = np.einsum("ii->i", qp.H_vv)  # a writable view of its diagonal
         self.config = self._config  # the setter sets the weights
@@ -213,6 +219,14 @@ class WholeBodyController:
             self._limit_cache = (cfg, (as_slice(iv), as_slice(iq), (q_lo + margin) * scale,
                                        (q_hi - margin) * scale))
         return self._limit_cache[1]
+
+    def _foot_gain_mask(self) -> np.ndarray:
+        """``kp`` on each foot's x, y and yaw rows, 0 on z, roll and pitch (once per config)."""
+        cfg = self._config
+        if self._foot_gains[0] is not cfg:
+            mask = np.tile([1.0, 1.0, 0.0, 0.0, 0.0, 1.0], len(self.contacts))
+            self._foot_gains = (cfg, mask * cfg.contact_omega_rad_s**2)
+        return self._foot_gains[1]
 
     def add_task(self, task: Task) -> Task:
         """Add a task (kept until ``remove_task``); returns it.
@@ -291,28 +305,40 @@ class WholeBodyController:
 
         # contact points' Jacobians, in their foot frame F: J_P = G_F J_F (J_F LOCAL)
         lb, ub = qp.lb, qp.ub
-        m_eq = self._n_unact
-        kp_c = cfg.contact_omega_rad_s**2
-        kd_c = 2.0 * cfg.contact_omega_rad_s
+        JF, err, drift = self._JF, self._foot_err, self._foot_drift
         poses = {}
-        for name, cs in self.contacts.items():
+        all_active = True
+        for i, (name, cs) in enumerate(self.contacts.items()):
             X_WF = s.frame_pose(cs.fid)
             poses[name] = pin.SE3(X_WF)  # a copy: the state's is overwritten by the next update
-            J_F = s.frame_jacobian(cs.fid, pin.LOCAL)
-            np.matmul(cs.G_F, J_F, out=self._Jc_rows[name])
+            rows = slice(6 * i, 6 * i + 6)
+            JF[rows] = s.frame_jacobian(cs.fid, pin.LOCAL)
             if self._bound_weight[name] != cs.weight:  # changes only while a force ramps
                 lb[cs.fz] = cs.weight * cfg.f_min_n
                 ub[cs.fz] = cs.weight * cfg.f_max_n
                 self._bound_weight[name] = cs.weight
-            if cs.active:  # (the force columns of the foot rows stay zero)
-                qp.E[m_eq:m_eq + 6, :nv] = J_F  # the foot's twist in F
-                err = pin.log6(X_WF.actInv(cs.X_WF0)).vector
-                err[2:5] = 0.0  # the ground sets height, roll and pitch; feedback corrects slip only
-                err *= kp_c
-                err -= kd_c * (J_F @ s.v)
-                err -= s.frame_drift(cs.fid, pin.LOCAL)
-                qp.e[m_eq:m_eq + 6] = err
-                m_eq += 6
+            if cs.active:
+                err[rows] = pin.log6(X_WF.actInv(cs.X_WF0)).vector
+                drift[rows] = s.frame_drift(cs.fid, pin.LOCAL)
+            else:
+                all_active = False
+        np.matmul(self._G_blk, JF, out=self._Jc)
+        # each active foot's twist in F: J_F vdot + Jdot_F v = kp S log6(X_FF0) - kd J_F v, with S
+        # keeping x, y and yaw (the ground sets height, roll and pitch; feedback corrects slip only)
+        err *= self._foot_gain_mask()
+        err -= (2.0 * cfg.contact_omega_rad_s) * (JF @ s.v)
+        err -= drift
+        m_eq = self._n_unact
+        if all_active:  # (the force columns of the foot rows stay zero)
+            qp.E[m_eq:m_eq + len(err), :nv] = JF
+            qp.e[m_eq:m_eq + len(err)] = err
+            m_eq += len(err)
+        else:
+            for i, cs in enumerate(self.contacts.values()):
+                if cs.active:
+                    qp.E[m_eq:m_eq + 6, :nv] = JF[6 * i:6 * i + 6]
+                    qp.e[m_eq:m_eq + 6] = err[6 * i:6 * i + 6]
+                    m_eq += 6
         Jc = self._Jc
         M, b = s.M, s.b
         u, a = self._u, self._a
