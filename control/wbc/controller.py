@@ -320,7 +320,9 @@ class WholeBodyController:
             if cs.active:
                 err[rows] = pin.log6(X_WF.actInv(cs.X_WF0)).vector
                 drift[rows] = s.frame_drift(cs.fid, pin.LOCAL)
-            else:
+            else:  # no row for this foot (zeros: err is scaled in place every cycle)
+                err[rows] = 0.0
+                drift[rows] = 0.0
                 all_active = False
         np.matmul(self._G_blk, JF, out=self._Jc)
         # each active foot's twist in F: J_F vdot + Jdot_F v = kp S log6(X_FF0) - kd J_F v, with S

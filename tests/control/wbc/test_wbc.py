@@ -206,6 +206,23 @@ def test_unknown_foot_is_named(tiny_biped, crouch):
         wb.controller.release("hand")
 
 
+def test_a_released_foot_leaves_no_row_and_no_stale_target(tiny_biped, crouch):
+    """After its ramp a released foot has no equality row; its slot in the feet's targets stays 0."""
+    import warnings
+
+    wb, state = _stance(tiny_biped, crouch)
+    ctrl = wb.controller
+    ctrl.compute(state)
+    ctrl.release("r_sole")
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")  # a stale target scaled by kp every cycle overflowed once
+        for k in range(1, 2000):
+            ctrl.compute(RobotState(state.q, state.v, 0.002 * k))
+    assert ctrl.contact_released("r_sole")
+    np.testing.assert_array_equal(ctrl._foot_err[6:], 0.0)
+    assert np.isfinite(ctrl.solution.tau).all()
+
+
 def test_the_biped_squats_in_mujoco(tiny_biped, crouch):
     """Closed loop on the plant: the CoM follows a 6 cm squat, measured with MuJoCo's CoM."""
     sim = Simulator(tiny_biped)
