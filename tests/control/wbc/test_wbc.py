@@ -207,19 +207,20 @@ def test_unknown_foot_is_named(tiny_biped, crouch):
 
 
 def test_a_released_foot_leaves_no_row_and_no_stale_target(tiny_biped, crouch):
-    """After its ramp a released foot has no equality row; its slot in the feet's targets stays 0."""
+    """A released foot's slot in the feet's targets is refreshed, not rescaled, every cycle."""
     import warnings
 
     wb, state = _stance(tiny_biped, crouch)
     ctrl = wb.controller
-    ctrl.compute(state)
+    v = np.full(tiny_biped.nv, 0.01)  # the feet move: their targets are not zero
+    ctrl.compute(RobotState(state.q, v, 0.0))
     ctrl.release("r_sole")
     with warnings.catch_warnings():
         warnings.simplefilter("error")  # a stale target scaled by kp every cycle overflowed once
         for k in range(1, 2000):
-            ctrl.compute(RobotState(state.q, state.v, 0.002 * k))
+            ctrl.compute(RobotState(state.q, v, 0.002 * k))
     assert ctrl.contact_released("r_sole")
-    np.testing.assert_array_equal(ctrl._foot_err[6:], 0.0)
+    assert np.abs(ctrl._foot_err).max() < 10.0  # the damping of a 0.01 rad/s drift, not kp^k
     assert np.isfinite(ctrl.solution.tau).all()
 
 
