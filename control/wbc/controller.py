@@ -380,8 +380,10 @@ class WholeBodyController:
         else:  # another backend, through qpsolvers (for comparison)
             solution = qpsolvers.solve_problem(qp.problem(m_eq), solver=cfg.solver)
             x = solution.x if solution.found and solution.x is not None else None
+            if x is not None and not np.isfinite(x).all():
+                x = None
         qp_time = time.perf_counter() - t_qp
-        if x is None or not np.isfinite(x).all():
+        if x is None:  # (qp.solve gives a finite x or None)
             message = (
                 f"whole-body QP infeasible at step {self.steps} (solver {cfg.solver}): contacts "
                 + ", ".join(f"{n} weight {cs.weight:.2f}" for n, cs in self.contacts.items())

@@ -54,7 +54,8 @@ class QPResult(NamedTuple):
     """One solve.
 
     Attributes:
-        x: The solution (n_x,), or None when the QP has no solution.
+        x: The solution (n_x,), finite, or None when the QP has no solution (a point with a NaN or
+            inf fails the fast path's feasibility check, and daqp's is checked).
         fast_path: Whether the equality-constrained fast path gave it (no inequality active).
         exitflag: daqp's exit flag (1 optimal; < 0 infeasible or failed); 1 for the fast path.
         dependent_rows: Equality rows dropped as linearly dependent on the others.

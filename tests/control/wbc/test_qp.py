@@ -88,6 +88,18 @@ def test_infeasible_problems_report_no_solution():
     assert result.x is None and not result.fast_path and result.exitflag < 0
 
 
+@pytest.mark.filterwarnings("ignore:invalid value:RuntimeWarning")  # inf times 0 in G x
+@pytest.mark.parametrize("where", ["c_v", "e", "G"])
+@pytest.mark.parametrize("bad", [np.nan, np.inf])
+def test_a_non_finite_problem_gives_no_point_never_a_non_finite_one(where, bad):
+    """x is finite or None: the controller relies on it (no second check after the solve)."""
+    qp = _problem(7, 0.0)
+    getattr(qp, where)[0] = bad
+    result = qp.solve(M_EQ)
+    assert result.x is None or np.isfinite(result.x).all()
+    assert not result.fast_path
+
+
 @pytest.mark.parametrize("consistent", [True, False])
 def test_dependent_equality_rows_are_dropped_and_counted(consistent):
     # e.g. the feet of legs without a hip yaw: their yaw rows are the base's, twice
