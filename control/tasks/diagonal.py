@@ -13,7 +13,7 @@ import pinocchio as pin
 
 from mbctl.control.tasks.base import AccelerationGains, Task, floating_dofs
 from mbctl.control.tasks.frame import pin_model
-from mbctl.control.tasks.state import TaskState
+from mbctl.control.tasks.state import DynamicsState, TaskState
 
 
 class DiagonalTask(Task):
@@ -43,6 +43,10 @@ class DiagonalTask(Task):
     def masked_error(self, state: TaskState) -> np.ndarray:
         """The error (nv,) where ``mask`` is 1 (entries where it is 0 may hold anything)."""
         return self.compute_error(state)
+
+    def masked_desired_acceleration(self, state: DynamicsState) -> np.ndarray:
+        """``a_des`` (nv,) where ``mask`` is 1 (entries where it is 0 may hold anything)."""
+        return self.desired_acceleration(state, self._jacobian)
 
     def cost2_mask(self) -> np.ndarray:
         """``cost^2 mask`` (nv,): this task's contribution to H's diagonal (cached per cost)."""

@@ -122,6 +122,13 @@ class PostureTask(DiagonalTask):
         a *= self.mask
         return a
 
+    def masked_desired_acceleration(self, state: DynamicsState) -> np.ndarray:
+        """``-kp e - kd v`` (nv,), the free flyer's entries left as they are (the mask drops them)."""
+        a = self.masked_error(state)
+        a *= -self._kp
+        a -= self._kd * state.v
+        return a
+
     def residual(self, state: TaskState) -> TaskResidual:
         """Joint-space distance to the target [rad, or m for slide joints] (a regulariser's)."""
         return TaskResidual(deviation=float(np.linalg.norm(self.compute_error(state))))

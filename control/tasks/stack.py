@@ -157,6 +157,5 @@ class TaskStack:
             # W_t = diag(cost mask), r_t = cost mask (a_des - 0)  =>  H += cost^2 mask, c -= cost^2 mask a_des
             cost2_mask = task.cost2_mask()
             diag += cost2_mask
-            a_des = task.desired_acceleration(state, task.jacobian_and_drift(state)[0])
-            np.multiply(cost2_mask, a_des, out=tmp)
+            np.multiply(cost2_mask, task.masked_desired_acceleration(state), out=tmp)
             c -= tmp

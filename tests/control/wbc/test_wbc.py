@@ -107,6 +107,28 @@ def test_contact_point_jacobian_is_the_points_velocity_in_the_foot_frame(tiny_bi
         np.testing.assert_allclose(v_F @ state.frame_pose(fid).rotation.T, fd, atol=1e-7)
 
 
+def test_the_stack_objective_equals_the_stacked_generic_rows(tiny_biped):
+    """H = W^T W, c = -W^T r from every task's generic rows, the diagonal (posture) shortcut included."""
+    from mbctl.control.tasks import Task
+    from mbctl.control.tasks.stack import TaskStack
+
+    model = tiny_biped.pin_model
+    rng = np.random.default_rng(12)
+    tasks = _tasks(model)
+    for task in tasks:
+        task.servo = AccelerationGains(6.0, 0.8)
+    state = DynamicsState(model, pin.integrate(model, pin.neutral(model), 0.3 * rng.normal(size=model.nv)),
+                          rng.normal(size=model.nv))
+    H, c = np.zeros((model.nv, model.nv)), np.zeros(model.nv)
+    TaskStack(model.nv, tasks).acceleration_objective(state, H, c)
+    rows = [(np.zeros((t.k, model.nv)), np.zeros(t.k)) for t in tasks]
+    for task, (W_t, r_t) in zip(tasks, rows, strict=True):
+        Task.write_acceleration_rows(task, state, W_t, r_t)
+    W, r = np.vstack([w for w, _ in rows]), np.concatenate([r for _, r in rows])
+    np.testing.assert_allclose(H, W.T @ W, atol=1e-9)
+    np.testing.assert_allclose(c, -W.T @ r, atol=1e-9)
+
+
 def test_a_task_without_an_acceleration_form_is_named(tiny_biped, crouch):
     wb = standing_controller(tiny_biped, FEET, "pelvis")
     wb.hold(RobotState(crouch(tiny_biped), np.zeros(tiny_biped.nv), 0.0))
