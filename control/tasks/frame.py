@@ -63,6 +63,7 @@ class FrameTask(Task):
         self.frame_id = model.getFrameId(frame)
         self._X_WT: pin.SE3 | None = None
         self._X_TW: pin.SE3 | None = None
+        self._R_TW = np.eye(3)
         self.v_ref_W = np.zeros(3)
         self.a_ref_W = np.zeros(3)
 
@@ -71,6 +72,7 @@ class FrameTask(Task):
         a_W = world_vector(f"{self.name}: target acceleration [m/s^2]", a)
         self._X_WT = pin.SE3(X_WT)
         self._X_TW = self._X_WT.inverse()
+        self._R_TW = self._X_TW.rotation  # a numpy copy, made once (SE3.rotation copies per read)
         self.v_ref_W[:] = v_W
         self.a_ref_W[:] = a_W
 

@@ -94,7 +94,7 @@ class FrameOrientationTask(FrameTask):
         fid = self.frame_id
         J = state.frame_jacobian(fid, pin.LOCAL)[3:]
         np.multiply(self._weights()[0], J, out=W_t)
-        R_TF = self._X_TW.rotation @ state.oMf[fid].rotation
+        R_TF = self._R_TW @ state.oMf[fid].rotation
         np.multiply(pin.log3(R_TF), -self._kp, out=r_t)  # kp log3(R_FT)
         r_t -= self._kd * (J @ state.v)
         r_t -= state.frame_drift(fid, pin.LOCAL)[3:]
