@@ -87,8 +87,9 @@ class WBCSolution:
     Attributes:
         tau: Joint torques (n_actuated,) [N m], actuator order.
         vdot: Accelerations (nv,), Pinocchio convention (NaN under the fallback).
-        forces_F: Contact point forces by foot name, (n_points, 3) [N] in the foot's frame F
-            (zero under the fallback).
+        forces: The QP's force variables (n_f,) [N], each foot's points in its frame F (zero under
+            the fallback); by foot in ``forces_F``.
+        force_slices: Each foot's entries of ``forces``, by foot name.
         points_F: Contact points by foot name, (n_points, 3) [m] in F.
         foot_poses_W: Foot frame poses ``X_WF`` by foot name (copies).
         controller_time_s: Wall time of the whole ``compute`` [s].
@@ -98,12 +99,18 @@ class WBCSolution:
 
     tau: np.ndarray
     vdot: np.ndarray
-    forces_F: dict[str, np.ndarray]
+    forces: np.ndarray
+    force_slices: dict[str, slice]
     points_F: dict[str, np.ndarray]
     foot_poses_W: dict[str, pin.SE3]
     controller_time_s: float
     qp_time_s: float
     fallback: bool = False
+
+    @functools.cached_property
+    def forces_F(self) -> dict[str, np.ndarray]:
+        """Contact point forces by foot name, (n_points, 3) [N] in the foot's frame F."""
+        return {name: self.forces[cols].reshape(-1, 3) for name, cols in self.force_slices.items()}
 
     @functools.cached_property
     def forces_W(self) -> dict[str, np.ndarray]:

@@ -118,6 +118,8 @@ class WholeBodyController:
             col = cols.stop
         self.n_x = col
         self._points_F = {name: cs.contact.points_F for name, cs in self.contacts.items()}
+        self._force_slices = {name: slice(cs.cols.start - nv, cs.cols.stop - nv)
+                              for name, cs in self.contacts.items()}
         n_f = col - nv
         self._n_fric = 4 * n_f // 3
         n_a = len(self._act)
@@ -398,9 +400,8 @@ class WholeBodyController:
             return self._fallback(state, t0)
         tau = T @ x + b_a
         self.steps += 1
-        forces_F = {name: x[cs.cols].reshape(-1, 3) for name, cs in self.contacts.items()}
-        self.last = WBCSolution(tau, x[:nv], forces_F, self._points_F, poses, time.perf_counter() - t0,
-                                qp_time)
+        self.last = WBCSolution(tau, x[:nv], x[nv:], self._force_slices, self._points_F, poses,
+                                time.perf_counter() - t0, qp_time)
         return Command(CommandKind.TORQUE, tau, self._command_names)
 
     def _fallback(self, state: RobotState, t0: float) -> Command:
@@ -409,8 +410,8 @@ class WholeBodyController:
         np.maximum(tau, self.tau_low, out=tau)
         np.minimum(tau, self.tau_high, out=tau)
         poses = {name: pin.SE3(self.state.frame_pose(cs.fid)) for name, cs in self.contacts.items()}
-        forces_F = {name: np.zeros((cs.contact.n_points, 3)) for name, cs in self.contacts.items()}
         self.steps += 1
-        self.last = WBCSolution(tau, np.full(self.model.nv, np.nan), forces_F, self._points_F, poses,
-                                time.perf_counter() - t0, 0.0, fallback=True)
+        self.last = WBCSolution(tau, np.full(self.model.nv, np.nan), np.zeros(self.n_x - self.model.nv),
+                                self._force_slices, self._points_F, poses, time.perf_counter() - t0, 0.0,
+                                fallback=True)
         return Command(CommandKind.TORQUE, tau, self._command_names)
