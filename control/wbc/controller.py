@@ -369,8 +369,13 @@ class WholeBodyController:
             shift *= -2.0 / Th**2
             cap = cfg.joint_limit_max_accel_rad_s2
             # (q_lim -+ margin - reach) 2 / Th^2, capped
-            lb[iv] = np.minimum(lo_scaled + shift, cap)
-            ub[iv] = np.maximum(hi_scaled + shift, -cap)
+            if isinstance(iv, slice):  # views: written in place
+                lo, hi = lb[iv], ub[iv]
+                np.minimum(np.add(lo_scaled, shift, out=lo), cap, out=lo)
+                np.maximum(np.add(hi_scaled, shift, out=hi), -cap, out=hi)
+            else:
+                lb[iv] = np.minimum(lo_scaled + shift, cap)
+                ub[iv] = np.maximum(hi_scaled + shift, -cap)
         t_qp = time.perf_counter()
         if cfg.solver == "daqp":
             result = qp.solve(m_eq)
