@@ -128,6 +128,7 @@ class CollisionAvoidanceLimit(Limit):
         self._seg_rows = list(self._seg)  # a view per pair, made once (MuJoCo writes into it)
         self._w = np.zeros((len(ids), 6))  # [n; p1 x n] of each pair
         self._reach2: tuple[float, np.ndarray] | None = None  # (detection distance, squared reach)
+        self._args: list[tuple] = []
         masks = body_dof_masks(robot)
         # the dofs moving geom 1 but not geom 2 (+1), geom 2 but not 1 (-1); shared dofs move both
         # witness points rigidly, which leaves their distance unchanged
@@ -143,6 +144,10 @@ class CollisionAvoidanceLimit(Limit):
             reach2 = (self._rsum + dmax) ** 2
             reach2[self._unbounded] = np.inf  # planes: always kept
             self._reach2 = (dmax, reach2)
+            m, d = self.robot.mj_model, self._data
+            # each pair's mj_geomDistance arguments, made once per detection distance
+            self._args = [(m, d, a, b, dmax, row) for (a, b), row in zip(self._pair_list, self._seg_rows,
+                                                                         strict=True)]
         xpos = self._data.geom_xpos
         diff = xpos[self._g1]
         diff -= xpos[self._g2]
@@ -162,13 +167,13 @@ class CollisionAvoidanceLimit(Limit):
         if self._cache is not None and self._cache[0] == key:
             return self._cache[1]
         self.sync(q)
-        m, d = self.robot.mj_model, self._data
+        d = self._data
         dmax = self.detection_distance_m
-        dist, rows, pairs = self.distances_m, self._seg_rows, self._pair_list
+        dist = self.distances_m
         dist.fill(dmax)
-        candidates = self.candidates()
-        distance = mujoco.mj_geomDistance
-        dist[candidates] = [distance(m, d, *pairs[k], dmax, rows[k]) for k in candidates.tolist()]
+        candidates = self.candidates()  # (builds the calls' arguments for this dmax)
+        distance, args = mujoco.mj_geomDistance, self._args
+        dist[candidates] = [distance(*args[k]) for k in candidates.tolist()]
         idx = np.flatnonzero(dist < dmax)  # (the others hold dmax)
         out = (idx, dist[idx], self._seg[idx])
         self._cache = (key, out, d.geom_xpos.copy())
