@@ -135,7 +135,8 @@ class CollisionAvoidanceLimit(Limit):
         self._dmask = masks[m.geom_bodyid[self._g1]] - masks[m.geom_bodyid[self._g2]]
         self.distances_m = np.full(len(self.pairs), self.detection_distance_m)
         self._fromto = np.empty(6)
-        self._cache: tuple[bytes, tuple[np.ndarray, np.ndarray, np.ndarray], np.ndarray] | None = None
+        self._cache: tuple[bytes, tuple[np.ndarray, np.ndarray, np.ndarray]] | None = None
+        self._synced: bytes | None = None  # the q (bytes) the scratch data holds, when _measure set it
 
     def candidates(self) -> np.ndarray:
         """Indices of the pairs the broad phase keeps at the last synced kinematics."""
@@ -157,6 +158,7 @@ class CollisionAvoidanceLimit(Limit):
         """Put MuJoCo's scratch data at ``q`` (nq,), Pinocchio convention (geom poses only)."""
         self.robot.plant_qpos(q, self._data.qpos)
         mujoco.mj_kinematics(self.robot.mj_model, self._data)
+        self._synced = None
 
     def _measure(self, q: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Pairs within the detection distance at ``q``: (indices (k,), distances (k,), fromto (k, 6)).
@@ -167,7 +169,7 @@ class CollisionAvoidanceLimit(Limit):
         if self._cache is not None and self._cache[0] == key:
             return self._cache[1]
         self.sync(q)
-        d = self._data
+        self._synced = key
         dmax = self.detection_distance_m
         dist = self.distances_m
         dist.fill(dmax)
@@ -176,7 +178,7 @@ class CollisionAvoidanceLimit(Limit):
         dist[candidates] = [distance(*args[k]) for k in candidates.tolist()]
         idx = np.flatnonzero(dist < dmax)  # (the others hold dmax)
         out = (idx, dist[idx], self._seg[idx])
-        self._cache = (key, out, d.geom_xpos.copy())
+        self._cache = (key, out)
         return out
 
     def compute_qp_inequalities(self, state: TaskState, dt: float) -> Constraint:
@@ -189,7 +191,9 @@ class CollisionAvoidanceLimit(Limit):
         nn = np.einsum("ij,ij->i", n, n)
         if nn.min() < 1e-24:  # witness points coincide: use the line between the geoms' centres
             touching = nn < 1e-24
-            xpos = self._cache[2] if self._cache is not None else self._data.geom_xpos
+            if self._synced != state.q.tobytes():  # the scratch data moved on since: back to q
+                self.sync(state.q)
+            xpos = self._data.geom_xpos
             n[touching] = xpos[self._g2[idx[touching]]] - xpos[self._g1[idx[touching]]]
             nn = np.einsum("ij,ij->i", n, n)
         n *= np.copysign(1.0 / np.sqrt(np.maximum(nn, 1e-300)), dists)[:, None]  # separating direction

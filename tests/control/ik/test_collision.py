@@ -98,6 +98,30 @@ def test_rows_are_minus_the_distance_rate_by_finite_differences(crab, seed):
     np.testing.assert_allclose(con.h, 0.85 * np.maximum(d - 0.005, 0.0), atol=1e-12)
 
 
+def test_coincident_witness_points_use_the_line_between_the_geoms_centres(crab):
+    """Touching geoms (p1 = p2) take n along the centres' line, at the state's q even after the
+    scratch data moved on (the guard measures other configurations in between)."""
+    limit = CollisionAvoidanceLimit(crab, PAIRS, detection_distance_m=10.0)
+    q = _random_q(crab, 2)
+    state = KinematicState(crab.pin_model, q)
+    idx, _, seg = limit._measure(q)
+    seg[:, 3:] = seg[:, :3]  # (the measurement kept for q) every pair touching at its first point
+    limit.sync(_random_q(crab, 3))  # the scratch data elsewhere
+    G = limit.compute_qp_inequalities(state, 1.0).G
+    data = mujoco.MjData(crab.mj_model)
+    crab.plant_qpos(q, data.qpos)
+    mujoco.mj_kinematics(crab.mj_model, data)
+    g1, g2 = limit.pairs.ids[idx, 0], limit.pairs.ids[idx, 1]
+    n = data.geom_xpos[g2] - data.geom_xpos[g1]
+    n /= np.linalg.norm(n, axis=1)[:, None]
+    n *= np.sign(limit.distances_m[idx])[:, None]
+    assert np.isfinite(G).all() and G.shape == (len(idx), crab.nv)
+    p = seg[:, :3]
+    w = np.hstack([n, np.cross(p, n)])
+    expected = (w @ state.data.J) * limit._dmask[idx]
+    np.testing.assert_allclose(G, expected, atol=1e-12)
+
+
 def test_mink_gets_the_same_pairs_and_the_same_rows(crab):
     """mink's CollisionAvoidanceLimit on our pairs: the same set, and the same distance rate for
     any step once the two velocity conventions are converted (MuJoCo's free joint is world-linear)."""
