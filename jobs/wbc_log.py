@@ -133,8 +133,7 @@ class WBCLog:
         stance = all(cs.active and cs.weight == 1.0 for cs in ctrl.contacts.values())
         slips = []
         for i, f in enumerate(FEET):
-            F = sol.forces_W[f]
-            F_sum = F.sum(0)
+            F_sum = sol.force_totals_W[f]
             cop = sol.cop_W[f]
             cs = ctrl.contacts[f]
             ft_qp = float(np.hypot(F_sum[0], F_sum[1]))

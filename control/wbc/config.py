@@ -138,10 +138,23 @@ class WBCSolution:
         return out
 
     @functools.cached_property
+    def force_totals_W(self) -> dict[str, np.ndarray]:
+        """Each foot's total contact force (3,) [N] in W, by foot name."""
+        return {name: self.foot_poses_W[name].rotation @ F.sum(0) for name, F in self.forces_F.items()}
+
+    @functools.cached_property
     def cop_W(self) -> dict[str, np.ndarray]:
-        """Centre of pressure (3,) [m] in W by foot name (NaN for a foot without normal force)."""
+        """Centre of pressure (3,) [m] in W by foot name (NaN for a foot without normal force).
+
+        ``sum_P fz_P p_P / sum_P fz_P`` with W's vertical force ``fz_P = R_WF[2] f_P`` and
+        ``p_P = R_WF p_FP + p_WF``, so the points are averaged in F and moved to W once.
+        """
         out = {}
-        for name, F in self.forces_W.items():
-            fz = F[:, 2].sum()
-            out[name] = (F[:, 2] @ self.points_W[name]) / fz if fz > 1e-6 else np.full(3, np.nan)
+        for name, F in self.forces_F.items():
+            X = self.foot_poses_W[name]
+            R = X.rotation
+            fz = F @ R[2]
+            total = fz.sum()
+            out[name] = R @ (fz @ self.points_F[name]) / total + X.translation if total > 1e-6 \
+                else np.full(3, np.nan)
         return out

@@ -306,6 +306,7 @@ def test_wrench_and_cop_agree_with_the_point_forces(tiny_biped, crouch):
         np.testing.assert_allclose(sol.points_W[name], points, atol=1e-12)
         moment = sum(np.cross(p - X_WF.translation, f) for p, f in zip(points, F, strict=True))
         np.testing.assert_allclose(sol.wrenches_W[name], np.concatenate([F.sum(0), moment]), atol=1e-9)
+        np.testing.assert_allclose(sol.force_totals_W[name], F.sum(0), atol=1e-9)
         cop = sol.cop_W[name]
         lo, hi = points.min(0), points.max(0)
         assert np.all(cop[:2] >= lo[:2] - 1e-9) and np.all(cop[:2] <= hi[:2] + 1e-9), name
