@@ -109,7 +109,12 @@ def _acquire_domain(domain: int, network_interface: str) -> None:
             _domains[domain] = (held[0], held[1], held[2] + 1)
             return
         dds = _dds()
-        _domains[domain] = (dds["Domain"](domain, domain_config(network_interface)), network_interface, 1)
+        try:
+            handle = dds["Domain"](domain, domain_config(network_interface))
+        except Exception as exc:  # cyclonedds.core.DDSException: e.g. no such interface
+            raise ChannelError(f"cannot create DDS domain {domain} on network interface "
+                               f"{network_interface!r}: {exc}") from exc
+        _domains[domain] = (handle, network_interface, 1)
 
 
 def _release_domain(domain: int) -> None:

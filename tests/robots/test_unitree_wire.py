@@ -214,6 +214,19 @@ def test_closing_one_channel_leaves_the_shared_domain_to_the_other(dds_domain):
         b.close()
 
 
+def test_a_domain_cyclone_cannot_create_is_a_channel_error(dds_domain, monkeypatch):
+    """An interface that passes the name check but that Cyclone cannot use: ChannelError, not DDS's."""
+    import mbctl.robots.unitree.channel as channel_module
+
+    # no interface of that name exists: Cyclone fails while configuring, before any traffic
+    monkeypatch.setattr(channel_module, "check_network_interface", lambda name: name)
+    with pytest.raises(ChannelError, match=rf"cannot create DDS domain {dds_domain} on network "
+                                           r"interface 'mbctl-none0': "):
+        Channel(dds_domain, "mbctl-none0")
+    with Channel(dds_domain) as channel:  # the failed attempt left the domain free
+        assert channel.network_interface == "lo"
+
+
 def test_a_domain_open_on_one_interface_is_refused_on_another(dds_domain, monkeypatch):
     import mbctl.robots.unitree.channel as channel_module
 
