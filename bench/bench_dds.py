@@ -37,8 +37,6 @@ import signal
 import subprocess
 import sys
 import tempfile
-import threading
-import time
 from pathlib import Path
 
 import numpy as np
@@ -50,6 +48,7 @@ from harness import interleaved  # noqa: E402
 from mbctl.robots.unitree import TOPIC_LOWCMD, Channel, low_cmd_codec, low_state_codec  # noqa: E402
 from mbctl.robots.unitree.channel import message_types  # noqa: E402
 from mbctl.robots.unitree.domain_lock import reserve_domain  # noqa: E402
+from mbctl.sim.dds_bridge import wait_until_serving  # noqa: E402
 
 
 def loadavg() -> str:
@@ -132,10 +131,6 @@ def _com_rms_mm(com: np.ndarray) -> float:
     return float(np.sqrt(np.mean(np.sum((com - com[0]) ** 2, axis=1))) * 1e3)
 
 
-#: Seconds ``mbctl serve g1`` gets to load the G1 and join DDS before it is killed.
-BRIDGE_START_S = 120.0
-
-
 def over_dds(domain: int, folder: Path, client: list[str], *serve: str) -> subprocess.CompletedProcess:
     """``mbctl serve g1`` on ``domain`` (lo) into ``folder/serve`` while ``client`` (a job's arguments
     after ``--interface dds --domain D``, with ``--truth`` to its log) runs into ``folder/dds``;
@@ -145,15 +140,7 @@ def over_dds(domain: int, folder: Path, client: list[str], *serve: str) -> subpr
                                      "--output", str(serve_dir), "-q", *serve),
                               stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
     try:
-        started = time.monotonic()
-        timer = threading.Timer(BRIDGE_START_S, bridge.kill)  # a bridge that never serves cannot hang us
-        timer.start()
-        line = bridge.stderr.readline()
-        timer.cancel()
-        late = time.monotonic() - started >= BRIDGE_START_S
-        if late or "serving" not in line:
-            why = f" (no 'serving' line within {BRIDGE_START_S:g} s: killed)" if late else ""
-            raise RuntimeError(f"mbctl serve g1 did not start{why}: {line}{bridge.stderr.read()}")
+        wait_until_serving(bridge)
         out = subprocess.run(_mbctl(*client, "--interface", "dds", "--domain", str(domain),
                                     "--truth", str(serve_dir / "truth.csv"), "--output",
                                     str(folder / "dds"), "-q"),

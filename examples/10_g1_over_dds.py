@@ -28,8 +28,6 @@ import signal
 import subprocess
 import sys
 import tempfile
-import threading
-import time
 from contextlib import nullcontext
 from pathlib import Path
 
@@ -47,11 +45,11 @@ from mbctl.robots.unitree import G1_IMU, ChannelError
 from mbctl.robots.unitree.channel import check_domain
 from mbctl.robots.unitree.domain_lock import reserve_domain
 from mbctl.sim import Simulator
+from mbctl.sim.dds_bridge import BridgeStartError, wait_until_serving
 from mbctl.sim.monitor import PlantMonitor
 
 SQUAT_M, SQUAT_HZ = 0.03, 0.5  # CoM height = start - SQUAT_M (1 - cos(2 pi f t))
 MAX_COM_RMS_M = 5e-3
-BRIDGE_START_S = 120.0  # the bridge loads the G1 and joins DDS; killed if it has not served by then
 
 
 def squat(plant: RobotInterface, standing: Standing, controller: Scheduled, duration_s: float,
@@ -90,7 +88,7 @@ def start_bridge(domain: int, folder: Path, duration_s: float,
     """``mbctl serve g1`` on ``domain`` and ``lo``, crouched as the in-process start; returns once it serves.
 
     Raises:
-        RuntimeError: The bridge did not start within ``BRIDGE_START_S`` (its message).
+        BridgeStartError: The bridge did not start (its message).
     """
     cmd = [sys.executable, "-m", "mbctl.cli", "serve", "g1", "--start", "crouched", "--domain", str(domain),
            "--network-interface", "lo", "--idle-timeout", "1", "--duration", str(duration_s + 60),
@@ -98,19 +96,11 @@ def start_bridge(domain: int, folder: Path, duration_s: float,
     if model_dir is not None:
         cmd += ["--model-dir", model_dir]
     bridge = subprocess.Popen(cmd, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
-    err = bridge.stderr
-    started = time.monotonic()
-    timer = threading.Timer(BRIDGE_START_S, bridge.kill)  # a bridge that never serves cannot hang us
-    timer.start()
-    line = err.readline() if err else ""  # "serving on DDS domain ..." once it is up
-    timer.cancel()
-    late = time.monotonic() - started >= BRIDGE_START_S
-    if late or "serving" not in line:
-        message = line + (err.read() if err else "")
-        if late:
-            message += f" (no 'serving' line within {BRIDGE_START_S:g} s: killed)"
+    try:
+        wait_until_serving(bridge)  # killed if it has not served within BRIDGE_START_S
+    except BridgeStartError:
         stop(bridge)
-        raise RuntimeError(message.strip())
+        raise
     return bridge
 
 
@@ -184,8 +174,8 @@ def main() -> int:
     with domain_held as domain, tempfile.TemporaryDirectory() as tmp:
         try:
             bridge = start_bridge(domain, Path(tmp), args.duration, args.model_dir)
-        except RuntimeError as exc:
-            print(f"error: mbctl serve g1 did not start: {exc}", file=sys.stderr)
+        except BridgeStartError as exc:
+            print(f"error: {exc}", file=sys.stderr)
             return 2
         lost = None
         try:

@@ -19,7 +19,7 @@ from mbctl.jobs.choices import SERVE_STARTS
 from mbctl.jobs.runner import Job, JobError, Outcome, RunContext, Work
 from mbctl.robots.g1 import KEYFRAME, crouched_start
 from mbctl.robots.registry import load_robot
-from mbctl.sim.dds_bridge import TRUTH_COLUMNS, BridgeOptions, G1Bridge
+from mbctl.sim.dds_bridge import SERVING, TRUTH_COLUMNS, BridgeOptions, G1Bridge
 from mbctl.sim.link import LinkSpec
 
 #: Where the bridge's robot starts: the keyframe (g1-stand, g1-arm-pd) or g1-wbc's crouch.
@@ -78,7 +78,7 @@ def prepare(params: ServeParams) -> Work:
         csv = ctx.open_csv(TRUTH_COLUMNS, "truth.csv", flush_interval_s=0.0)
         ctx.sections["inputs"] = {"start": params.start, "mode_machine": bridge.options.mode_machine,
                                   "robot_edits": list(bridge.robot.source.edits)}
-        print(f"mbctl serve g1: serving on DDS domain {params.domain}, network interface "
+        print(f"mbctl serve g1: {SERVING} {params.domain}, network interface "
               f"{params.network_interface!r} (Ctrl-C to stop)", file=sys.stderr, flush=True)
 
         def on_step(tick: int, wall_s: float) -> None:

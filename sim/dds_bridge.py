@@ -23,6 +23,8 @@ in-process run.
 
 from __future__ import annotations
 
+import subprocess
+import threading
 import time
 from collections.abc import Callable, Sequence
 from dataclasses import asdict, dataclass
@@ -39,9 +41,42 @@ from mbctl.robots.unitree.exceptions import WireFormatError
 from mbctl.robots.unitree.g1 import G1_IMU, MODE_PR, MOTOR_ENABLED, ImuSpec, MotorMap
 from mbctl.robots.unitree.wire import low_cmd_codec, low_state_codec
 from mbctl.sim.contacts import measure_contacts
+from mbctl.sim.exceptions import SimError
 from mbctl.sim.imu import ImuReader
 from mbctl.sim.link import DelayLine, LinkSpec
 from mbctl.sim.simulator import Simulator
+
+#: The start of the line ``mbctl serve`` writes first on stderr, once its bridge is up.
+SERVING = "serving on DDS domain"
+
+#: Seconds a bridge process gets to load its robot and join DDS before it is given up [s].
+BRIDGE_START_S = 120.0
+
+
+class BridgeStartError(SimError):
+    """A bridge process (``mbctl serve``) did not start serving."""
+
+
+def wait_until_serving(process: subprocess.Popen[str], timeout_s: float = BRIDGE_START_S) -> str:
+    """Block until ``process`` (``mbctl serve ...``, stderr piped as text) says it serves; that line.
+
+    Raises:
+        BridgeStartError: Its first line is another (it failed: the message holds its stderr), or
+            none came within ``timeout_s`` [s] (the process is then killed).
+    """
+    timer = threading.Timer(timeout_s, process.kill)  # a bridge that never serves cannot hang us
+    started = time.monotonic()
+    timer.start()
+    try:
+        line = process.stderr.readline() if process.stderr is not None else ""
+    finally:
+        timer.cancel()
+    if SERVING in line:
+        return line
+    rest = process.stderr.read() if process.stderr is not None else ""
+    why = (f"wrote no {SERVING!r} line within {timeout_s:g} s (killed)"
+           if time.monotonic() - started >= timeout_s else "did not start")
+    raise BridgeStartError(f"the DDS bridge {why}: {(line + rest).strip()}")
 
 #: The truth log measures contact forces every this many steps (measuring costs ~0.1 ms).
 FORCE_EVERY = 10

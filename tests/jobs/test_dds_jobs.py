@@ -19,7 +19,8 @@ import pytest
 
 from mbctl.robots.unitree import ChannelError
 from mbctl.robots.unitree.domain_lock import reserve_domain
-from tests.conftest import first_line, mbctl_command, run_mbctl
+from mbctl.sim.dds_bridge import wait_until_serving
+from tests.conftest import mbctl_command, run_mbctl
 
 #: The end-to-end runs share 2 cores with other work: a 6 ms stall of either process (the default
 #: watchdog, 3 periods) is not a lost link there. The 3-period watchdog itself is tested against a
@@ -37,8 +38,7 @@ def bridge(domain: int, folder: Path, *extra: str):
                                           "--duration", "60", "--output", str(folder), "-q", *extra),
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=os.environ.copy())
     try:
-        line = first_line(proc, "stderr")  # the "serving" line, once DDS is up
-        assert "serving on DDS domain" in line, line + proc.stderr.read()
+        wait_until_serving(proc)  # the "serving" line, once DDS is up (killed after 120 s without)
         yield proc
     finally:
         if proc.poll() is None:
