@@ -145,14 +145,12 @@ class WholeBodyController:
         self._G_blk = np.zeros((n_f, 6 * n_feet))  # Jc = blockdiag(G_F) J_F, one product
         for i, cs in enumerate(self.contacts.values()):
             self._G_blk[cs.cols.start - nv:cs.cols.stop - nv, 6 * i:6 * i + 6] = cs.G_F
-        self._foot_gains: tuple[WBCConfig | None, np.ndarray] = (None, np.zeros(0))
-        self._bound_weight: dict[str, float | None] = dict.fromkeys(self.contacts)  # weight in lb/ub
         self._H_vv_diag = np.einsum("ii->i", qp.H_vv)  # a writable view of its diagonal
-        self.config = self._config  # the setter sets the weights
-        self._stack = TaskStack(nv)
         self._limits = self._joint_limits()
         self._n_limits = len(self._limits[0])
-        self._limit_cache: tuple[WBCConfig | None, tuple] = (None, ())
+        self._limit_iv, self._limit_iq = as_slice(self._limits[0]), as_slice(self._limits[1])
+        self.config = self._config  # the setter derives the config's terms
+        self._stack = TaskStack(nv)
         self.last: WBCSolution | None = None
         #: Cycles solved by the equality-constrained fast path / by daqp (see control/wbc/qp.py).
         self.fast_path_cycles = 0
@@ -171,7 +169,16 @@ class WholeBodyController:
     def config(self, config: WBCConfig) -> None:
         self._config = config
         self._qp.force_weight = config.force_weight
-        self._bound_weight = dict.fromkeys(self.contacts)  # the force bounds are rewritten
+        #: the weight each foot's force bounds were last written with (None: rewrite them)
+        self._bound_weight: dict[str, float | None] = dict.fromkeys(self.contacts)
+        # joint limits: (q_lim -+ margin) 2 / Th^2, the fixed part of the acceleration bounds
+        _, _, q_lo, q_hi = self._limits
+        scale = 2.0 / config.joint_limit_horizon_s**2
+        self._limit_lo = (q_lo + config.joint_limit_margin_rad) * scale
+        self._limit_hi = (q_hi - config.joint_limit_margin_rad) * scale
+        # the feet's slip feedback: kp on each foot's x, y and yaw rows, 0 on z, roll and pitch
+        self._foot_gain = np.tile([1.0, 1.0, 0.0, 0.0, 0.0, 1.0], len(self.contacts)) \
+            * config.contact_omega_rad_s**2
 
     @property
     def tasks(self) -> tuple[Task, ...]:
@@ -210,25 +217,6 @@ class WholeBodyController:
                 lo.append(q_lo)
                 hi.append(q_hi)
         return np.array(iv, dtype=int), np.array(iq, dtype=int), np.array(lo), np.array(hi)
-
-    def _limit_terms(self) -> tuple[slice | np.ndarray, slice | np.ndarray, np.ndarray, np.ndarray]:
-        """(v index, q index, (q_min + margin) 2/Th^2, (q_max - margin) 2/Th^2), once per config."""
-        cfg = self._config
-        if self._limit_cache[0] is not cfg:
-            iv, iq, q_lo, q_hi = self._limits
-            scale = 2.0 / cfg.joint_limit_horizon_s**2
-            margin = cfg.joint_limit_margin_rad
-            self._limit_cache = (cfg, (as_slice(iv), as_slice(iq), (q_lo + margin) * scale,
-                                       (q_hi - margin) * scale))
-        return self._limit_cache[1]
-
-    def _foot_gain_mask(self) -> np.ndarray:
-        """``kp`` on each foot's x, y and yaw rows, 0 on z, roll and pitch (once per config)."""
-        cfg = self._config
-        if self._foot_gains[0] is not cfg:
-            mask = np.tile([1.0, 1.0, 0.0, 0.0, 0.0, 1.0], len(self.contacts))
-            self._foot_gains = (cfg, mask * cfg.contact_omega_rad_s**2)
-        return self._foot_gains[1]
 
     def add_task(self, task: Task) -> Task:
         """Add a task (kept until ``remove_task``); returns it.
@@ -329,7 +317,7 @@ class WholeBodyController:
         np.matmul(self._G_blk, JF, out=self._Jc)
         # each active foot's twist in F: J_F vdot + Jdot_F v = kp S log6(X_FF0) - kd J_F v, with S
         # keeping x, y and yaw (the ground sets height, roll and pitch; feedback corrects slip only)
-        err *= self._foot_gain_mask()
+        err *= self._foot_gain
         err -= (2.0 * cfg.contact_omega_rad_s) * (JF @ s.v)
         err -= drift
         m_eq = self._n_unact
@@ -361,7 +349,7 @@ class WholeBodyController:
         # joint limits: q + v T + vdot T^2/2 within [q_min + margin, q_max - margin]: a joint heading
         # for a limit must decelerate (the bound turns positive), at most by the accel cap A, so
         # that lb <= ub and the bounds stay feasible under the torque limits
-        iv, iq, lo_scaled, hi_scaled = self._limit_terms()
+        iv, iq, lo_scaled, hi_scaled = self._limit_iv, self._limit_iq, self._limit_lo, self._limit_hi
         if self._n_limits:
             Th = cfg.joint_limit_horizon_s
             shift = s.v[iv] * Th
