@@ -156,8 +156,8 @@ class ContactState:
         pts = self.contact.points_F
         G = np.zeros((len(pts), 3, 6))
         G[:, :, :3] = np.eye(3)
-        for i, (x, y, z) in enumerate(pts):  # v_P = v + w x p = v - [p]x w
-            G[i, :, 3:] = -np.array([[0.0, -z, y], [z, 0.0, -x], [-y, x, 0.0]])
+        for i, p in enumerate(pts):  # v_P = v + w x p = v - [p]x w
+            G[i, :, 3:] = -pin.skew(p)
         self.G_F = G.reshape(-1, 6)
 
     def hold(self, X_WF: pin.SE3) -> None:
