@@ -127,8 +127,7 @@ class CollisionAvoidanceLimit(Limit):
         self._seg = np.zeros((len(ids), 6))  # witness points of each pair's last measurement
         self._seg_rows = list(self._seg)  # a view per pair, made once (MuJoCo writes into it)
         self._w = np.zeros((len(ids), 6))  # [n; p1 x n] of each pair
-        self._reach2: tuple[float, np.ndarray] | None = None  # (detection distance, squared reach)
-        self._args: list[tuple] = []
+        self._distance_terms: tuple[float, np.ndarray, list[tuple]] | None = None  # see _per_distance
         masks = body_dof_masks(robot)
         # the dofs moving geom 1 but not geom 2 (+1), geom 2 but not 1 (-1); shared dofs move both
         # witness points rigidly, which leaves their distance unchanged
@@ -138,21 +137,27 @@ class CollisionAvoidanceLimit(Limit):
         self._cache: tuple[bytes, tuple[np.ndarray, np.ndarray, np.ndarray]] | None = None
         self._synced: bytes | None = None  # the q (bytes) the scratch data holds, when _measure set it
 
+    def _per_distance(self) -> tuple[np.ndarray, list[tuple]]:
+        """Each pair's squared broad-phase reach and ``mj_geomDistance`` arguments.
+
+        Made once per detection distance; planes get an infinite reach (always kept).
+        """
+        dmax = self.detection_distance_m
+        if self._distance_terms is None or self._distance_terms[0] != dmax:
+            reach2 = (self._rsum + dmax) ** 2
+            reach2[self._unbounded] = np.inf
+            m, d = self.robot.mj_model, self._data
+            args = [(m, d, a, b, dmax, row)
+                    for (a, b), row in zip(self._pair_list, self._seg_rows, strict=True)]
+            self._distance_terms = (dmax, reach2, args)
+        return self._distance_terms[1], self._distance_terms[2]
+
     def candidates(self) -> np.ndarray:
         """Indices of the pairs the broad phase keeps at the last synced kinematics."""
-        dmax = self.detection_distance_m
-        if self._reach2 is None or self._reach2[0] != dmax:
-            reach2 = (self._rsum + dmax) ** 2
-            reach2[self._unbounded] = np.inf  # planes: always kept
-            self._reach2 = (dmax, reach2)
-            m, d = self.robot.mj_model, self._data
-            # each pair's mj_geomDistance arguments, made once per detection distance
-            self._args = [(m, d, a, b, dmax, row) for (a, b), row in zip(self._pair_list, self._seg_rows,
-                                                                         strict=True)]
         xpos = self._data.geom_xpos
         diff = xpos[self._g1]
         diff -= xpos[self._g2]
-        return np.flatnonzero(np.einsum("ij,ij->i", diff, diff) <= self._reach2[1])
+        return np.flatnonzero(np.einsum("ij,ij->i", diff, diff) <= self._per_distance()[0])
 
     def sync(self, q: np.ndarray) -> None:
         """Put MuJoCo's scratch data at ``q`` (nq,), Pinocchio convention (geom poses only)."""
@@ -173,8 +178,8 @@ class CollisionAvoidanceLimit(Limit):
         dmax = self.detection_distance_m
         dist = self.distances_m
         dist.fill(dmax)
-        candidates = self.candidates()  # (builds the calls' arguments for this dmax)
-        distance, args = mujoco.mj_geomDistance, self._args
+        candidates = self.candidates()
+        distance, args = mujoco.mj_geomDistance, self._per_distance()[1]
         dist[candidates] = [distance(*args[k]) for k in candidates.tolist()]
         idx = np.flatnonzero(dist < dmax)  # (the others hold dmax)
         out = (idx, dist[idx], self._seg[idx])
