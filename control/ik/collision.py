@@ -134,7 +134,7 @@ class CollisionAvoidanceLimit(Limit):
         self._dmask = masks[m.geom_bodyid[self._g1]] - masks[m.geom_bodyid[self._g2]]
         self.distances_m = np.full(len(self.pairs), self.detection_distance_m)
         self._fromto = np.empty(6)
-        self._cache: tuple[bytes, tuple[np.ndarray, np.ndarray, np.ndarray]] | None = None
+        self._cache: tuple[bytes, float, tuple[np.ndarray, np.ndarray, np.ndarray]] | None = None
         self._synced: bytes | None = None  # the q (bytes) the scratch data holds, when _measure set it
 
     def _per_distance(self) -> tuple[np.ndarray, list[tuple]]:
@@ -168,11 +168,13 @@ class CollisionAvoidanceLimit(Limit):
     def _measure(self, q: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Pairs within the detection distance at ``q``: (indices (k,), distances (k,), fromto (k, 6)).
 
-        Also fills ``distances_m``. The last measurement is kept and reused for the same ``q``.
+        Also fills ``distances_m``. The last measurement is kept and reused for the same ``q`` and
+        detection distance.
         """
         key = q.tobytes()
-        if self._cache is not None and self._cache[0] == key:
-            return self._cache[1]
+        cache = self._cache
+        if cache is not None and cache[0] == key and cache[1] == self.detection_distance_m:
+            return cache[2]
         self.sync(q)
         self._synced = key
         dmax = self.detection_distance_m
@@ -183,7 +185,7 @@ class CollisionAvoidanceLimit(Limit):
         dist[candidates] = [distance(*args[k]) for k in candidates.tolist()]
         idx = np.flatnonzero(dist < dmax)  # (the others hold dmax)
         out = (idx, dist[idx], self._seg[idx])
-        self._cache = (key, out)
+        self._cache = (key, dmax, out)
         return out
 
     def compute_qp_inequalities(self, state: TaskState, dt: float) -> Constraint:

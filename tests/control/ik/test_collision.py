@@ -98,6 +98,20 @@ def test_rows_are_minus_the_distance_rate_by_finite_differences(crab, seed):
     np.testing.assert_allclose(con.h, 0.85 * np.maximum(d - 0.005, 0.0), atol=1e-12)
 
 
+def test_a_changed_detection_distance_takes_effect(crab):
+    """The broad phase and the queries follow ``detection_distance_m`` when it is reassigned."""
+    limit = CollisionAvoidanceLimit(crab, PAIRS, detection_distance_m=10.0)
+    q = _random_q(crab, 4)
+    state = KinematicState(crab.pin_model, q)
+    true = _distances(crab, limit.pairs, q)
+    assert limit.compute_qp_inequalities(state, 1.0).G.shape[0] == len(limit.pairs)
+    dmax = float(np.median(true))
+    limit.detection_distance_m = dmax
+    n_rows = limit.compute_qp_inequalities(state, 1.0).G.shape[0]
+    assert n_rows == int(np.sum(true < dmax)) and 0 < n_rows < len(limit.pairs)
+    np.testing.assert_allclose(limit.distances_m, np.minimum(true, dmax), atol=1e-9)
+
+
 def test_coincident_witness_points_use_the_line_between_the_geoms_centres(crab):
     """Touching geoms (p1 = p2) take n along the centres' line, at the state's q even after the
     scratch data moved on (the guard measures other configurations in between)."""
