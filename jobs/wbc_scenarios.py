@@ -14,6 +14,7 @@ the control cycle's time.
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable
 
 import mujoco
@@ -74,9 +75,12 @@ def scenario(name: str, wb: Standing, model: mujoco.MjModel, impulse_n_s: float 
         w, A = 2 * np.pi * SQUAT_FREQUENCY_HZ, SQUAT_AMPLITUDE_M
 
         def squat(t: float, state: RobotState) -> None:
-            p, v, a = minimum_jerk_at(c0, home, t, 0.0, 1.0)  # x, y over the feet
-            wb.com.set_target(p - [0, 0, A * (1 - np.cos(w * t))], v - [0, 0, A * w * np.sin(w * t)],
-                              a - [0, 0, A * w * w * np.cos(w * t)])
+            p, v, a = minimum_jerk_at(c0, home, t, 0.0, 1.0)  # x, y over the feet (new arrays)
+            c, s = math.cos(w * t), math.sin(w * t)
+            p[2] -= A * (1 - c)  # down and up by A (1 - cos w t)
+            v[2] -= A * w * s
+            a[2] -= A * w * w * c
+            wb.com.set_target(p, v, a)
         return squat, None
     if name == "one-foot":
         return _one_foot(wb, c0, home), None
