@@ -9,6 +9,7 @@ every 50 cycles so an interrupted run keeps them.
 
 from __future__ import annotations
 
+import math
 import time
 from typing import Any, NamedTuple
 
@@ -36,6 +37,13 @@ VALUES_EVERY = 500
 #: (about 80 N more than m g on the first step, decaying over ~20 ms): left out of the force-error
 #: statistics and reported on its own (``contact_force_rel_error_settling_max``).
 SETTLE_S = 0.05
+
+#: The CSV's first foot column, and its columns per foot (QP fz, ft, CoP x, y; MuJoCo's the same; slip).
+_FEET_AT, _PER_FOOT = 10, 9
+#: A foot's MuJoCo columns and slip when the plant is not observed (over DDS).
+_NO_PLANT = (float("nan"),) * 5
+#: What each cycle's row keeps after the CSV's columns (the record's other fields).
+_EXTRA = ("t_plant", "stance", "ctrl_us", "qp_us", "slip", "cycle_us")
 
 
 class WBCRecord(NamedTuple):
@@ -105,70 +113,80 @@ class WBCLog:
                        f"{f}_fz_mj_N", f"{f}_ft_mj_N", f"{f}_cop_x_mj_m", f"{f}_cop_y_mj_m", f"{f}_slip_m"]
         header += [f"tau_{a}_N_m" for a in ctrl.joints.actuators] + q_names
         self.csv = ctx.open_csv(header)
-        nf = len(FEET)
-        self._buf = WBCRecord(np.zeros(n), np.zeros(n), np.zeros((n, 3)), np.zeros((n, 3)), np.zeros((n, nf)),
-                              np.zeros((n, nf)), np.zeros((n, nf)), np.zeros((n, nf)), np.zeros((n, nf, 2)),
-                              np.zeros((n, nf, 2)), np.zeros(n, dtype=bool), np.zeros(n), np.zeros(n),
-                              np.zeros(n), np.zeros(n), np.full(n, np.nan))
+        # One preallocated row per cycle: the CSV's columns, then what only the record keeps. Each
+        # cycle fills its row in place and streams the CSV's part; the record's fields are views.
+        w, nf, nt = len(header), len(FEET), len(ctrl.joints.actuators)
+        self._width = w
+        self._rows = np.zeros((n, w + len(_EXTRA)))
+        self._rows[:, w + _EXTRA.index("cycle_us")] = np.nan  # the first cycle has no start
+        self._feet = self._rows[:, _FEET_AT:_FEET_AT + _PER_FOOT * nf].reshape(n, nf, _PER_FOOT)
+        self._tau = slice(_FEET_AT + _PER_FOOT * nf, _FEET_AT + _PER_FOOT * nf + nt)
+        self._q = slice(self._tau.stop, w)
+        self._extra = {name: w + i for i, name in enumerate(_EXTRA)}
         self.k = 0
         self.com_from_truth = False  # with_truth replaced the estimated CoM by the plant's
         self._last_cycle_end: float | None = None
-        self._home: dict[str, np.ndarray] = {}  # where each foot started to support
+        self._home: dict[str, tuple[float, float]] = {}  # where each foot started to support
 
     def record(self) -> WBCRecord:
-        """The cycles recorded so far (views of the buffers)."""
-        return WBCRecord(*(a[: self.k] for a in self._buf))
+        """The cycles recorded so far (views of the rows, but ``stance``, a bool copy)."""
+        rows, feet, k, x = self._rows[: self.k], self._feet[: self.k], self.k, self._extra
+        return WBCRecord(rows[:, 0], rows[:, x["t_plant"]], rows[:, 1:4], rows[:, 4:7],
+                         feet[:, :, 0], feet[:, :, 4], feet[:, :, 1], feet[:, :, 5], feet[:, :, 2:4],
+                         feet[:, :, 6:8], rows[:, x["stance"]] > 0.5, rows[:, x["slip"]], rows[:, 7],
+                         rows[:, x["ctrl_us"]], rows[:, x["qp_us"]], self._rows[:k, x["cycle_us"]])
 
     def on_step(self, k: int, state: RobotState, reference: object, command: Command) -> bool:
         """Record cycle ``k`` (the loop's ``on_step``); True once the robot has fallen (ends the run)."""
-        ctrl, mon, b = self.wb.controller, self.monitor, self._buf
+        ctrl, mon = self.wb.controller, self.monitor
         sol = ctrl.solution
+        row, feet, x = self._rows[k], self._feet[k], self._extra
         t = state.time_s
-        com_ref = self.wb.com.target
-        push = self.pushes.force_W if self.pushes is not None else np.zeros(3)
+        row[0] = t
+        row[1:4] = self.wb.com.target
         # the plant's CoM in-process; over DDS the controller's (from the estimated state), replaced
         # by the bridge's truth after the run when given (with_truth)
-        com = mon.com_W if mon is not None else ctrl.state.com().copy()
-        row = [t, *com_ref.tolist(), *com.tolist(), float(state.q[2]), float(push[0]), float(push[1])]
-        stance = all(cs.active and cs.weight == 1.0 for cs in ctrl.contacts.values())
-        slips = []
+        row[4:7] = mon.com_W if mon is not None else ctrl.state.com()
+        row[7] = state.q[2]
+        if self.pushes is not None:
+            row[8:10] = self.pushes.force_W[:2]
+        stance = True
+        slip_max = 0.0
+        summary = sol.totals_and_cops_W
         for i, f in enumerate(FEET):
-            F_sum = sol.force_totals_W[f]
-            cop = sol.cop_W[f]
+            total, cop = summary[f]
+            tx, ty, tz = total.tolist()
+            cx, cy = cop[:2].tolist()
             cs = ctrl.contacts[f]
-            ft_qp = float(np.hypot(F_sum[0], F_sum[1]))
+            supporting = cs.active and cs.weight == 1.0
+            stance = stance and supporting
             if mon is None:  # over DDS: the plant's forces and feet are not observed
-                row += [float(F_sum[2]), ft_qp, float(cop[0]), float(cop[1]), *([float("nan")] * 5)]
-                b.fz_qp[k, i], b.ft_qp[k, i], b.cop_qp[k, i] = F_sum[2], ft_qp, cop[:2]
-                b.fz_mj[k, i] = b.ft_mj[k, i] = np.nan
-                b.cop_mj[k, i] = np.nan
+                feet[i] = (tz, math.hypot(tx, ty), cx, cy, *_NO_PLANT)
                 continue
             mc = mon.contacts[f]
-            p_site = mon.site_positions_W[f]
-            if cs.active and cs.weight == 1.0 and mc.normal_n >= SUPPORT_FRACTION * self.mg:
-                slip = float(np.hypot(*(p_site - self._home.setdefault(f, p_site))[:2]))
-                slips.append(slip)
+            fx, fy, fz = mc.force_W.tolist()
+            mx, my = mc.cop_W[:2].tolist()
+            px, py = mon.site_positions_W[f][:2].tolist()
+            if supporting and fz >= SUPPORT_FRACTION * self.mg:
+                hx, hy = self._home.setdefault(f, (px, py))
+                slip = math.hypot(px - hx, py - hy)
+                slip_max = max(slip_max, slip)
             else:  # unloaded or swinging: slip counts from when it supports again
                 slip = 0.0
-                self._home[f] = p_site
-            row += [float(F_sum[2]), ft_qp, float(cop[0]), float(cop[1]), mc.normal_n, mc.tangential_n,
-                    float(mc.cop_W[0]), float(mc.cop_W[1]), slip]
-            b.fz_qp[k, i], b.fz_mj[k, i] = F_sum[2], mc.normal_n
-            b.ft_qp[k, i], b.ft_mj[k, i] = ft_qp, mc.tangential_n
-            b.cop_qp[k, i], b.cop_mj[k, i] = cop[:2], mc.cop_W[:2]
-        row += command.values.tolist() + state.q.tolist()
-        self.csv.write(row)
-        b.t[k] = t
-        b.t_plant[k] = mon.time_s if mon is not None else t
-        b.com_ref[k], b.com[k] = com_ref, com
-        b.stance[k] = stance and not sol.fallback
-        b.ctrl_us[k], b.qp_us[k] = sol.controller_time_s * 1e6, sol.qp_time_s * 1e6
-        b.slip[k] = max(slips) if slips else 0.0
-        b.z[k] = state.q[2]
+                self._home[f] = (px, py)
+            feet[i] = (tz, math.hypot(tx, ty), cx, cy, fz, math.hypot(fx, fy), mx, my, slip)
+        row[self._tau] = command.values
+        row[self._q] = state.q
+        self.csv.write(row[: self._width])
+        row[x["t_plant"]] = mon.time_s if mon is not None else t
+        row[x["stance"]] = stance and not sol.fallback
+        row[x["ctrl_us"]] = sol.controller_time_s * 1e6
+        row[x["qp_us"]] = sol.qp_time_s * 1e6
+        row[x["slip"]] = slip_max
         self.k = k + 1
         now = time.perf_counter()
         if self._last_cycle_end is not None:
-            b.cycle_us[k] = (now - self._last_cycle_end) * 1e6
+            row[x["cycle_us"]] = (now - self._last_cycle_end) * 1e6
         self._last_cycle_end = now
         self.ctx.progress.advance()
         if k % VALUES_EVERY == 0:

@@ -138,23 +138,33 @@ class WBCSolution:
         return out
 
     @functools.cached_property
-    def force_totals_W(self) -> dict[str, np.ndarray]:
-        """Each foot's total contact force (3,) [N] in W, by foot name."""
-        return {name: self.foot_poses_W[name].rotation @ F.sum(0) for name, F in self.forces_F.items()}
+    def totals_and_cops_W(self) -> dict[str, tuple[np.ndarray, np.ndarray]]:
+        """Each foot's total force and centre of pressure in W, in one pass (a log reads both every cycle).
 
-    @functools.cached_property
-    def cop_W(self) -> dict[str, np.ndarray]:
-        """Centre of pressure (3,) [m] in W by foot name (NaN for a foot without normal force).
-
-        ``sum_P fz_P p_P / sum_P fz_P`` with W's vertical force ``fz_P = R_WF[2] f_P`` and
-        ``p_P = R_WF p_FP + p_WF``, so the points are averaged in F and moved to W once.
+        With the point forces in W ``f_P = R_WF f_FP``: the total is ``sum_P f_P``; the CoP is
+        ``sum_P fz_P p_P / sum_P fz_P`` with ``p_P = R_WF p_FP + p_WF``, so the points are averaged
+        in F and moved to W once.
         """
         out = {}
-        for name, F in self.forces_F.items():
+        forces = self.forces
+        for name, cols in self.force_slices.items():
             X = self.foot_poses_W[name]
             R = X.rotation
-            fz = F @ R[2]
-            total = fz.sum()
-            out[name] = R @ (fz @ self.points_F[name]) / total + X.translation if total > 1e-6 \
-                else np.full(3, np.nan)
+            f_W = forces[cols].reshape(-1, 3) @ R.T
+            total = f_W.sum(0)
+            fz = total[2]
+            if fz > 1e-6:
+                out[name] = (total, R @ (f_W[:, 2] @ self.points_F[name]) / fz + X.translation)
+            else:
+                out[name] = (total, np.full(3, np.nan))
         return out
+
+    @property
+    def force_totals_W(self) -> dict[str, np.ndarray]:
+        """Each foot's total contact force (3,) [N] in W, by foot name."""
+        return {name: tc[0] for name, tc in self.totals_and_cops_W.items()}
+
+    @property
+    def cop_W(self) -> dict[str, np.ndarray]:
+        """Centre of pressure (3,) [m] in W by foot name (NaN for a foot without normal force)."""
+        return {name: tc[1] for name, tc in self.totals_and_cops_W.items()}

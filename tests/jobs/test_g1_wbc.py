@@ -49,6 +49,18 @@ def test_squat_tracks_the_com_without_slipping(g1, tmp_path):
     assert report["bound"] == "CoM RMS < 5 mm, foot slip < 1 mm; did not fall"
     assert {"csv", "plot", "g1_wbc_contacts.png"} <= set(report["outputs"])
     assert record.rows == 2000
+    # the streamed CSV and the record behind the values are the same numbers: the values again
+    # from the CSV's columns (round-trip floats; in-process the plant's time is the state's)
+    names = (tmp_path / "g1_wbc.csv").read_text().splitlines()[0].split(",")
+    rows = np.loadtxt(tmp_path / "g1_wbc.csv", delimiter=",", skiprows=1)
+    col = {name: rows[:, i] for i, name in enumerate(names)}
+    err = np.column_stack([col[f"com_{a}_m"] - col[f"com_ref_{a}_m"] for a in "xyz"])
+    assert np.sqrt(np.mean(np.sum(err**2, axis=1))) == pytest.approx(v["com_error_rms_m"], rel=1e-12)
+    slip = np.maximum(col["left_foot_slip_m"], col["right_foot_slip_m"]).max()
+    assert slip == v["max_foot_slip_m"] > 0 and col["base_z_m"].min() == v["pelvis_z_min_m"]
+    assert np.array_equal(col["base_z_m"], col["floating_base_joint_z_m"])  # the state's, q[2]
+    mg = np.median(col["left_foot_fz_mj_N"] + col["right_foot_fz_mj_N"])
+    assert mg == pytest.approx(9.81 * 33.34, rel=0.01)  # the G1 (33.34 kg) stands on its feet: m g [N]
 
 
 def test_com_error_compares_the_plant_with_the_reference_at_the_plants_time():
