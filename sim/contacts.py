@@ -72,40 +72,46 @@ class ContactSensor:
         n_groups = len(self.names)
         # plain Python floats: with a handful of contacts, per-contact arithmetic on floats costs
         # less than the numpy temporaries a vectorised sum would allocate (measured on the G1)
-        force = [[0.0, 0.0, 0.0] for _ in range(n_groups)]
-        moment = [[0.0, 0.0] for _ in range(n_groups)]
-        count = [0] * n_groups
+        acc = [[0.0, 0.0, 0.0, 0.0, 0.0, 0] for _ in range(n_groups)]
         ncon = data.ncon
         if ncon:
             contact = data.contact
             owner = self._owner_list
             f6 = self._f6
-            frames, positions = contact.frame, contact.pos
+            # each array's rows to Python once (a row at a time costs a call per contact)
+            frames, positions = contact.frame[:ncon].tolist(), contact.pos[:ncon].tolist()
             for i, (g1, g2) in enumerate(contact.geom[:ncon].tolist()):
                 k1, k2 = owner[g1], owner[g2]
                 if k1 < 0 and k2 < 0:
                     continue
                 mujoco.mj_contactForce(self.model, data, i, f6)
                 fn, t1, t2 = f6[:3].tolist()
-                r = frames[i].tolist()  # rows: the contact frame's axes in W; f_W = frame^T f
+                r = frames[i]  # rows: the contact frame's axes in W; f_W = frame^T f
                 fx = r[0] * fn + r[3] * t1 + r[6] * t2
                 fy = r[1] * fn + r[4] * t1 + r[7] * t2
                 fz = r[2] * fn + r[5] * t1 + r[8] * t2
-                px, py = positions[i, :2].tolist()
-                for k, sign in ((k2, 1.0), (k1, -1.0)):  # the force acts on geom2, opposite on geom1
-                    if k >= 0:
-                        f = force[k]
-                        f[0] += sign * fx
-                        f[1] += sign * fy
-                        f[2] += sign * fz
-                        moment[k][0] += sign * fz * px
-                        moment[k][1] += sign * fz * py
-                        count[k] += 1
+                px, py = positions[i][0], positions[i][1]
+                # the force acts on geom2, the opposite on geom1; acc: f (3), fz-weighted x, y, count
+                if k2 >= 0:
+                    a = acc[k2]
+                    a[0] += fx
+                    a[1] += fy
+                    a[2] += fz
+                    a[3] += fz * px
+                    a[4] += fz * py
+                    a[5] += 1
+                if k1 >= 0:
+                    a = acc[k1]
+                    a[0] -= fx
+                    a[1] -= fy
+                    a[2] -= fz
+                    a[3] -= fz * px
+                    a[4] -= fz * py
+                    a[5] += 1
         out = {}
-        for k, name in enumerate(self.names):
-            fz = force[k][2]
-            cop = np.array([moment[k][0] / fz, moment[k][1] / fz, 0.0]) if fz > 1e-9 else np.full(3, np.nan)
-            out[name] = MeasuredContact(np.array(force[k]), cop, count[k])
+        for name, (fx, fy, fz, mx, my, n) in zip(self.names, acc, strict=True):
+            cop = np.array([mx / fz, my / fz, 0.0]) if fz > 1e-9 else np.full(3, np.nan)
+            out[name] = MeasuredContact(np.array([fx, fy, fz]), cop, int(n))
         return out
 
 
