@@ -43,7 +43,7 @@ _FEET_AT, _PER_FOOT = 10, 9
 #: A foot's MuJoCo columns and slip when the plant is not observed (over DDS).
 _NO_PLANT = (float("nan"),) * 5
 #: What each cycle's row keeps after the CSV's columns (the record's other fields).
-_EXTRA = ("t_plant", "stance", "ctrl_us", "qp_us", "slip", "cycle_us")
+_EXTRA = ("t_plant", "stance", "ctrl_us", "qp_us", "slip", "cycle_us", "physics_us")
 
 
 class WBCRecord(NamedTuple):
@@ -183,6 +183,8 @@ class WBCLog:
         row[x["ctrl_us"]] = sol.controller_time_s * 1e6
         row[x["qp_us"]] = sol.qp_time_s * 1e6
         row[x["slip"]] = slip_max
+        if mon is not None:
+            row[x["physics_us"]] = mon.sim.physics_time_s * 1e6
         self.k = k + 1
         now = time.perf_counter()
         if self._last_cycle_end is not None:
@@ -241,6 +243,9 @@ class WBCLog:
             "controller_time_median_us": float(np.median(r.ctrl_us)),
             "qp_solve_time_median_us": stat(r.qp_us[r.qp_us > 0], "median"),
             "cycle_time_median_us": stat(r.cycle_us[np.isfinite(r.cycle_us)], "median"),
+            # MuJoCo's step within the cycle (in-process; NaN over DDS, where the plant is the bridge)
+            "physics_step_time_median_us": stat(self._rows[: self.k, self._extra["physics_us"]], "median")
+            if mon is not None else float("nan"),
             "qp_fast_path_fraction": ctrl.fast_path_cycles / max(1, ctrl.fast_path_cycles + ctrl.daqp_cycles),
             "contact_normal_rel_error_per_foot": {f: stat(per_foot[stance, i], "median")
                                                   for i, f in enumerate(FEET)},

@@ -8,6 +8,7 @@ a forward pass on every step.
 
 from __future__ import annotations
 
+import time
 from collections.abc import Callable
 from typing import Literal, Protocol
 
@@ -105,6 +106,8 @@ class Simulator:
         self._perturbations: tuple[Perturbation, ...] = ()
         #: Commands in which at least one value was outside its actuator's ctrlrange (clamped).
         self.saturated_commands = 0
+        #: Wall time [s] of the last ``sync``'s physics (MuJoCo's steps and the perturbations).
+        self.physics_time_s = 0.0
         self.reset()
 
     def add_observer(self, observer: Callable[[Simulator], None]) -> None:
@@ -194,10 +197,12 @@ class Simulator:
         """
         # step() inlined: this runs once per control cycle
         t0 = self.data.time  # MuJoCo restarts its clock when it resets a diverged state
+        wall0 = time.perf_counter()
         if self._perturbations:
             self._perturbed_steps(self.n_substeps)
         else:
             mujoco.mj_step(self.model, self.data, self.n_substeps)
+        self.physics_time_s = time.perf_counter() - wall0
         self.n_steps += self.n_substeps
         self._stale = True
         if self._warn_numbers.tolist() != self._warn_seen:  # the check, inlined: once per cycle

@@ -45,6 +45,8 @@ def test_squat_tracks_the_com_without_slipping(g1, tmp_path):
     assert v["contact_force_rel_error_max"] < 2.0 * v["contact_force_rel_error"] + 0.01
     assert v["contact_force_rel_error_p95"] <= v["contact_force_rel_error_max"]
     assert v["torque_saturation_steps"] == 0 and v["qp_fast_path_fraction"] == 1.0
+    # the cycle holds the controller and the physics step, each timed on its own
+    assert 0 < v["physics_step_time_median_us"] < v["cycle_time_median_us"] - v["controller_time_median_us"]
     report = json.loads(record.report_path.read_text())
     assert report["bound"] == "CoM RMS < 5 mm, foot slip < 1 mm; did not fall"
     assert {"csv", "plot", "g1_wbc_contacts.png"} <= set(report["outputs"])

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import time
+
 import mujoco
 import numpy as np
 import pinocchio as pin
@@ -196,9 +198,11 @@ def test_control_period_must_divide(two_link):
     with pytest.raises(SimError, match="integer multiple of the timestep 0.002"):
         Simulator(two_link, control_period_s=0.003)
     sim = Simulator(two_link, control_period_s=0.01)
-    assert sim.n_substeps == 5
+    assert sim.n_substeps == 5 and sim.physics_time_s == 0.0
+    t0 = time.perf_counter()
     sim.sync()
     assert sim.time_s == pytest.approx(0.01)
+    assert 0.0 < sim.physics_time_s < time.perf_counter() - t0  # the five steps' wall time, timed
 
 
 def test_divergence_raises_with_the_warning_name(tmp_path):
