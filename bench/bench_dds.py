@@ -196,19 +196,21 @@ def end_to_end(domain: int, seconds: float, folder: Path, watchdog: int) -> None
 #: What a g1-wbc run over DDS gives the table, from its report and the bridge's.
 _WBC_FIGURES = ("misses_pct", "cpu_overruns_pct", "p50_ms", "p99_ms", "work_p99_ms", "work_cpu_p99_ms",
                 "bridge_p99_ms", "bridge_misses_pct", "bridge_work_cpu_p99_ms", "com_dds_mm", "com_sim_mm",
-                "com_diff_mm")
+                "com_diff_mm", "ctrl_sim_us", "ctrl_dds_us")
 
 
 def wbc_runs(scenarios: list[str], seconds: float, runs: int, folder: Path, watchdog: int) -> None:
     """Issue 20's targets: g1-wbc over DDS against the bridge, ``runs`` times, and in-process once."""
     print(f"4. g1-wbc over DDS against `mbctl serve g1 --start crouched` on lo, {seconds:g} s, {runs} runs "
           f"each, watchdog {watchdog} periods (targets: misses < 1 %, p99 < 2.5 ms, CoM within 1 mm)")
-    com_sim = {}
+    com_sim, ctrl_sim = {}, {}
     for scenario in scenarios:  # deterministic: once, before the timed runs
         out = folder / f"sim-{scenario}"
         subprocess.run(_mbctl("g1-wbc", scenario, "--duration", str(seconds), "--output", str(out), "-q"),
                        capture_output=True, check=False)
-        com_sim[scenario] = json.loads((out / "report.json").read_text())["values"]["com_error_rms_m"] * 1e3
+        values = json.loads((out / "report.json").read_text())["values"]
+        com_sim[scenario] = values["com_error_rms_m"] * 1e3
+        ctrl_sim[scenario] = values["controller_time_median_us"]
     rows: dict[str, list[dict[str, float]]] = {s: [] for s in scenarios}
     for run in range(runs):
         for scenario in scenarios:
@@ -232,7 +234,9 @@ def wbc_runs(scenarios: list[str], seconds: float, runs: int, folder: Path, watc
                    "bridge_misses_pct": 100 * b["deadline_misses"] / max(1, b["cycles"]),
                    "bridge_work_cpu_p99_ms": b["work_cpu_p99_ms"],
                    "com_dds_mm": com_dds, "com_sim_mm": com_sim[scenario],
-                   "com_diff_mm": com_dds - com_sim[scenario]}
+                   "com_diff_mm": com_dds - com_sim[scenario],
+                   # the controller beside its plant in one process, and with the plant in another
+                   "ctrl_sim_us": ctrl_sim[scenario], "ctrl_dds_us": v["controller_time_median_us"]}
             rows[scenario].append(row)
             print(f"   {scenario} run {run + 1} (exit {client.returncode}, load {load}): "
                   + ", ".join(f"{k} {row[k]:.3f}" for k in _WBC_FIGURES)
