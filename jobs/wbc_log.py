@@ -38,8 +38,8 @@ VALUES_EVERY = 500
 #: statistics and reported on its own (``contact_force_rel_error_settling_max``).
 SETTLE_S = 0.05
 
-#: The CSV's first foot column, and its columns per foot (QP fz, ft, CoP x, y; MuJoCo's the same; slip).
-_FEET_AT, _PER_FOOT = 10, 9
+#: A foot's columns in the CSV (QP fz, ft, CoP x, y; MuJoCo's the same; slip).
+_PER_FOOT = 9
 #: A foot's MuJoCo columns and slip when the plant is not observed (over DDS).
 _NO_PLANT = (float("nan"),) * 5
 #: What each cycle's row keeps after the CSV's columns (the record's other fields).
@@ -119,8 +119,9 @@ class WBCLog:
         self._width = w
         self._rows = np.zeros((n, w + len(_EXTRA)))
         self._rows[:, w + _EXTRA.index("cycle_us")] = np.nan  # the first cycle has no start
-        self._feet = self._rows[:, _FEET_AT:_FEET_AT + _PER_FOOT * nf].reshape(n, nf, _PER_FOOT)
-        self._tau = slice(_FEET_AT + _PER_FOOT * nf, _FEET_AT + _PER_FOOT * nf + nt)
+        feet_at = header.index(f"{FEET[0]}_fz_qp_N")
+        self._feet = self._rows[:, feet_at:feet_at + _PER_FOOT * nf].reshape(n, nf, _PER_FOOT)
+        self._tau = slice(feet_at + _PER_FOOT * nf, feet_at + _PER_FOOT * nf + nt)
         self._q = slice(self._tau.stop, w)
         self._extra = {name: w + i for i, name in enumerate(_EXTRA)}
         self.k = 0
@@ -130,11 +131,11 @@ class WBCLog:
 
     def record(self) -> WBCRecord:
         """The cycles recorded so far (views of the rows, but ``stance``, a bool copy)."""
-        rows, feet, k, x = self._rows[: self.k], self._feet[: self.k], self.k, self._extra
+        rows, feet, x = self._rows[: self.k], self._feet[: self.k], self._extra
         return WBCRecord(rows[:, 0], rows[:, x["t_plant"]], rows[:, 1:4], rows[:, 4:7],
                          feet[:, :, 0], feet[:, :, 4], feet[:, :, 1], feet[:, :, 5], feet[:, :, 2:4],
                          feet[:, :, 6:8], rows[:, x["stance"]] > 0.5, rows[:, x["slip"]], rows[:, 7],
-                         rows[:, x["ctrl_us"]], rows[:, x["qp_us"]], self._rows[:k, x["cycle_us"]])
+                         rows[:, x["ctrl_us"]], rows[:, x["qp_us"]], rows[:, x["cycle_us"]])
 
     def on_step(self, k: int, state: RobotState, reference: object, command: Command) -> bool:
         """Record cycle ``k`` (the loop's ``on_step``); True once the robot has fallen (ends the run)."""
