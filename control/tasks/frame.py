@@ -6,8 +6,6 @@ Notation (Drake monograms): W world, F the task frame, T the target frame;
 
 from __future__ import annotations
 
-import math
-
 import numpy as np
 import numpy.typing as npt
 import pinocchio as pin
@@ -16,6 +14,7 @@ from mbctl.control.exceptions import TaskSetupError
 from mbctl.control.tasks.base import AccelerationGains, Task, cost_vector
 from mbctl.control.tasks.state import TaskState
 from mbctl.robots.exceptions import UnknownNameError
+from mbctl.robots.fastmath import all_finite
 
 
 def pin_model(state_or_model: TaskState | pin.Model) -> pin.Model:
@@ -30,8 +29,7 @@ def world_vector(label: str, value: npt.ArrayLike) -> np.ndarray:
         TaskSetupError: Not 3 finite numbers (the message names ``label``).
     """
     arr = np.array(value, dtype=float)
-    # math.isfinite on three floats: a quarter of np.isfinite's cost (targets are set every cycle)
-    if arr.shape != (3,) or not all(map(math.isfinite, arr.tolist())):
+    if arr.shape != (3,) or not all_finite(arr.tolist()):  # targets are set every cycle
         raise TaskSetupError(f"{label} must be a finite (3,) vector in the world frame; got {value!r}")
     return arr
 
