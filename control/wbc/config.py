@@ -146,11 +146,10 @@ class WBCSolution:
         in F and moved to W once.
         """
         out = {}
-        forces = self.forces
-        for name, cols in self.force_slices.items():
+        for name, F in self.forces_F.items():
             X = self.foot_poses_W[name]
             R = X.rotation
-            f_W = forces[cols].reshape(-1, 3) @ R.T
+            f_W = F @ R.T
             total = f_W.sum(0)
             fz = total[2]
             if fz > 1e-6:
