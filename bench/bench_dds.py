@@ -24,7 +24,7 @@ medians and [min, max] over the runs, with the load average at each run's start.
 < 1 %, p99 < 2.5 ms, |CoM RMS difference| < 1 mm.
 
 Everything on loopback (``lo``), on DDS domains reserved machine-wide while in use
-(``mbctl.robots.unitree.domain_lock``: a test run or another bench at the same time never shares
+(``mbctl.unitree.domain_lock``: a test run or another bench at the same time never shares
 one). The machine has 2 cores shared with other work: the load average is printed before and
 after; absolute figures are noisy.
 """
@@ -45,9 +45,9 @@ import pinocchio as pin
 sys.path.insert(0, str(Path(__file__).parent))
 from harness import interleaved  # noqa: E402
 
-from mbctl.robots.unitree import TOPIC_LOWCMD, Channel, low_cmd_codec, low_state_codec  # noqa: E402
-from mbctl.robots.unitree.channel import message_types  # noqa: E402
-from mbctl.robots.unitree.domain_lock import reserve_domain  # noqa: E402
+from mbctl.unitree import TOPIC_LOWCMD, Channel, low_cmd_codec, low_state_codec  # noqa: E402
+from mbctl.unitree.channel import message_types  # noqa: E402
+from mbctl.unitree.domain_lock import reserve_domain  # noqa: E402
 from mbctl.sim.dds_bridge import wait_until_serving  # noqa: E402
 
 

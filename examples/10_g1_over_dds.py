@@ -41,9 +41,10 @@ from mbctl.robots import ModelFileError, ModelNotFoundError, Robot, load_robot
 from mbctl.robots.edits import position_to_motor
 from mbctl.robots.g1 import FEET, G1_FALL, KEYFRAME, PELVIS, TORSO, crouched_start
 from mbctl.robots.interface import RobotInterface, RobotState
-from mbctl.robots.unitree import G1_IMU, ChannelError
-from mbctl.robots.unitree.channel import check_domain
-from mbctl.robots.unitree.domain_lock import reserve_domain
+from mbctl.robots.g1 import G1_IMU
+from mbctl.unitree import ChannelError
+from mbctl.unitree.channel import check_domain
+from mbctl.unitree.domain_lock import reserve_domain
 from mbctl.sim import Simulator
 from mbctl.sim.dds_bridge import BridgeStartError, wait_until_serving
 from mbctl.sim.monitor import PlantMonitor

@@ -24,7 +24,7 @@ import numpy.typing as npt
 from mbctl.robots.commands import Command, CommandKind
 from mbctl.robots.exceptions import CommandError
 from mbctl.robots.model_pair import Robot
-from mbctl.robots.unitree.g1 import MotorMap
+from mbctl.unitree.motors import MotorMap
 
 #: Default damping gain: the motor's torque limit is reached at this joint speed [rad/s].
 DAMPING_SATURATION_RAD_S = 10.0

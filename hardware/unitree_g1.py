@@ -48,11 +48,11 @@ from mbctl.hardware.motor_commands import MotorCommandWriter, MotorGains, defaul
 from mbctl.robots.commands import Command
 from mbctl.robots.interface import BaseStateEstimator, ImuReading, Proprioception, RobotState
 from mbctl.robots.model_pair import Robot
-from mbctl.robots.timing import CycleClock
-from mbctl.robots.unitree.channel import LOOPBACK, TOPIC_LOWCMD, TOPIC_LOWSTATE, Channel, message_types
-from mbctl.robots.unitree.exceptions import WireFormatError
-from mbctl.robots.unitree.g1 import MODE_PR, MOTOR_ENABLED, MotorMap
-from mbctl.robots.unitree.wire import low_cmd_codec, low_state_codec
+from mbctl.unitree.clock import CycleClock
+from mbctl.unitree.channel import LOOPBACK, TOPIC_LOWCMD, TOPIC_LOWSTATE, Channel, message_types
+from mbctl.unitree.exceptions import WireFormatError
+from mbctl.unitree.motors import MODE_PR, MOTOR_ENABLED, MotorMap
+from mbctl.unitree.wire import low_cmd_codec, low_state_codec
 
 #: Byte offset of LowState_.tick in the wire bytes (4-byte header + its XCDR1 offset, 12).
 _TICK = slice(16, 20)

@@ -20,7 +20,7 @@ from mbctl.jobs.wbc_scenarios import SQUAT_AMPLITUDE_M, SQUAT_FREQUENCY_HZ
 from mbctl.planners.polynomial import minimum_jerk_at
 from mbctl.robots.g1 import crouched_start
 from mbctl.robots.model_pair import Robot
-from mbctl.robots.unitree import G1_IMU
+from mbctl.robots.g1 import G1_IMU
 from mbctl.sim.imu import ImuReader
 from mbctl.sim.simulator import Simulator
 

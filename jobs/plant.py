@@ -36,8 +36,8 @@ from mbctl.jobs.runner import JobError, Outcome, RunContext
 from mbctl.jobs.truth import truth_checks
 from mbctl.robots.interface import RobotInterface
 from mbctl.robots.model_pair import Robot
-from mbctl.robots.unitree.channel import LOOPBACK, check_domain
-from mbctl.robots.unitree.g1 import G1_IMU
+from mbctl.unitree.channel import LOOPBACK, check_domain
+from mbctl.robots.g1 import G1_IMU
 from mbctl.sim.link import LinkedSimulator, LinkSpec
 from mbctl.sim.simulator import Simulator
 

@@ -26,6 +26,7 @@ import numpy as np
 import pinocchio as pin
 
 from mbctl.robots.edits import add_site
+from mbctl.robots.interface import ImuSpec
 from mbctl.robots.model_pair import Robot
 
 #: Registry name of the Menagerie G1 (``mbctl.robots.registry.KNOWN_ROBOTS``).
@@ -48,6 +49,9 @@ FEET = ("left_foot", "right_foot")
 
 #: The bodies that carry the foot sites and touch the ground.
 FOOT_BODIES = ("left_ankle_roll_link", "right_ankle_roll_link")
+
+#: The pelvis IMU (the one the G1's low-level LowState reports): its site and its two sensors.
+G1_IMU = ImuSpec("imu_in_pelvis", "imu-pelvis-angular-velocity", "imu-pelvis-linear-acceleration")
 
 #: Floating-base body.
 PELVIS = "pelvis"

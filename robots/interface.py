@@ -6,6 +6,7 @@ it; a hardware driver would implement the same protocol.
 
 from __future__ import annotations
 
+from dataclasses import dataclass
 from typing import NamedTuple, Protocol, runtime_checkable
 
 import numpy as np
@@ -33,6 +34,21 @@ class RobotState(NamedTuple):
     v: np.ndarray
     time_s: float
     estimated: tuple[str, ...] = ()
+
+
+@dataclass(frozen=True)
+class ImuSpec:
+    """Where a robot's IMU is in its model: the site and the names of its two sensors.
+
+    Attributes:
+        site: The IMU's site (its frame I).
+        gyro: The gyro sensor's name (angular velocity of I in I).
+        accelerometer: The accelerometer's name (specific force in I).
+    """
+
+    site: str
+    gyro: str
+    accelerometer: str
 
 
 class ImuReading(NamedTuple):

@@ -35,11 +35,12 @@ import numpy as np
 import numpy.typing as npt
 
 from mbctl.robots.model_pair import Robot
-from mbctl.robots.timing import CycleClock
-from mbctl.robots.unitree.channel import LOOPBACK, TOPIC_LOWCMD, TOPIC_LOWSTATE, Channel, message_types
-from mbctl.robots.unitree.exceptions import WireFormatError
-from mbctl.robots.unitree.g1 import G1_IMU, MODE_PR, MOTOR_ENABLED, ImuSpec, MotorMap
-from mbctl.robots.unitree.wire import low_cmd_codec, low_state_codec
+from mbctl.unitree.clock import CycleClock
+from mbctl.unitree.channel import LOOPBACK, TOPIC_LOWCMD, TOPIC_LOWSTATE, Channel, message_types
+from mbctl.unitree.exceptions import WireFormatError
+from mbctl.unitree.motors import MODE_PR, MOTOR_ENABLED, MotorMap
+from mbctl.unitree.tables import G1_29DOF, MotorTable
+from mbctl.unitree.wire import low_cmd_codec, low_state_codec
 from mbctl.sim.contacts import measure_contacts
 from mbctl.sim.exceptions import SimError
 from mbctl.sim.imu import ImuReader
@@ -140,22 +141,22 @@ class G1Bridge:
         start_q: Initial configuration (nq,), Pinocchio convention.
         options: Domain, network interface, link.
         feet: Foot sites (recorded in the truth log), left then right.
-        imu: The IMU reported in LowState_.
+        table: The robot's motor table (its slot order and the IMU LowState_ reports).
 
     Raises:
         ChannelError: Missing hardware extra, bad domain or unknown interface.
-        MotorTableError: Not the G1.
+        MotorTableError: A robot that does not match ``table``.
     """
 
     def __init__(self, robot: Robot, start_q: npt.ArrayLike, options: BridgeOptions | None = None,
-                 feet: Sequence[str] = ("left_foot", "right_foot"), imu: ImuSpec = G1_IMU):
+                 feet: Sequence[str] = ("left_foot", "right_foot"), table: MotorTable = G1_29DOF):
         self.options = options or BridgeOptions()
         self.robot = motor_pd_actuators(robot)
         self.sim = Simulator(self.robot)
         self.sim.reset(q=start_q)
-        self.motors = MotorMap.for_robot(self.robot)
+        self.motors = MotorMap.for_robot(self.robot, table)
         self._act = self.motors.actuator
-        self._imu = ImuReader(self.sim, imu, self.options.link.imu_noise, self.options.link.seed + 1)
+        self._imu = ImuReader(self.sim, table.imu, self.options.link.imu_noise, self.options.link.seed + 1)
         rng = np.random.default_rng(self.options.link.seed)
         self._commands: DelayLine[np.ndarray] = DelayLine(self.options.link, rng)
         self._states: DelayLine[bytes] = DelayLine(self.options.link, rng)

@@ -14,7 +14,7 @@ import mujoco
 import numpy as np
 
 from mbctl.robots.interface import ImuReading, Proprioception
-from mbctl.robots.unitree.g1 import ImuSpec
+from mbctl.robots.interface import ImuSpec
 from mbctl.sim.exceptions import SimError
 from mbctl.sim.simulator import Simulator
 

@@ -28,7 +28,7 @@ import numpy as np
 from mbctl.robots.commands import Command
 from mbctl.robots.interface import BaseStateEstimator, RobotState
 from mbctl.robots.model_pair import Robot
-from mbctl.robots.unitree.g1 import ImuSpec
+from mbctl.robots.interface import ImuSpec
 from mbctl.sim.exceptions import SimError
 from mbctl.sim.imu import ImuReader
 from mbctl.sim.simulator import Simulator

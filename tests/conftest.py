@@ -27,7 +27,7 @@ except VideoError:  # the rendering tests fail with the message; the rest run
 from mbctl.robots import ModelNotFoundError, Robot, load_robot  # noqa: E402 - after the GL choice
 from mbctl.robots.edits import position_to_motor  # noqa: E402
 from mbctl.robots.g1 import with_palm_sites  # noqa: E402
-from mbctl.robots.unitree.domain_lock import reserve_domain  # noqa: E402
+from mbctl.unitree.domain_lock import reserve_domain  # noqa: E402
 
 # CI runs property tests with a fixed derivation of examples (reproducible, no flakes); local
 # runs explore new examples each time.
@@ -95,10 +95,10 @@ def dask_client():
 def dds_domain() -> Iterator[int]:
     """A DDS domain id in 1..232 for one test, reserved machine-wide while the test runs.
 
-    The reservation (mbctl.robots.unitree.domain_lock) holds a lock file per domain, so tests in
+    The reservation (mbctl.unitree.domain_lock) holds a lock file per domain, so tests in
     other pytest processes and the benchmarks never pick the same one. Every DDS participant in
     the tests uses it on the loopback interface ``lo`` (the default of
-    mbctl.robots.unitree.Channel), so tests never share a domain and never leave the machine.
+    mbctl.unitree.Channel), so tests never share a domain and never leave the machine.
     """
     require("cyclonedds")
     with reserve_domain() as domain:

@@ -1,4 +1,4 @@
-"""The layer rule, read from the imports: robots <- sim, control, planners <- jobs <- cli.
+"""The layer rule, read from the imports: robots <- unitree <- sim, hardware; robots <- control, planners <- jobs <- cli.
 
 Every ``import`` and ``from ... import`` in the package (including function-local ones) is
 checked, so a lazy import cannot hide a dependency that points up the stack. Inside control/, the
@@ -23,16 +23,18 @@ ROOT = Path(mbctl.__file__).resolve().parent
 #: Which mbctl layers each layer may import ("" is the package root: mbctl.exceptions).
 ALLOWED = {
     "robots": {"", "robots"},
-    "sim": {"", "robots", "sim"},
+    # Unitree's low-level floor (wire format, DDS channel, clock, motor tables): below both of its plants
+    "unitree": {"", "robots", "unitree"},
+    "sim": {"", "robots", "unitree", "sim"},
     "planners": {"", "robots", "planners"},
     "control": {"", "robots", "planners", "control"},
-    "jobs": {"", "robots", "sim", "planners", "control", "jobs", "hardware"},
-    "cli": {"", "robots", "sim", "planners", "control", "jobs", "cli", "hardware"},
+    "jobs": {"", "robots", "unitree", "sim", "planners", "control", "jobs", "hardware"},
+    "cli": {"", "robots", "unitree", "sim", "planners", "control", "jobs", "cli", "hardware"},
     # the real robots: a plant beside sim/, never importing it (nor control/: the estimator is given)
-    "hardware": {"", "robots", "hardware"},
+    "hardware": {"", "robots", "unitree", "hardware"},
 }
 #: Top-level names that belong to other projects and must never be imported bare.
-FOREIGN = {"control", "robots", "sim", "planners", "jobs", "cli", "hardware"}
+FOREIGN = {"control", "robots", "sim", "planners", "jobs", "cli", "hardware", "unitree"}
 
 
 def _imports(path: Path) -> list[str]:
@@ -60,7 +62,8 @@ CONTROL_ALLOWED = {
     "estimation": {"estimation"},
 }
 #: control/'s own modules any subpackage may use.
-CONTROL_COMMON = {"mbctl.control.exceptions"}
+#: control/qp is the one QP floor under ik/ and wbc/.
+CONTROL_COMMON = {"mbctl.control.exceptions", "mbctl.control.qp"}
 
 
 def _layer(module: str) -> str:

@@ -8,8 +8,8 @@ import time
 import numpy as np
 import pytest
 
-from mbctl.robots.unitree import TOPIC_LOWCMD, TOPIC_LOWSTATE, Channel, low_cmd_codec, low_state_codec
-from mbctl.robots.unitree.channel import message_types
+from mbctl.unitree import TOPIC_LOWCMD, TOPIC_LOWSTATE, Channel, low_cmd_codec, low_state_codec
+from mbctl.unitree.channel import message_types
 
 
 class FakeG1:

@@ -22,7 +22,7 @@ from mbctl.hardware import (
 from mbctl.robots.commands import ctrl, position_target, torque, velocity_target
 from mbctl.robots.exceptions import CommandError
 from mbctl.robots.interface import BASE_LINEAR_VELOCITY, BASE_POSITION
-from mbctl.robots.unitree import MotorMap
+from mbctl.unitree import MotorMap
 
 
 class StillBase:

@@ -17,8 +17,8 @@ from pathlib import Path
 
 import pytest
 
-from mbctl.robots.unitree import ChannelError
-from mbctl.robots.unitree.domain_lock import reserve_domain
+from mbctl.unitree import ChannelError
+from mbctl.unitree.domain_lock import reserve_domain
 from mbctl.sim.dds_bridge import wait_until_serving
 from tests.conftest import mbctl_command, run_mbctl
 
@@ -149,12 +149,12 @@ def test_in_process_link_reports_its_losses(g1, tmp_path):
 
 
 def test_a_reserved_domain_is_skipped_by_every_process_until_released():
-    """Domains come from mbctl.robots.unitree.domain_lock: a lock file each, so two test runs (or a
+    """Domains come from mbctl.unitree.domain_lock: a lock file each, so two test runs (or a
     test run and bench/bench_dds.py) at once never share one."""
     with reserve_domain() as first:
         with reserve_domain(first) as second:  # another reservation in this process
             assert second != first
-        code = ("from mbctl.robots.unitree.domain_lock import reserve_domain\n"
+        code = ("from mbctl.unitree.domain_lock import reserve_domain\n"
                 f"with reserve_domain({first}) as d: print(d)")
         other = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=60)
         assert other.returncode == 0, other.stderr

@@ -7,7 +7,7 @@ import pytest
 
 from mbctl.robots.commands import torque
 from mbctl.robots.registry import load_robot
-from mbctl.robots.unitree.g1 import ImuSpec
+from mbctl.robots.interface import ImuSpec
 from mbctl.sim.exceptions import SimError
 from mbctl.sim.link import DelayLine, LinkedSimulator, LinkSpec
 from mbctl.sim.simulator import Simulator

@@ -10,7 +10,7 @@ from mbctl.control.estimation import EstimatorError, LegKinematicsEstimator, Leg
 from mbctl.control.wbc import foot_contact_from_model
 from mbctl.robots.g1 import FEET
 from mbctl.robots.interface import BASE_POSITION
-from mbctl.robots.unitree import G1_IMU
+from mbctl.robots.g1 import G1_IMU
 from mbctl.sim.imu import ImuReader
 from mbctl.sim.simulator import Simulator
 

@@ -16,8 +16,8 @@ import os
 from collections.abc import Iterator
 from contextlib import contextmanager
 
-from mbctl.robots.unitree.channel import MAX_DOMAIN, check_domain
-from mbctl.robots.unitree.exceptions import ChannelError
+from mbctl.unitree.channel import MAX_DOMAIN, check_domain
+from mbctl.unitree.exceptions import ChannelError
 
 #: Where the lock files live: one directory for every process on the machine (not $TMPDIR).
 LOCK_DIR = "/tmp"

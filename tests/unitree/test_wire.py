@@ -17,7 +17,7 @@ from unitree_sdk2py.idl.unitree_hg.msg.dds_ import IMUState_, LowCmd_, LowState_
 from unitree_sdk2py.utils.crc import CRC
 
 from mbctl.robots.exceptions import UnknownNameError
-from mbctl.robots.unitree import (
+from mbctl.unitree import (
     G1_MOTOR_JOINTS,
     LOW_CMD,
     LOW_STATE,
@@ -27,7 +27,7 @@ from mbctl.robots.unitree import (
     low_cmd_codec,
     low_state_codec,
 )
-from mbctl.robots.unitree.channel import (
+from mbctl.unitree.channel import (
     TOPIC_LOWCMD,
     Channel,
     ChannelError,
@@ -35,9 +35,9 @@ from mbctl.robots.unitree.channel import (
     domain_config,
     message_types,
 )
-from mbctl.robots.unitree.crc import crc32_reference, crc32_words
-from mbctl.robots.unitree.g1 import motor_index, motor_joint
-from mbctl.robots.unitree.wire import cdr_index
+from mbctl.unitree.crc import crc32_reference, crc32_words
+from mbctl.unitree.motors import motor_index, motor_joint
+from mbctl.unitree.wire import cdr_index
 
 
 # ---------------------------------------------------------------- the motor table
@@ -216,7 +216,7 @@ def test_closing_one_channel_leaves_the_shared_domain_to_the_other(dds_domain):
 
 def test_a_domain_cyclone_cannot_create_is_a_channel_error(dds_domain, monkeypatch):
     """An interface that passes the name check but that Cyclone cannot use: ChannelError, not DDS's."""
-    import mbctl.robots.unitree.channel as channel_module
+    import mbctl.unitree.channel as channel_module
 
     # no interface of that name exists: Cyclone fails while configuring, before any traffic
     monkeypatch.setattr(channel_module, "check_network_interface", lambda name: name)
@@ -228,7 +228,7 @@ def test_a_domain_cyclone_cannot_create_is_a_channel_error(dds_domain, monkeypat
 
 
 def test_a_domain_open_on_one_interface_is_refused_on_another(dds_domain, monkeypatch):
-    import mbctl.robots.unitree.channel as channel_module
+    import mbctl.unitree.channel as channel_module
 
     # the refusal comes before any DDS entity is made, so the other interface need not exist here
     monkeypatch.setattr(channel_module, "check_network_interface", lambda name: name)

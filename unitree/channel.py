@@ -5,7 +5,7 @@ and the MuJoCo bridge (the reverse). Topics are registered with Unitree's IDL ty
 ``unitree-sdk2py-dimos`` package) so the type names and type information match the robot's, but
 messages are written and taken as serialized bytes: cyclonedds' ``DataWriter.write`` serializes
 an ``IdlStruct`` field by field in Python (~180 us per LowCmd_ measured here, bench/bench_dds.py)
-while the numpy codec (:mod:`mbctl.robots.unitree.wire`) makes the same bytes in a few us. The
+while the numpy codec (:mod:`mbctl.unitree.wire`) makes the same bytes in a few us. The
 raw calls are the ones cyclonedds' own ``write`` and ``take`` make after (de)serializing
 (``ddspy_write``, ``ddspy_take``); tests check they round-trip with the public API.
 
@@ -22,7 +22,7 @@ import socket
 import threading
 from typing import Any
 
-from mbctl.robots.unitree.exceptions import ChannelError
+from mbctl.unitree.exceptions import ChannelError
 
 TOPIC_LOWCMD = "rt/lowcmd"
 TOPIC_LOWSTATE = "rt/lowstate"

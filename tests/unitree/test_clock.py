@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import time
 
-from mbctl.robots.timing import CycleClock
+from mbctl.unitree.clock import CycleClock
 
 
 def _compute(cpu_s: float) -> None:

@@ -3,7 +3,7 @@
 A message lives in a numpy structured array with the C struct's layout (``align=True`` gives the
 same offsets as Unitree's C++ structs and their Python CRC helper's pack formats: 1004 bytes for
 LowCmd_, 2092 for LowState_). Fields are filled with whole-array assignments
-(``motor_cmd["q"][:29] = q``), the CRC is computed on those bytes (:mod:`mbctl.robots.unitree.crc`),
+(``motor_cmd["q"][:29] = q``), the CRC is computed on those bytes (:mod:`mbctl.unitree.crc`),
 and the bytes on the wire are the XCDR1 little-endian serialization DDS sends: the same fields in
 the same order, but each aligned to its own size from the start of the payload, so the
 serialization differs from the C layout around the first motor (CDR puts ``motor_cmd[0].mode``
@@ -20,9 +20,9 @@ from collections.abc import Iterator
 
 import numpy as np
 
-from mbctl.robots.unitree.crc import crc32_words
-from mbctl.robots.unitree.exceptions import WireFormatError
-from mbctl.robots.unitree.g1 import MOTOR_SLOTS
+from mbctl.unitree.crc import crc32_words
+from mbctl.unitree.exceptions import WireFormatError
+from mbctl.unitree.motors import MOTOR_SLOTS
 
 MOTOR_CMD = np.dtype([("mode", "u1"), ("q", "<f4"), ("dq", "<f4"), ("tau", "<f4"), ("kp", "<f4"),
                       ("kd", "<f4"), ("reserve", "<u4")], align=True)

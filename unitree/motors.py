@@ -1,19 +1,13 @@
-"""The G1's motor table and IMU: which Menagerie joint each of the 29 motor slots drives.
+"""Where a ``unitree_hg`` robot's motors sit in its model: one table of joint names, resolved once.
 
-The table is the one place that knows the G1's motor order. It was checked against Unitree's own
-code (``G1JointIndex`` in unitree_sdk2 ``example/g1/low_level/g1_ankle_swing_example.cpp`` and in
-unitree_sdk2_python ``example/g1/low_level/g1_low_level_example.py``; unitree_mujoco's
-``g1_29dof.xml`` lists its motors in the same order): left leg 0-5, right leg 6-11, waist 12-14,
-left arm 15-21, right arm 22-28, every ankle in pitch/roll ("PR") order. The ``unitree_hg``
-messages carry 35 motor slots; slots 29-34 are unused on the 29-dof G1.
+The ``unitree_hg`` LowCmd_/LowState_ messages carry :data:`MOTOR_SLOTS` motor records; a robot
+uses the first ``n`` of them in the order of its :class:`~mbctl.unitree.tables.MotorTable` (the
+G1's tables are data in :mod:`mbctl.unitree.tables`; another ``unitree_hg`` robot is one more
+table, no code).
 
 :class:`MotorMap` derives, once, where each motor sits in a :class:`~mbctl.robots.model_pair.Robot`
 (its q and v indices in Pinocchio's convention, its actuator, its limits), so the hot path moves
 whole arrays with one fancy index.
-
-The IMU in ``LowState.imu_state`` is the pelvis IMU (unitree_sdk2's G1 examples read the torso IMU
-from ``rt/secondary_imu``); in the Menagerie model it is the site ``imu_in_pelvis`` with a gyro and
-an accelerometer.
 """
 
 from __future__ import annotations
@@ -26,23 +20,11 @@ import numpy as np
 from mbctl.robots.exceptions import UnknownNameError
 from mbctl.robots.model_pair import Robot
 from mbctl.robots.names import ActuatorInfo
-from mbctl.robots.unitree.exceptions import MotorTableError
+from mbctl.unitree.exceptions import MotorTableError
+from mbctl.unitree.tables import G1_29DOF, MotorTable
 
 #: Motor slots in the ``unitree_hg`` LowCmd_ / LowState_ messages.
 MOTOR_SLOTS = 35
-
-#: Menagerie joint name of each G1 motor, by motor index (Unitree's G1JointIndex order).
-G1_MOTOR_JOINTS: tuple[str, ...] = (
-    "left_hip_pitch_joint", "left_hip_roll_joint", "left_hip_yaw_joint", "left_knee_joint",
-    "left_ankle_pitch_joint", "left_ankle_roll_joint",
-    "right_hip_pitch_joint", "right_hip_roll_joint", "right_hip_yaw_joint", "right_knee_joint",
-    "right_ankle_pitch_joint", "right_ankle_roll_joint",
-    "waist_yaw_joint", "waist_roll_joint", "waist_pitch_joint",
-    "left_shoulder_pitch_joint", "left_shoulder_roll_joint", "left_shoulder_yaw_joint",
-    "left_elbow_joint", "left_wrist_roll_joint", "left_wrist_pitch_joint", "left_wrist_yaw_joint",
-    "right_shoulder_pitch_joint", "right_shoulder_roll_joint", "right_shoulder_yaw_joint",
-    "right_elbow_joint", "right_wrist_roll_joint", "right_wrist_pitch_joint", "right_wrist_yaw_joint",
-)
 
 #: ``LowCmd_.mode_pr``: 0 commands the ankles (and waist) as pitch/roll joints, as the Menagerie
 #: model has them; 1 ("AB") commands the parallel linkage's motors directly (not modelled here).
@@ -51,40 +33,33 @@ MODE_PR = 0
 MOTOR_ENABLED = 1
 
 
-@dataclass(frozen=True)
-class ImuSpec:
-    """Where the robot's IMU is in the model: its site and the names of its two sensors."""
-
-    site: str
-    gyro: str
-    accelerometer: str
-
-
-#: The IMU reported in the G1's LowState (the pelvis IMU).
-G1_IMU = ImuSpec("imu_in_pelvis", "imu-pelvis-angular-velocity", "imu-pelvis-linear-acceleration")
-
-
-def motor_index(joint: str, table: Sequence[str] = G1_MOTOR_JOINTS) -> int:
-    """The motor index of Menagerie joint ``joint``.
+def motor_index(joint: str, table: MotorTable | Sequence[str] = G1_29DOF) -> int:
+    """The motor index of joint ``joint`` in ``table`` (default: the 29-dof G1's).
 
     Raises:
         UnknownNameError: A joint the table does not drive (the message names the table's joints).
     """
+    joints = _joints(table)
     try:
-        return list(table).index(joint)
+        return joints.index(joint)
     except ValueError:
-        raise UnknownNameError("motor joint", joint, table) from None
+        raise UnknownNameError("motor joint", joint, joints) from None
 
 
-def motor_joint(index: int, table: Sequence[str] = G1_MOTOR_JOINTS) -> str:
-    """The Menagerie joint name of motor ``index``.
+def motor_joint(index: int, table: MotorTable | Sequence[str] = G1_29DOF) -> str:
+    """The joint name of motor ``index`` in ``table`` (default: the 29-dof G1's).
 
     Raises:
         UnknownNameError: An index outside 0..len(table)-1 (slots above it are unused).
     """
-    if not 0 <= index < len(table):
-        raise UnknownNameError("motor index", str(index), [str(i) for i in range(len(table))])
-    return table[index]
+    joints = _joints(table)
+    if not 0 <= index < len(joints):
+        raise UnknownNameError("motor index", str(index), [str(i) for i in range(len(joints))])
+    return joints[index]
+
+
+def _joints(table: MotorTable | Sequence[str]) -> tuple[str, ...]:
+    return table.joints if isinstance(table, MotorTable) else tuple(table)
 
 
 @dataclass(frozen=True, eq=False)
@@ -116,33 +91,34 @@ class MotorMap:
         return len(self.joints)
 
     @classmethod
-    def for_robot(cls, robot: Robot, table: Sequence[str] = G1_MOTOR_JOINTS) -> MotorMap:
-        """Resolve ``table`` in ``robot``.
+    def for_robot(cls, robot: Robot, table: MotorTable | Sequence[str] = G1_29DOF) -> MotorMap:
+        """Resolve ``table`` in ``robot`` (default: the 29-dof G1's table).
 
         Raises:
             MotorTableError: A table joint the robot lacks, an actuated joint the table lacks, or
                 a motor without a finite torque limit.
         """
-        table = tuple(table)
-        missing = [j for j in table if j not in robot.joints]
+        name = table.name if isinstance(table, MotorTable) else "given"
+        joints = _joints(table)
+        missing = [j for j in joints if j not in robot.joints]
         driven = {a.joint for a in robot.actuators.values() if a.joint}
-        extra = sorted(driven - set(table))
-        undriven = [j for j in table if j not in driven]
+        extra = sorted(driven - set(joints))
+        undriven = [j for j in joints if j not in driven]
         if missing or extra or undriven:
             raise MotorTableError(
-                "the robot does not match the G1 motor table: "
+                f"the robot does not match the {name} motor table: "
                 + "; ".join(p for p in (
                     f"joints missing from the robot: {missing}" if missing else "",
                     f"actuated joints without a motor slot: {extra}" if extra else "",
                     f"motor joints without an actuator: {undriven}" if undriven else "") if p)
-                + " (load the Menagerie G1: load_robot('g1'))")
-        layouts = [robot.joint(j) for j in table]
-        acts = [robot.actuator_for_joint(j) for j in table]
+                + " (load the robot the table is for, e.g. the Menagerie G1: load_robot('g1'))")
+        layouts = [robot.joint(j) for j in joints]
+        acts = [robot.actuator_for_joint(j) for j in joints]
         low = robot.pin_model.lowerPositionLimit
         high = robot.pin_model.upperPositionLimit
         tau_max = np.array([_torque_limit(a) for a in acts])
         if not np.all(np.isfinite(tau_max)):
-            bad = [t for t, x in zip(table, tau_max, strict=True) if not np.isfinite(x)]
+            bad = [t for t, x in zip(joints, tau_max, strict=True) if not np.isfinite(x)]
             raise MotorTableError(f"motors without a torque limit in the model: {bad}")
         arrays = [np.array([j.idx_q for j in layouts]), np.array([j.idx_v for j in layouts]),
                   np.array([a.index for a in acts]),
@@ -150,7 +126,7 @@ class MotorMap:
                   tau_max]
         for arr in arrays:
             arr.setflags(write=False)
-        return cls(table, *arrays)
+        return cls(joints, *arrays)
 
 
 def _torque_limit(actuator: ActuatorInfo) -> float:
