@@ -2,8 +2,8 @@
 
 A controller is any object with ``reset()`` and ``compute(state, reference) -> Command``. It
 reads the measured state (q, v in Pinocchio's convention) and returns a typed command; it never
-steps the plant. The control loop ``mbctl.control.run`` does that, on the simulator here (on a
-hardware driver later, unchanged). The law, per joint::
+steps the plant. The control loop ``mbctl.control.run`` does that, on the simulator here (on the
+G1 over DDS the same, unchanged). The law, per joint::
 
     tau = kp (q_ref - q) + kd (v_ref - v) + g(q)        [N m]
 

@@ -1,7 +1,7 @@
 """The robot API controllers are written against: read state, send a command, keep time.
 
 It lives in robots/ (not sim/) because control/ never imports sim/. The simulator implements
-it; a hardware driver would implement the same protocol.
+it, and so does the Unitree G1 over DDS (:class:`mbctl.hardware.UnitreeG1`).
 """
 
 from __future__ import annotations
