@@ -265,7 +265,7 @@ class UnitreeG1:
 
     # ------------------------------------------------------------------ commanding
     def send(self, command: Command) -> None:
-        """Publish ``command`` (torque, position or velocity target) as a LowCmd_ with its CRC.
+        """Publish ``command`` (torque, position or velocity target) as a ``LowCmd_`` with its CRC.
 
         Raises:
             DryRunError: The interface was opened with ``dry_run``.

@@ -5,8 +5,8 @@ generic over the robots that speak ``unitree_hg``; a robot is a :class:`MotorTab
 
 - ``tables``: the motor tables (the G1's 29- and 23-dof ones) and their IMU;
 - ``motors``: a table resolved once in a model (:class:`MotorMap`: q/v indices, actuators, limits);
-- ``wire``: LowCmd_/LowState_ as numpy records and their XCDR1 bytes; ``crc``: the CRC on the
-  packed words;
+- ``wire``: ``LowCmd_``/``LowState_`` as numpy records and their XCDR1 bytes; ``crc``: the CRC on
+  the packed words;
 - ``channel``: DDS on one domain and one network interface (``lo`` by default), raw-bytes readers
   and writers; ``domain_lock``: one test or bench per domain on this machine;
 - ``clock``: the wall-clock cycle pacing and its statistics.

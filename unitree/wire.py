@@ -135,10 +135,10 @@ def _name(dt: np.dtype) -> str:
 
 
 def low_cmd_codec() -> Codec:
-    """A LowCmd_ buffer and its codec."""
+    """A ``LowCmd_`` buffer and its codec."""
     return Codec(LOW_CMD)
 
 
 def low_state_codec() -> Codec:
-    """A LowState_ buffer and its codec."""
+    """A ``LowState_`` buffer and its codec."""
     return Codec(LOW_STATE)
