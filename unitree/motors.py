@@ -23,7 +23,7 @@ from mbctl.robots.names import ActuatorInfo
 from mbctl.unitree.exceptions import MotorTableError
 from mbctl.unitree.tables import G1_29DOF, MotorTable
 
-#: Motor slots in the ``unitree_hg`` LowCmd_ / LowState_ messages.
+#: Motor slots in the ``unitree_hg`` ``LowCmd_`` / ``LowState_`` messages.
 MOTOR_SLOTS = 35
 
 #: ``LowCmd_.mode_pr``: 0 commands the ankles (and waist) as pitch/roll joints, as the Menagerie

@@ -26,6 +26,7 @@ from mbctl.unitree.motors import MOTOR_SLOTS
 
 MOTOR_CMD = np.dtype([("mode", "u1"), ("q", "<f4"), ("dq", "<f4"), ("tau", "<f4"), ("kp", "<f4"),
                       ("kd", "<f4"), ("reserve", "<u4")], align=True)
+#: The ``unitree_hg`` ``LowCmd_`` message as a numpy record (aligned as its XCDR1 bytes).
 LOW_CMD = np.dtype([("mode_pr", "u1"), ("mode_machine", "u1"), ("motor_cmd", MOTOR_CMD, (MOTOR_SLOTS,)),
                     ("reserve", "<u4", (4,)), ("crc", "<u4")], align=True)
 IMU_STATE = np.dtype([("quaternion", "<f4", (4,)), ("gyroscope", "<f4", (3,)), ("accelerometer", "<f4", (3,)),
@@ -33,6 +34,7 @@ IMU_STATE = np.dtype([("quaternion", "<f4", (4,)), ("gyroscope", "<f4", (3,)), (
 MOTOR_STATE = np.dtype([("mode", "u1"), ("q", "<f4"), ("dq", "<f4"), ("ddq", "<f4"), ("tau_est", "<f4"),
                         ("temperature", "<i2", (2,)), ("vol", "<f4"), ("sensor", "<u4", (2,)),
                         ("motorstate", "<u4"), ("reserve", "<u4", (4,))], align=True)
+#: The ``unitree_hg`` ``LowState_`` message as a numpy record (aligned as its XCDR1 bytes).
 LOW_STATE = np.dtype([("version", "<u4", (2,)), ("mode_pr", "u1"), ("mode_machine", "u1"), ("tick", "<u4"),
                       ("imu_state", IMU_STATE), ("motor_state", MOTOR_STATE, (MOTOR_SLOTS,)),
                       ("wireless_remote", "u1", (40,)), ("reserve", "<u4", (4,)), ("crc", "<u4")],
