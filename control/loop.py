@@ -13,7 +13,7 @@ from __future__ import annotations
 
 import time
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
@@ -41,6 +41,8 @@ class RunLog:
         reference: Reference positions (N, k): joint q_ref [rad] or task p_ref [m].
         reference_v: Reference velocities (N, k).
         wall_time_s: Wall-clock time of the loop [s].
+        tick: The plant's tick of each cycle's state (N,) (``RobotState.tick``: aligns the run
+            with the plant's own logs, e.g. a bridge's truth log).
     """
 
     t_s: np.ndarray
@@ -50,6 +52,7 @@ class RunLog:
     reference: np.ndarray
     reference_v: np.ndarray
     wall_time_s: float
+    tick: np.ndarray = field(default_factory=lambda: np.empty(0, dtype=np.int64))
 
     @property
     def cycles(self) -> int:
@@ -203,6 +206,7 @@ def run(
         )
     k_ref = 0 if first is None else np.size(first[0])
     log_t = np.empty(n_cycles)
+    log_tick = np.empty(n_cycles, dtype=np.int64)
     log_q = np.empty((n_cycles, robot.nq))
     log_v = np.empty((n_cycles, robot.nv))
     log_ref = np.empty((n_cycles, k_ref) if sampled is None else (0, k_ref))
@@ -229,6 +233,7 @@ def run(
         if k == 0:
             log_cmd = np.empty((n_cycles, command.values.size))
         log_t[k] = state.time_s
+        log_tick[k] = state.tick
         log_q[k] = state.q
         log_v[k] = state.v
         log_cmd[k] = command.values
@@ -245,5 +250,6 @@ def run(
         log_ref, log_ref_v = sampled[0], sampled[1]
     if n_run < n_cycles:
         log_t, log_q, log_v, log_cmd = log_t[:n_run], log_q[:n_run], log_v[:n_run], log_cmd[:n_run]
+        log_tick = log_tick[:n_run]
         log_ref, log_ref_v = log_ref[:n_run], log_ref_v[:n_run]
-    return RunLog(log_t, log_q, log_v, log_cmd, log_ref, log_ref_v, wall)
+    return RunLog(log_t, log_q, log_v, log_cmd, log_ref, log_ref_v, wall, log_tick)

@@ -39,15 +39,14 @@ from mbctl.control.wbc import Scheduled, Standing, foot_contact_from_model, stan
 from mbctl.hardware import DdsOptions, HardwareError, UnitreeG1
 from mbctl.robots import ModelFileError, ModelNotFoundError, Robot, load_robot
 from mbctl.robots.edits import position_to_motor
-from mbctl.robots.g1 import FEET, G1_FALL, KEYFRAME, PELVIS, TORSO, crouched_start
+from mbctl.robots.g1 import FEET, G1_FALL, G1_IMU, KEYFRAME, PELVIS, TORSO, crouched_start
 from mbctl.robots.interface import RobotInterface, RobotState
-from mbctl.robots.g1 import G1_IMU
-from mbctl.unitree import ChannelError
-from mbctl.unitree.channel import check_domain
-from mbctl.unitree.domain_lock import reserve_domain
 from mbctl.sim import Simulator
 from mbctl.sim.dds_bridge import BridgeStartError, wait_until_serving
 from mbctl.sim.monitor import PlantMonitor
+from mbctl.unitree import ChannelError
+from mbctl.unitree.channel import check_domain
+from mbctl.unitree.domain_lock import reserve_domain
 
 SQUAT_M, SQUAT_HZ = 0.03, 0.5  # CoM height = start - SQUAT_M (1 - cos(2 pi f t))
 MAX_COM_RMS_M = 5e-3
@@ -186,7 +185,7 @@ def main() -> int:
                     target_dds, _ = squat(g1, standing, controller, args.duration)
                 except HardwareError as exc:  # link lost: the interface sent the damping command
                     lost = str(exc)
-                stats, ticks = g1.stats(), g1.state_ticks  # the LowState each cycle used
+                report, ticks = g1.report(), g1.state_ticks  # the LowState each cycle used
         except (HardwareError, ChannelError) as exc:
             print(f"error: {exc}", file=sys.stderr)
             return 2
@@ -206,9 +205,10 @@ def main() -> int:
     print(f"  {'CoM RMS error [mm]':28s} {rms_sim:14.2f} {rms_dds:16.2f}   "
           "(MuJoCo's CoM / the bridge's truth)")
     print(f"  {'period p50 / p99 [ms]':28s} {'2.000 / 2.000':>14s} "
-          f"{stats['period_p50_ms']:8.3f} / {stats['period_p99_ms']:.3f}   (simulated / wall clock)")
-    print(f"  {'deadline misses':28s} {'-':>14s} {stats['deadline_misses']:16d}")
-    print(f"  {'messages lost':28s} {'-':>14s} {stats['messages_lost']:16d}")
+          f"{report.timing.period_p50_ms:8.3f} / {report.timing.period_p99_ms:.3f}"
+          "   (simulated / wall clock)")
+    print(f"  {'deadline misses':28s} {'-':>14s} {report.timing.deadline_misses:16d}")
+    print(f"  {'messages lost':28s} {'-':>14s} {report.link.states_lost:16d}")
     print(f"  {'fell':28s} {fell_sim or 'no':>14s} {'yes' if fell_dds else 'no':>16s}")
     print(f"  CoM RMS difference, DDS - in-process: {rms_dds - rms_sim:+.2f} mm; DDS domain {domain}")
     ok = not fell_sim and not fell_dds and max(rms_sim, rms_dds) < MAX_COM_RMS_M * 1e3

@@ -1,11 +1,12 @@
-"""Real robots behind the robot API: the Unitree G1 over its low-level DDS (a plant beside sim/).
+"""Real robots behind the robot API: Unitree's ``unitree_hg`` robots (the G1) over their low-level DDS.
 
-It imports robots/ only, never sim/ or control/: the base-state estimator is given by the job.
+A plant beside sim/: it imports robots/ and the Unitree floor (:mod:`mbctl.unitree`) only, never
+sim/ or control/ (the base-state estimator is given by the job).
 """
 
 from mbctl.hardware.exceptions import DryRunError, HardwareError, JointOutOfLimits, LinkLost, NoRobotError
-from mbctl.hardware.motor_commands import MotorCommandWriter, MotorGains, default_damping
-from mbctl.hardware.unitree_g1 import DdsOptions, UnitreeG1
+from mbctl.hardware.motor_commands import MotorCommandWriter, MotorGains, MotorPolicy, default_damping
+from mbctl.hardware.unitree_hg import DdsOptions, UnitreeG1, UnitreeHG
 
 __all__ = [
     "DdsOptions",
@@ -15,7 +16,9 @@ __all__ = [
     "LinkLost",
     "MotorCommandWriter",
     "MotorGains",
+    "MotorPolicy",
     "NoRobotError",
     "UnitreeG1",
+    "UnitreeHG",
     "default_damping",
 ]

@@ -7,23 +7,27 @@ A motor applies ``tau + kp (q* - q) + kd (dq* - dq)``. The command kinds map to 
 - velocity target: ``dq*`` [rad/s] with the motor's ``kd`` (``kp = 0``, ``tau = 0``);
 - raw ctrl (MuJoCo's own units): refused, the robot has no ctrl.
 
-Every motor takes every kind (the firmware runs the same law), so unlike the simulator the kind is
-not checked against the model's actuators; position and velocity targets need gains
-(:class:`MotorGains`, by default the model's position actuators' ``kp`` and ``kv``). Torques are
-clamped to the motor's torque limit and position targets to the joint's range; each clamped value
-is counted per motor.
+Commands are bound by the one :class:`~mbctl.robots.command_binding.CommandBinder` every plant
+uses (names, duplicates, size), under :class:`MotorPolicy`: every motor takes every kind (the
+firmware runs the same law), so unlike the simulator the kind is not checked against the model's
+actuators; position and velocity targets need gains (:class:`MotorGains`, by default the model's
+position actuators' ``kp`` and ``kv``). Torques are clamped to the motor's torque limit and
+position targets to the joint's range; each clamped value is counted per actuator.
 """
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
 import numpy.typing as npt
 
+from mbctl.robots.command_binding import Binding, CommandBinder
 from mbctl.robots.commands import Command, CommandKind
 from mbctl.robots.exceptions import CommandError
 from mbctl.robots.model_pair import Robot
+from mbctl.robots.names import ActuatorInfo
 from mbctl.unitree.motors import MotorMap
 
 #: Default damping gain: the motor's torque limit is reached at this joint speed [rad/s].
@@ -71,23 +75,73 @@ def default_damping(motors: MotorMap) -> np.ndarray:
     return motors.tau_max / DAMPING_SATURATION_RAD_S
 
 
+class MotorPolicy:
+    """What the robot's motors accept, for the one :class:`~mbctl.robots.command_binding.CommandBinder`.
+
+    Every motor runs the same law, so every motor takes torque, position and velocity commands
+    (unlike the simulator the kind is not checked against the model's actuators); a raw ctrl
+    command is refused, an actuator without a motor is refused, and position and velocity
+    targets need gains. Torques are bounded by the motor's torque limit, position targets by the
+    joint's range.
+
+    Args:
+        robot: The robot model.
+        motors: The motor map.
+        gains: Gains for position and velocity targets.
+    """
+
+    def __init__(self, robot: Robot, motors: MotorMap, gains: MotorGains):
+        self.motors = motors
+        self.gains = gains
+        motor_of_actuator = np.full(robot.nu, -1)
+        motor_of_actuator[motors.actuator] = np.arange(motors.n)
+        self.motor_of_actuator = motor_of_actuator
+
+    def refuse(self, kind: CommandKind, actuators: Sequence[ActuatorInfo]) -> str | None:
+        """Why the motors cannot take a ``kind`` command for ``actuators``, or None."""
+        if kind is CommandKind.CTRL:
+            return ("a raw ctrl command is MuJoCo's own units; the robot's motors take torque, "
+                    "position_target or velocity_target commands")
+        motors = self.motor_of_actuator[[a.index for a in actuators]]
+        if np.any(motors < 0):
+            bad = [a.name for a, m in zip(actuators, motors, strict=True) if m < 0]
+            return f"actuators {bad} drive no motor of the robot"
+        kp, kd = self.gains.kp[motors], self.gains.kd[motors]
+        need = {CommandKind.POSITION: np.isfinite(kp) & np.isfinite(kd),
+                CommandKind.VELOCITY: np.isfinite(kd)}.get(kind)
+        if need is not None and not need.all():
+            missing = [self.motors.joints[m] for m in motors[~need]]
+            return (f"a {kind.value} target needs motor gains; none for {missing[:6]}: give "
+                    "MotorGains (kp, kd per motor) to the interface")
+        return None
+
+    def bounds(self, kind: CommandKind, actuators: Sequence[ActuatorInfo]) -> tuple[np.ndarray, np.ndarray]:
+        """Torque: the motor's limit; position: the joint's range; velocity: unbounded."""
+        motors = self.motor_of_actuator[[a.index for a in actuators]]
+        if kind is CommandKind.TORQUE:
+            return -self.motors.tau_max[motors], self.motors.tau_max[motors].copy()
+        if kind is CommandKind.POSITION:
+            return self.motors.q_low[motors].copy(), self.motors.q_high[motors].copy()
+        return np.full(motors.size, -np.inf), np.full(motors.size, np.inf)
+
+
 @dataclass(frozen=True)
-class _Binding:
+class _Slots:
     slots: np.ndarray | slice  # motor slots of the values
-    motors: np.ndarray  # the same as indices into the motor map
-    low: np.ndarray
-    high: np.ndarray
     kp: np.ndarray
     kd: np.ndarray
 
 
 class MotorCommandWriter:
-    """Writes commands into a LowCmd_ record's ``motor_cmd`` (bindings cached per kind and names).
+    """Writes commands into a ``LowCmd_`` record's ``motor_cmd``, bound by the one command binder.
 
     Args:
         robot: The robot model (names and actuator order of full commands).
         motors: The motor map.
         gains: Gains for position and velocity targets.
+
+    Attributes:
+        binder: The command binder (names, duplicates, size, kind, bounds; its clamp counts).
     """
 
     def __init__(self, robot: Robot, motors: MotorMap, gains: MotorGains):
@@ -96,84 +150,49 @@ class MotorCommandWriter:
         self.robot = robot
         self.motors = motors
         self.gains = gains
-        motor_of_actuator = np.full(robot.nu, -1)
-        motor_of_actuator[motors.actuator] = np.arange(motors.n)
-        self._motor_of_actuator = motor_of_actuator
-        self._cache: dict[tuple, _Binding] = {}
-        self.saturation_counts = np.zeros(motors.n, dtype=int)
+        self.policy = MotorPolicy(robot, motors, gains)
+        self.binder = CommandBinder(robot, self.policy)
+        self._slots: dict[int, _Slots] = {}
 
-    def _bind(self, command: Command) -> _Binding:
-        key = (command.kind, command.names, command.values.size)
-        found = self._cache.get(key)
-        if found is not None:
-            return found
-        kind = command.kind
-        if kind is CommandKind.CTRL:
-            raise CommandError("a raw ctrl command is MuJoCo's own units; the robot's motors take torque, "
-                               "position_target or velocity_target commands")
-        if command.names is None:
-            if command.values.size != self.robot.nu:
-                raise CommandError(f"{kind.value} command needs {self.robot.nu} values (one per actuator: "
-                                   f"{', '.join(self.robot.actuators)}); got {command.values.size}")
-            actuators = np.arange(self.robot.nu)
-        else:
-            acts = self.robot.actuators
-            actuators = np.array([(acts.get(n) or self.robot.actuator_for_joint(n)).index
-                                  for n in command.names])
-        motors = self._motor_of_actuator[actuators]
-        if np.any(motors < 0):
-            names = list(self.robot.actuators)
-            bad = [names[a] for a in actuators[motors < 0]]
-            raise CommandError(f"actuators {bad} drive no motor of the robot")
-        kp, kd = self.gains.kp[motors], self.gains.kd[motors]
-        need = {CommandKind.POSITION: np.isfinite(kp) & np.isfinite(kd),
-                CommandKind.VELOCITY: np.isfinite(kd)}.get(kind)
-        if need is not None and not need.all():
-            missing = [self.motors.joints[m] for m in motors[~need]]
-            raise CommandError(f"a {kind.value} target needs motor gains; none for {missing[:6]}: give "
-                               "MotorGains (kp, kd per motor) to the interface")
-        if kind is CommandKind.TORQUE:
-            low, high = -self.motors.tau_max[motors], self.motors.tau_max[motors]
-        elif kind is CommandKind.POSITION:
-            low, high = self.motors.q_low[motors], self.motors.q_high[motors]
-        else:
-            low, high = np.full(motors.size, -np.inf), np.full(motors.size, np.inf)
-        slots: np.ndarray | slice = motors
-        if np.array_equal(motors, np.arange(motors.size)):
-            slots = slice(0, motors.size)
-        binding = self._cache[key] = _Binding(slots, motors, low, high, kp, kd)
-        return binding
+    def _slots_of(self, binding: Binding) -> _Slots:
+        found = self._slots.get(id(binding))
+        if found is None:
+            motors = self.policy.motor_of_actuator[binding.index]
+            slots: np.ndarray | slice = motors
+            if np.array_equal(motors, np.arange(motors.size)):
+                slots = slice(0, motors.size)
+            # the binder caches its bindings for its lifetime, so their ids stay unique
+            found = self._slots[id(binding)] = _Slots(slots, self.gains.kp[motors], self.gains.kd[motors])
+        return found
 
     def write(self, command: Command, motor_cmd: np.ndarray) -> None:
-        """Write ``command`` into ``motor_cmd`` (the LowCmd_'s (35,) motor records).
+        """Write ``command`` into ``motor_cmd`` (the ``LowCmd_``'s (35,) motor records), clamped and counted.
 
         Raises:
-            CommandError: A ctrl command, the wrong number of values, or targets without gains.
+            CommandError: A ctrl command, the wrong number of values, one actuator named twice,
+                or targets without gains.
             UnknownNameError: A name that is neither an actuator nor an actuated joint.
         """
-        b = self._bind(command)
-        values = command.values
-        hit = (values < b.low) | (values > b.high)
-        if hit.any():
-            self.saturation_counts[b.motors[hit]] += 1
-            values = np.clip(values, b.low, b.high)
-        s, kind = b.slots, command.kind
+        b = self.binder.bind(command)
+        values = self.binder.clamp(b, command.values)
+        m = self._slots_of(b)
+        s, kind = m.slots, command.kind
         if kind is CommandKind.TORQUE:
             motor_cmd["tau"][s] = values
             motor_cmd["q"][s] = motor_cmd["dq"][s] = motor_cmd["kp"][s] = motor_cmd["kd"][s] = 0.0
         elif kind is CommandKind.POSITION:
             motor_cmd["q"][s] = values
-            motor_cmd["kp"][s] = b.kp
-            motor_cmd["kd"][s] = b.kd
+            motor_cmd["kp"][s] = m.kp
+            motor_cmd["kd"][s] = m.kd
             motor_cmd["dq"][s] = motor_cmd["tau"][s] = 0.0
         else:
             motor_cmd["dq"][s] = values
-            motor_cmd["kd"][s] = b.kd
+            motor_cmd["kd"][s] = m.kd
             motor_cmd["q"][s] = motor_cmd["kp"][s] = motor_cmd["tau"][s] = 0.0
 
     def saturations(self) -> dict[str, int]:
-        """How many values were clamped, per joint (non-zero only)."""
-        return {j: int(c) for j, c in zip(self.motors.joints, self.saturation_counts, strict=True) if c}
+        """How many values were clamped, per actuator name (non-zero only)."""
+        return self.binder.clamped()
 
 
 def write_damping(motor_cmd: np.ndarray, kd: npt.ArrayLike) -> None:

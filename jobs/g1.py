@@ -215,7 +215,7 @@ def _loop(ctx: RunContext, sim: RobotInterface, controller: PDGravity | Computed
 
     Args:
         ctx: The run.
-        sim: The plant (a Simulator is attached to the run for replay and video).
+        sim: The plant (an in-process one is attached to the run, for replay and video, by its maker).
         controller: The control law.
         reference: What ``control.loop.run`` takes as the reference.
         duration_s: Simulated time [s].
@@ -223,8 +223,6 @@ def _loop(ctx: RunContext, sim: RobotInterface, controller: PDGravity | Computed
         label: Progress bar label.
         base_z: Add a ``base_z_m`` column (floating-base height [m]).
     """
-    if isinstance(sim, Simulator):
-        ctx.attach(sim)
     joints = controller.joints
     extra_names = ["base_z_m"] if base_z else []
     header = LoopRows.header(sim.robot, [f"q_ref_{j}_rad" for j in joints], command_columns(joints, unit),
@@ -356,6 +354,7 @@ def prepare_track(params: TrackParams, robot: Robot | None = None) -> Work:
     def work(ctx: RunContext) -> Outcome:
         sim = Simulator(robot)
         sim.reset(q=waypoints[0])
+        ctx.attach(sim)
         controller = ComputedTorque(robot, gains_from_frequency(params.omega_rad_s, params.zeta),
                                     pin_model=models.controller_model)
         ctx.sections["models"] = models.section()

@@ -29,7 +29,6 @@ import pinocchio as pin
 from mbctl.control.exceptions import WBCSetupError
 from mbctl.control.loop import run
 from mbctl.control.wbc import Scheduled, Standing, WBCConfig, standing_controller
-from mbctl.hardware import UnitreeG1
 from mbctl.jobs.choices import WBC_DEFAULT_DURATION_S, WBC_SCENARIOS
 from mbctl.jobs.model_options import ModelOptions, build_models
 from mbctl.jobs.plant import Plant, PlantOptions, dry_run, plant_lines, prepare_plant, report_plant
@@ -198,9 +197,8 @@ def _run(ctx: RunContext, params: WBCParams, robot: Robot, pin_model: pin.Model 
     run_log = run(iface, Scheduled(wb.controller, schedule), None, params.duration_s, on_step=log.on_step)
     values = log.values(sim)
     truth_fell = report_plant(ctx, p, run_log, G1_FALL.base_min_z_m)
-    if p.options.truth is not None and isinstance(iface, UnitreeG1):
-        ticks = np.asarray(iface.state_ticks[:run_log.cycles])
-        com_W = truth_com(p.options.truth, ticks, run_log.q[:run_log.cycles])
+    if p.options.truth is not None:
+        com_W = truth_com(p.options.truth, run_log.tick, run_log.q[:run_log.cycles])
         values = log.with_truth(com_W, bool(truth_fell))
     from mbctl.jobs.wbc_plots import wbc_plots
 

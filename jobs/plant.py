@@ -34,16 +34,14 @@ from mbctl.jobs.model_options import ModelOptions
 from mbctl.jobs.recording import q_columns
 from mbctl.jobs.runner import JobError, Outcome, RunContext
 from mbctl.jobs.truth import truth_checks
+from mbctl.robots.g1 import FEET, G1_IMU
 from mbctl.robots.interface import RobotInterface
 from mbctl.robots.model_pair import Robot
-from mbctl.unitree.channel import LOOPBACK, check_domain
-from mbctl.robots.g1 import G1_IMU
 from mbctl.sim.link import LinkedSimulator, LinkSpec
 from mbctl.sim.simulator import Simulator
+from mbctl.unitree.channel import LOOPBACK, check_domain
 
 INTERFACES = ("sim", "dds")
-#: The G1's feet (sites) the estimator stands on.
-G1_FEET = ("left_foot", "right_foot")
 
 
 class PlantOptionError(JobError):
@@ -119,7 +117,7 @@ class PlantOptions:
 
 def g1_estimator(robot: Robot, start_xy_m: tuple[float, float] = (0.0, 0.0)) -> LegKinematicsEstimator:
     """The leg-kinematics estimator on the G1's feet (contact point: the sole's centre) and pelvis IMU."""
-    feet = {f: foot_contact_from_model(robot, f).points_F.mean(axis=0) for f in G1_FEET}
+    feet = {f: foot_contact_from_model(robot, f).points_F.mean(axis=0) for f in FEET}
     return LegKinematicsEstimator(robot, feet, G1_IMU.site, start_xy_m=start_xy_m)
 
 
@@ -138,9 +136,8 @@ class Plant:
     options: PlantOptions
 
     def close(self) -> None:
-        """Leave the robot in a safe state (DDS: damping) and close the connection."""
-        if isinstance(self.interface, UnitreeG1):
-            self.interface.close()
+        """Leave the robot in a safe state (DDS: damping) and close the connection (the plant contract)."""
+        self.interface.close()
 
     def __enter__(self) -> Plant:
         return self
@@ -203,24 +200,16 @@ def report_plant(ctx: RunContext, plant: Plant, log: RunLog,
     Returns:
         Whether the robot fell according to the truth log, or None without one.
     """
-    iface = plant.interface
-    values: dict[str, Any] = {"interface": plant.options.interface, "cycles": log.cycles}
-    if isinstance(iface, UnitreeG1):
-        values.update({**iface.stats(), "cycles": log.cycles})
-        ctx.sections["estimator"] = {"kind": "leg kinematics Kalman filter", "feet": list(G1_FEET),
-                                     "imu": G1_IMU.site, "estimated": list(iface.estimator.estimated)}
-    else:
-        period_ms = plant.interface.control_period_s * 1e3
-        values.update({"period_p50_ms": period_ms, "period_p99_ms": period_ms, "deadline_misses": 0,
-                       "messages_lost": 0, "watchdog_events": 0})
-        if isinstance(iface, LinkedSimulator):
-            values.update({k: v for k, v in iface.stats().items() if k != "interface"})
-            values["messages_lost"] = int(iface.stats()["states_dropped"])
+    report = plant.interface.report()
+    values = report.values()
+    values["cycles"] = log.cycles  # the loop's own count (the plant's may include cycles outside it)
     ctx.values.update(values)
-    if plant.options.truth is None or not isinstance(iface, UnitreeG1):
+    if "base_position" in report.estimated:
+        ctx.sections["estimator"] = {"kind": "leg kinematics Kalman filter", "feet": list(FEET),
+                                     "imu": G1_IMU.site, "estimated": list(report.estimated)}
+    if plant.options.truth is None:
         return None
-    checks = truth_checks(plant.options.truth, np.asarray(iface.state_ticks[: log.cycles]), log,
-                          fall_height_m)
+    checks = truth_checks(plant.options.truth, log.tick, log, fall_height_m)
     ctx.values.update(checks)
     return bool(checks["truth_fell"])
 
@@ -260,9 +249,7 @@ def dry_run(ctx: RunContext, plant: Plant, duration_s: float) -> Outcome:
         csv.write([state.time_s, *state.q])
         ctx.progress.advance()
         iface.sync()
-    ctx.values.update({"interface": plant.options.interface, "dry_run": True, "cycles": n})
-    if isinstance(iface, UnitreeG1):
-        ctx.values.update(iface.stats())
+    ctx.values.update({**iface.report().values(), "dry_run": True, "cycles": n})
     q = state.q
     roll, pitch, yaw = np.degrees(pin.rpy.matrixToRpy(pin.Quaternion(q[6], q[3], q[4], q[5]).matrix()))
     lines = [f"dry run: read {n} states over {duration_s:g} s, sent no command",

@@ -2,6 +2,7 @@
 
 from mbctl.robots import mjlog  # noqa: F401 - MuJoCo's log file stays out of the cwd
 from mbctl.robots.collision import CollisionPair, GeomPairs, resolve_pairs
+from mbctl.robots.command_binding import CommandBinder
 from mbctl.robots.commands import Command, CommandKind, ctrl, position_target, torque, velocity_target
 from mbctl.robots.conventions import (
     JointLayout,
@@ -21,9 +22,10 @@ from mbctl.robots.exceptions import (
     StateError,
     UnknownNameError,
 )
-from mbctl.robots.interface import RobotInterface, RobotState
+from mbctl.robots.interface import ImuSpec, RobotInterface, RobotState
 from mbctl.robots.model_pair import ModelSource, Robot
 from mbctl.robots.names import ActuatorInfo, SensorInfo
+from mbctl.robots.plant_report import LinkReport, PlantReport, SafetyReport, TimingReport
 from mbctl.robots.registry import KNOWN_ROBOTS, load_robot
 
 __all__ = [
@@ -43,6 +45,12 @@ __all__ = [
     "Robot",
     "RobotError",
     "RobotInterface",
+    "CommandBinder",
+    "ImuSpec",
+    "LinkReport",
+    "PlantReport",
+    "SafetyReport",
+    "TimingReport",
     "RobotState",
     "SceneMismatchError",
     "SensorInfo",

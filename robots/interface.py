@@ -13,6 +13,7 @@ import numpy as np
 
 from mbctl.robots.commands import Command
 from mbctl.robots.model_pair import Robot
+from mbctl.robots.plant_report import PlantReport
 
 #: Names of the state fields a robot does not measure and an estimator provides.
 BASE_POSITION = "base_position"
@@ -28,12 +29,15 @@ class RobotState(NamedTuple):
         time_s: Time of the measurement [s].
         estimated: The fields estimated rather than measured (e.g. :data:`BASE_POSITION`,
             :data:`BASE_LINEAR_VELOCITY` on a real robot); empty when the plant gives them all.
+        tick: The plant's own count of the measurement, for aligning a run with the plant's logs
+            (the simulator's physics steps, a robot's LowState tick); -1 where the plant has none.
     """
 
     q: np.ndarray
     v: np.ndarray
     time_s: float
     estimated: tuple[str, ...] = ()
+    tick: int = -1
 
 
 @dataclass(frozen=True)
@@ -102,7 +106,21 @@ class BaseStateEstimator(Protocol):
 
 @runtime_checkable
 class RobotInterface(Protocol):
-    """A robot that can be read and commanded at a fixed control period."""
+    """A robot that can be read and commanded at a fixed control period: the plant contract.
+
+    Every plant (the simulator, the simulator behind a link model, a robot over DDS) implements
+    it, and the jobs and the control loop use nothing else:
+
+    - **Lifecycle** (as ros2_control's hardware components): ``open()`` activates the plant (a
+      robot: connects and reads a valid state; a simulator is ready from construction) and
+      returns it; ``close()`` deactivates it, leaving the robot safe (over DDS: the damping
+      command), and is idempotent. A plant is a context manager doing both.
+    - **The cycle**: ``read_state()``, ``send(command)``, ``sync()``; commands are bound by the
+      one :class:`~mbctl.robots.command_binding.CommandBinder`, so a bad command gets the same error
+      on every plant.
+    - **The report**: ``report()`` gives a :class:`~mbctl.robots.plant_report.PlantReport`, the
+      same typed fields whichever plant produced it. Each state carries the plant's ``tick``.
+    """
 
     @property
     def robot(self) -> Robot:
@@ -124,3 +142,18 @@ class RobotInterface(Protocol):
 
     def sync(self) -> None:
         """Wait for the next control cycle (a simulator steps the physics for one period)."""
+
+    def open(self) -> RobotInterface:
+        """Activate the plant (idempotent) and return it."""
+
+    def close(self) -> None:
+        """Deactivate the plant, leaving the robot safe (idempotent)."""
+
+    def report(self) -> PlantReport:
+        """The plant's typed report on the run so far."""
+
+    def __enter__(self) -> RobotInterface:
+        """``open()``."""
+
+    def __exit__(self, *exc: object) -> None:
+        """``close()``."""

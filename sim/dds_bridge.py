@@ -35,17 +35,17 @@ import numpy as np
 import numpy.typing as npt
 
 from mbctl.robots.model_pair import Robot
-from mbctl.unitree.clock import CycleClock
-from mbctl.unitree.channel import LOOPBACK, TOPIC_LOWCMD, TOPIC_LOWSTATE, Channel, message_types
-from mbctl.unitree.exceptions import WireFormatError
-from mbctl.unitree.motors import MODE_PR, MOTOR_ENABLED, MotorMap
-from mbctl.unitree.tables import G1_29DOF, MotorTable
-from mbctl.unitree.wire import low_cmd_codec, low_state_codec
 from mbctl.sim.contacts import measure_contacts
 from mbctl.sim.exceptions import SimError
 from mbctl.sim.imu import ImuReader
 from mbctl.sim.link import DelayLine, LinkSpec
 from mbctl.sim.simulator import Simulator
+from mbctl.unitree.channel import LOOPBACK, TOPIC_LOWCMD, TOPIC_LOWSTATE, Channel, message_types
+from mbctl.unitree.clock import CycleClock
+from mbctl.unitree.exceptions import WireFormatError
+from mbctl.unitree.motors import MODE_PR, MOTOR_ENABLED, MotorMap
+from mbctl.unitree.tables import G1_29DOF, MotorTable
+from mbctl.unitree.wire import low_cmd_codec, low_state_codec
 
 #: The start of the line ``mbctl serve`` writes first on stderr, once its bridge is up.
 SERVING = "serving on DDS domain"
@@ -326,8 +326,8 @@ class G1Bridge:
     def stats(self) -> dict[str, Any]:
         """What the bridge counted: messages, link drops, its own period statistics."""
         return {**self.counts, "steps": self.sim.n_steps, "simulated_time_s": self.sim.time_s,
-                "commands_dropped_by_link": self._commands.dropped,
-                "states_dropped_by_link": self._states.dropped, **asdict(self.clock.stats())}
+                "commands_lost_by_link": self._commands.dropped,
+                "states_lost_by_link": self._states.dropped, **asdict(self.clock.stats())}
 
     def close(self) -> None:
         """Leave DDS (idempotent)."""

@@ -13,8 +13,7 @@ from dataclasses import dataclass
 import mujoco
 import numpy as np
 
-from mbctl.robots.interface import ImuReading, Proprioception
-from mbctl.robots.interface import ImuSpec
+from mbctl.robots.interface import ImuReading, ImuSpec, Proprioception
 from mbctl.sim.exceptions import SimError
 from mbctl.sim.simulator import Simulator
 

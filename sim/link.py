@@ -20,15 +20,15 @@ would run the first L of the run with no command at all (zero torque: a G1 sags)
 from __future__ import annotations
 
 import heapq
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Generic, TypeVar
 
 import numpy as np
 
 from mbctl.robots.commands import Command
-from mbctl.robots.interface import BaseStateEstimator, RobotState
+from mbctl.robots.interface import BaseStateEstimator, ImuSpec, RobotState
 from mbctl.robots.model_pair import Robot
-from mbctl.robots.interface import ImuSpec
+from mbctl.robots.plant_report import LinkReport, PlantReport
 from mbctl.sim.exceptions import SimError
 from mbctl.sim.imu import ImuReader
 from mbctl.sim.simulator import Simulator
@@ -144,6 +144,7 @@ class LinkedSimulator:
         self.estimator = estimator
         self._imu = ImuReader(sim, imu, spec.imu_noise, spec.seed + 1) if imu is not None else None
         self.started = False  # whether a command has reached the plant (before, it is held still)
+        self.cycles = 0  # completed sync() calls
         self._held_steps = 0
         if estimator is not None:
             estimator.reset(self._imu.proprioception(held=True))  # type: ignore[union-attr]
@@ -160,7 +161,7 @@ class LinkedSimulator:
         v = np.concatenate([v_base, reading.v_joints])
         q.setflags(write=False)
         v.setflags(write=False)
-        return RobotState(q, v, reading.time_s, self.estimator.estimated)
+        return RobotState(q, v, reading.time_s, self.estimator.estimated, self.sim.n_steps)
 
     @property
     def robot(self) -> Robot:
@@ -187,7 +188,13 @@ class LinkedSimulator:
         return self._latest
 
     def send(self, command: Command) -> None:
-        """Put ``command`` on the link; it reaches the plant after the link's delay (or never)."""
+        """Put ``command`` on the link; it reaches the plant after the link's delay (or never).
+
+        Raises:
+            CommandError, UnknownNameError: A command the plant would refuse (bound now, as every
+                plant binds it, not when the link delivers it).
+        """
+        self.sim.binder.bind(command)
         self._commands.send(self.sim.time_s, command)
 
     def sync(self) -> None:
@@ -210,12 +217,30 @@ class LinkedSimulator:
         arrived = self._states.receive(sim.time_s)
         if arrived is not None:
             self._latest = arrived
+        self.cycles += 1
 
-    def stats(self) -> dict[str, float | int | str]:
-        """The link's counts for a report."""
-        return {"interface": "sim", "latency_ms": self.spec.latency_ms, "jitter_ms": self.spec.jitter_ms,
-                "drop": self.spec.drop, "imu_noise": self.spec.imu_noise,
-                "held_s": self.held_s,
-                "states_dropped": self._states.dropped, "commands_dropped": self._commands.dropped,
-                "states_superseded": self._states.superseded,
-                "commands_superseded": self._commands.superseded}
+    # ------------------------------------------------------------------ lifecycle and report
+    def open(self) -> LinkedSimulator:
+        """Nothing to connect (the plant is in-process); returns the interface."""
+        return self
+
+    def close(self) -> None:
+        """Nothing to leave safe in simulation (idempotent)."""
+
+    def __enter__(self) -> LinkedSimulator:
+        return self.open()
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+    def report(self) -> PlantReport:
+        """The plant's report: simulated timing, the link's counts and model, the plant's clamp counts."""
+        plant = self.sim.report()
+        spec = self.spec
+        link = LinkReport(
+            "simulated", states_received=None, states_lost=self._states.dropped,
+            commands_lost=self._commands.dropped, states_superseded=self._states.superseded,
+            commands_superseded=self._commands.superseded, held_s=self.held_s, latency_ms=spec.latency_ms,
+            jitter_ms=spec.jitter_ms, drop=spec.drop, imu_noise=spec.imu_noise)
+        estimated = self.estimator.estimated if self.estimator is not None else ()
+        return PlantReport("sim", replace(plant.timing, cycles=self.cycles), link, plant.safety, estimated)

@@ -16,11 +16,12 @@ import mujoco
 import numpy as np
 import numpy.typing as npt
 
+from mbctl.robots.command_binding import CommandBinder
 from mbctl.robots.commands import Command
 from mbctl.robots.exceptions import CommandOutOfRange
 from mbctl.robots.interface import RobotState
 from mbctl.robots.model_pair import Robot
-from mbctl.sim.command_binding import CommandBinder
+from mbctl.robots.plant_report import LinkReport, PlantReport, SafetyReport, TimingReport
 from mbctl.sim.exceptions import SimError, SimulationDiverged
 
 #: MuJoCo warnings after which the run cannot be trusted: bad qpos/qvel/qacc mean the
@@ -90,7 +91,6 @@ class Simulator:
         self._conv = robot.converter
         # The robot's coordinates in qpos and qvel (the plant may hold scene coordinates too).
         self._qi, self._vi = robot.qpos_index, robot.qvel_index
-        self.saturation_counts = np.zeros(self.model.nu, dtype=int)
         self.n_steps = 0
         self._last_command: Command | None = None
         self._stale = True
@@ -104,8 +104,6 @@ class Simulator:
         self._t_step = 0.0  # time [s] at the last step_begin
         self._observers: tuple[Callable[[Simulator], None], ...] = ()
         self._perturbations: tuple[Perturbation, ...] = ()
-        #: Commands in which at least one value was outside its actuator's ctrlrange (clamped).
-        self.saturated_commands = 0
         #: Wall time [s] of the last ``sync``'s physics (MuJoCo's steps and the perturbations).
         self.physics_time_s = 0.0
         self.reset()
@@ -152,8 +150,9 @@ class Simulator:
                                           self.data.qvel[self._vi] if qvel is None else qvel)
         q.setflags(write=False)
         v.setflags(write=False)
-        # the namedtuple built as tuple.__new__ does it, without its Python-level __new__ (per cycle)
-        return tuple.__new__(RobotState, (q, v, float(self.data.time)))
+        # the namedtuple built as tuple.__new__ does it, without its Python-level __new__ (per cycle);
+        # every field given (a tuple shorter than the type breaks its repr and its later fields)
+        return tuple.__new__(RobotState, (q, v, float(self.data.time), (), self.n_steps))
 
     @property
     def state(self) -> RobotState:
@@ -172,17 +171,14 @@ class Simulator:
         b = self._binder.bind(command)
         values = command.values
         if b.limited and b.out_of_range(values):
-            hit = (values < b.ctrl_low) | (values > b.ctrl_high)
             if self._out_of_range == "raise":
-                i = int(np.flatnonzero(hit)[0])
+                i = int(np.flatnonzero((values < b.ctrl_low) | (values > b.ctrl_high))[0])
                 name = self.model.actuator(int(b.index[i])).name
                 raise CommandOutOfRange(
                     f"{command.kind.value} command {values[i]:g} for actuator {name!r} is "
                     f"outside its ctrlrange [{b.ctrl_low[i]:g}, {b.ctrl_high[i]:g}]"
                 )
-            self.saturation_counts[b.index[hit]] += 1
-            self.saturated_commands += 1
-            values = np.clip(values, b.ctrl_low, b.ctrl_high)
+            values = self._binder.clamp(b, values)
         if b.full:
             self._ctrl[:] = values
         else:
@@ -204,6 +200,7 @@ class Simulator:
             mujoco.mj_step(self.model, self.data, self.n_substeps)
         self.physics_time_s = time.perf_counter() - wall0
         self.n_steps += self.n_substeps
+        self.n_syncs += 1
         self._stale = True
         if self._warn_numbers.tolist() != self._warn_seen:  # the check, inlined: once per cycle
             self._check_divergence(t0)
@@ -317,8 +314,8 @@ class Simulator:
                 q if q is not None else self.q,
                 v if v is not None else np.zeros(self._robot.nv),
             )
-        self.saturation_counts[:] = 0
-        self.saturated_commands = 0
+        self._binder.reset_counts()
+        self.n_syncs = 0
         self.n_steps = 0
         self._last_command = None
         self._warn_seen = self._warn_numbers.tolist()
@@ -412,7 +409,43 @@ class Simulator:
 
     def saturations(self) -> dict[str, int]:
         """How many commands were clamped to ctrlrange, per actuator name (non-zero only)."""
-        names = list(self._robot.actuators)
-        return {names[i]: int(c) for i, c in enumerate(self.saturation_counts) if c}
+        return self._binder.clamped()
+
+    @property
+    def binder(self) -> CommandBinder:
+        """The plant's command binder (its clamp counts are the plant's)."""
+        return self._binder
+
+    @property
+    def saturation_counts(self) -> np.ndarray:
+        """Values clamped to ctrlrange, per actuator (nu,)."""
+        return self._binder.clamp_counts
+
+    @property
+    def saturated_commands(self) -> int:
+        """Commands in which at least one value was outside its actuator's ctrlrange (clamped)."""
+        return self._binder.clamped_commands
+
+    # ------------------------------------------------------------------ lifecycle and report
+    def open(self) -> Simulator:
+        """Nothing to connect: the plant is ready from construction (the contract's first step)."""
+        return self
+
+    def close(self) -> None:
+        """Nothing to leave safe in simulation; the plant stays readable (idempotent)."""
+
+    def __enter__(self) -> Simulator:
+        return self.open()
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+    def report(self) -> PlantReport:
+        """The plant's report: simulated timing (every period exact), no link, the clamp counts."""
+        period_ms = self.control_period_s * 1e3
+        return PlantReport(
+            "sim", TimingReport(self.n_syncs, period_ms, period_ms, period_ms),
+            LinkReport("direct"),
+            SafetyReport(self._binder.clamped(), self._binder.clamped_commands))
 
 

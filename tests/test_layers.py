@@ -1,4 +1,4 @@
-"""The layer rule, read from the imports: robots <- unitree <- sim, hardware; robots <- control, planners <- jobs <- cli.
+"""The layer rule, read from the imports: robots <- unitree <- sim, hardware; planners <- control <- jobs.
 
 Every ``import`` and ``from ... import`` in the package (including function-local ones) is
 checked, so a lazy import cannot hide a dependency that points up the stack. Inside control/, the

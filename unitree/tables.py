@@ -33,7 +33,8 @@ _LEGS = (
 
 
 def _arm(side: str, wrist: tuple[str, ...]) -> tuple[str, ...]:
-    return tuple(f"{side}_{j}_joint" for j in ("shoulder_pitch", "shoulder_roll", "shoulder_yaw", "elbow", *wrist))
+    joints = ("shoulder_pitch", "shoulder_roll", "shoulder_yaw", "elbow", *wrist)
+    return tuple(f"{side}_{j}_joint" for j in joints)
 
 
 @dataclass(frozen=True)

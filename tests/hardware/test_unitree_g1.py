@@ -70,12 +70,11 @@ def _is_damping(cmd, robot):
             and np.all(cmd["mode"] == 1))
 
 
-def test_no_robot_exits_within_a_second_naming_domain_and_interface(g1, dds_domain):
-    t0 = time.monotonic()
+def test_no_robot_gives_up_at_the_configured_timeout_naming_domain_and_interface(g1, dds_domain):
     with pytest.raises(NoRobotError) as err:
-        UnitreeG1(g1, StillBase(), DdsOptions(domain=dds_domain))
-    assert time.monotonic() - t0 < 1.5
+        UnitreeG1(g1, StillBase(), DdsOptions(domain=dds_domain, connect_timeout_s=0.3))
     message = str(err.value)
+    assert "within 0.3 s" in message  # the configured timeout, not the clock (no wall-time bound)
     assert f"DDS domain {dds_domain}" in message and "network interface 'lo'" in message
     assert "mbctl serve g1" in message and "domain ids match" in message
 
@@ -95,7 +94,7 @@ def test_bad_crc_mid_run_is_counted_not_used(g1, fake_g1, dds_domain):
         fake.set_q(wrong, bad_crc=True)
         assert _wait_for(lambda: robot.read_state() is not None and robot.bad_crc >= 5)
         assert robot.read_state().q[7] == q0[7]  # none of them was used
-        assert robot.stats()["bad_crc"] == robot.bad_crc
+        assert robot.report().link.bad_crc == robot.bad_crc
 
 
 def test_joint_outside_its_limits_is_refused_by_name(g1, fake_g1, dds_domain):
@@ -146,7 +145,7 @@ def test_command_kinds_map_explicitly(g1, fake_g1, dds_domain):
 
         robot.send(torque({"left_knee_joint": 1000.0}))
         assert last()["tau"][3] == pytest.approx(139.0)
-        assert robot.stats()["clamped"] == {"left_knee_joint": 1}
+        assert robot.report().safety.clamped == {"left_knee_joint": 1}
         with pytest.raises(CommandError, match="raw ctrl command"):
             robot.send(ctrl(np.zeros(g1.nu)))
         with pytest.raises(CommandError, match="needs 29 values"):
@@ -169,11 +168,10 @@ def test_lost_link_sends_damping_and_says_link_lost(g1, fake_g1, dds_domain):
     controller = ConstantTorque(g1)
     with UnitreeG1(g1, StillBase(), DdsOptions(domain=dds_domain, watchdog_periods=3)) as robot:
         fake.stop_publishing()  # the robot goes silent
-        t0 = time.monotonic()
-        with pytest.raises(LinkLost, match="link lost: no LowState for"):
+        with pytest.raises(LinkLost, match=r"link lost: no LowState for .* \(limit 6 ms, 3 periods\)"):
             run(robot, controller, HOLD, 5.0)
-        assert time.monotonic() - t0 < 1.0
-        assert robot.stats()["watchdog_events"] == 1
+        assert robot.report().timing.cycles < 10  # of the 2500 asked for: the watchdog, not the run's end
+        assert robot.report().safety.watchdog_events == 1
         assert _wait_for(lambda: fake.commands and _is_damping(fake.commands[-1], g1))
 
 
@@ -193,7 +191,7 @@ def test_dry_run_never_commands(g1, fake_g1, dds_domain):
             robot.sync()
         with pytest.raises(DryRunError, match="never commands"):
             robot.send(torque(np.zeros(g1.nu)))
-        assert robot.stats()["cycles"] >= 5
+        assert robot.report().timing.cycles >= 5
     time.sleep(0.05)
     assert fake.commands == []
 

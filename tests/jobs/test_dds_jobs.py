@@ -17,9 +17,9 @@ from pathlib import Path
 
 import pytest
 
+from mbctl.sim.dds_bridge import wait_until_serving
 from mbctl.unitree import ChannelError
 from mbctl.unitree.domain_lock import reserve_domain
-from mbctl.sim.dds_bridge import wait_until_serving
 from tests.conftest import mbctl_command, run_mbctl
 
 #: The end-to-end runs share 2 cores with other work: a 6 ms stall of either process (the default
@@ -145,7 +145,7 @@ def test_in_process_link_reports_its_losses(g1, tmp_path):
                 "-q")
     assert out.returncode == 0, out.stderr
     values = json.loads((tmp_path / "report.json").read_text())["values"]
-    assert values["interface"] == "sim" and values["states_dropped"] > 0 and values["commands_dropped"] > 0
+    assert values["interface"] == "sim" and values["states_lost"] > 0 and values["commands_lost"] > 0
 
 
 def test_a_reserved_domain_is_skipped_by_every_process_until_released():

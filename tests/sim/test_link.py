@@ -6,8 +6,8 @@ import numpy as np
 import pytest
 
 from mbctl.robots.commands import torque
-from mbctl.robots.registry import load_robot
 from mbctl.robots.interface import ImuSpec
+from mbctl.robots.registry import load_robot
 from mbctl.sim.exceptions import SimError
 from mbctl.sim.link import DelayLine, LinkedSimulator, LinkSpec
 from mbctl.sim.simulator import Simulator
@@ -124,7 +124,7 @@ def test_the_plant_holds_still_until_the_first_command_arrives(hopper):
     linked.sync()
     assert linked.started and sim.n_steps == 1 and (sim.ctrl == 5.0).all()
     assert not np.array_equal(sim.q, q0)
-    assert linked.stats()["held_s"] == pytest.approx(0.020)
+    assert linked.report().link.held_s == pytest.approx(0.020)
 
 
 def test_without_latency_the_plant_starts_with_the_first_command(hopper):
@@ -132,7 +132,7 @@ def test_without_latency_the_plant_starts_with_the_first_command(hopper):
     linked = LinkedSimulator(sim, LinkSpec(imu_noise=1.0), imu=HOPPER_IMU)
     linked.send(torque([0.0]))
     linked.sync()
-    assert linked.started and sim.n_steps == 1 and linked.stats()["held_s"] == 0.0
+    assert linked.started and sim.n_steps == 1 and linked.report().link.held_s == 0.0
 
 
 class Recorder:

@@ -8,9 +8,8 @@ import pytest
 
 from mbctl.control.estimation import EstimatorError, LegKinematicsEstimator, LegKinematicsNoise
 from mbctl.control.wbc import foot_contact_from_model
-from mbctl.robots.g1 import FEET
+from mbctl.robots.g1 import FEET, G1_IMU
 from mbctl.robots.interface import BASE_POSITION
-from mbctl.robots.g1 import G1_IMU
 from mbctl.sim.imu import ImuReader
 from mbctl.sim.simulator import Simulator
 

@@ -1,12 +1,20 @@
-"""The Unitree G1 over its low-level DDS, as a :class:`~mbctl.robots.interface.RobotInterface`.
+"""A Unitree ``unitree_hg`` robot (the G1 by default) over its low-level DDS, as a robot interface.
+
+It implements :class:`~mbctl.robots.interface.RobotInterface`, the plant contract.
+
+The interface is generic over the robots that speak ``unitree_hg``: a robot is its model and its
+:class:`~mbctl.unitree.tables.MotorTable` (data: the G1's 29- and 23-motor tables ship;
+:data:`UnitreeG1` is this class, named for the robot it is used with most).
 
 The same controller object that runs on the simulator runs here, through ``control.loop.run``:
 ``read_state`` takes the latest ``rt/lowstate`` (LowState_), ``send`` fills a LowCmd_ and
 publishes it on ``rt/lowcmd``, ``sync`` waits for the robot's next state (the robot's 500 Hz
 stream is the wall clock; GIL released while waiting) and watches the link.
 
-Lifecycle (as ros2_control's hardware components): constructing the interface configures DDS and
-*activates* only once a valid LowState has been read: no LowState with a valid CRC within
+Lifecycle (as ros2_control's hardware components, and the plant contract of
+:class:`~mbctl.robots.interface.RobotInterface`): constructing the interface configures DDS;
+``open()`` (called by the constructor unless ``activate=False``) *activates* it only once a valid
+LowState has been read: no LowState with a valid CRC within
 ``connect_timeout_s`` raises :class:`NoRobotError` naming the domain and the network interface; a
 joint outside its limits raises :class:`JointOutOfLimits` naming it; nothing is commanded in
 either case. ``close()`` deactivates: it sends the damping command (``kp = 0``, ``kd`` per motor)
@@ -37,21 +45,22 @@ from __future__ import annotations
 
 import gc
 import time
-from dataclasses import asdict, dataclass
-from typing import Any
+from dataclasses import dataclass
 
 import numpy as np
 import numpy.typing as npt
 
-from mbctl.hardware.exceptions import DryRunError, JointOutOfLimits, LinkLost, NoRobotError
+from mbctl.hardware.exceptions import DryRunError, HardwareError, JointOutOfLimits, LinkLost, NoRobotError
 from mbctl.hardware.motor_commands import MotorCommandWriter, MotorGains, default_damping, write_damping
 from mbctl.robots.commands import Command
 from mbctl.robots.interface import BaseStateEstimator, ImuReading, Proprioception, RobotState
 from mbctl.robots.model_pair import Robot
-from mbctl.unitree.clock import CycleClock
+from mbctl.robots.plant_report import LinkReport, PlantReport, SafetyReport, TimingReport
 from mbctl.unitree.channel import LOOPBACK, TOPIC_LOWCMD, TOPIC_LOWSTATE, Channel, message_types
+from mbctl.unitree.clock import CycleClock
 from mbctl.unitree.exceptions import WireFormatError
 from mbctl.unitree.motors import MODE_PR, MOTOR_ENABLED, MotorMap
+from mbctl.unitree.tables import G1_29DOF, MotorTable
 from mbctl.unitree.wire import low_cmd_codec, low_state_codec
 
 #: Byte offset of LowState_.tick in the wire bytes (4-byte header + its XCDR1 offset, 12).
@@ -86,13 +95,15 @@ class DdsOptions:
     freeze_gc: bool = True
 
 
-class UnitreeG1:
-    """The G1 over Unitree's low-level DDS (see the module docstring).
+class UnitreeHG:
+    """A ``unitree_hg`` robot over Unitree's low-level DDS (see the module docstring).
 
     Args:
-        robot: The G1 model pair (Menagerie joint names; any actuator kinds).
+        robot: The robot's model pair (its joint names are the table's; any actuator kinds).
         estimator: Estimates the base position and linear velocity.
         options: Domain, network interface, timing and safety options.
+        table: The robot's motor table (default: the 29-dof G1's).
+        activate: Connect now (``open()``); False leaves it to the caller.
         gains: Gains of position and velocity targets (default: the model's position actuators').
         damping_kd: Damping [N m s/rad] per motor for the damping command (default: the torque
             limit reached at 10 rad/s).
@@ -101,7 +112,7 @@ class UnitreeG1:
         ChannelError: The hardware extra is missing, a bad domain or an unknown interface.
         NoRobotError: No valid LowState within ``connect_timeout_s``.
         JointOutOfLimits: A joint outside its limits at start.
-        MotorTableError: A robot that is not the G1.
+        MotorTableError: A robot that does not match ``table``.
     """
 
     def __init__(
@@ -110,12 +121,15 @@ class UnitreeG1:
         estimator: BaseStateEstimator,
         options: DdsOptions | None = None,
         *,
+        table: MotorTable = G1_29DOF,
+        activate: bool = True,
         gains: MotorGains | None = None,
         damping_kd: npt.ArrayLike | None = None,
     ):
         self.options = options or DdsOptions()
         self._robot = robot
-        self.motors = MotorMap.for_robot(robot)
+        self.table = table
+        self.motors = MotorMap.for_robot(robot, table)
         self.estimator = estimator
         self.gains = gains or MotorGains.from_actuators(robot, self.motors)
         self.damping_kd = (default_damping(self.motors) if damping_kd is None
@@ -134,6 +148,9 @@ class UnitreeG1:
         self._froze_gc = False
         self._fresh = False
         self._state: RobotState | None = None
+        self._damped = False
+        self._active = False
+        self.mode_machine: int | None = None
         lowcmd, lowstate = message_types()
         self.channel = Channel(self.options.domain, self.options.network_interface)
         try:
@@ -141,10 +158,30 @@ class UnitreeG1:
             self._reader = self.channel.reader(TOPIC_LOWSTATE, lowstate)
             self._t0 = time.perf_counter()
             self._last_rx = -np.inf
-            self._connect()
         except BaseException:
             self.channel.close()
             raise
+        if activate:
+            self.open()
+
+    def open(self) -> UnitreeHG:
+        """Activate: wait for a valid LowState, check the joints, prepare the command (idempotent).
+
+        Raises:
+            NoRobotError: No valid LowState within ``connect_timeout_s`` (the channel is closed).
+            JointOutOfLimits: A joint outside its limits (the channel is closed).
+        """
+        if self.channel is None:
+            raise HardwareError("this interface was closed; make a new one to reconnect")
+        if self._active:
+            return self
+        try:
+            self._connect()
+        except BaseException:
+            self.close()
+            raise
+        self._active = True
+        return self
 
     # ------------------------------------------------------------------ activation
     def _connect(self) -> None:
@@ -252,7 +289,7 @@ class UnitreeG1:
             v[:6] = v_base
             q.setflags(write=False)
             v.setflags(write=False)
-            self._state = RobotState(q, v, reading.time_s, self.estimator.estimated)
+            self._state = RobotState(q, v, reading.time_s, self.estimator.estimated, self._ticks[1])
             self._fresh = False
         else:
             self.stale += 1
@@ -281,6 +318,7 @@ class UnitreeG1:
         """Send the damping command: every motor ``kp = 0`` with its damping ``kd``, no torque."""
         write_damping(self._cmd_codec.message["motor_cmd"], self.damping_kd)
         self._writer.write(self._cmd_codec.encode())
+        self._damped = True
 
     def sync(self) -> None:
         """Wait for the robot's next state (GIL released); check the link.
@@ -347,13 +385,20 @@ class UnitreeG1:
         return time.perf_counter() - self._t0
 
     # ------------------------------------------------------------------ lifecycle and report
-    def stats(self) -> dict[str, Any]:
-        """The link's figures for a report: cycles, period percentiles [ms], misses, losses."""
-        return {"interface": "dds", **asdict(self._clock.stats()), "messages_lost": self.messages_lost,
-                "bad_crc": self.bad_crc, "bad_encoding": self.bad_format, "stale_cycles": self.stale,
-                "watchdog_events": self.watchdog_events, "clamped": self.commands.saturations(),
-                "domain": self.options.domain, "network_interface": self.options.network_interface,
-                "mode_machine": self.mode_machine}
+    def report(self) -> PlantReport:
+        """The plant's report: the wall-clock timing, the link's counts, clamping, watchdog, damping."""
+        t = self._clock.stats()  # its cycles are those started: the one under way is not complete
+        timing = TimingReport(max(0, t.cycles - 1), t.period_p50_ms, t.period_p99_ms, t.period_max_ms,
+                              t.deadline_misses,
+                              t.work_p99_ms, t.work_cpu_p99_ms, t.cpu_overruns, self.stale)
+        link = LinkReport("dds", states_received=self._valid, states_lost=self.messages_lost,
+                          commands_lost=None, commands_superseded=None, bad_crc=self.bad_crc,
+                          bad_encoding=self.bad_format, domain=self.options.domain,
+                          network_interface=self.options.network_interface, mode_machine=self.mode_machine)
+        binder = self.commands.binder
+        safety = SafetyReport(binder.clamped(), binder.clamped_commands, self.watchdog_events,
+                              damped=None if self.options.dry_run else self._damped)
+        return PlantReport("dds", timing, link, safety, self.estimator.estimated)
 
     def close(self) -> None:
         """Damp (if anything was commanded) and leave DDS (idempotent)."""
@@ -369,8 +414,12 @@ class UnitreeG1:
                 gc.unfreeze()
                 self._froze_gc = False
 
-    def __enter__(self) -> UnitreeG1:
-        return self
+    def __enter__(self) -> UnitreeHG:
+        return self.open()
 
     def __exit__(self, *exc: object) -> None:
         self.close()
+
+
+#: The G1 over DDS: :class:`UnitreeHG` with its default table (the 29-dof G1's).
+UnitreeG1 = UnitreeHG
