@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import subprocess
 import sys
-import time
 
 import pytest
 
@@ -39,9 +38,7 @@ def test_a_bridge_that_fails_is_reported_with_its_stderr():
 
 def test_a_silent_bridge_is_killed_after_the_timeout():
     proc = _process("import time; time.sleep(60)")
-    t0 = time.monotonic()
     with pytest.raises(BridgeStartError, match=rf"wrote no '{SERVING}' line within 0.5 s \(killed\)"):
-        wait_until_serving(proc, timeout_s=0.5)
-    assert time.monotonic() - t0 < 10
+        wait_until_serving(proc, timeout_s=0.5)  # the configured timeout, named: no wall-clock bound
     assert proc.wait(timeout=5) != 0  # killed
     proc.stderr.close()
