@@ -1,6 +1,6 @@
 """The control loop: read state, compute, send, sync — against any RobotInterface.
 
-``run`` works the same on the simulator and on the G1 over DDS, because it only uses the
+``run`` works the same on the simulator and on a robot over DDS, because it only uses the
 :class:`~mbctl.robots.interface.RobotInterface` protocol. Every buffer (logs, the pre-sampled
 reference) is allocated before the first cycle; a cycle allocates only what the controller and
 the interface allocate themselves.
@@ -130,7 +130,7 @@ def run(
     """Run ``controller`` on ``interface`` for ``duration_s`` and log every cycle.
 
     Args:
-        interface: Any RobotInterface (the simulator, or the G1 over DDS).
+        interface: Any RobotInterface (the simulator, or a robot over DDS).
         controller: The control law; ``reset()`` is called first.
         reference: A JointTrajectory (pre-sampled at the control times, columns matched to
             ``controller.joints`` by name), a function of time since start ``t [s] -> reference``,

@@ -79,7 +79,7 @@ class TaskStack:
         self._r_scale = np.concatenate(r_scale) if r_scale else np.zeros(0)
         lm_rows = np.concatenate(lm) if lm else np.zeros(0)
         self._lm_rows = lm_rows if np.any(lm_rows > 0.0) else None
-        self._diag_terms = tuple((t, t.cost2_mask(), t.gain * t.cost2_mask(), t.gain * t.cost)
+        self._diag_terms = tuple((t, t.cost2_mask(), t.gain * t.cost2_mask(), t.gain * t.cost * t.mask)
                                  for t in self._diagonal)
         self._velocity_epoch = weights_epoch()
 

@@ -121,15 +121,7 @@ def test_the_stacked_velocity_objective_follows_the_error_and_jacobian(model):
     np.testing.assert_allclose(task.cost2_mask(), task.cost**2 * joint_mask(model), atol=1e-15)
 
 
-LM_BUG = ("stack.py velocity_objective, diagonal shortcut: the LM term takes lm |gain cost masked_error|^2, "
-          "and masked_error keeps the free flyer's entries, so the posture's LM damping grows with the "
-          "base's distance from the target's base pose (r_t has zeros there)")
-
-
-@pytest.mark.parametrize("model", [ARM, FLOATING,
-                                   pytest.param(FLOATING_HINGES, marks=pytest.mark.xfail(strict=True,
-                                                                                          reason=LM_BUG))],
-                         ids=IDS)
+@pytest.mark.parametrize("model", [ARM, FLOATING, FLOATING_HINGES], ids=IDS)
 def test_the_lm_term_is_lm_damping_times_the_squared_rows(model):
     rng = np.random.default_rng(8)
     q = random_q(model, rng)
