@@ -1,8 +1,9 @@
-"""Differential inverse kinematics: the QP, limits, the one IK loop, whole-body backends, 2-link IK.
+"""Differential inverse kinematics: the QP, limits, the one IK loop, whole-body backends, chain and 2-link IK.
 
 The tasks themselves live in :mod:`mbctl.control.tasks` (shared with whole-body inverse dynamics).
 """
 
+from mbctl.control.ik.chain import ChainIK, chain_joints
 from mbctl.control.ik.collision import CollisionAvoidanceLimit
 from mbctl.control.ik.config import WholeBodyIKConfig
 from mbctl.control.ik.diff_ik import DiffIK, IKStep, solve_ik
@@ -29,6 +30,7 @@ from mbctl.control.ik.whole_body import (
 __all__ = [
     "BACKENDS",
     "BoxLimit",
+    "ChainIK",
     "CollisionAvoidanceLimit",
     "Constraint",
     "DiffIK",
@@ -47,6 +49,7 @@ __all__ = [
     "WholeBodyIK",
     "WholeBodyIKConfig",
     "Workspace",
+    "chain_joints",
     "dls_ik",
     "iterate",
     "joint_positions_by_name",
