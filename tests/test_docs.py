@@ -40,6 +40,19 @@ def test_api_reference_builds_without_a_warning(tmp_path):
     assert 'id="mbctl.robots.load_robot"' in html["robots.html"]
     assert 'id="mbctl.planners.plan_ruckig"' in html["planners.html"]
     assert 'id="mbctl.sim.Simulator"' in html["sim.html"]
+    # every public package has its reference: the Unitree floor, the hardware plant, identification,
+    # the tasks, IK, whole-body control and estimation
+    assert 'id="mbctl.unitree.MotorTable"' in html["unitree.html"]
+    assert 'id="mbctl.hardware.UnitreeHG"' in html["hardware.html"]
+    assert 'id="mbctl.robots.identification.identify"' in html["robots.html"]
+    for name in ("tasks.FramePoseTask", "ik.DiffIK", "wbc.WholeBodyController",
+                 "estimation.LegKinematicsEstimator"):
+        assert f'id="mbctl.control.{name}"' in html["control.html"], name
+    # the guides (the README's reference, moved here) are pages of the site
+    for guide in ("commands", "robots_guide", "ik", "whole_body", "dds", "identification", "measured",
+                  "layout"):
+        assert f"{guide}.html" in html, guide
+    assert "mbctl serve g1" in html["dds.html"] and "On the real G1" in html["dds.html"]
 
 
 FAKE = '''"""A module for the docs test."""

@@ -1,35 +1,48 @@
-"""The README's "Python API" snippets run as printed, and do what their text says."""
+"""The Python the README and the guides print runs as pasted, and does what their text says.
+
+The README's first block is the controller a new user writes; the G1 and cross-check snippets are
+on the robots guide (docs/api/robots_guide.rst), the arm's IK snippet on the IK guide
+(docs/api/ik.rst). Every block imports only the public API.
+"""
 
 from __future__ import annotations
 
 import re
-from pathlib import Path
 
 import numpy as np
 import pytest
 
-import mbctl
+from tests.test_readme import DOCS, README, ROOT, md_blocks, rst_blocks
 
-README = Path(mbctl.__file__).resolve().parent / "README.md"
 #: Largest final joint error [rad] the 2-link snippet may print after its 2 s hold.
 MAX_FINAL_ERROR_RAD = 1e-3
+PUBLIC = {"mbctl.robots", "mbctl.robots.crosscheck", "mbctl.sim", "mbctl.control", "mbctl.control.ik",
+          "mbctl.control.tasks", "mbctl.control.wbc", "mbctl.planners"}
 
 
-def _python_blocks() -> list[str]:
-    section = README.read_text().split("## Python API", 1)[1].split("\n## ", 1)[0]
-    return re.findall(r"```python\n(.*?)```", section, flags=re.S)
+def _readme_blocks() -> list[str]:
+    return md_blocks(README.read_text(), "python")
 
 
-def test_the_section_has_the_four_snippets():
-    blocks = _python_blocks()
-    assert len(blocks) == 4
-    assert 'load_robot("two_link_torque"' in blocks[0]
-    assert 'load_robot("g1")' in blocks[1]
+def _robots_blocks() -> list[str]:
+    return rst_blocks(DOCS / "robots_guide.rst", "python")
+
+
+def _ik_blocks() -> list[str]:
+    return rst_blocks(DOCS / "ik.rst", "python")
+
+
+def test_the_snippets_are_where_the_text_says():
+    assert 'load_robot("two_link_torque"' in _readme_blocks()[0]
+    robots = _robots_blocks()
+    assert len(robots) == 2
+    assert 'load_robot("g1")' in robots[0] and "crosscheck(" in robots[1]
+    assert "FramePoseTask" in _ik_blocks()[0]
 
 
 def test_two_link_controller_snippet_holds_the_pose(capsys):
     namespace: dict[str, object] = {}
-    exec(_python_blocks()[0], namespace)  # noqa: S102 (our own README)
+    exec(_readme_blocks()[0], namespace)  # noqa: S102 (our own README)
     printed = capsys.readouterr().out
     match = re.search(r"final error \(rad\): \[([^\]]*)\]", printed)
     assert match, f"the snippet did not print its final error: {printed!r}"
@@ -51,7 +64,7 @@ def test_two_link_controller_snippet_holds_the_pose(capsys):
 
 def test_g1_snippet_gives_the_documented_shapes(g1, capsys):
     namespace: dict[str, object] = {}
-    exec(_python_blocks()[1], namespace)  # noqa: S102 (our own README)
+    exec(_robots_blocks()[0], namespace)  # noqa: S102 (our own guide)
     assert capsys.readouterr().out.strip(), "the snippet prints the sensor, base height, warnings"
     robot, sim = namespace["g1"], namespace["sim"]
     nv = g1.nv
@@ -68,11 +81,29 @@ def test_g1_snippet_gives_the_documented_shapes(g1, capsys):
     assert robot.name == "g1"  # type: ignore[attr-defined]
 
 
-@pytest.mark.parametrize("index", [0, 1, 3])
-def test_snippets_import_only_the_public_api(index):
-    imports = re.findall(r"^from (mbctl[\w.]*) import", _python_blocks()[index], flags=re.M)
-    assert imports and set(imports) <= {"mbctl.robots", "mbctl.sim", "mbctl.control", "mbctl.control.ik",
-                                        "mbctl.control.tasks", "mbctl.planners"}
+def test_crosscheck_snippet_passes_on_the_shipped_arm(monkeypatch, capsys):
+    monkeypatch.chdir(ROOT)  # the snippet names the example's arm by its path in the repo
+    namespace: dict[str, object] = {}
+    exec(_robots_blocks()[1], namespace)  # noqa: S102 (our own guide)
+    assert namespace["report"].passed  # type: ignore[attr-defined]
+    assert "result: PASS" in capsys.readouterr().out
+
+
+def _all_blocks() -> list[tuple[str, str]]:
+    blocks = [("README.md", b) for b in _readme_blocks()]
+    pages = sorted(DOCS.glob("*.rst"))
+    return blocks + [(page.name, b) for page in pages for b in rst_blocks(page, "python")]
+
+
+def _block_id(value: str) -> str:
+    return value if value.endswith((".md", ".rst")) else "code"
+
+
+@pytest.mark.parametrize("where, block", _all_blocks(), ids=_block_id)
+def test_snippets_import_only_the_public_api(where, block):
+    imports = re.findall(r"^from (mbctl[\w.]*) import", block, flags=re.M)
+    assert imports, f"a {where} snippet imports nothing from mbctl"
+    assert set(imports) <= PUBLIC, f"{where}: {sorted(set(imports) - PUBLIC)}"
 
 
 def test_arm_snippet_reaches_its_pose_targets(monkeypatch, capsys):
@@ -81,9 +112,9 @@ def test_arm_snippet_reaches_its_pose_targets(monkeypatch, capsys):
     import mujoco
     import pinocchio as pin
 
-    monkeypatch.chdir(README.parent)  # the snippet names the example's arm by its path in the repo
+    monkeypatch.chdir(ROOT)  # the snippet names the example's arm by its path in the repo
     ns: dict[str, object] = {}
-    exec(_python_blocks()[3], ns)  # noqa: S102 (our own README)
+    exec(_ik_blocks()[0], ns)  # noqa: S102 (our own guide)
     assert capsys.readouterr().out.startswith("True ")
     arm, result, target = ns["arm"], ns["result"], ns["target"]
     data = mujoco.MjData(arm.mj_model)  # type: ignore[attr-defined]
