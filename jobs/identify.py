@@ -44,8 +44,8 @@ from mbctl.robots.identification import (
     model_fingerprint,
 )
 from mbctl.robots.identification.identifiability import reasons
-from mbctl.robots.identification.inertial import to_inertial
 from mbctl.robots.identification.parameters import ParameterSet
+from mbctl.robots.identification.summary import body_summary, joint_summaries
 from mbctl.robots.model_pair import Robot
 from mbctl.robots.registry import load_robot
 from mbctl.sim.atomic import write_json_atomic, write_text_atomic
@@ -169,36 +169,22 @@ def prepare(params: IdentifyParams) -> Work:
 
 
 def _body_entry(ident: Identification, name: str) -> dict[str, Any]:
-    params, est = ident.params, ident.estimate
-    b = params.body(name)
-    cols = b.columns
-    m0, c0, I0 = to_inertial(b.nominal)
-    m, c, I_c = to_inertial(ident.theta[cols])
-    cov = est.covariance[cols, cols]
-    # CoM c = h / m: its covariance by the delta method
-    J = np.zeros((3, 10))
-    J[:, 0] = -ident.theta[cols][1:4] / m**2
-    J[:, 1:4] = np.eye(3) / m
-    c_std = np.sqrt(np.maximum(np.diag(J @ cov @ J.T), 0.0))
-    return {"mass_kg": {"nominal": m0, "identified": m, "std": float(est.std[cols][0])},
-            "com_m": {"nominal": c0.tolist(), "identified": c.tolist(), "std": c_std.tolist()},
-            "inertia_kg_m2": {"nominal": I0.tolist(), "identified": I_c.tolist(),
+    body = body_summary(ident, name)
+    nom, est = body.nominal, body.identified
+    return {"mass_kg": {"nominal": nom.mass_kg, "identified": est.mass_kg, "std": body.mass_std_kg},
+            "com_m": {"nominal": nom.com_m.tolist(), "identified": est.com_m.tolist(),
+                      "std": body.com_std_m.tolist()},
+            "inertia_kg_m2": {"nominal": nom.inertia_com.tolist(), "identified": est.inertia_com.tolist(),
                               "about": "the CoM, body axes"}}
 
 
+#: The report's key (with its unit) of each joint parameter of the summary.
+JOINT_KEYS = {"viscous": "viscous_N_m_s_rad", "coulomb": "coulomb_N_m", "armature": "armature_kg_m2"}
+
+
 def _joint_entries(ident: Identification) -> dict[str, Any]:
-    out: dict[str, Any] = {}
-    theta, std, nom = ident.theta, ident.estimate.std, ident.params.nominal
-    for jb in ident.params.joints:
-        entry = {}
-        for key, col in (("viscous_N_m_s_rad", jb.viscous), ("coulomb_N_m", jb.coulomb),
-                         ("armature_kg_m2", jb.armature)):
-            if col is not None:
-                entry[key] = {"nominal": float(nom[col]), "identified": float(theta[col]),
-                              "std": float(std[col])}
-        if entry:
-            out[jb.name] = entry
-    return out
+    return {joint: {JOINT_KEYS[kind]: p._asdict() for kind, p in entry.items()}
+            for joint, entry in joint_summaries(ident).items()}
 
 
 def report_dict(params: IdentifyParams, robot: Robot, ident: Identification, sections: list[dict[str, Any]],
