@@ -20,6 +20,7 @@ import numpy as np
 import pinocchio as pin
 
 from mbctl.control.ik import WholeBodyIK, mujoco_frame_type
+from mbctl.control.tasks import TaskResidual
 from mbctl.robots.collision import GeomPairs, closest_pairs
 from mbctl.robots.model_pair import Robot
 from mbctl.robots.plant_kinematics import PlantKinematics
@@ -43,6 +44,9 @@ class PlantFrames(NamedTuple):
 class PlantResiduals(NamedTuple):
     """How far the plant (MuJoCo) is from each target at the IK's pose.
 
+    Judged by the IK's own rule: ``converged(plant.task_residuals(), tolerance)``
+    (:func:`mbctl.control.tasks.residuals.converged`).
+
     Attributes:
         position_m: Distance [m] from each position target (frames; the CoM as ``"com"``).
         orientation_rad: Rotation angle [rad] from each orientation target.
@@ -51,10 +55,11 @@ class PlantResiduals(NamedTuple):
     position_m: dict[str, float]
     orientation_rad: dict[str, float]
 
-    def within(self, tol_m: float, tol_rad: float) -> bool:
-        """Every position residual <= ``tol_m`` [m] and every angle <= ``tol_rad`` [rad]."""
-        return (max(self.position_m.values(), default=0.0) <= tol_m
-                and max(self.orientation_rad.values(), default=0.0) <= tol_rad)
+    def task_residuals(self) -> dict[str, TaskResidual]:
+        """The measurements as task residuals, by frame (the CoM as ``"com"``), units in the fields."""
+        positions, angles = self.position_m, self.orientation_rad
+        names = [*positions, *(f for f in angles if f not in positions)]
+        return {f: TaskResidual(position_m=positions.get(f), orientation_rad=angles.get(f)) for f in names}
 
 
 def plant_frames(robot: Robot, q: np.ndarray, frames: tuple[str, ...]) -> PlantFrames:

@@ -7,7 +7,7 @@ from typing import Any, NamedTuple
 import numpy as np
 
 from mbctl.control.ik import IKResult, WholeBodyIK, joint_positions_by_name
-from mbctl.control.tasks import residual_table
+from mbctl.control.tasks import TaskResidual, Tolerance, converged, residual_table
 from mbctl.jobs.ik_params import IKParams
 from mbctl.jobs.ik_plant import PathCollisions, PlantResiduals
 from mbctl.robots.model_pair import Robot
@@ -32,7 +32,7 @@ class Verdict(NamedTuple):
            blocked_within_m: float) -> Verdict:
         """Judge a solve: the IK's own residuals, the plant's, the body's distances on the path."""
         clear = collisions is None or collisions.clear_of(params.min_distance_m)
-        on_plant = plant.within(params.tol_m, params.tol_rad)
+        on_plant = converged(plant.task_residuals(), _tolerance(params))
         if res.converged and on_plant and clear:
             return cls(True, clear, "converged")
         if res.converged and not on_plant:
@@ -56,6 +56,11 @@ class Verdict(NamedTuple):
             return cls(False, clear, "stalled: the step vanished (the target is out of reach, or the start "
                                      "pose is singular for it: try another --keyframe)")
         return cls(False, clear, "NOT converged (iteration cap)")
+
+
+def _tolerance(params: IKParams) -> Tolerance:
+    """The run's tolerances: the IK's residuals and the plant's are judged by the same rule."""
+    return Tolerance(params.tol_m, params.tol_rad)
 
 
 def _levels(res: IKResult) -> list[dict[str, Any]]:
@@ -156,10 +161,13 @@ def summary(name: str, task_set: str, start: str, clipped: dict[str, float], par
         lines.append("joint-limit margins: no joint has finite position limits")
     worst = max(plant.position_m.values(), default=0.0)
     worst_rad = max(plant.orientation_rad.values(), default=0.0)
+    tolerance = _tolerance(params)
     text = (f"plant check: largest residual in MuJoCo {worst:.3e} m "
-            f"({'within' if worst <= params.tol_m else 'OUTSIDE'} tol {params.tol_m:g} m)")
+            f"({'within' if tolerance.accepts(TaskResidual(position_m=worst)) else 'OUTSIDE'} "
+            f"tol {params.tol_m:g} m)")
     if plant.orientation_rad:
-        text += (f", {worst_rad:.3e} rad ({'within' if worst_rad <= params.tol_rad else 'OUTSIDE'} "
+        text += (f", {worst_rad:.3e} rad "
+                 f"({'within' if tolerance.accepts(TaskResidual(orientation_rad=worst_rad)) else 'OUTSIDE'} "
                  f"tol {params.tol_rad:g} rad)")
     lines.append(text)
     if collisions is None:
