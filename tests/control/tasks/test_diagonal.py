@@ -18,8 +18,9 @@ from tests.control.tasks.conftest import ARM, FLOATING, FLOATING_HINGES, joint_m
 class _Constant(DiagonalTask):
     """``e`` and ``a_des`` given, with junk where the mask is 0 in the masked variants (allowed)."""
 
-    def __init__(self, model: pin.Model, cost, gain: float, e: np.ndarray, a_des: np.ndarray):
-        super().__init__("constant", model, cost, gain, 0.0, AccelerationGains())
+    def __init__(self, model: pin.Model, cost, gain: float, e: np.ndarray, a_des: np.ndarray,
+                 lm_damping: float = 0.0):
+        super().__init__("constant", model, cost, gain, lm_damping, AccelerationGains())
         self.e, self.a_des = e, a_des
 
     def compute_error(self, state):
@@ -76,23 +77,25 @@ def test_the_diagonal_shortcut_equals_the_dense_rows(model):
     q, v = random_q(model, rng), rng.standard_normal(model.nv)
     cost = rng.uniform(0.5, 2.0, model.nv)
     e, a_des = rng.standard_normal(model.nv), rng.standard_normal(model.nv)
-    shortcut = _Constant(model, cost, 0.7, e, a_des)
-    dense = _Constant(model, cost, 0.7, e, a_des)
+    shortcut = _Constant(model, cost, 0.7, e, a_des, lm_damping=0.3)
+    dense = _Constant(model, cost, 0.7, e, a_des, lm_damping=0.3)
     dense.is_diagonal = False  # the stack then asks it for its nv rows
     kin, dyn = KinematicState(model, q), DynamicsState(model, q, v)
     objectives = []
     for task in (shortcut, dense):
         stack = TaskStack(model.nv, [task])
         H_v, c_v = np.full((model.nv, model.nv), np.nan), np.full(model.nv, np.nan)
-        stack.velocity_objective(kin, H_v, c_v)
+        mu = stack.velocity_objective(kin, H_v, c_v)
         H_a, c_a = np.full((model.nv, model.nv), np.nan), np.full(model.nv, np.nan)
         stack.acceleration_objective(dyn, H_a, c_a)
-        objectives.append((H_v, c_v, H_a, c_a))
+        objectives.append((H_v, c_v, H_a, c_a, np.array(mu)))
     for a, b in zip(*objectives, strict=True):
         np.testing.assert_allclose(a, b, atol=1e-14)
-    # and both what the rows give: H = diag(cost^2 mask); c = gain cost^2 mask e, -cost^2 mask a_des
+    # and both what the rows give: H = diag(cost^2 mask); c = gain cost^2 mask e, -cost^2 mask a_des;
+    # mu = lm |gain cost mask e|^2
     mask = joint_mask(model)
-    H_v, c_v, H_a, c_a = objectives[0]
+    H_v, c_v, H_a, c_a, mu = objectives[0]
+    assert float(mu) == pytest.approx(0.3 * float(np.sum((0.7 * cost * mask * e) ** 2)), rel=1e-13)
     np.testing.assert_allclose(H_v, np.diag(cost**2 * mask), atol=1e-15)
     np.testing.assert_allclose(c_v, 0.7 * cost**2 * mask * e, atol=1e-15)
     np.testing.assert_allclose(H_a, np.diag(cost**2 * mask), atol=1e-15)

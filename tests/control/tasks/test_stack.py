@@ -30,7 +30,7 @@ def _tasks(state: KinematicState, rng: np.random.Generator) -> list:
     com.set_target(state.com() + 0.05 * rng.standard_normal(3))
     relative = RelativeFrameTask("foot", "chest", MODEL, 1.0, 0.0, gain=0.3)
     relative.set_target(pin.exp6(pin.Motion(0.2 * rng.standard_normal(6))) * _relative_pose(state))
-    posture = PostureTask(MODEL, rng.uniform(0.01, 0.1, MODEL.nv), gain=0.9)  # LM-free: see test_posture
+    posture = PostureTask(MODEL, rng.uniform(0.01, 0.1, MODEL.nv), gain=0.9, lm_damping=0.5)
     posture.set_target(random_q(MODEL, rng))
     return [pose, com, relative, posture, DampingTask(MODEL, 1e-2)]
 
