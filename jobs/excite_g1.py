@@ -26,18 +26,16 @@ run with exit 1, every row kept.
 from __future__ import annotations
 
 from collections.abc import Callable
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 import pinocchio as pin
 
-from mbctl.control.ik import ChainIK, IKResult, chain_joints
-from mbctl.control.ik.loop import largest_of
 from mbctl.control.loop import run
-from mbctl.control.tasks import FramePoseTask, Tolerance
 from mbctl.control.wbc import Scheduled
 from mbctl.jobs.excite import DEFAULT_DURATION_S, ExciteParams, log_section
+from mbctl.jobs.excite_g1_legs import SwingLegs
 from mbctl.jobs.g1_wbc import g1_whole_body
 from mbctl.jobs.ident_log import CSV_NAME, SECTION, header, log_row
 from mbctl.jobs.model_options import Models, build_models, models_line
@@ -93,13 +91,6 @@ STEP_TIMES_S = (1.5, 0.6, 0.8, 1.0, 0.8, 0.6, 1.5)
 STEP_CALM = 0.8
 #: Height [m] a foot is lifted to during a step (straight up from where it left the floor).
 LIFT_HEIGHT_M = 0.05
-#: The swing leg's inverse kinematics each control cycle (damped least squares on the leg, from the
-#: measured state): its convergence tolerance (position [m], orientation [rad]), step cap, the
-#: Levenberg-Marquardt damping [cost] and the foot task's error-scaled damping [-].
-LEG_IK_TOLERANCE = Tolerance(position_m=1e-5, orientation_rad=1e-4)
-LEG_IK_MAX_ITERATIONS = 20
-LEG_IK_DAMPING = 1e-6
-LEG_IK_LM_DAMPING = 1.0
 #: The steps run only in excitations at least this long [s].
 MIN_DURATION_FOR_STEPS_S = 16.0
 
@@ -203,11 +194,7 @@ class _Schedule:
         self.released: set[str] = set()  # steps whose foot was released
         self.landed: set[str] = set()    # steps whose foot was put down again
         self.lift_off: dict[str, pin.SE3] = {}  # where each free foot left the floor
-        # each foot's leg IK: a pose task on the foot, moving the joints between it and the pelvis
-        self.foot_task = {f: FramePoseTask(f, model, lm_damping=LEG_IK_LM_DAMPING) for f in FEET}
-        self.leg_ik = {f: ChainIK(model, [self.foot_task[f]], chain_joints(model, f), LEG_IK_DAMPING)
-                       for f in FEET}
-        self.leg_ik_record = _LegIKRecord()
+        self.legs = SwingLegs(model, FEET)  # each foot's leg IK, and its record
 
     def _orientation_torso(self, R_pelvis: np.ndarray, q: np.ndarray) -> np.ndarray:
         """The torso's world orientation with the pelvis at R_pelvis and the waist at q's."""
@@ -260,13 +247,10 @@ class _Schedule:
 
         The posture task then carries the free foot straight up and back to where it lifted off,
         whatever the pelvis does meanwhile. A target the leg cannot reach leaves the damped closest
-        pose and is counted (:class:`_LegIKRecord`), never passed on silently.
+        pose and is counted (:class:`~mbctl.jobs.excite_g1_legs.SwingLegs`), never passed on silently.
         """
-        ik = self.leg_ik[foot]
-        self.foot_task[foot].set_target(X_WF)
-        result = ik.solve(state.q, LEG_IK_TOLERANCE, LEG_IK_MAX_ITERATIONS)
-        self.leg_ik_record.add(t, foot, result)
-        q_ref[ik.idx_q] = result.q[ik.idx_q]
+        idx_q, q_leg = self.legs.solve(t, foot, X_WF, state.q)
+        q_ref[idx_q] = q_leg
 
     def _step_phase(self, t: float, state: RobotState) -> tuple[str, float, float] | None:
         """(foot, CoM shift fraction, foot height [m]) during a step, else None; drives the contacts.
@@ -306,58 +290,6 @@ class _Schedule:
                 self.lift_off.pop(foot, None)
             return foot, s_shift, height
         return None
-
-
-@dataclass
-class _LegIKRecord:
-    """The swing legs' IK over a run: how many solves, which did not converge, the largest residuals.
-
-    Attributes:
-        solves: Leg IK solves (one per control cycle of a free foot).
-        failures: (time [s], foot, position residual [m], orientation residual [rad]) of each solve
-            that did not converge (the target out of the leg's reach, or the cap reached).
-        max_position_m: Largest foot position residual [m] left by any solve.
-        max_orientation_rad: Largest foot orientation residual [rad] left by any solve.
-        max_iterations: Most steps a solve took.
-    """
-
-    solves: int = 0
-    failures: list[tuple[float, str, float, float]] = field(default_factory=list)
-    max_position_m: float = 0.0
-    max_orientation_rad: float = 0.0
-    max_iterations: int = 0
-
-    def add(self, t: float, foot: str, result: IKResult) -> None:
-        """Count one solve at ``t`` [s] for ``foot``."""
-        residual = largest_of(list(result.residuals.values()))
-        position, angle = residual.position_m or 0.0, residual.orientation_rad or 0.0
-        self.solves += 1
-        self.max_position_m = max(self.max_position_m, position)
-        self.max_orientation_rad = max(self.max_orientation_rad, angle)
-        self.max_iterations = max(self.max_iterations, result.iterations)
-        if not result.converged:
-            self.failures.append((t, foot, position, angle))
-
-    def section(self) -> dict[str, Any]:
-        """JSON-ready: the counts, the largest residuals and the first failures."""
-        return {"solves": self.solves, "not_converged": len(self.failures),
-                "max_position_residual_m": self.max_position_m,
-                "max_orientation_residual_rad": self.max_orientation_rad,
-                "max_iterations": self.max_iterations,
-                "tolerance": {"position_m": LEG_IK_TOLERANCE.position_m,
-                              "orientation_rad": LEG_IK_TOLERANCE.orientation_rad},
-                "first_failures": [{"t_s": t, "foot": f, "position_m": p, "orientation_rad": a}
-                                   for t, f, p, a in self.failures[:10]]}
-
-    def line(self) -> str:
-        """The summary line: every solve converged, or how many did not and the first one."""
-        text = (f"swing-leg IK: {self.solves} solves (tol {LEG_IK_TOLERANCE.position_m * 1e3:g} mm, "
-                f"{LEG_IK_TOLERANCE.orientation_rad:g} rad), at most {self.max_iterations} iterations, ")
-        if not self.failures:
-            return text + "all converged"
-        t, foot, position, angle = self.failures[0]
-        return text + (f"{len(self.failures)} did NOT converge (first {foot} at t={t:.2f} s: "
-                       f"{position * 1e3:.2f} mm, {angle:.3g} rad: out of the leg's reach, or the step cap)")
 
 
 def _smooth(s: float) -> float:
@@ -437,7 +369,7 @@ def _run(ctx: RunContext, params: ExciteParams, models: Models, q_start: np.ndar
                        "waist_condition_number": designs[0].condition_number,
                        "arm_condition_number": designs[1].condition_number,
                        "samples_with_other_contacts": log.rows_with_other_contacts,
-                       "swing_leg_ik": schedule.leg_ik_record.section()})
+                       "swing_leg_ik": schedule.legs.section()})
     _plot(ctx, log, bodies, joints, fell)
     lines = [f"excite g1: {sim.time_s:.1f} s on its feet ({'FELL: ' + fell if fell else 'stood'}); "
              f"regressor condition numbers: waist {designs[0].condition_number:.3g} (random start "
@@ -447,8 +379,8 @@ def _run(ctx: RunContext, params: ExciteParams, models: Models, q_start: np.ndar
              f"{ctx.values['com_error_rms_m'] * 1e3:.1f} mm, "
              f"{log.rows_with_other_contacts} rows with contacts elsewhere",
              f"log: {len(log.t)} rows in {CSV_NAME}; identify it with: mbctl identify {ctx.output_dir}"]
-    if schedule.leg_ik_record.solves:
-        lines.insert(1, schedule.leg_ik_record.line())
+    if schedule.legs.solves:
+        lines.insert(1, schedule.legs.line())
     if models.options.hidden or models.options.controller_model:
         lines.insert(1, models_line(models.section()))
     return Outcome(fell is None, tuple(lines), "did not fall")
