@@ -1,4 +1,4 @@
-"""Make the README's pictures: a G1 still, the demo's tracking plot, the g1-wbc latency sweep (docs/).
+"""Make the pictures of the README and the DDS guide: a G1 still, the demo's plot, the g1-wbc latency sweep.
 
     MENAGERIE_ROOT=... python docs/make_pictures.py
 
