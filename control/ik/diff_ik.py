@@ -11,8 +11,8 @@ Each step solves, for the tangent step ``dq`` (nv,) (``v = dq / dt``)::
 
 which is mink's problem (``mink.solve_ik``) written with Pinocchio quantities; the task rows are
 the velocity level of :mod:`mbctl.control.tasks` (assembled by its ``TaskStack``). The step is
-applied on the manifold with ``pin.integrate``. The QP is solved by :mod:`mbctl.control.ik.qp`
-(daqp directly, other backends through qpsolvers).
+applied on the manifold with ``pin.integrate``. The QP is solved by the control layer's QP floor,
+:mod:`mbctl.control.qp` (daqp directly, other backends through qpsolvers).
 
 Priorities. Tasks may be given levels (0 highest). The step is then a lexicographic solve: one QP
 per level, level k minimising its own tasks' least squares under the limits AND the equality
@@ -43,7 +43,7 @@ import qpsolvers
 from mbctl.control.exceptions import IKInfeasible, IKSetupError
 from mbctl.control.ik.limits import BoxLimit, Limit
 from mbctl.control.ik.loop import IKResult, iterate
-from mbctl.control.ik.qp import QP_INFINITY, QPData, QPOutcome, StepQP
+from mbctl.control.qp import CONTRADICTORY, QP_INFINITY, QPData, QPResult, QPSolver, infeasible_error
 from mbctl.control.tasks.base import Task
 from mbctl.control.tasks.com import ComTask
 from mbctl.control.tasks.residuals import TaskResidual, Tolerance
@@ -148,7 +148,7 @@ class DiffIK:
         self._static_dt: float | None = None
         self._static_lb = np.empty(nv)
         self._static_ub = np.empty(nv)
-        self._qp = StepQP(nv, solver, self.solver_options)
+        self._qp = QPSolver(nv, solver, self.solver_options)
 
     # ------------------------------------------------------------------ QP
     def update(self, q: npt.ArrayLike) -> None:
@@ -237,27 +237,17 @@ class DiffIK:
         basis = Vt[: int(np.sum(s > RANK_RTOL * s[0]))] if s[0] > 0.0 else Vt[:0]
         return basis, basis @ dq
 
-    def _infeasible(self, qp: QPData, out: QPOutcome, level: int) -> IKInfeasible:
-        lb, ub = qp.lb, qp.ub
-        if lb is not None and ub is not None and np.any(lb > ub):
-            bad = np.flatnonzero(lb > ub)
-            message = (
-                f"IK limits contradict each other at dofs {bad[:8].tolist()}: lower bounds "
-                f"{lb[bad[:8]].round(6).tolist()} exceed upper bounds "
-                f"{ub[bad[:8]].round(6).tolist()} (is q outside its joint limits?). "
-                "Move q inside its limits or relax the limits."
-            )
+    def _infeasible(self, qp: QPData, out: QPResult, level: int) -> IKInfeasible:
+        where = f" at priority level {level}" if len(self.stacks) > 1 else ""
+        if out.status == CONTRADICTORY and qp.lb is not None and qp.ub is not None \
+                and np.any(qp.lb > qp.ub):
+            bad = np.flatnonzero(qp.lb > qp.ub)[:8].tolist()
+            what = f"IK limits contradict each other{where} at dofs {bad} (is q outside its joint limits?)"
+            advice = "Move q inside its limits or relax the limits."
         else:
-            where = f" at priority level {level}" if len(self.stacks) > 1 else ""
-            message = (
-                f"QP solver {self.solver!r} found no IK step{where} (status {out.status!r}; the limits "
-                "may be infeasible); inspect .problem and .result."
-            )
-        problem = qp.problem()
-        result = qpsolvers.Solution(problem)
-        result.found = False
-        result.extras = {"status": out.status}
-        return IKInfeasible(message, problem, result, self.solver)
+            what = f"QP solver {self.solver!r} found no IK step{where} (the limits may be infeasible)"
+            advice = "Inspect .problem and .result."
+        return infeasible_error(IKInfeasible, what, advice, qp, out, self.solver)
 
     def step(self, q: npt.ArrayLike, dt: float = 1.0) -> IKStep:
         """Update the state to ``q`` (nq,) and solve one step."""
