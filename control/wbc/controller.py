@@ -46,10 +46,10 @@ from collections.abc import Sequence
 
 import numpy as np
 import pinocchio as pin
-import qpsolvers
 
 from mbctl.control.controller import JointMap
 from mbctl.control.exceptions import WBCInfeasible, WBCSetupError
+from mbctl.control.qp import infeasible_error
 from mbctl.control.tasks.base import Task
 from mbctl.control.tasks.stack import TaskStack
 from mbctl.control.tasks.state import DynamicsState
@@ -367,29 +367,26 @@ class WholeBodyController:
         t_qp = time.perf_counter()
         if cfg.solver == "daqp":
             result = qp.solve(m_eq)
-            x = result.x
             if result.fast_path:
                 self.fast_path_cycles += 1
             else:
                 self.daqp_cycles += 1
         else:  # another backend, through qpsolvers (for comparison)
-            solution = qpsolvers.solve_problem(qp.problem(m_eq), solver=cfg.solver)
-            x = solution.x if solution.found and solution.x is not None else None
-            if x is not None and not np.isfinite(x).all():
-                x = None
+            result = qp.solve_with(cfg.solver, m_eq)
         qp_time = time.perf_counter() - t_qp
-        if x is None:  # (qp.solve gives a finite x or None)
-            message = (
+        x = result.x
+        if x is None:  # (the floor gives a finite x or None)
+            what = (
                 f"whole-body QP infeasible at step {self.steps} (solver {cfg.solver}): contacts "
                 + ", ".join(f"{n} weight {cs.weight:.2f}" for n, cs in self.contacts.items())
                 + f"; normal force per point {cfg.f_min_n:g} to {cfg.f_max_n:g} N at full weight; "
-                f"torque limits [{self.tau_low.min():.1f}, {self.tau_high.max():.1f}] N m. Check the "
-                "force bounds and torque limits against the load, the friction and the task targets.")
+                f"torque limits [{self.tau_low.min():.1f}, {self.tau_high.max():.1f}] N m")
+            error = infeasible_error(WBCInfeasible, what, "Check the force bounds and torque limits against "
+                                     "the load, the friction and the task targets.", qp.data(m_eq), result,
+                                     cfg.solver, time_s=state.time_s)
             if cfg.on_infeasible == "raise":
-                problem = qp.problem(m_eq)
-                raise WBCInfeasible(message, problem, qpsolvers.solve_problem(problem, solver="daqp"),
-                                    cfg.solver, state.time_s)
-            self.infeasible_at_s, self.infeasible_message = state.time_s, message
+                raise error
+            self.infeasible_at_s, self.infeasible_message = state.time_s, str(error)
             return self._fallback(state, t0)
         tau = T @ x + b_a
         self.steps += 1

@@ -18,53 +18,34 @@ Solved in two ways, the first tried first:
   written here because daqp's setup with 18 equality rows costs ~60 us (e.g. on the G1; measured,
   ``bench/bench_wbc.py``) while this costs a Cholesky of the 35 x 35 block and an 18 x 18 solve.
   Standing and squatting never leave it (no inequality is active there).
-* **daqp** (the dual active-set solver) on the whole problem, called directly with preallocated
-  rows (two-sided torque rows instead of qpsolvers' two one-sided rows each), whenever an
-  inequality would be violated or E is rank-deficient. Calling ``daqp.solve`` directly instead of
-  through ``qpsolvers.solve_problem`` saves the wrapper's conversions (~17 us per solve, measured).
+* **daqp** (the dual active-set solver) on the whole problem, through the control layer's QP
+  floor (:mod:`mbctl.control.qp`: daqp called directly, its buffers reused, two-sided torque rows
+  instead of qpsolvers' two one-sided rows each), whenever an inequality would be violated or E is
+  rank-deficient. Calling ``daqp.solve`` directly instead of through ``qpsolvers.solve_problem``
+  saves the wrapper's conversions (~17 us per solve, measured).
 
 Other QP backends (``proxqp``, ``osqp``...) go through ``qpsolvers`` on the same problem
-(:meth:`WholeBodyQP.problem`), for comparison.
+(:meth:`WholeBodyQP.solve_with`), for comparison. Every solve returns the floor's
+:class:`~mbctl.control.qp.QPResult`.
 """
 
 from __future__ import annotations
 
-from typing import NamedTuple
+import time
 
-import daqp
 import numpy as np
 import qpsolvers
 from scipy.linalg.lapack import dposv, dpotrf, dpotrs, dpstrf
+
+from mbctl.control.qp import CONTRADICTORY, OPTIMAL, QPData, QPResult, QPSolver, solve_qpsolvers
 
 #: Largest violation [problem units: rad/s^2, N, N m] of an inequality or bound that the fast
 #: path's point may have and still count as feasible (daqp's own primal tolerance is 1e-6).
 FEASIBILITY_TOL = 1e-9
 
-#: daqp's infinity: bounds beyond it are absent.
-DAQP_INF = 1e30
-
-#: Exit flag for bounds or equalities that contradict each other (daqp's infeasibility flag is -1).
-CONTRADICTORY = -100
-
 #: Relative pivot [-] below which an equality row counts as dependent on the others (in the
 #: metric of ``E H^-1 E^T``).
 RANK_RTOL = 1e-10
-
-class QPResult(NamedTuple):
-    """One solve.
-
-    Attributes:
-        x: The solution (n_x,), finite, or None when the QP has no solution (a point with a NaN or
-            inf fails the fast path's feasibility check, and daqp's is checked).
-        fast_path: Whether the equality-constrained fast path gave it (no inequality active).
-        exitflag: daqp's exit flag (1 optimal; < 0 infeasible or failed); 1 for the fast path.
-        dependent_rows: Equality rows dropped as linearly dependent on the others.
-    """
-
-    x: np.ndarray | None
-    fast_path: bool
-    exitflag: int
-    dependent_rows: int
 
 
 class WholeBodyQP:
@@ -108,13 +89,10 @@ class WholeBodyQP:
         self.ub, self.g_up = self._up[:self.n_x], self._up[self.n_x:]
         self._xg = np.zeros(self.n_x + m_in)  # [x; G x]
         self.force_weight = force_weight
-        # daqp's buffers: the simple bounds first, then the rows (inequalities, then equalities)
-        m_all = self.n_x + m_in + m_eq_max
-        self._A = np.zeros((m_in + m_eq_max, self.n_x))
-        self._bu = np.zeros(m_all)
-        self._bl = np.zeros(m_all)
-        self._sense = np.zeros(m_all, dtype=np.intc)
+        # the whole Hessian and linear term for daqp (its packing buffers are the floor's)
         self._H = np.zeros((self.n_x, self.n_x))
+        self._c = np.zeros(self.n_x)
+        self._daqp_solver = QPSolver(self.n_x, "daqp")
         self._rows = np.arange(m_eq_max)
         self._rhs = np.zeros((nv, m_eq_max + 1), order="F")  # LAPACK's layout: solved in place
 
@@ -131,19 +109,24 @@ class WholeBodyQP:
     def solve(self, m_eq: int) -> QPResult:
         """Solve with the first ``m_eq`` equality rows: the fast path, else daqp.
 
-        Contradictory bounds (a lower above its upper) are reported as infeasible (exit flag
-        :data:`CONTRADICTORY`) before any solve: daqp would satisfy one side of such a row
-        silently. Linearly dependent equality rows (e.g. the feet of legs without a hip yaw, which
-        cannot yaw relative to each other) are reduced to an independent subset (the pivots of
+        Contradictory bounds (a lower above its upper) are reported before any solve (status
+        :data:`~mbctl.control.qp.CONTRADICTORY`, one comparison over the contiguous bounds).
+        Linearly dependent equality rows (e.g. the feet of legs without a hip yaw, which cannot
+        yaw relative to each other) are reduced to an independent subset (the pivots of
         ``E H^-1 E^T``), and the result says how many were dropped: the dropped rows hold only as
         far as they agree with the kept ones.
+
+        Returns:
+            The floor's result: ``x`` (n_x,) finite or None, ``fast_path`` True when no
+            inequality is active (``iterations`` 0), ``dependent_rows`` the rows dropped.
         """
+        t0 = time.perf_counter()
         if (self._lo > self._up).any():
-            return QPResult(None, False, CONTRADICTORY, 0)
+            return QPResult(None, CONTRADICTORY, 0, 0.0)
         x, rows = self._equality_optimum(m_eq)
         dropped = m_eq - len(rows)
         if x is not None and self._feasible(x):
-            return QPResult(x, True, 1, dropped)
+            return QPResult(x, OPTIMAL, 0, time.perf_counter() - t0, True, dropped)
         return self._daqp(rows, dropped)
 
     def _equality_optimum(self, m_eq: int) -> tuple[np.ndarray | None, np.ndarray]:
@@ -199,40 +182,33 @@ class WholeBodyQP:
                     and np.subtract(xg, self._up).max() <= FEASIBILITY_TOL)
 
     def _daqp(self, eq_rows: np.ndarray, dropped: int) -> QPResult:
-        n, m_in, m_eq = self.n_x, self.m_in, len(eq_rows)
+        """The whole QP by daqp, with the equality rows ``eq_rows`` (the first ones if ``dropped`` is 0)."""
+        result = self._daqp_solver.solve(self.data(eq_rows, dropped == 0))
+        return result._replace(dependent_rows=dropped)
+
+    def data(self, eq_rows: np.ndarray | int, consecutive: bool = True) -> QPData:
+        """The whole QP for the floor: views of the buffers, H and c assembled in reused buffers.
+
+        Args:
+            eq_rows: The equality rows to use: their indices, or a count ``m_eq`` (the first ones).
+            consecutive: ``eq_rows`` are ``0..m_eq-1`` (then E and e are sliced, not copied).
+        """
+        nv = self.nv
         H = self._H
-        H[:self.nv, :self.nv] = self.H_vv
-        np.einsum("ii->i", H)[self.nv:] = self._w_f * self._w_f
-        c = np.zeros(n)
-        c[:self.nv] = self.c_v
-        rows = m_in + m_eq
-        A = self._A[:rows]
-        A[:m_in] = self.G
-        A[m_in:] = self.E[eq_rows]
-        m = n + rows
-        bu, bl, sense = self._bu[:m], self._bl[:m], self._sense[:m]
-        np.clip(self.ub, -DAQP_INF, DAQP_INF, out=bu[:n])
-        np.clip(self.lb, -DAQP_INF, DAQP_INF, out=bl[:n])
-        np.clip(self.g_up, -DAQP_INF, DAQP_INF, out=bu[n:n + m_in])
-        np.clip(self.g_lo, -DAQP_INF, DAQP_INF, out=bl[n:n + m_in])
-        bu[n + m_in:] = self.e[eq_rows]
-        bl[n + m_in:] = self.e[eq_rows]
-        sense[:] = 0
-        sense[n + m_in:] = 5  # equality (daqp: active and immutable)
-        x, _, exitflag, _ = daqp.solve(H, c, A, bu, bl, sense)
-        ok = exitflag > 0 and np.isfinite(x).all()
-        return QPResult(np.asarray(x) if ok else None, False, int(exitflag), dropped)
+        H[:nv, :nv] = self.H_vv
+        np.einsum("ii->i", H)[nv:] = self._w_f * self._w_f
+        self._c[:nv] = self.c_v
+        if isinstance(eq_rows, int) or consecutive:
+            m_eq = eq_rows if isinstance(eq_rows, int) else len(eq_rows)
+            E, e = self.E[:m_eq], self.e[:m_eq]
+        else:
+            E, e = self.E[eq_rows], self.e[eq_rows]
+        return QPData(H, self._c, self.lb, self.ub, self.G, self.g_up, E, e, self.g_lo)
+
+    def solve_with(self, solver: str, m_eq: int) -> QPResult:
+        """Solve with another backend through qpsolvers (for comparison; no fast path)."""
+        return solve_qpsolvers(self.data(m_eq), solver)
 
     def problem(self, m_eq: int) -> qpsolvers.Problem:
         """The same QP as a ``qpsolvers.Problem`` (copies; for other backends and for diagnosis)."""
-        n, nv = self.n_x, self.nv
-        H = np.zeros((n, n))
-        H[:nv, :nv] = self.H_vv
-        np.einsum("ii->i", H)[nv:] = self._w_f * self._w_f
-        c = np.zeros(n)
-        c[:nv] = self.c_v
-        up, lo = np.isfinite(self.g_up), np.isfinite(self.g_lo)
-        G = np.vstack([self.G[up], -self.G[lo]])
-        h = np.concatenate([self.g_up[up], -self.g_lo[lo]])
-        return qpsolvers.Problem(H, c, G, h, self.E[:m_eq].copy(), self.e[:m_eq].copy(), self.lb.copy(),
-                                 self.ub.copy())
+        return self.data(m_eq).problem()

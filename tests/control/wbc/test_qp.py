@@ -12,7 +12,8 @@ import qpsolvers
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from mbctl.control.wbc.qp import CONTRADICTORY, WholeBodyQP
+from mbctl.control.qp import CONTRADICTORY, QPResult
+from mbctl.control.wbc.qp import WholeBodyQP
 
 NV, NF, M_IN, M_EQ = 9, 6, 10, 5
 
@@ -56,7 +57,7 @@ def test_structured_solve_equals_qpsolvers(seed, cut):
     # none (a deep cut can make the random problem infeasible)
     assert result.fast_path == (cut == 0.0)
     if reference is None:
-        assert result.x is None and result.exitflag < 0
+        assert result.x is None and result.status < 0
         return
     assert result.x is not None
     np.testing.assert_allclose(result.x, reference, atol=1e-6 * max(1.0, np.abs(reference).max()))
@@ -79,13 +80,13 @@ def test_fast_path_point_satisfies_the_kkt_conditions():
 def test_infeasible_problems_report_no_solution():
     qp = _problem(5, 0.0)
     qp.g_lo[0], qp.g_up[0] = 1.0, -1.0  # contradictory bounds of one row (daqp would pick a side)
-    assert qp.solve(M_EQ) == (None, False, CONTRADICTORY, 0)
+    assert qp.solve(M_EQ) == QPResult(None, CONTRADICTORY, 0, 0.0, fast_path=False, dependent_rows=0)
     qp = _problem(5, 0.0)
     qp.G[1] = qp.G[0]  # the same row twice with disjoint ranges
     qp.g_lo[0], qp.g_up[0] = 0.0, 1.0
     qp.g_lo[1], qp.g_up[1] = 2.0, 3.0
     result = qp.solve(M_EQ)
-    assert result.x is None and not result.fast_path and result.exitflag < 0
+    assert result.x is None and not result.fast_path and result.status < 0
 
 
 @pytest.mark.filterwarnings("ignore:invalid value:RuntimeWarning")  # inf times 0 in G x
