@@ -45,10 +45,10 @@ import pinocchio as pin
 sys.path.insert(0, str(Path(__file__).parent))
 from harness import interleaved  # noqa: E402
 
+from mbctl.sim.dds_bridge import wait_until_serving  # noqa: E402
 from mbctl.unitree import TOPIC_LOWCMD, Channel, low_cmd_codec, low_state_codec  # noqa: E402
 from mbctl.unitree.channel import message_types  # noqa: E402
 from mbctl.unitree.domain_lock import reserve_domain  # noqa: E402
-from mbctl.sim.dds_bridge import wait_until_serving  # noqa: E402
 
 
 def loadavg() -> str:
