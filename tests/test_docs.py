@@ -52,7 +52,7 @@ def test_api_reference_builds_without_a_warning(tmp_path):
     for guide in ("commands", "robots_guide", "ik", "whole_body", "dds", "identification", "measured",
                   "layout"):
         assert f"{guide}.html" in html, guide
-    assert "mbctl serve g1" in html["dds.html"] and "On the real G1" in html["dds.html"]
+    assert "On the real G1" in html["dds.html"] and "MotionSwitcherClient" in html["dds.html"]
 
 
 FAKE = '''"""A module for the docs test."""
