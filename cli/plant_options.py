@@ -13,6 +13,11 @@ import typer
 
 from mbctl.cli._run import ControllerModelOpt, PayloadOpt, PlantErrorOpt
 
+#: The DDS client's defaults, as mbctl.hardware.unitree_hg has them (the help imports no numpy;
+#: tests/hardware/test_lowstate.py checks they agree).
+WATCHDOG_PERIODS = 3
+CONNECT_TIMEOUT_S = 1.0
+
 InterfaceOpt = Annotated[str, typer.Option("--interface", help="sim (in-process) or dds (the G1's low-level "
                                                                "DDS: a robot or `mbctl serve g1`).")]
 DomainOpt = Annotated[int, typer.Option("--domain", help="DDS domain id (the robot's is 0).")]
@@ -34,6 +39,18 @@ WatchdogOpt = Annotated[int, typer.Option("--watchdog-periods", help="DDS: perio
                                                                      "the link counts as lost.")]
 DryRunOpt = Annotated[bool, typer.Option("--dry-run", help="DDS: read and print the robot's state; never "
                                                            "command it.")]
+StateCrcOpt = Annotated[str, typer.Option(
+    "--state-crc", help="DDS: on (the real G1 signs its states) or off: accept states with CRC 0 unchecked "
+                        "(Unitree's simulator leaves it 0).")]
+RateOpt = Annotated[float | None, typer.Option(
+    "--rate-hz", help="DDS: the robot's state rate (Hz), which paces the loop; default: measured at "
+                      "connect.")]
+WaitOpt = Annotated[float, typer.Option(
+    "--wait-s", help="DDS: how long to wait for the robot's state stream (s), e.g. for a bridge still "
+                     "loading.")]
+DdsConfigOpt = Annotated[Path | None, typer.Option(
+    "--dds-config", help="DDS: a Cyclone DDS configuration file of yours, used as written (default: mbctl's "
+                         "for the network interface).")]
 
 
 def _params(*spec: tuple[str, Any, Any]) -> tuple[inspect.Parameter, ...]:
@@ -46,7 +63,10 @@ PLANT_PARAMETERS = _params(
     ("interface", InterfaceOpt, "sim"), ("domain", DomainOpt, 0), ("network_interface", NetworkOpt, "lo"),
     ("latency_ms", LatencyOpt, 0.0), ("jitter_ms", JitterOpt, 0.0), ("drop", DropOpt, 0.0),
     ("imu_noise", ImuNoiseOpt, 0.0), ("estimate", EstimateOpt, False), ("link_seed", LinkSeedOpt, 0),
-    ("truth", TruthOpt, None), ("watchdog_periods", WatchdogOpt, 3), ("dry_run", DryRunOpt, False))
+    ("truth", TruthOpt, None), ("watchdog_periods", WatchdogOpt, WATCHDOG_PERIODS),
+    ("dry_run", DryRunOpt, False),
+    ("state_crc", StateCrcOpt, "on"), ("rate_hz", RateOpt, None), ("wait_s", WaitOpt, CONNECT_TIMEOUT_S),
+    ("dds_config", DdsConfigOpt, None))
 
 #: ``--payload``, ``--plant-error``, ``--controller-model``: every simulating job.
 MODEL_PARAMETERS = _params(("payload", PayloadOpt, None), ("plant_error", PlantErrorOpt, 0.0),

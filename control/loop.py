@@ -129,6 +129,10 @@ def run(
 ) -> RunLog:
     """Run ``controller`` on ``interface`` for ``duration_s`` and log every cycle.
 
+    However the loop ends (done, the callback, an exception, Ctrl-C), it calls ``interface.stop()``:
+    the plant keeps the robot safe from then on (over DDS, the damping command every period) while
+    the caller writes its results, until it closes the plant.
+
     Args:
         interface: Any RobotInterface (the simulator, or a robot over DDS).
         controller: The control law; ``reset()`` is called first.
@@ -219,32 +223,35 @@ def run(
     send, sync = interface.send, interface.sync
     log_refs = refs is None and not no_reference
     wall0 = time.perf_counter()
-    for k in range(n_cycles):
-        state = read_state()
-        if refs is not None:
-            ref: Reference = refs[k]
-        elif fn is not None:
-            ref = fn(state.time_s - t0)
+    try:
+        for k in range(n_cycles):
+            state = read_state()
+            if refs is not None:
+                ref: Reference = refs[k]
+            elif fn is not None:
+                ref = fn(state.time_s - t0)
+            else:
+                ref = constant  # type: ignore[assignment]
+            command = compute(state, ref)
+            send(command)
+            sync()
+            if k == 0:
+                log_cmd = np.empty((n_cycles, command.values.size))
+            log_t[k] = state.time_s
+            log_tick[k] = state.tick
+            log_q[k] = state.q
+            log_v[k] = state.v
+            log_cmd[k] = command.values
+            if log_refs:
+                log_ref[k] = ref[0]
+                log_ref_v[k] = ref[1]
+            if on_step is not None and on_step(k, state, ref, command):
+                n_run = k + 1  # the callback ended the run (e.g. the robot fell)
+                break
         else:
-            ref = constant  # type: ignore[assignment]
-        command = compute(state, ref)
-        send(command)
-        sync()
-        if k == 0:
-            log_cmd = np.empty((n_cycles, command.values.size))
-        log_t[k] = state.time_s
-        log_tick[k] = state.tick
-        log_q[k] = state.q
-        log_v[k] = state.v
-        log_cmd[k] = command.values
-        if log_refs:
-            log_ref[k] = ref[0]
-            log_ref_v[k] = ref[1]
-        if on_step is not None and on_step(k, state, ref, command):
-            n_run = k + 1  # the callback ended the run (e.g. the robot fell)
-            break
-    else:
-        n_run = n_cycles
+            n_run = n_cycles
+    finally:  # however the loop ends, the plant keeps the robot safe from now on (the contract)
+        interface.stop()
     wall = time.perf_counter() - wall0
     if sampled is not None:  # a pre-sampled trajectory is its own log
         log_ref, log_ref_v = sampled[0], sampled[1]

@@ -8,31 +8,38 @@ The interface is generic over the robots that speak ``unitree_hg``: a robot is i
 
 The same controller object that runs on the simulator runs here, through ``control.loop.run``:
 ``read_state`` takes the latest ``rt/lowstate`` (LowState_), ``send`` fills a LowCmd_ and
-publishes it on ``rt/lowcmd``, ``sync`` waits for the robot's next state (the robot's 500 Hz
+publishes it on ``rt/lowcmd``, ``sync`` waits for the robot's next state (the robot's state
 stream is the wall clock; GIL released while waiting) and watches the link.
 
 Lifecycle (as ros2_control's hardware components, and the plant contract of
 :class:`~mbctl.robots.interface.RobotInterface`): constructing the interface configures DDS;
-``open()`` (called by the constructor unless ``activate=False``) *activates* it only once a valid
-LowState has been read: no LowState with a valid CRC within
-``connect_timeout_s`` raises :class:`NoRobotError` naming the domain and the network interface; a
-joint outside its limits raises :class:`JointOutOfLimits` naming it; nothing is commanded in
-either case. ``close()`` deactivates: it sends the damping command (``kp = 0``, ``kd`` per motor)
-if anything was commanded, then leaves DDS. Use it as a context manager.
+``open()`` (called by the constructor unless ``activate=False``) *activates* it only once the
+robot's state stream has been read: :data:`~mbctl.hardware.lowstate.RATE_STATES` valid states
+within ``connect_timeout_s`` (their arrivals measure the state rate, which paces the loop and
+scales the watchdog, unless ``rate_hz`` is given), else :class:`NoRobotError` saying what was seen
+(nothing on the domain, states with a bad CRC, states that never advance); a joint outside its
+limits raises :class:`JointOutOfLimits` naming it; nothing is commanded in either case.
+``stop()`` ends the loop's commanding: the damping command goes out every period from a thread
+(:class:`~mbctl.hardware.damping.DampingKeeper`) until ``close()``, or until a new command
+resumes (another loop). ``close()`` deactivates: it sends the damping command (``kp = 0``, ``kd``
+per motor) if anything was commanded, then leaves DDS. Use it as a context manager.
 
 Messages: every LowCmd_ carries ``mode_pr`` = 0 (pitch/roll ankles, as the model has them), the
 ``mode_machine`` copied from the first LowState, each motor's mode (enabled), q, dq, tau, kp, kd,
-and the CRC. A LowState with a bad CRC or another encoding is ignored and counted. Lost messages
-are counted from gaps in LowState's ``tick``.
+and the CRC. The LowStates are checked, ordered and timed by
+:class:`~mbctl.hardware.lowstate.LowStateStream` (CRC, values, tick or arrival order, the
+robot's clock).
 
 State: joint q and dq come from the motors; the base orientation and angular velocity from the
 IMU; the base position and linear velocity are not measured, so they come from the estimator the
 job gives (:class:`~mbctl.robots.interface.BaseStateEstimator`) and ``RobotState.estimated`` says so.
 
-Safety: ``watchdog_periods`` periods without a LowState send the damping command and raise
-:class:`LinkLost` ("link lost"); commands are clamped to the model's torque and position limits
-and counted; Ctrl-C (KeyboardInterrupt) goes through ``close()`` and so damps; ``dry_run`` reads
-and never commands.
+Safety: ``watchdog_periods`` periods without a new LowState send the damping command and raise
+:class:`LinkLost` ("link lost", with what the stream saw); the watchdog arms after the first
+completed cycle (the first waits up to :data:`FIRST_CYCLE_S`: a plant that only starts on the
+first command, a first cycle that warms up); commands are clamped to the model's torque and
+position limits and counted; Ctrl-C (KeyboardInterrupt) goes through ``close()`` and so damps;
+``dry_run`` reads and never commands.
 
 Garbage collection: the loop's first ``read_state`` moves every object made before it (the
 models, the controller, the buffers) out of the collector's generations (``gc.freeze``;
@@ -44,27 +51,33 @@ run took 1.0-1.6 ms of a 2 ms period, with it at most 0.16 ms.
 from __future__ import annotations
 
 import gc
+import math
 import time
 from dataclasses import dataclass
 
 import numpy as np
 import numpy.typing as npt
 
+from mbctl.hardware.damping import DampingKeeper
 from mbctl.hardware.exceptions import DryRunError, HardwareError, JointOutOfLimits, LinkLost, NoRobotError
+from mbctl.hardware.lowstate import PERIOD_RANGE_S, RATE_STATES, LowStateStream
 from mbctl.hardware.motor_commands import MotorCommandWriter, MotorGains, default_damping, write_damping
 from mbctl.robots.commands import Command
-from mbctl.robots.interface import BaseStateEstimator, ImuReading, Proprioception, RobotState
+from mbctl.robots.interface import BaseStateEstimator, Proprioception, RobotState
 from mbctl.robots.model_pair import Robot
 from mbctl.robots.plant_report import LinkReport, PlantReport, SafetyReport, TimingReport
 from mbctl.unitree.channel import LOOPBACK, TOPIC_LOWCMD, TOPIC_LOWSTATE, Channel, message_types
 from mbctl.unitree.clock import CycleClock
-from mbctl.unitree.exceptions import WireFormatError
 from mbctl.unitree.motors import MODE_PR, MOTOR_ENABLED, MotorMap
 from mbctl.unitree.tables import G1_29DOF, MotorTable
-from mbctl.unitree.wire import low_cmd_codec, low_state_codec
+from mbctl.unitree.wire import low_cmd_codec
 
-#: Byte offset of LowState_.tick in the wire bytes (4-byte header + its XCDR1 offset, 12).
-_TICK = slice(16, 20)
+#: The longest the first cycle waits for the robot's answer [s] (the watchdog arms after it).
+FIRST_CYCLE_S = 1.0
+#: Periods without a new state after which the link counts as lost, by default.
+WATCHDOG_PERIODS = 3
+#: How long the interface waits for the robot's state stream by default [s].
+CONNECT_TIMEOUT_S = 1.0
 
 
 @dataclass(frozen=True)
@@ -75,24 +88,39 @@ class DdsOptions:
         domain: DDS domain id (the robot's is 0).
         network_interface: The interface wired to the robot (default ``lo``: the bridge on this
             machine).
-        control_period_s: Wall-clock control period [s] (the G1's low level runs at 500 Hz).
-        connect_timeout_s: How long to wait for the first valid LowState [s].
-        watchdog_periods: Periods without a LowState after which the link counts as lost.
+        rate_hz: The robot's state rate [Hz], which paces the loop; None measures it at connect.
+        connect_timeout_s: How long to wait for the robot's state stream [s].
+        watchdog_periods: Periods without a new LowState after which the link counts as lost.
         limit_tolerance_rad: How far [rad] a joint may be past its limit at start (encoder slack
             at the end stops).
         dry_run: Read and report the state, never command.
         freeze_gc: Freeze the garbage collector's view of the objects made before the loop (see
             the module docstring).
+        check_state_crc: Refuse LowStates with CRC 0 too (the real G1 signs its states); False
+            accepts those unchecked (Unitree's simulator leaves the CRC 0), never a wrong non-zero one.
+        cyclone_config: A Cyclone DDS configuration file of the user's, used as written (None:
+            the one mbctl makes for ``network_interface``).
     """
 
     domain: int = 0
     network_interface: str = LOOPBACK
-    control_period_s: float = 0.002
-    connect_timeout_s: float = 1.0
-    watchdog_periods: int = 3
+    rate_hz: float | None = None
+    connect_timeout_s: float = CONNECT_TIMEOUT_S
+    watchdog_periods: int = WATCHDOG_PERIODS
     limit_tolerance_rad: float = 0.01
     dry_run: bool = False
     freeze_gc: bool = True
+    check_state_crc: bool = True
+    cyclone_config: str | None = None
+
+    def __post_init__(self) -> None:
+        if self.rate_hz is not None and not (math.isfinite(self.rate_hz) and self.rate_hz > 0):
+            raise HardwareError(f"rate_hz must be a positive number of Hz (the G1's is 500); "
+                                f"got {self.rate_hz}")
+        if not (math.isfinite(self.connect_timeout_s) and self.connect_timeout_s > 0):
+            raise HardwareError(f"connect_timeout_s must be > 0 s; got {self.connect_timeout_s}")
+        if self.watchdog_periods < 1:
+            raise HardwareError(f"watchdog_periods must be >= 1; got {self.watchdog_periods}")
 
 
 class UnitreeHG:
@@ -110,7 +138,7 @@ class UnitreeHG:
 
     Raises:
         ChannelError: The hardware extra is missing, a bad domain or an unknown interface.
-        NoRobotError: No valid LowState within ``connect_timeout_s``.
+        NoRobotError: No state stream within ``connect_timeout_s``.
         JointOutOfLimits: A joint outside its limits at start.
         MotorTableError: A robot that does not match ``table``.
     """
@@ -135,40 +163,42 @@ class UnitreeHG:
         self.damping_kd = (default_damping(self.motors) if damping_kd is None
                            else np.asarray(damping_kd, dtype=float))
         self.commands = MotorCommandWriter(robot, self.motors, self.gains)
-        self._state_codec, self._cmd_codec = low_state_codec(), low_cmd_codec()
-        self._clock = CycleClock(self.options.control_period_s)
-        self.bad_crc = self.bad_format = self.stale = self.watchdog_events = 0
-        self._valid = 0
-        self._ticks: list[int] = []  # first and last valid tick, smallest step
+        self._cmd_codec = low_cmd_codec()
+        self._period = 1.0 / self.options.rate_hz if self.options.rate_hz else 0.002
+        self._clock = CycleClock(self._period)
+        self.stale = self.watchdog_events = 0
         #: The LowState tick of the state each cycle used, the last ``read_state`` before its
         #: ``sync`` (aligns a run's cycles with the bridge's truth log, one entry per cycle).
         self.state_ticks: list[int] = []
         self._read_this_cycle = False
         self._commanded = False
         self._froze_gc = False
+        self._armed = False
         self._fresh = False
         self._state: RobotState | None = None
         self._damped = False
         self._active = False
+        self._keeper: DampingKeeper | None = None
         self.mode_machine: int | None = None
         lowcmd, lowstate = message_types()
-        self.channel = Channel(self.options.domain, self.options.network_interface)
+        o = self.options
+        self.channel = Channel(o.domain, o.network_interface, o.cyclone_config)
         try:
             self._writer = self.channel.writer(TOPIC_LOWCMD, lowcmd)
             self._reader = self.channel.reader(TOPIC_LOWSTATE, lowstate)
             self._t0 = time.perf_counter()
-            self._last_rx = -np.inf
         except BaseException:
             self.channel.close()
             raise
+        self.stream = LowStateStream(self._reader, self.motors.n, o.check_state_crc, self._t0)
         if activate:
             self.open()
 
     def open(self) -> UnitreeHG:
-        """Activate: wait for a valid LowState, check the joints, prepare the command (idempotent).
+        """Activate: read the state stream, check the joints, prepare the command (idempotent).
 
         Raises:
-            NoRobotError: No valid LowState within ``connect_timeout_s`` (the channel is closed).
+            NoRobotError: No state stream within ``connect_timeout_s`` (the channel is closed).
             JointOutOfLimits: A joint outside its limits (the channel is closed).
         """
         if self.channel is None:
@@ -185,16 +215,28 @@ class UnitreeHG:
 
     # ------------------------------------------------------------------ activation
     def _connect(self) -> None:
-        deadline = self._t0 + self.options.connect_timeout_s
-        while not self._fresh:
+        o, stream = self.options, self.stream
+        need = 2 if o.rate_hz else RATE_STATES  # two tell the order; more time the rate
+        deadline = self._t0 + o.connect_timeout_s
+        while stream.advancing < need:
             remaining = deadline - time.perf_counter()
             if remaining <= 0:
                 raise NoRobotError(self._no_robot_message())
             if self._reader.wait(min(remaining, 0.05)):
-                self._drain()
-        self.mode_machine = int(self._state_codec.message["mode_machine"])
-        q = self._motor_q
-        tol = self.options.limit_tolerance_rad
+                stream.drain()
+        period = 1.0 / o.rate_hz if o.rate_hz else stream.measured_period()
+        low, high = PERIOD_RANGE_S
+        if period is None or not low <= period <= high:
+            raise NoRobotError(
+                f"the robot's states arrive every {(period or 0) * 1e3:.3g} ms (median), outside "
+                f"{low * 1e3:g}..{high * 1e3:g} ms: not a robot's state stream, or a machine too busy to "
+                "time it; give the robot's state rate with --rate-hz (the G1's is 500)")
+        self._period = period
+        self._clock = CycleClock(period)
+        stream.start_clock(period)
+        self.mode_machine = stream.mode_machine
+        q = stream.q
+        tol = o.limit_tolerance_rad
         out = np.flatnonzero((q < self.motors.q_low - tol) | (q > self.motors.q_high + tol))
         if out.size:
             raise JointOutOfLimits("refusing to start: " + "; ".join(
@@ -208,6 +250,8 @@ class UnitreeHG:
         motor_cmd = cmd["motor_cmd"]
         motor_cmd["mode"][: self.motors.n] = MOTOR_ENABLED
         write_damping(motor_cmd, self.damping_kd)
+        self._damping_wire = self._cmd_codec.encode()  # the damping command, CRC included, made once
+        self._keeper = DampingKeeper(self._writer.write, self._damping_wire, period)
         # motors with gains hold where they are until a command addresses them
         hold = np.isfinite(self.gains.kp) & np.isfinite(self.gains.kd)
         motor_cmd["q"][: self.motors.n][hold] = q[hold]
@@ -218,63 +262,28 @@ class UnitreeHG:
 
     def _no_robot_message(self) -> str:
         o = self.options
-        seen = (f" ({self.bad_crc} LowState messages had a bad CRC, {self.bad_format} another encoding)"
-                if self.bad_crc or self.bad_format else "")
-        return (f"no robot: no valid LowState on {TOPIC_LOWSTATE} within {o.connect_timeout_s:g} s on DDS "
-                f"domain {o.domain}, network interface {o.network_interface!r}{seen}. Check that the robot "
-                f"is on and its low-level state is published (or that `mbctl serve g1 --domain {o.domain} "
-                f"--network-interface {o.network_interface}` runs), that {o.network_interface!r} is the "
-                "interface wired to it (ip addr; the G1's is on 192.168.123.0/24), and that the domain "
-                "ids match.")
+        return (f"no robot: no state stream on {TOPIC_LOWSTATE} within {o.connect_timeout_s:g} s on DDS "
+                f"domain {o.domain}, network interface {o.network_interface!r}: {self.stream.diagnosis()} "
+                f"(needs {RATE_STATES} valid states, which measure its rate). Check that the robot is on "
+                f"and its low-level state is published (or that `mbctl serve g1 --domain {o.domain} "
+                f"--network-interface {o.network_interface}` runs; a bridge still loading: --wait-s), that "
+                f"{o.network_interface!r} is the interface wired to it (ip addr; the G1's is on "
+                "192.168.123.0/24), and that the domain ids match.")
 
     # ------------------------------------------------------------------ reading
     def _drain(self) -> None:
         """Take every waiting LowState; keep the newest valid one."""
-        codec = self._state_codec
-        for data in self._reader.take(32):
-            try:
-                ok = codec.decode(data)
-            except WireFormatError:
-                self.bad_format += 1
-                continue
-            if not ok:
-                self.bad_crc += 1
-                continue
-            tick = int.from_bytes(data[_TICK], "little")
-            if self._ticks and tick <= self._ticks[1]:
-                continue  # older than what we have (reordered): keep the newest
-            self._account(tick)
-            ms = codec.message["motor_state"][: self.motors.n]
-            imu = codec.message["imu_state"]
-            self._motor_q = ms["q"].astype(float)
-            self._motor_dq = ms["dq"].astype(float)
-            self._imu = ImuReading(imu["quaternion"].astype(float), imu["gyroscope"].astype(float),
-                                   imu["accelerometer"].astype(float))
-            self._last_rx = time.perf_counter()
+        if self.stream.drain():
             self._fresh = True
 
-    def _account(self, tick: int) -> None:
-        self._valid += 1
-        if not self._ticks:
-            self._ticks = [tick, tick, 0]
-            return
-        step = tick - self._ticks[1]
-        self._ticks[1] = tick
-        self._ticks[2] = step if not self._ticks[2] else min(self._ticks[2], step)
-
-    @property
-    def messages_lost(self) -> int:
-        """LowState messages sent but never received (gaps in ``tick``; bad-CRC ones count as lost)."""
-        first, last, step = self._ticks or (0, 0, 0)
-        return 0 if not step else max(0, (last - first) // step + 1 - self._valid)
-
     def _reading(self) -> Proprioception:
+        stream = self.stream
         q = np.zeros(self._robot.nq)
         v = np.zeros(self._robot.nv)
-        q[self.motors.idx_q] = self._motor_q
-        v[self.motors.idx_v] = self._motor_dq
+        q[self.motors.idx_q] = stream.q
+        v[self.motors.idx_v] = stream.dq
         self._q, self._v = q, v
-        return Proprioception(self._last_rx - self._t0, q[7:], v[6:], self._imu)
+        return Proprioception(stream.time_s, q[7:], v[6:], stream.imu)
 
     def read_state(self) -> RobotState:
         """The latest state: joints measured, base orientation from the IMU, position estimated."""
@@ -289,14 +298,14 @@ class UnitreeHG:
             v[:6] = v_base
             q.setflags(write=False)
             v.setflags(write=False)
-            self._state = RobotState(q, v, reading.time_s, self.estimator.estimated, self._ticks[1])
+            self._state = RobotState(q, v, reading.time_s, self.estimator.estimated, self.stream.tick)
             self._fresh = False
         else:
             self.stale += 1
         if self._read_this_cycle:  # read again before the cycle's sync: this is the state it uses
-            self.state_ticks[-1] = self._ticks[1]
+            self.state_ticks[-1] = self.stream.tick
         else:
-            self.state_ticks.append(self._ticks[1])
+            self.state_ticks.append(self.stream.tick)
             self._read_this_cycle = True
         return self._state
 
@@ -304,20 +313,33 @@ class UnitreeHG:
     def send(self, command: Command) -> None:
         """Publish ``command`` (torque, position or velocity target) as a ``LowCmd_`` with its CRC.
 
+        After :meth:`stop` it resumes commanding (another loop): the damping thread ends first.
+
         Raises:
             DryRunError: The interface was opened with ``dry_run``.
             CommandError: A ctrl command, wrong size, or targets without gains.
         """
         if self.options.dry_run:
             raise DryRunError("dry run: this interface reads the robot and never commands it")
+        if self._keeper is not None and self._keeper.running:
+            self._keeper.stop()
         self.commands.write(command, self._cmd_codec.message["motor_cmd"])
         self._writer.write(self._cmd_codec.encode())
         self._commanded = True
 
     def damp(self) -> None:
-        """Send the damping command: every motor ``kp = 0`` with its damping ``kd``, no torque."""
-        write_damping(self._cmd_codec.message["motor_cmd"], self.damping_kd)
-        self._writer.write(self._cmd_codec.encode())
+        """Send the damping command once: every motor ``kp = 0`` with its damping ``kd``, no torque."""
+        self._writer.write(self._damping_wire)
+        self._damped = True
+
+    def stop(self) -> None:
+        """The loop is over: send the damping command every period from a thread until ``close()``.
+
+        Nothing happens in a dry run or before the first command (the robot was never commanded).
+        """
+        if self._keeper is None or not self._commanded or self.options.dry_run:
+            return
+        self._keeper.start()
         self._damped = True
 
     def sync(self) -> None:
@@ -330,9 +352,10 @@ class UnitreeHG:
         whose compute and IO ran past its period counts as a deadline miss.
 
         Raises:
-            LinkLost: No LowState for ``watchdog_periods`` periods (the damping command was sent).
+            LinkLost: No new LowState for ``watchdog_periods`` periods (the damping command was
+                sent if anything was commanded), or :data:`FIRST_CYCLE_S` in the first cycle.
         """
-        clock, period = self._clock, self.options.control_period_s
+        clock, period = self._clock, self._period
         if clock.cycles == 0:
             self._start_loop()
         overran = clock.work_done() > clock.deadline
@@ -341,13 +364,16 @@ class UnitreeHG:
         if earliest > now:
             time.sleep(earliest - now)
         limit_s = self.options.watchdog_periods * period
+        if not self._armed:
+            limit_s = max(limit_s, FIRST_CYCLE_S)
         self._drain()
         while not self._fresh:
-            remaining = self._last_rx + limit_s - time.perf_counter()
+            remaining = self.stream.last_rx + limit_s - time.perf_counter()
             if remaining <= 0 or not self._reader.wait(remaining):
                 self._lost(limit_s)
             self._drain()
         clock.mark(overran)
+        self._armed = True
         self._read_this_cycle = False
 
     def _start_loop(self) -> None:
@@ -359,14 +385,19 @@ class UnitreeHG:
         self._clock.start()
 
     def _lost(self, limit_s: float) -> None:
-        silent_s = time.perf_counter() - self._last_rx
+        silent_s = time.perf_counter() - self.stream.last_rx
         self.watchdog_events += 1
         if self._commanded:
             self.damp()
+            acted = "sent the damping command"
+        else:
+            acted = "nothing had been commanded"
         raise LinkLost(
-            f"link lost: no LowState for {silent_s * 1e3:.1f} ms (limit {limit_s * 1e3:.0f} ms, "
-            f"{self.options.watchdog_periods} periods) at t={self.time_s:.3f} s; sent the damping "
-            f"command. Check the robot and the link on {self.options.network_interface!r}.")
+            f"link lost: no new LowState for {silent_s * 1e3:.1f} ms (limit {limit_s * 1e3:.0f} ms, "
+            f"{self.options.watchdog_periods} periods of {self._period * 1e3:.3g} ms) at "
+            f"t={self.time_s:.3f} s; "
+            f"{acted}. The stream so far: {self.stream.diagnosis()}. Check the robot and the link on "
+            f"{self.options.network_interface!r}.")
 
     # ------------------------------------------------------------------ RobotInterface
     @property
@@ -376,13 +407,13 @@ class UnitreeHG:
 
     @property
     def control_period_s(self) -> float:
-        """The wall-clock control period [s]."""
-        return self.options.control_period_s
+        """The control period [s]: the robot's state period (measured at connect, or ``rate_hz``)."""
+        return self._period
 
     @property
     def time_s(self) -> float:
-        """Wall-clock time [s] since the interface connected."""
-        return time.perf_counter() - self._t0
+        """The robot's time [s]: that of its newest state (its tick clock, or its arrival)."""
+        return self.stream.time_s
 
     # ------------------------------------------------------------------ lifecycle and report
     def report(self) -> PlantReport:
@@ -391,20 +422,25 @@ class UnitreeHG:
         timing = TimingReport(max(0, t.cycles - 1), t.period_p50_ms, t.period_p99_ms, t.period_max_ms,
                               t.deadline_misses,
                               t.work_p99_ms, t.work_cpu_p99_ms, t.cpu_overruns, self.stale)
-        link = LinkReport("dds", states_received=self._valid, states_lost=self.messages_lost,
-                          commands_lost=None, commands_superseded=None, bad_crc=self.bad_crc,
-                          bad_encoding=self.bad_format, domain=self.options.domain,
-                          network_interface=self.options.network_interface, mode_machine=self.mode_machine)
+        c, o = self.stream.counts, self.options
+        link = LinkReport("dds", states_received=c.valid, states_lost=self.stream.messages_lost,
+                          commands_lost=None, states_superseded=c.superseded, commands_superseded=None,
+                          bad_crc=c.bad_crc, bad_encoding=c.bad_encoding, domain=o.domain,
+                          network_interface=o.network_interface, mode_machine=self.mode_machine,
+                          state_order=self.stream.order, state_rate_hz=1.0 / self._period,
+                          bad_states=c.bad_states, crc_unchecked=c.crc_unchecked)
         binder = self.commands.binder
         safety = SafetyReport(binder.clamped(), binder.clamped_commands, self.watchdog_events,
                               damped=None if self.options.dry_run else self._damped)
         return PlantReport("dds", timing, link, safety, self.estimator.estimated)
 
     def close(self) -> None:
-        """Damp (if anything was commanded) and leave DDS (idempotent)."""
+        """Stop the damping thread, damp (if anything was commanded) and leave DDS (idempotent)."""
         if self.channel is None:
             return
         try:
+            if self._keeper is not None:
+                self._keeper.stop()
             if self._commanded and not self.options.dry_run:
                 self.damp()
         finally:

@@ -15,6 +15,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
+from mbctl.hardware.unitree_hg import CONNECT_TIMEOUT_S, WATCHDOG_PERIODS
 from mbctl.jobs import ik_params
 from mbctl.jobs.demo import DemoConfig
 from mbctl.jobs.excite import ExciteParams
@@ -49,13 +50,16 @@ def g1_stand(duration: float = 10.0, omega: float = 10.0, zeta: float = 1.0,
              model_dir: str | None = None, interface: str = "sim", domain: int = 0,
              network_interface: str = "lo", latency_ms: float = 0.0, jitter_ms: float = 0.0,
              drop: float = 0.0, imu_noise: float = 0.0, estimate: bool = False, link_seed: int = 0,
-             truth: Path | None = None, watchdog_periods: int = 3, dry_run: bool = False,
+             truth: Path | None = None, watchdog_periods: int = WATCHDOG_PERIODS, dry_run: bool = False,
+             state_crc: str = "on", rate_hz: float | None = None, wait_s: float = CONNECT_TIMEOUT_S,
+             dds_config: Path | None = None,
              payload: str | None = None, plant_error: float = 0.0,
              controller_model: str | None = None) -> StandParams:
     """``mbctl g1-stand``: duration in s, omega in rad/s, zeta (-); the plant and model options."""
     return StandParams(duration, omega, zeta, model_dir, plant(
         interface, domain, network_interface, latency_ms, jitter_ms, drop, imu_noise, estimate, link_seed,
-        truth, watchdog_periods, dry_run), ModelOptions(payload, plant_error, controller_model))
+        truth, watchdog_periods, dry_run, state_crc, rate_hz, wait_s, dds_config),
+        ModelOptions(payload, plant_error, controller_model))
 
 
 def g1_track(duration: float | None = None, omega: float = 40.0, zeta: float = 1.0,
@@ -70,26 +74,32 @@ def g1_arm_pd(duration: float | None = None, side: str = "left", gravity_feedfor
               max_rms_rad: float | None = None, model_dir: str | None = None, interface: str = "sim",
               domain: int = 0, network_interface: str = "lo", latency_ms: float = 0.0, jitter_ms: float = 0.0,
               drop: float = 0.0, imu_noise: float = 0.0, estimate: bool = False, link_seed: int = 0,
-              truth: Path | None = None, watchdog_periods: int = 3, dry_run: bool = False,
+              truth: Path | None = None, watchdog_periods: int = WATCHDOG_PERIODS, dry_run: bool = False,
+              state_crc: str = "on", rate_hz: float | None = None, wait_s: float = CONNECT_TIMEOUT_S,
+              dds_config: Path | None = None,
               payload: str | None = None, plant_error: float = 0.0,
               controller_model: str | None = None) -> ArmPDParams:
     """``mbctl g1-arm-pd``: duration in s, side left or right, max_rms_rad in rad; plant and model options."""
     return ArmPDParams(duration, side, gravity_feedforward, max_rms_rad, model_dir, plant(
         interface, domain, network_interface, latency_ms, jitter_ms, drop, imu_noise, estimate, link_seed,
-        truth, watchdog_periods, dry_run), ModelOptions(payload, plant_error, controller_model))
+        truth, watchdog_periods, dry_run, state_crc, rate_hz, wait_s, dds_config),
+        ModelOptions(payload, plant_error, controller_model))
 
 
 def plant(interface: str = "sim", domain: int = 0, network_interface: str = "lo", latency_ms: float = 0.0,
           jitter_ms: float = 0.0, drop: float = 0.0, imu_noise: float = 0.0, estimate: bool = False,
-          link_seed: int = 0, truth: Path | None = None, watchdog_periods: int = 3,
-          dry_run: bool = False) -> PlantOptions:
+          link_seed: int = 0, truth: Path | None = None, watchdog_periods: int = WATCHDOG_PERIODS,
+          dry_run: bool = False, state_crc: str = "on", rate_hz: float | None = None,
+          wait_s: float = CONNECT_TIMEOUT_S, dds_config: Path | None = None) -> PlantOptions:
     """The plant options of the G1 jobs: latency and jitter in ms, drop a probability, imu_noise a factor.
 
     ``link_seed`` (not ``seed``: a sweep's ``--seeds`` is for jobs that always draw random numbers)
-    seeds the in-process link's drops, jitter and noise.
+    seeds the in-process link's drops, jitter and noise. Over DDS: ``state_crc`` on or off, ``rate_hz``
+    in Hz (None: measured), ``wait_s`` in s, ``dds_config`` a Cyclone configuration file.
     """
     return PlantOptions(interface, domain, network_interface, latency_ms, jitter_ms, drop, imu_noise,
-                        estimate, link_seed, None if truth is None else str(truth), watchdog_periods, dry_run)
+                        estimate, link_seed, None if truth is None else str(truth), watchdog_periods, dry_run,
+                        state_crc, rate_hz, wait_s, None if dds_config is None else str(dds_config))
 
 
 def serve(robot: str = "g1", start: str = "stand", domain: int = 0, network_interface: str = "lo",
@@ -105,13 +115,16 @@ def g1_wbc(scenario: str = "stand", duration: float | None = None, impulse: floa
            direction: float | None = None, model_error: float = 0.0, model_dir: str | None = None,
            interface: str = "sim", domain: int = 0, network_interface: str = "lo", latency_ms: float = 0.0,
            jitter_ms: float = 0.0, drop: float = 0.0, imu_noise: float = 0.0, estimate: bool = False,
-           link_seed: int = 0, truth: Path | None = None, watchdog_periods: int = 3,
-           dry_run: bool = False, payload: str | None = None, plant_error: float = 0.0,
+           link_seed: int = 0, truth: Path | None = None, watchdog_periods: int = WATCHDOG_PERIODS,
+           dry_run: bool = False, state_crc: str = "on", rate_hz: float | None = None,
+           wait_s: float = CONNECT_TIMEOUT_S, dds_config: Path | None = None,
+           payload: str | None = None, plant_error: float = 0.0,
            controller_model: str | None = None) -> WBCParams:
     """``mbctl g1-wbc``: duration in s, impulse in N s, direction in deg, model_error %; plant options."""
     return WBCParams(scenario, duration, impulse, direction, model_error, model_dir, plant(
         interface, domain, network_interface, latency_ms, jitter_ms, drop, imu_noise, estimate, link_seed,
-        truth, watchdog_periods, dry_run), ModelOptions(payload, plant_error, controller_model))
+        truth, watchdog_periods, dry_run, state_crc, rate_hz, wait_s, dds_config),
+        ModelOptions(payload, plant_error, controller_model))
 
 
 def joint_step(robot: str, joint: str, delta: float, steps: int = 250, keyframe: str | None = None,

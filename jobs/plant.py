@@ -7,10 +7,17 @@ same controller object runs on either plant through ``control.loop.run``:
   ``--latency-ms``, ``--jitter-ms``, ``--drop``, ``--imu-noise`` or ``--estimate`` it is seen
   through :class:`LinkedSimulator` (the bridge's link model, at simulation speed, sweepable).
 - ``--interface dds``: :class:`~mbctl.hardware.UnitreeG1` on ``--domain`` and
-  ``--network-interface`` (default ``lo``: ``mbctl serve g1`` on this machine), with the
-  leg-kinematics estimator for the base. It connects in the job's ``prepare``, so no robot or a
-  joint outside its limits is bad input (exit 2) before any file is written. The link's
+  ``--network-interface`` (default ``lo``: ``mbctl serve g1`` on this machine; ``--dds-config``
+  a Cyclone configuration of the user's for anything else), with the leg-kinematics estimator for
+  the base. It connects in the job's ``prepare`` (waiting up to ``--wait-s`` for the robot, said on
+  stderr when longer than the default), so no robot or a joint outside its limits is bad input
+  (exit 2) before any file is written. The state rate is measured at connect (``--rate-hz`` gives
+  it); states with CRC 0 are refused unless ``--state-crc off`` (Unitree's simulator). The link's
   imperfections are the bridge's (``mbctl serve g1 --latency-ms ...``).
+
+However a job's loop ends, the plant keeps the robot safe until the job is done (``stop()``:
+``control.loop.run`` calls it; over DDS the damping command every period); the report gets the
+plant's figures even when the loop failed (:meth:`Plant.__exit__`).
 
 :func:`report_plant` adds the report values every plant gives (``interface``, ``cycles``, the
 period percentiles, ``deadline_misses``, ``messages_lost``, ``watchdog_events``) and, with the
@@ -19,6 +26,7 @@ bridge's truth log (``--truth``), the plant checks of :mod:`mbctl.jobs.truth`.
 
 from __future__ import annotations
 
+import sys
 from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
@@ -30,6 +38,7 @@ from mbctl.control.estimation import LegKinematicsEstimator
 from mbctl.control.loop import RunLog
 from mbctl.control.wbc.contacts import foot_contact_from_model
 from mbctl.hardware import DdsOptions, UnitreeG1
+from mbctl.hardware.unitree_hg import CONNECT_TIMEOUT_S, WATCHDOG_PERIODS
 from mbctl.jobs.model_options import ModelOptions
 from mbctl.jobs.recording import q_columns
 from mbctl.jobs.runner import JobError, Outcome, RunContext
@@ -42,6 +51,8 @@ from mbctl.sim.simulator import Simulator
 from mbctl.unitree.channel import LOOPBACK, check_domain
 
 INTERFACES = ("sim", "dds")
+#: ``--state-crc``: check the CRC of every state (on), or accept states with CRC 0 unchecked (off).
+STATE_CRC = ("on", "off")
 
 
 class PlantOptionError(JobError):
@@ -66,6 +77,11 @@ class PlantOptions:
         truth: The bridge's truth log (``truth.csv`` of ``mbctl serve g1``) for the plant checks (dds).
         watchdog_periods: Periods without a state before the link counts as lost (dds).
         dry_run: Read and report the robot's state, never command (dds).
+        state_crc: "on" (the real G1 signs its states) or "off": states with CRC 0 accepted
+            unchecked (Unitree's simulator leaves it 0) (dds).
+        rate_hz: The robot's state rate [Hz]; None measures it at connect (dds).
+        wait_s: How long to wait for the robot's state stream [s] (dds).
+        dds_config: A Cyclone DDS configuration file of the user's, used as written (dds).
     """
 
     interface: str = "sim"
@@ -78,10 +94,14 @@ class PlantOptions:
     estimate: bool = False
     seed: int = 0
     truth: str | None = None
-    watchdog_periods: int = 3
+    watchdog_periods: int = WATCHDOG_PERIODS
     dry_run: bool = False
+    state_crc: str = "on"
+    rate_hz: float | None = None
+    wait_s: float = CONNECT_TIMEOUT_S
+    dds_config: str | None = None
 
-    def __post_init__(self) -> None:
+    def __post_init__(self) -> None:  # noqa: C901 - one check per option, each with its message
         if self.interface not in INTERFACES:
             raise PlantOptionError(f"interface must be one of {', '.join(INTERFACES)}; "
                                    f"got {self.interface!r}")
@@ -94,9 +114,21 @@ class PlantOptions:
                     "--drop and --imu-noise to `mbctl serve g1`, not to the client")
             if self.watchdog_periods < 1:
                 raise PlantOptionError(f"watchdog_periods must be >= 1; got {self.watchdog_periods}")
+            if self.state_crc not in STATE_CRC:
+                raise PlantOptionError(f"state_crc must be one of {', '.join(STATE_CRC)}; "
+                                       f"got {self.state_crc!r}")
+            if self.rate_hz is not None and not (np.isfinite(self.rate_hz) and self.rate_hz > 0):
+                raise PlantOptionError(f"rate_hz must be a positive number of Hz (the G1's is 500); "
+                                       f"got {self.rate_hz}")
+            if not (np.isfinite(self.wait_s) and self.wait_s > 0):
+                raise PlantOptionError(f"wait_s must be a positive number of seconds; got {self.wait_s}")
         elif self.truth is not None or self.dry_run:
             raise PlantOptionError("--truth and --dry-run are for --interface dds (in-process, the plant "
                                    "is the truth and is always commanded)")
+        elif (self.state_crc, self.rate_hz, self.wait_s, self.dds_config) != ("on", None, CONNECT_TIMEOUT_S,
+                                                                               None):
+            raise PlantOptionError("--state-crc, --rate-hz, --wait-s and --dds-config are for --interface "
+                                   "dds (in-process there is no state stream)")
 
     def check_models(self, models: ModelOptions) -> None:
         """Refuse a hidden plant change over DDS: there the plant is the robot (or the bridge's model).
@@ -134,6 +166,7 @@ class Plant:
     interface: RobotInterface
     sim: Simulator | None
     options: PlantOptions
+    ctx: RunContext | None = None
 
     def close(self) -> None:
         """Leave the robot in a safe state (DDS: damping) and close the connection (the plant contract)."""
@@ -142,8 +175,15 @@ class Plant:
     def __enter__(self) -> Plant:
         return self
 
-    def __exit__(self, *exc: object) -> None:
-        self.close()
+    def __exit__(self, kind: type[BaseException] | None, *exc: object) -> None:
+        """Close; a job that failed or was interrupted still reports the plant's figures (the link's)."""
+        try:
+            if kind is not None and self.ctx is not None:
+                self.interface.stop()  # the loop may have failed before it ran: keep the robot safe
+                values = self.interface.report().values()
+                self.ctx.values.update({k: v for k, v in values.items() if k not in self.ctx.values})
+        finally:
+            self.close()
 
 
 PlantFactory = Callable[[RunContext], Plant]
@@ -167,10 +207,16 @@ def prepare_plant(options: PlantOptions, robot: Robot, keyframe: str | None = No
         NoRobotError, JointOutOfLimits, ChannelError: Over DDS, before anything is written.
     """
     if options.interface == "dds":
+        if options.wait_s > CONNECT_TIMEOUT_S:
+            print(f"mbctl: waiting up to {options.wait_s:g} s for the robot's state on DDS domain "
+                  f"{options.domain}, network interface {options.network_interface!r} (--wait-s)",
+                  file=sys.stderr, flush=True)
         dds = UnitreeG1(robot, g1_estimator(robot), DdsOptions(
-            domain=options.domain, network_interface=options.network_interface,
-            watchdog_periods=options.watchdog_periods, dry_run=options.dry_run))
-        return lambda ctx: Plant(dds, None, options)
+            domain=options.domain, network_interface=options.network_interface, rate_hz=options.rate_hz,
+            connect_timeout_s=options.wait_s, watchdog_periods=options.watchdog_periods,
+            dry_run=options.dry_run, check_state_crc=options.state_crc == "on",
+            cyclone_config=options.dds_config))
+        return lambda ctx: Plant(dds, None, options, ctx)
 
     def make(ctx: RunContext) -> Plant:
         sim = Simulator(robot)

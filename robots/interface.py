@@ -115,6 +115,10 @@ class RobotInterface(Protocol):
       robot: connects and reads a valid state; a simulator is ready from construction) and
       returns it; ``close()`` deactivates it, leaving the robot safe (over DDS: the damping
       command), and is idempotent. A plant is a context manager doing both.
+    - **The end of a loop**: ``stop()`` says the loop is over; from then until ``close()`` the
+      plant keeps the robot safe by itself (over DDS: the damping command every period, from a
+      thread, while the job writes its report and plots; a simulator has nothing to do). A new
+      command resumes. ``control.loop.run`` calls it whenever its loop ends, however it ends.
     - **The cycle**: ``read_state()``, ``send(command)``, ``sync()``; commands are bound by the
       one :class:`~mbctl.robots.command_binding.CommandBinder`, so a bad command gets the same error
       on every plant.
@@ -145,6 +149,9 @@ class RobotInterface(Protocol):
 
     def open(self) -> RobotInterface:
         """Activate the plant (idempotent) and return it."""
+
+    def stop(self) -> None:
+        """The loop is over: keep the robot safe until ``close()`` (or a new command) (idempotent)."""
 
     def close(self) -> None:
         """Deactivate the plant, leaving the robot safe (idempotent)."""

@@ -66,6 +66,13 @@ class LinkReport:
         domain: DDS domain id (None unless DDS).
         network_interface: The network interface (None unless DDS).
         mode_machine: The robot's ``mode_machine`` (None unless DDS).
+        state_order: How newer states are told from older ones (DDS): "tick" (the robot's tick
+            advances: an older or repeated tick is superseded) or "arrival" (the tick does not
+            advance, as in Unitree's simulator: the latest to arrive is the newest).
+        state_rate_hz: The state rate the loop is paced by [Hz] (DDS: measured at connect or given).
+        bad_states: States refused for their values (DDS: a non-finite or non-unit IMU quaternion,
+            non-finite joints or IMU, a tick far ahead of the last).
+        crc_unchecked: States accepted with CRC 0, unchecked (DDS, only when asked to).
     """
 
     kind: str
@@ -84,6 +91,10 @@ class LinkReport:
     domain: int | None = None
     network_interface: str | None = None
     mode_machine: int | None = None
+    state_order: str | None = None
+    state_rate_hz: float | None = None
+    bad_states: int | None = None
+    crc_unchecked: int | None = None
 
 
 @dataclass(frozen=True)

@@ -224,6 +224,9 @@ class LinkedSimulator:
         """Nothing to connect (the plant is in-process); returns the interface."""
         return self
 
+    def stop(self) -> None:
+        """The loop is over: nothing to keep safe in simulation."""
+
     def close(self) -> None:
         """Nothing to leave safe in simulation (idempotent)."""
 

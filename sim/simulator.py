@@ -431,6 +431,9 @@ class Simulator:
         """Nothing to connect: the plant is ready from construction (the contract's first step)."""
         return self
 
+    def stop(self) -> None:
+        """The loop is over: nothing to keep safe in simulation (the contract's end of a loop)."""
+
     def close(self) -> None:
         """Nothing to leave safe in simulation; the plant stays readable (idempotent)."""
 

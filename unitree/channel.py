@@ -10,10 +10,14 @@ raw calls are the ones cyclonedds' own ``write`` and ``take`` make after (de)ser
 (``ddspy_write``, ``ddspy_take``); tests check they round-trip with the public API.
 
 Network safety: the participant is configured for exactly one interface. ``lo`` (the default
-everywhere in mbctl) gets unicast discovery to 127.0.0.1 only, multicast off, so no packet leaves
-the machine; any other interface must be named by the user (a real robot's, e.g. ``enp3s0``) and
-gets Cyclone's defaults on that interface only. Waiting (``RawReader.wait``) blocks in C through
-ctypes, which releases the GIL.
+everywhere in mbctl) gets multicast discovery on ``lo`` (multicast sent on the loopback interface
+stays on the machine) plus unicast to 127.0.0.1, so no packet leaves the machine; it is what Unitree's
+SDK configures on ``lo`` (``ChannelFactoryInitialize(domain, "lo")``: Cyclone's defaults on that
+interface, multicast included), so mbctl and Unitree's simulator or SDK programs discover each
+other there. Any other interface must be named by the user (a real robot's, e.g. ``enp3s0``) and
+gets Cyclone's defaults on that interface only; for anything else (several interfaces, a discovery
+server, peers) the user gives a Cyclone configuration file of their own (``config``), used as
+written. Waiting (``RawReader.wait``) blocks in C through ctypes, which releases the GIL.
 """
 
 from __future__ import annotations
@@ -31,8 +35,8 @@ LOOPBACK = "lo"
 MAX_DOMAIN = 232
 
 _LOOPBACK_CONFIG = """<CycloneDDS><Domain Id="any">
-<General><Interfaces><NetworkInterface name="lo" multicast="false"/></Interfaces>
-<AllowMulticast>false</AllowMulticast></General>
+<General><Interfaces><NetworkInterface name="lo" multicast="true"/></Interfaces>
+<AllowMulticast>true</AllowMulticast></General>
 <Discovery><ParticipantIndex>auto</ParticipantIndex><MaxAutoParticipantIndex>30</MaxAutoParticipantIndex>
 <Peers><Peer address="127.0.0.1"/></Peers></Discovery>
 <Tracing><Verbosity>none</Verbosity></Tracing>
@@ -87,8 +91,23 @@ def check_network_interface(name: str) -> str:
     return name
 
 
-def domain_config(network_interface: str) -> str:
-    """The Cyclone DDS configuration (XML) for one network interface (see the module docstring)."""
+def domain_config(network_interface: str, config_file: str | None = None) -> str:
+    """The Cyclone DDS configuration (XML) for one network interface, or the user's file as written.
+
+    Args:
+        network_interface: ``lo`` or the interface wired to the robot (see the module docstring).
+        config_file: A Cyclone DDS configuration file of the user's (None: the one made here).
+
+    Raises:
+        ChannelError: ``config_file`` cannot be read.
+    """
+    if config_file is not None:
+        try:
+            with open(config_file, encoding="utf-8") as f:
+                return f.read()
+        except OSError as exc:
+            raise ChannelError(f"cannot read the Cyclone DDS configuration {config_file!r}: {exc}; give a "
+                               "readable XML file (or none: mbctl configures the named interface)") from None
     if network_interface == LOOPBACK:
         return _LOOPBACK_CONFIG
     return _INTERFACE_CONFIG.format(name=network_interface)
@@ -99,22 +118,24 @@ _domains: dict[int, tuple[Any, str, int]] = {}
 _domains_lock = threading.Lock()
 
 
-def _acquire_domain(domain: int, network_interface: str) -> None:
+def _acquire_domain(domain: int, network_interface: str, config_file: str | None = None) -> None:
+    where = network_interface if config_file is None else f"{network_interface} ({config_file})"
     with _domains_lock:
         held = _domains.get(domain)
         if held is not None:
-            if held[1] != network_interface:
+            if held[1] != where:
                 raise ChannelError(f"DDS domain {domain} is already open on {held[1]!r} in this process; "
-                                   f"cannot also open it on {network_interface!r}")
+                                   f"cannot also open it on {where!r}")
             _domains[domain] = (held[0], held[1], held[2] + 1)
             return
         dds = _dds()
+        config = domain_config(network_interface, config_file)
         try:
-            handle = dds["Domain"](domain, domain_config(network_interface))
+            handle = dds["Domain"](domain, config)
         except Exception as exc:  # cyclonedds.core.DDSException: e.g. no such interface
             raise ChannelError(f"cannot create DDS domain {domain} on network interface "
                                f"{network_interface!r}: {exc}") from exc
-        _domains[domain] = (handle, network_interface, 1)
+        _domains[domain] = (handle, where, 1)
 
 
 def _release_domain(domain: int) -> None:
@@ -177,16 +198,19 @@ class Channel:
     Args:
         domain: DDS domain id (0..232); the robot uses 0, tests use a unique one each.
         network_interface: ``lo`` (default) or the interface wired to the robot.
+        config_file: The user's own Cyclone DDS configuration file, used as written (None: the
+            configuration of ``network_interface`` made here).
 
     Raises:
-        ChannelError: The hardware extra is missing, a bad domain id or an unknown interface.
+        ChannelError: The hardware extra is missing, a bad domain id, an unknown interface or an
+            unreadable configuration file.
     """
 
-    def __init__(self, domain: int = 0, network_interface: str = LOOPBACK):
+    def __init__(self, domain: int = 0, network_interface: str = LOOPBACK, config_file: str | None = None):
         self.domain = check_domain(domain)
         self.network_interface = check_network_interface(network_interface)
         self._dds = _dds()
-        _acquire_domain(self.domain, self.network_interface)
+        _acquire_domain(self.domain, self.network_interface, config_file)
         try:
             self._participant = self._dds["DomainParticipant"](self.domain)
         except Exception as exc:

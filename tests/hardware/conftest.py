@@ -11,22 +11,32 @@ import pytest
 from mbctl.unitree import TOPIC_LOWCMD, TOPIC_LOWSTATE, Channel, low_cmd_codec, low_state_codec
 from mbctl.unitree.channel import message_types
 
+#: The fake's state period [s] (the G1's 500 Hz).
+PERIOD_S = 0.002
+
 
 class FakeG1:
-    """Publishes a still robot's LowState every 2 ms from a thread; decodes the commands it gets.
+    """Publishes a still robot's LowState every period from a thread; decodes the commands it gets.
 
-    Change what it publishes only through :meth:`set_q` and :meth:`stop_publishing`: they take the
-    lock the publishing thread holds while it builds and writes a message, so no message goes out
-    with half of a change (e.g. a new q with a still good CRC).
+    Change what it publishes only through :meth:`set_q`, :meth:`once` and :meth:`stop_publishing`:
+    they take the lock the publishing thread holds while it builds and writes a message, so no
+    message goes out with half of a change (e.g. a new q with a still good CRC).
 
     Args:
         domain: The test's DDS domain (loopback).
         q: Motor positions (29,) [rad].
         quat_wxyz: IMU orientation.
         bad_crc: Publish every message with a wrong CRC.
+        unsigned: Leave every message's CRC 0, as Unitree's simulator does.
+        period_s: Its state period [s].
+        tick_step: How much the tick advances per message (0: never, as Unitree's simulator;
+            negative: it runs backwards).
+        vary: Change a measured value (motor 0's tau_est) in every message (a robot's sensors do;
+            a still fake otherwise repeats itself byte for byte).
     """
 
-    def __init__(self, domain: int, q: np.ndarray, quat_wxyz=(1.0, 0.0, 0.0, 0.0), bad_crc: bool = False):
+    def __init__(self, domain: int, q: np.ndarray, quat_wxyz=(1.0, 0.0, 0.0, 0.0), bad_crc: bool = False,
+                 unsigned: bool = False, period_s: float = PERIOD_S, tick_step: int = 1, vary: bool = False):
         self.channel = Channel(domain)
         lowcmd, lowstate = message_types()
         self._writer = self.channel.writer(TOPIC_LOWSTATE, lowstate)
@@ -34,35 +44,62 @@ class FakeG1:
         self._state = low_state_codec()
         m = self._state.message
         m["mode_machine"] = 5
+        m["tick"] = 1 << 20
         m["motor_state"]["q"][:29] = q
         m["imu_state"]["quaternion"] = quat_wxyz
         m["imu_state"]["accelerometer"] = (0.0, 0.0, 9.81)
-        self._bad_crc = bad_crc
+        self._bad_crc, self._unsigned = bad_crc, unsigned
+        self.period_s, self._tick_step, self._vary = period_s, tick_step, vary
+        self._once: dict[str, object] = {}
         self._publishing = True
         self._lock = threading.Lock()  # the published message and its flags, vs. the publishing thread
         self.commands: list[np.ndarray] = []  # each valid LowCmd's motor records
+        self.command_times: list[float] = []  # when each was taken (time.perf_counter) [s]
         self.bad_commands = 0
         self._stop = threading.Event()
         self._thread = threading.Thread(target=self._run, daemon=True)
         self._thread.start()
 
+    def _publish(self) -> None:
+        m = self._state.message
+        m["tick"] = int(m["tick"]) + self._tick_step
+        if self._vary:  # a sensor's last bits change from one sample to the next
+            m["motor_state"]["tau_est"][0] = float(m["motor_state"]["tau_est"][0]) + 1e-3
+        saved = {}
+        for field, value in self._once.items():  # this message only
+            saved[field] = m["imu_state"][field].copy() if field == "quaternion" else m[field].copy()
+            if field == "quaternion":
+                m["imu_state"]["quaternion"] = value
+            else:
+                m[field] = value
+        wire = bytearray(self._state.encode())
+        if self._unsigned:
+            wire[-4:] = b"\0\0\0\0"
+        elif self._bad_crc:
+            wire[-4] ^= 0xFF
+        self._writer.write(bytes(wire))
+        for field, value in saved.items():
+            if field == "quaternion":
+                m["imu_state"]["quaternion"] = value
+            else:
+                m[field] = value
+        self._once = {}
+
     def _run(self) -> None:
         cmd = low_cmd_codec()
+        next_s = time.perf_counter()
         while not self._stop.is_set():
             with self._lock:
                 if self._publishing:
-                    m = self._state.message
-                    m["tick"] = int(m["tick"]) + 1
-                    wire = bytearray(self._state.encode())
-                    if self._bad_crc:
-                        wire[-4] ^= 0xFF
-                    self._writer.write(bytes(wire))
+                    self._publish()
             for data in self._reader.take(64):
                 if cmd.decode(data):
                     self.commands.append(cmd.message["motor_cmd"][:29].copy())
+                    self.command_times.append(time.perf_counter())
                 else:
                     self.bad_commands += 1
-            time.sleep(0.002)
+            next_s += self.period_s  # a timer's grid, as a robot's: no drift from the work done
+            time.sleep(max(0.0, next_s - time.perf_counter()))
 
     def set_q(self, q: np.ndarray, bad_crc: bool = False) -> None:
         """Publish motor positions ``q`` (29,) [rad], with a bad CRC if ``bad_crc``, from the next message on.
@@ -72,6 +109,11 @@ class FakeG1:
         with self._lock:
             self._state.message["motor_state"]["q"][:29] = q
             self._bad_crc = bad_crc
+
+    def once(self, **fields) -> None:
+        """Give the next message these values (``tick``, ``quaternion``), then go on as before."""
+        with self._lock:
+            self._once = dict(fields)
 
     def stop_publishing(self) -> None:
         """Go silent: no LowState is sent after this returns (commands are still recorded)."""

@@ -19,6 +19,7 @@ from mbctl.hardware import (
     UnitreeG1,
     default_damping,
 )
+from mbctl.hardware.unitree_hg import FIRST_CYCLE_S
 from mbctl.robots.commands import ctrl, position_target, torque, velocity_target
 from mbctl.robots.exceptions import CommandError
 from mbctl.robots.interface import BASE_LINEAR_VELOCITY, BASE_POSITION
@@ -81,7 +82,8 @@ def test_no_robot_gives_up_at_the_configured_timeout_naming_domain_and_interface
 
 def test_only_bad_crc_is_no_robot_and_says_so(g1, fake_g1, dds_domain):
     fake_g1(bad_crc=True)
-    with pytest.raises(NoRobotError, match=r"\(\d+ LowState messages had a bad CRC"):
+    with pytest.raises(NoRobotError, match=r": (\d+) LowState messages seen, \1 with a bad CRC \(needs "
+                                           r"26 valid"):
         UnitreeG1(g1, StillBase(), DdsOptions(domain=dds_domain, connect_timeout_s=0.5))
 
 
@@ -92,9 +94,9 @@ def test_bad_crc_mid_run_is_counted_not_used(g1, fake_g1, dds_domain):
         wrong = g1.keyframe_q("stand")[7:].copy()  # what the fake publishes, with motor 0 wrong
         wrong[0] = 1.0  # only ever in messages with a bad CRC
         fake.set_q(wrong, bad_crc=True)
-        assert _wait_for(lambda: robot.read_state() is not None and robot.bad_crc >= 5)
+        assert _wait_for(lambda: robot.read_state() is not None and robot.stream.counts.bad_crc >= 5)
         assert robot.read_state().q[7] == q0[7]  # none of them was used
-        assert robot.report().link.bad_crc == robot.bad_crc
+        assert robot.report().link.bad_crc == robot.stream.counts.bad_crc
 
 
 def test_joint_outside_its_limits_is_refused_by_name(g1, fake_g1, dds_domain):
@@ -166,13 +168,29 @@ def test_position_targets_need_gains(g1, fake_g1, dds_domain):
 def test_lost_link_sends_damping_and_says_link_lost(g1, fake_g1, dds_domain):
     fake = fake_g1()
     controller = ConstantTorque(g1)
+
+    def silence_at_cycle_5(k, *_):
+        if k == 4:
+            fake.stop_publishing()  # the robot goes silent
+
     with UnitreeG1(g1, StillBase(), DdsOptions(domain=dds_domain, watchdog_periods=3)) as robot:
-        fake.stop_publishing()  # the robot goes silent
-        with pytest.raises(LinkLost, match=r"link lost: no LowState for .* \(limit 6 ms, 3 periods\)"):
-            run(robot, controller, HOLD, 5.0)
+        with pytest.raises(LinkLost, match=r"link lost: no new LowState for .* \(limit 6 ms, 3 periods of "
+                                           r"2 ms\)"
+                                           r".*sent the damping command\. The stream so far: \d+ LowState"):
+            run(robot, controller, HOLD, 5.0, on_step=silence_at_cycle_5)
         assert robot.report().timing.cycles < 10  # of the 2500 asked for: the watchdog, not the run's end
         assert robot.report().safety.watchdog_events == 1
         assert _wait_for(lambda: fake.commands and _is_damping(fake.commands[-1], g1))
+
+
+def test_the_watchdog_arms_after_the_first_cycle(g1, fake_g1, dds_domain):
+    """A plant silent from the start (one waiting for its first command) gets FIRST_CYCLE_S, not 3 periods."""
+    fake = fake_g1()
+    with UnitreeG1(g1, StillBase(), DdsOptions(domain=dds_domain, watchdog_periods=3)) as robot:
+        fake.stop_publishing()
+        with pytest.raises(LinkLost, match=rf"\(limit {FIRST_CYCLE_S * 1e3:.0f} ms, 3 periods of 2 ms\)"):
+            run(robot, ConstantTorque(g1), HOLD, 5.0)
+        assert robot.report().timing.cycles == 0
 
 
 def test_ctrl_c_sends_damping(g1, fake_g1, dds_domain):
@@ -180,7 +198,9 @@ def test_ctrl_c_sends_damping(g1, fake_g1, dds_domain):
     with pytest.raises(KeyboardInterrupt), UnitreeG1(g1, StillBase(), DdsOptions(domain=dds_domain)) as robot:
         run(robot, ConstantTorque(g1, stop_at=20), HOLD, 5.0)
     assert _wait_for(lambda: len(fake.commands) >= 20 and _is_damping(fake.commands[-1], g1))
-    assert not _is_damping(fake.commands[-2], g1)  # it ran with torques before
+    damped = [_is_damping(c, g1) for c in fake.commands]
+    first = damped.index(True)
+    assert first == 19 and all(damped[first:])  # 19 cycles of torques, then only damping
 
 
 def test_dry_run_never_commands(g1, fake_g1, dds_domain):

@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import os
 import re
+import subprocess
+import sys
 import threading
 import time
 
@@ -29,6 +31,7 @@ from mbctl.unitree import (
 )
 from mbctl.unitree.channel import (
     TOPIC_LOWCMD,
+    TOPIC_LOWSTATE,
     Channel,
     ChannelError,
     check_network_interface,
@@ -184,8 +187,67 @@ def test_channel_checks_its_inputs_and_stays_on_loopback(dds_domain):
     with pytest.raises(ChannelError, match="no network interface 'eth-nope'.*lo"):
         check_network_interface("eth-nope")
     config = domain_config("lo")
-    assert 'multicast="false"' in config and "<AllowMulticast>false" in config
+    # one interface, lo: multicast there stays on the machine (and is what Unitree's SDK uses on lo)
+    assert config.count("<NetworkInterface ") == 1
+    assert '<NetworkInterface name="lo" multicast="true"/>' in config
     assert '<Peer address="127.0.0.1"/>' in config
+
+
+def test_a_user_cyclone_config_is_used_as_written(tmp_path):
+    mine = tmp_path / "cyclone.xml"
+    mine.write_text("<CycloneDDS><Domain Id='any'/></CycloneDDS>")
+    assert domain_config("lo", str(mine)) == mine.read_text()
+    with pytest.raises(ChannelError, match=r"cannot read the Cyclone DDS configuration '.*nope.xml'"):
+        domain_config("lo", str(tmp_path / "nope.xml"))
+
+
+#: A process on Unitree's SDK configuration of ``lo`` (ChannelFactoryInitialize), publishing LowState_
+#: and counting the LowCmd_ it gets, as Unitree's simulator does.
+_SDK_PEER = """
+import sys, time
+from unitree_sdk2py.core.channel import ChannelFactoryInitialize, ChannelPublisher, ChannelSubscriber
+from unitree_sdk2py.idl.default import unitree_hg_msg_dds__LowState_
+from unitree_sdk2py.idl.unitree_hg.msg.dds_ import LowCmd_, LowState_
+ChannelFactoryInitialize(int(sys.argv[1]), "lo")
+got = []
+ChannelSubscriber("rt/lowcmd", LowCmd_).Init(lambda msg: got.append(msg.motor_cmd[0].tau), 10)
+publisher = ChannelPublisher("rt/lowstate", LowState_)
+publisher.Init()
+state = unitree_hg_msg_dds__LowState_()
+state.tick = 7
+deadline = time.monotonic() + 30
+while time.monotonic() < deadline and not got:
+    publisher.Write(state)
+    time.sleep(0.005)
+print(got[0] if got else "none", flush=True)
+"""
+
+
+def test_unitree_s_sdk_on_lo_and_mbctl_see_each_other(dds_domain):
+    """Discovery on lo as Unitree's SDK configures it (multicast): its LowState reaches us, our LowCmd it."""
+    peer = subprocess.Popen([sys.executable, "-c", _SDK_PEER, str(dds_domain)], stdout=subprocess.PIPE,
+                            text=True)
+    try:
+        cmd_type, state_type = message_types()
+        with Channel(dds_domain) as channel:
+            reader = channel.reader(TOPIC_LOWSTATE, state_type)
+            writer = channel.writer(TOPIC_LOWCMD, cmd_type)
+            state = low_state_codec()
+            assert reader.wait(30.0), "no LowState from the SDK's process on lo"
+            assert state.decode(reader.take()[-1]) is False  # it sends CRC 0
+            assert int(state.message["tick"]) == 7
+            cmd = low_cmd_codec()
+            cmd.message["motor_cmd"]["tau"][0] = 1.5
+            deadline = time.monotonic() + 30
+            while peer.poll() is None and time.monotonic() < deadline:
+                writer.write(cmd.encode())
+                time.sleep(0.01)
+        out = peer.communicate(timeout=30)[0]
+    finally:
+        if peer.poll() is None:
+            peer.kill()
+            peer.wait()
+    assert out.strip() == "1.5"
 
 
 def _round_trip(channel: Channel) -> bytes | None:

@@ -1,0 +1,258 @@
+"""The robot's LowState stream as the DDS interface takes it: checks, order, rate and what went wrong.
+
+Every LowState taken from ``rt/lowstate`` is decoded and checked before it can become the state:
+
+- **encoding**: not little-endian XCDR1 of ``LowState_``'s size: ``bad_encoding``;
+- **CRC**: a wrong CRC: ``bad_crc``. The real G1 signs its states; Unitree's simulator leaves the
+  CRC 0, and such states are accepted only when the caller asks (``check_crc=False``, the CLI's
+  ``--state-crc off``), counted as ``crc_unchecked``; a non-zero wrong CRC is refused even then;
+- **values**: a non-finite or non-unit IMU quaternion (norm off 1 by more than
+  :data:`QUAT_TOLERANCE`), non-finite gyro, accelerometer or joints: ``bad_states``, never a crash;
+- **order**: while the tick does not advance (Unitree's simulator leaves it 0; a robot held in
+  ``mbctl serve g1 --lockstep`` before its first command), states are taken in arrival order: the
+  latest to arrive is the newest, except that once the loop runs a byte-for-byte repeat of the
+  newest is no new state (it carries nothing new: a publisher that sent the same sample again).
+  From the first state whose tick is past the newest's (the G1, ``mbctl serve g1``), states are
+  ordered by tick: one whose tick is not past the newest is ``superseded`` (reordered or
+  repeated), and one whose tick is further ahead than the time since the last state can explain
+  (a spoofed 2^32 - 1) is a bad state, not the new clock. The report says which order it ended in
+  (``state_order``).
+
+The time of a state is the robot's own once its tick advances (tick steps times the period, from
+the newest state's time then, so a run's timing does not depend on when this process got round to
+reading), and its arrival time before.
+
+The rate is measured at connect (:meth:`LowStateStream.measured_period`): the median, over the
+first :data:`RATE_STATES` advancing states, of the mean interval between arrivals
+:data:`RATE_SPAN` states apart (robust to a stall and to a burst), rounded to two significant
+digits (a robot's timer runs at a round rate: 2.003 ms is the G1's 2 ms).
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import dataclass
+
+import numpy as np
+
+from mbctl.robots.interface import ImuReading
+from mbctl.unitree.channel import RawReader
+from mbctl.unitree.exceptions import WireFormatError
+from mbctl.unitree.wire import low_state_codec
+
+#: Order by the robot's tick, or by arrival where the tick does not advance.
+ORDER_TICK, ORDER_ARRIVAL = "tick", "arrival"
+#: Advancing states timed at connect to measure the state rate.
+RATE_STATES = 26
+#: States apart of the arrival intervals whose median gives the rate.
+RATE_SPAN = 5
+#: The state periods [s] accepted from the measurement (0.5 ms to 50 ms: 2 kHz to 20 Hz).
+PERIOD_RANGE_S = (0.5e-3, 50e-3)
+#: How far the IMU quaternion's norm may be from 1 (float32 on the wire: ~1e-7 when normalised).
+QUAT_TOLERANCE = 1e-3
+#: A tick may run ahead of the last by at most this many states more than the time since the last
+#: state explains (states the reader's queue dropped while this process was descheduled).
+TICK_SLACK_STATES = 100
+
+
+@dataclass
+class StreamCounts:
+    """What the stream took and what it refused (each message counted once).
+
+    Attributes:
+        seen: LowState messages taken, of any kind.
+        valid: States accepted as the newest.
+        bad_encoding: Another encoding or size.
+        bad_crc: A wrong CRC.
+        bad_crc_zero: Of those, with CRC 0 (unsigned: Unitree's simulator).
+        crc_unchecked: Accepted with CRC 0, unchecked (only with ``check_crc=False``).
+        bad_states: Refused for their values or a tick far ahead.
+        superseded: Valid but not newer than the newest (tick order).
+    """
+
+    seen: int = 0
+    valid: int = 0
+    bad_encoding: int = 0
+    bad_crc: int = 0
+    bad_crc_zero: int = 0
+    crc_unchecked: int = 0
+    bad_states: int = 0
+    superseded: int = 0
+
+
+class LowStateStream:
+    """Takes LowStates from a reader and keeps the newest valid one (see the module docstring).
+
+    Args:
+        reader: The ``rt/lowstate`` reader.
+        n_motors: Motor slots the robot uses (the table's).
+        check_crc: Refuse states with CRC 0 too (False accepts them unchecked).
+        t0: The interface's time origin (``time.perf_counter``) [s].
+    """
+
+    def __init__(self, reader: RawReader, n_motors: int, check_crc: bool = True, t0: float = 0.0):
+        self._reader = reader
+        self._n = n_motors
+        self.check_crc = check_crc
+        self.t0 = t0
+        self._codec = low_state_codec()
+        self.counts = StreamCounts()
+        self.order: str | None = None
+        self.first_tick: int | None = None
+        self.tick = 0
+        self.tick_step = 0  # smallest positive tick difference seen (tick order)
+        self.last_rx = -math.inf
+        self.time_s = 0.0
+        self.period_s: float | None = None
+        self._clock: tuple[int, float] | None = None  # (tick, time) the tick clock counts from
+        self._arrivals: list[float] = []
+        self._payload = b""
+        self._base = (0, 0)  # (tick, states before it) the losses count from
+        self.q = np.zeros(n_motors)
+        self.dq = np.zeros(n_motors)
+        self.imu = ImuReading(np.array([1.0, 0, 0, 0]), np.zeros(3), np.zeros(3))
+        self.mode_machine = 0
+
+    @property
+    def advancing(self) -> int:
+        """States accepted as newer than the one before (those the rate is measured on)."""
+        return self.counts.valid
+
+    def drain(self) -> bool:
+        """Take every waiting LowState; whether a newer valid one was accepted."""
+        fresh = False
+        for data in self._reader.take(32):
+            fresh |= self._take(data, time.perf_counter())
+        return fresh
+
+    def _take(self, data: bytes, now: float) -> bool:
+        c, codec = self.counts, self._codec
+        c.seen += 1
+        try:
+            ok = codec.decode(data)
+        except WireFormatError:
+            c.bad_encoding += 1
+            return False
+        msg = codec.message
+        if not ok:
+            if int(msg["crc"]) != 0 or self.check_crc:
+                c.bad_crc += 1
+                c.bad_crc_zero += int(msg["crc"]) == 0
+                return False
+            c.crc_unchecked += 1
+        motors, imu = msg["motor_state"][: self._n], msg["imu_state"]
+        quat = imu["quaternion"].astype(float)
+        finite = (np.isfinite(quat).all() and np.isfinite(imu["gyroscope"]).all()
+                  and np.isfinite(imu["accelerometer"]).all() and np.isfinite(motors["q"]).all()
+                  and np.isfinite(motors["dq"]).all())
+        if not finite or abs(float(np.linalg.norm(quat)) - 1.0) > QUAT_TOLERANCE:
+            c.bad_states += 1
+            return False
+        tick = int(msg["tick"])
+        if not self._newer(tick, now):
+            return False
+        if self.order == ORDER_ARRIVAL and self.period_s is not None and data == self._payload:
+            c.superseded += 1  # the loop runs: a repeat of the newest is no new state
+            return False
+        c.valid += 1
+        self._payload = data
+        self.time_s = self._time_of(tick, now)
+        self.tick, self.last_rx = tick, now
+        self.q = motors["q"].astype(float)
+        self.dq = motors["dq"].astype(float)
+        self.imu = ImuReading(quat, imu["gyroscope"].astype(float), imu["accelerometer"].astype(float))
+        self.mode_machine = int(msg["mode_machine"])
+        if self.period_s is None:
+            self._arrivals.append(now)
+        return True
+
+    def _newer(self, tick: int, now: float) -> bool:
+        """Whether a valid state with ``tick`` is newer than the newest (counting the ones that are not)."""
+        c = self.counts
+        if self.first_tick is None:
+            self.first_tick = tick
+            return True
+        if self.order != ORDER_TICK:  # arrival order until the tick advances
+            if tick == self.tick:
+                self.order = ORDER_ARRIVAL
+                return True
+            if tick < self.tick:
+                c.superseded += 1
+                return False
+            self._start_ticking(tick)
+            return True
+        step = tick - self.tick
+        if step <= 0:
+            c.superseded += 1
+            return False
+        if self.period_s is not None and self.tick_step:
+            explained = math.ceil((now - self.last_rx) / self.period_s)
+            if step > self.tick_step * (2 * explained + TICK_SLACK_STATES):
+                c.bad_states += 1
+                return False
+        self.tick_step = step if not self.tick_step else min(self.tick_step, step)
+        return True
+
+    def _start_ticking(self, tick: int) -> None:
+        """The tick advanced for the first time: order by tick, its clock from the newest state on."""
+        self.order = ORDER_TICK
+        self.tick_step = tick - self.tick
+        self._base = (self.tick, self.counts.valid - 1)  # losses count from the newest state on
+        if self.period_s is not None:
+            self._clock = (self.tick, self.time_s)
+
+    def _time_of(self, tick: int, now: float) -> float:
+        """The state's time [s]: on the tick clock once it runs, else its arrival."""
+        if self._clock is None or self.order != ORDER_TICK:
+            return now - self.t0
+        tick0, time0 = self._clock
+        return time0 + (tick - tick0) / self.tick_step * self.period_s  # type: ignore[operator]
+
+    def measured_period(self) -> float | None:
+        """The state period [s] from the arrivals so far (None before :data:`RATE_STATES`)."""
+        t = np.asarray(self._arrivals)
+        if t.size < RATE_STATES:
+            return None
+        spans = (t[RATE_SPAN:] - t[:-RATE_SPAN]) / RATE_SPAN
+        period = float(np.median(spans))
+        if period <= 0:
+            return period
+        digits = 1 - math.floor(math.log10(period))
+        return round(period, digits)
+
+    def start_clock(self, period_s: float) -> None:
+        """The loop's period [s] from now on; in tick order the tick clock counts from the newest state."""
+        self.period_s = period_s
+        self._arrivals.clear()
+        if self.order == ORDER_TICK:
+            self._clock = (self.tick, self.time_s)
+
+    @property
+    def messages_lost(self) -> int:
+        """States sent but never received (gaps in the tick; 0 in arrival order: unknown there)."""
+        if self.order != ORDER_TICK or not self.tick_step:
+            return 0
+        base_tick, valid_before = self._base
+        return max(0, (self.tick - base_tick) // self.tick_step + 1 - (self.counts.valid - valid_before))
+
+    def diagnosis(self) -> str:
+        """What was seen on the topic, for a "no robot" or "link lost" message."""
+        c = self.counts
+        if c.seen == 0:
+            return "nothing was seen on the domain"
+        parts = [f"{c.seen} LowState messages seen"]
+        if c.bad_crc:
+            parts.append(f"{c.bad_crc} with a bad CRC" + (
+                f" ({c.bad_crc_zero} with CRC 0: unsigned, as Unitree's simulator sends them; "
+                "`--state-crc off` accepts those)" if c.bad_crc_zero else ""))
+        if c.bad_encoding:
+            parts.append(f"{c.bad_encoding} in another encoding")
+        if c.bad_states:
+            parts.append(f"{c.bad_states} with bad values (IMU quaternion not finite and unit, non-finite "
+                         "joints or IMU, or a tick far ahead)")
+        if c.valid:
+            parts.append(f"{c.valid} valid")
+        if c.superseded:
+            parts.append(f"{c.superseded} that never advance (their tick not past {self.tick})")
+        return ", ".join(parts)

@@ -1,0 +1,117 @@
+"""What the DDS interface takes from a robot's state stream: CRC, order, rate, bad values, and what it says.
+
+Against a fake G1 on loopback (tests/hardware/conftest.py) that can leave its CRC 0 and its tick
+still (as Unitree's simulator does), publish at another rate, or send one odd message.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from mbctl.control.loop import run
+from mbctl.hardware import DdsOptions, LinkLost, NoRobotError, UnitreeG1
+from mbctl.hardware.lowstate import ORDER_ARRIVAL, ORDER_TICK
+from tests.hardware.test_unitree_g1 import HOLD, ConstantTorque, StillBase, _wait_for
+
+
+def _open(g1, dds_domain, **options):
+    return UnitreeG1(g1, StillBase(), DdsOptions(**{"domain": dds_domain, "watchdog_periods": 50, **options}))
+
+
+def test_nothing_on_the_domain_is_said(g1, dds_domain):
+    with pytest.raises(NoRobotError, match="nothing was seen on the domain"):
+        _open(g1, dds_domain, connect_timeout_s=0.3)
+
+
+def test_unsigned_states_need_the_opt_in_and_the_error_names_it(g1, fake_g1, dds_domain):
+    fake_g1(unsigned=True)
+    with pytest.raises(NoRobotError, match=r"(\d+) with a bad CRC \(\1 with CRC 0: unsigned, as Unitree's "
+                                           r"simulator sends them; `--state-crc off` accepts those\)"):
+        _open(g1, dds_domain, connect_timeout_s=0.5)
+    with _open(g1, dds_domain, check_state_crc=False) as robot:
+        run(robot, ConstantTorque(g1), HOLD, 0.02)
+        link = robot.report().link
+    assert link.crc_unchecked >= 26 + 10 and link.bad_crc == 0  # connect's states and the loop's
+
+
+def test_a_wrong_crc_is_refused_even_when_crc_0_is_accepted(g1, fake_g1, dds_domain):
+    fake_g1(bad_crc=True)
+    with pytest.raises(NoRobotError, match=r"(\d+) LowState messages seen, \1 with a bad CRC \(needs"):
+        _open(g1, dds_domain, connect_timeout_s=0.5, check_state_crc=False)
+
+
+def test_a_tick_that_does_not_advance_orders_states_by_arrival(g1, fake_g1, dds_domain):
+    fake_g1(tick_step=0, vary=True)
+    with _open(g1, dds_domain) as robot:
+        log = run(robot, ConstantTorque(g1), HOLD, 0.04)
+        report = robot.report()
+    assert report.link.state_order == ORDER_ARRIVAL and log.cycles == 20
+    assert report.link.states_superseded == 0 and report.values()["state_order"] == "arrival"
+    assert np.all(np.diff(log.t_s) > 0)  # each cycle a state that arrived later
+
+
+def test_repeats_of_one_state_are_no_new_state_and_the_loss_says_so(g1, fake_g1, dds_domain):
+    """A tick that never advances and values that never change: connected, then the loop sees nothing new."""
+    fake_g1(tick_step=0)
+    with _open(g1, dds_domain, watchdog_periods=3) as robot:
+        with pytest.raises(LinkLost, match=r"\d+ valid, \d+ that never advance \(their tick not past \d+\)"):
+            run(robot, ConstantTorque(g1), HOLD, 1.0)
+
+
+def test_a_tick_running_backwards_never_advances_and_is_no_robot(g1, fake_g1, dds_domain):
+    fake_g1(tick_step=-1)
+    with pytest.raises(NoRobotError, match=r"1 valid, \d+ that never advance"):
+        _open(g1, dds_domain, connect_timeout_s=0.3)
+
+
+def test_the_rate_is_measured_at_connect_and_paces_the_loop_and_the_watchdog(g1, fake_g1, dds_domain):
+    fake_g1(period_s=0.005)  # Unitree's simulator publishes at 200 Hz
+    with _open(g1, dds_domain, watchdog_periods=3) as robot:
+        assert robot.control_period_s == 0.005
+        log = run(robot, ConstantTorque(g1), HOLD, 0.05)
+        assert log.cycles == 10 and robot.report().link.state_rate_hz == pytest.approx(200.0)
+        # the robot's clock: tick steps times the period, not when this process read them
+        np.testing.assert_allclose(np.diff(log.t_s), 0.005 * np.diff(log.tick), rtol=0, atol=1e-12)
+    with _open(g1, dds_domain, rate_hz=250.0) as robot:  # given: not measured
+        assert robot.control_period_s == 0.004
+
+
+def test_a_bad_imu_quaternion_is_a_counted_bad_state(g1, fake_g1, dds_domain):
+    fake = fake_g1()
+    with _open(g1, dds_domain) as robot:
+        for n, bad in enumerate(((0.0, 0.0, 0.0, 0.0), (np.nan, 0.0, 0.0, 1.0), (0.9, 0.0, 0.0, 0.0)), 1):
+            fake.once(quaternion=bad)
+            assert _wait_for(lambda n=n: robot.read_state() is not None
+                             and robot.report().link.bad_states == n)
+        state = robot.read_state()
+        assert np.isfinite(state.q).all() and robot.report().link.bad_states == 3
+
+
+def test_only_bad_quaternions_is_no_robot_naming_the_values(g1, fake_g1, dds_domain):
+    fake_g1(quat_wxyz=(0.0, 0.0, 0.0, 0.0))
+    with pytest.raises(NoRobotError, match=r"(\d+) LowState messages seen, \1 with bad values \(IMU "
+                                           r"quaternion"):
+        _open(g1, dds_domain, connect_timeout_s=0.3)
+
+
+def test_a_spoofed_tick_is_a_bad_state_not_the_new_clock(g1, fake_g1, dds_domain):
+    fake = fake_g1()
+    with _open(g1, dds_domain) as robot:
+        run(robot, ConstantTorque(g1), HOLD, 0.01)
+        fake.once(tick=2**32 - 1)
+        assert _wait_for(lambda: robot.read_state() is not None and robot.report().link.bad_states == 1)
+        tick = robot.read_state().tick
+        log = run(robot, ConstantTorque(g1), HOLD, 0.02)  # the clock goes on from the real ticks
+        report = robot.report()
+    assert tick < 2**31 and log.tick[-1] < 2**31 and np.all(np.diff(log.tick) > 0)
+    assert report.link.state_order == ORDER_TICK and report.link.bad_states == 1
+
+
+def test_the_cli_s_defaults_are_the_interface_s():
+    """The help shows the defaults without importing numpy: its copies must be the interface's."""
+    from mbctl.cli import plant_options
+    from mbctl.hardware import unitree_hg
+
+    assert plant_options.WATCHDOG_PERIODS == unitree_hg.WATCHDOG_PERIODS
+    assert plant_options.CONNECT_TIMEOUT_S == unitree_hg.CONNECT_TIMEOUT_S
