@@ -1,0 +1,281 @@
+"""The CoM from the footsteps: a divergent-component-of-motion (DCM, capture point) plan and its feedback law.
+
+Model (Englsberger, Ott and Albu-Schaeffer, "Three-dimensional bipedal walking control based on
+divergent component of motion", IEEE T-RO 2015; Englsberger et al., "Bipedal walking control based
+on Capture Point dynamics", IROS 2011). With the CoM x at constant height z_c above the floor and
+``omega = sqrt(g / z_c)``, the DCM ``xi = x + xdot / omega`` obeys ``xi_dot = omega (xi - r)``,
+with r the virtual repellent point (VRP; on flat ground at constant height, the CMP and the ZMP),
+while the CoM follows it stably: ``xdot = -omega (x - xi)``. Only the DCM needs control.
+
+**Plan.** The VRPs are the footsteps' sole centres r_0 (now), r_1, ..., r_N (the last: the middle
+of the last two feet, where the robot would stop), switching from r_{k-1} to r_k at t_k. Backward
+recursion from rest at the end, ``xi(t_N) = r_N`` and
+``xi(t_k) = r_k + exp(-omega (t_{k+1} - t_k)) (xi(t_{k+1}) - r_k)``; within segment k,
+``xi(t) = r_k + exp(omega (t - t_{k+1})) (xi(t_{k+1}) - r_k)``. **Continuous double support**: each
+switch is spread over the double support ``[t_k - alpha T_ds, t_k + (1 - alpha) T_ds]``, inside
+which xi is a quintic matching the exponentials' position, velocity and acceleration at both
+ends, so xi, xi_dot and the VRP reference ``r = xi - xi_dot / omega`` are continuous at every
+phase switch (the tests check it). A plan may start from a given DCM state instead (a start from
+standing: xi at rest over the feet); then the first switch's window starts there.
+
+**Feedback.** The desired CMP ``p = r_ref + (1 + k / omega) (xi - xi_ref)`` makes the DCM error
+decay as ``exp(-k t)`` (``xi_dot = xi_dot_ref - k (xi - xi_ref)``); the controller then asks the
+CoM for ``xddot = omega^2 (x - p)``. p is clamped to the support polygon shrunk by a margin
+(:func:`clamp_to_polygon`), and the margin left is reported (:func:`polygon_margin`).
+
+**Why DCM, not LIPM preview control** (Kajita et al. 2003): the DCM plan is closed form (a few
+exponentials per footstep, evaluated at any time, no horizon discretisation or Riccati gains to
+precompute), so it is re-planned every control cycle when the velocity command or a footstep
+changes; its feedback law acts on the one unstable component only, with a CMP output the
+whole-body QP turns into a CoM acceleration; and its end-of-step DCM is exactly what step
+adaptation needs (where to step to capture a measured DCM). Preview control needs the ZMP
+reference sampled over a 1-2 s horizon and re-run on every change, and its state feedback does
+not expose the capture point.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from typing import NamedTuple
+
+import numpy as np
+import numpy.typing as npt
+
+from mbctl.planners.exceptions import InvalidPlanningInput
+from mbctl.planners.swing import polynomial_at, quintic_coefficients
+
+#: Standard gravity [m/s^2] (the plan's default; pass the model's).
+GRAVITY_M_S2 = 9.81
+
+
+def dcm_omega(com_height_m: float, gravity_m_s2: float = GRAVITY_M_S2) -> float:
+    """``omega = sqrt(g / z_c)`` [rad/s] of a CoM at ``com_height_m`` above the floor.
+
+    Raises:
+        InvalidPlanningInput: A non-positive height or gravity.
+    """
+    if not (math.isfinite(com_height_m) and com_height_m > 0 and math.isfinite(gravity_m_s2)
+            and gravity_m_s2 > 0):
+        raise InvalidPlanningInput(f"com_height_m and gravity_m_s2 must be finite and > 0; got "
+                                   f"{com_height_m!r} m, {gravity_m_s2!r} m/s^2")
+    return math.sqrt(gravity_m_s2 / com_height_m)
+
+
+class DcmReference(NamedTuple):
+    """The DCM plan at one time (horizontal, in W).
+
+    Attributes:
+        xi: DCM (2,) [m].
+        xi_dot: DCM velocity (2,) [m/s].
+        vrp: VRP (= reference CMP and ZMP) ``xi - xi_dot / omega`` (2,) [m].
+    """
+
+    xi: np.ndarray
+    xi_dot: np.ndarray
+    vrp: np.ndarray
+
+
+class DcmPlan:
+    """The DCM through VRPs ``r_0..r_N`` switching at ``t_1..t_N``, with continuous double support.
+
+    Args:
+        omega_rad_s: ``sqrt(g / z_c)`` [rad/s] (> 0).
+        vrps: VRPs (N + 1, 2) [m] in W: r_0 now, r_N the stop.
+        switch_times_s: The switches t_1 < ... < t_N (N,) [s].
+        double_support_s: T_ds [s] (>= 0): each switch is spread over this time.
+        alpha: Fraction [0, 1] of T_ds before each switch (0.5: centred).
+        initial: ``(t0_s, xi0, xi_dot0)``: start from this DCM state at t0 (<= the first window's
+            start) instead of on the exponential of r_0; the first window then spans from t0.
+
+    Raises:
+        InvalidPlanningInput: Misshaped or non-finite inputs, switches not increasing, windows that
+            overlap (switches closer than T_ds), or an initial time after the first window's end.
+    """
+
+    def __init__(self, omega_rad_s: float, vrps: npt.ArrayLike, switch_times_s: npt.ArrayLike,
+                 double_support_s: float, alpha: float = 0.5,
+                 initial: tuple[float, npt.ArrayLike, npt.ArrayLike] | None = None):
+        r = np.array(vrps, dtype=float)
+        t = np.atleast_1d(np.array(switch_times_s, dtype=float))
+        if not (math.isfinite(omega_rad_s) and omega_rad_s > 0):
+            raise InvalidPlanningInput(f"omega_rad_s must be finite and > 0; got {omega_rad_s!r}")
+        if r.ndim != 2 or r.shape[1] != 2 or len(r) < 1 or not np.all(np.isfinite(r)):
+            raise InvalidPlanningInput(f"vrps must be a finite (N + 1, 2) array [m]; got shape {r.shape}")
+        if t.shape != (len(r) - 1,) or not np.all(np.isfinite(t)):
+            raise InvalidPlanningInput(f"switch_times_s must be finite, one per VRP after the first: "
+                                       f"shape ({len(r) - 1},); got {t.shape}")
+        if not (math.isfinite(double_support_s) and double_support_s >= 0 and 0.0 <= alpha <= 1.0):
+            raise InvalidPlanningInput(f"double_support_s must be >= 0 [s] and alpha in [0, 1]; got "
+                                       f"{double_support_s!r}, {alpha!r}")
+        if len(t) > 1 and np.any(np.diff(t) < double_support_s + 1e-9):
+            raise InvalidPlanningInput(f"switch times must increase by more than T_ds = {double_support_s} "
+                                       f"s; got {t.tolist()}")
+        self.omega = float(omega_rad_s)
+        self.vrps, self.switch_times_s = r, t
+        self.double_support_s, self.alpha = float(double_support_s), float(alpha)
+        # backward recursion: xi at each switch (xi_eos)
+        xi_switch = np.empty((len(t), 2))
+        nxt = r[-1]
+        for k in range(len(t) - 1, -1, -1):
+            if k < len(t) - 1:
+                nxt = r[k + 1] + math.exp(-self.omega * (t[k + 1] - t[k])) * (nxt - r[k + 1])
+            xi_switch[k] = nxt
+        self.xi_switch = xi_switch
+        # each window [a, b] around a switch: quintic coefficients from the exponentials' ends
+        self._windows: list[tuple[float, float, np.ndarray]] = []
+        for k in range(len(t)):
+            a = t[k] - self.alpha * self.double_support_s
+            b = t[k] + (1.0 - self.alpha) * self.double_support_s
+            if k == 0 and initial is not None:
+                t0, xi0, xid0 = initial
+                if t0 > b:
+                    raise InvalidPlanningInput(f"initial time {t0} s is after the first window's end {b} s")
+                a = float(t0)
+                start = (np.asarray(xi0, dtype=float), np.asarray(xid0, dtype=float), np.zeros(2))
+            else:
+                start = self._exponential(k, a)
+            if b - a <= 1e-12:
+                continue
+            end = self._exponential(k + 1, b)
+            self._windows.append((a, b, quintic_coefficients(*start, *end, b - a)))
+        self._initial = initial
+
+    def _segment(self, t_s: float) -> int:
+        """The VRP index in force at ``t_s`` (ignoring the windows)."""
+        return int(np.searchsorted(self.switch_times_s, t_s, side="right"))
+
+    def _exponential(self, k: int, t_s: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """(xi, xi_dot, xi_ddot) on segment k's exponential at ``t_s``."""
+        r = self.vrps[k]
+        if k >= len(self.switch_times_s):  # after the last switch: at rest on r_N
+            return r.copy(), np.zeros(2), np.zeros(2)
+        d = math.exp(self.omega * (t_s - self.switch_times_s[k])) * (self.xi_switch[k] - r)
+        return r + d, self.omega * d, self.omega**2 * d
+
+    def at(self, t_s: float) -> DcmReference:
+        """The plan at time ``t_s`` [s]."""
+        for a, b, coeffs in self._windows:
+            if a <= t_s <= b:
+                xi, xid, _ = polynomial_at(coeffs, t_s - a)
+                return DcmReference(xi, xid, xi - xid / self.omega)
+        if self._initial is not None and self._windows and t_s < self._windows[0][0]:
+            _, xi0, xid0 = self._initial
+            xi = np.asarray(xi0, dtype=float).copy()
+            return DcmReference(xi, np.zeros(2), xi.copy())
+        xi, xid, _ = self._exponential(self._segment(t_s), t_s)
+        return DcmReference(xi, xid, xi - xid / self.omega)
+
+
+def dcm_feedback(xi_W: npt.ArrayLike, reference: DcmReference, omega_rad_s: float,
+                 gain_1_s: float) -> np.ndarray:
+    """The desired CMP ``r_ref + (1 + k / omega) (xi - xi_ref)`` (2,) [m] in W.
+
+    Args:
+        xi_W: Measured DCM (2,) [m] in W.
+        reference: The plan at this time.
+        omega_rad_s: ``sqrt(g / z_c)`` [rad/s].
+        gain_1_s: k [1/s] (> 0): the DCM error decays as ``exp(-k t)``.
+    """
+    return reference.vrp + (1.0 + gain_1_s / omega_rad_s) * (np.asarray(xi_W, dtype=float)[:2] - reference.xi)
+
+
+def convex_hull(points: npt.ArrayLike) -> np.ndarray:
+    """The convex hull (m, 2) of 2-D points, counter-clockwise (Andrew's monotone chain).
+
+    Raises:
+        InvalidPlanningInput: Not a finite (n, 2) array with n >= 1.
+    """
+    pts = np.asarray(points, dtype=float)
+    if pts.ndim != 2 or pts.shape[1] != 2 or len(pts) < 1 or not np.all(np.isfinite(pts)):
+        raise InvalidPlanningInput(f"points must be a finite (n, 2) array [m]; got shape {pts.shape}")
+    ordered = sorted(set(map(tuple, pts.tolist())))
+    if len(ordered) <= 2:
+        return np.array(ordered)
+
+    def chain(seq: Sequence[tuple[float, float]]) -> list[tuple[float, float]]:
+        out: list[tuple[float, float]] = []
+        for p in seq:
+            while len(out) >= 2 and _cross(out[-2], out[-1], p) <= 0:
+                out.pop()
+            out.append(p)
+        return out
+
+    lower, upper = chain(ordered), chain(ordered[::-1])
+    return np.array(lower[:-1] + upper[:-1])
+
+
+def _cross(o: tuple[float, float], a: tuple[float, float], b: tuple[float, float]) -> float:
+    return (a[0] - o[0]) * (b[1] - o[1]) - (a[1] - o[1]) * (b[0] - o[0])
+
+
+def polygon_margin(point: npt.ArrayLike, hull: np.ndarray) -> float:
+    """Signed distance [m] from ``point`` (2,) to the edges of a convex polygon: > 0 inside.
+
+    Inside it is the distance to the nearest edge line; outside, minus the distance to the polygon
+    (to a vertex or an edge). A hull of one or two points has no inside (the distance, negated).
+    """
+    p = np.asarray(point, dtype=float)[:2]
+    if len(hull) < 3:
+        return -_distance_to_chain(p, hull)
+    a, b = hull, np.roll(hull, -1, axis=0)
+    e = b - a
+    n = np.column_stack([e[:, 1], -e[:, 0]]) / np.linalg.norm(e, axis=1)[:, None]  # outward (CCW)
+    s = ((p - a) * n).sum(axis=1)
+    if np.all(s <= 0):
+        return float(-s.max())
+    return -_distance_to_chain(p, np.vstack([hull, hull[:1]]))
+
+
+def _distance_to_chain(p: np.ndarray, chain: np.ndarray) -> float:
+    if len(chain) == 1:
+        return float(np.linalg.norm(p - chain[0]))
+    a, b = chain[:-1], chain[1:]
+    e = b - a
+    u = np.clip(((p - a) * e).sum(axis=1) / np.maximum((e * e).sum(axis=1), 1e-300), 0.0, 1.0)
+    return float(np.min(np.linalg.norm(a + u[:, None] * e - p, axis=1)))
+
+
+def clamp_to_polygon(point: npt.ArrayLike, hull: np.ndarray, margin_m: float = 0.0) -> np.ndarray:
+    """The point of the convex polygon shrunk by ``margin_m`` nearest to ``point`` (2,) [m].
+
+    The shrunk polygon is the set of points at least ``margin_m`` inside every edge line; if the
+    margin leaves nothing (a polygon narrower than twice the margin) the margin is reduced to what
+    fits. Solved as a projection onto the half-planes by a few rounds of Dykstra's algorithm (the
+    exact projection onto an intersection of half-planes).
+    """
+    p = np.asarray(point, dtype=float)[:2].copy()
+    if len(hull) < 3:
+        return _nearest_on_chain(p, hull)
+    a, b = hull, np.roll(hull, -1, axis=0)
+    e = b - a
+    n = np.column_stack([e[:, 1], -e[:, 0]]) / np.linalg.norm(e, axis=1)[:, None]
+    offset = (a * n).sum(axis=1)
+    centre = hull.mean(axis=0)
+    depth = float((offset - n @ centre).min())  # the centroid's margin: the most that fits
+    c = offset - min(max(margin_m, 0.0), 0.999 * depth)  # n_i . x <= c_i
+    if np.all(n @ p <= c + 1e-12):
+        return p
+    x = p
+    corrections = np.zeros((len(n), 2))
+    for _ in range(100):
+        moved = 0.0
+        for i in range(len(n)):
+            y = x + corrections[i]
+            excess = n[i] @ y - c[i]
+            x_new = y - max(excess, 0.0) * n[i]
+            corrections[i] = y - x_new
+            moved = max(moved, float(np.abs(x_new - x).max()))
+            x = x_new
+        if moved < 1e-10:
+            break
+    return x
+
+
+def _nearest_on_chain(p: np.ndarray, chain: np.ndarray) -> np.ndarray:
+    if len(chain) == 1:
+        return chain[0].copy()
+    a, b = chain[0], chain[1]
+    e = b - a
+    u = float(np.clip((p - a) @ e / max(e @ e, 1e-300), 0.0, 1.0))
+    return a + u * e

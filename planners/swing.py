@@ -1,0 +1,206 @@
+"""The swing foot: a lift and a smooth path from lift-off to touchdown, at rest at both ends.
+
+The path is planned in W over the single-support time T, from the foot's pose at lift-off to its
+footstep; each coordinate is a quintic polynomial (position, velocity and acceleration given at
+both ends, the closed form of :mod:`mbctl.planners.polynomial` evaluated at one time, for the
+control cycle):
+
+- **Horizontal** (x, y) and **yaw**: from the lift-off state to the footstep at rest, over the
+  first ``horizontal_fraction`` of T (the rest of the swing is a vertical descent, so the foot
+  lands without sliding even when it touches down early). The footstep may move during the swing
+  (a new velocity command, a re-planned step): :meth:`SwingTrajectory.retarget`
+  starts a new quintic from the current position, velocity and acceleration to the new footstep
+  over the horizontal time left, so the path stays twice differentiable; once less than
+  :data:`MIN_RETARGET_S` of it is left, the footstep is frozen (a late change would need an
+  acceleration the leg cannot give).
+- **Height**: up from the lift-off height ``z0`` to ``max(z0, z1) + h`` at ``T/2`` and down to the
+  footstep's height ``z1`` at T, each half a quintic at rest at its ends, so the foot leaves and
+  lands with zero velocity and zero acceleration and passes the apex with zero vertical velocity.
+
+After T the sample holds the footstep at rest (a late touchdown is the controller's business:
+it lowers the foot further, see :mod:`mbctl.control.wbc.walking`).
+"""
+
+from __future__ import annotations
+
+import math
+from typing import NamedTuple
+
+import numpy as np
+import numpy.typing as npt
+
+from mbctl.planners._validation import check_time
+from mbctl.planners.exceptions import InvalidPlanningInput
+
+#: A footstep change with less swing time left than this [s] is ignored (the path is frozen).
+MIN_RETARGET_S = 0.05
+
+
+def quintic_coefficients(p0: npt.ArrayLike, v0: npt.ArrayLike, a0: npt.ArrayLike, p1: npt.ArrayLike,
+                         v1: npt.ArrayLike, a1: npt.ArrayLike, duration_s: float) -> np.ndarray:
+    """Coefficients (6, n) of ``p(t) = sum_k c_k t^k`` matching (p, v, a) at t = 0 and t = T.
+
+    The closed form of :func:`mbctl.planners.polynomial.quintic_trajectory`, for evaluation at
+    single times (:func:`polynomial_at`).
+
+    Args:
+        p0: Start position (n,) (scalars broadcast, as for every end value).
+        v0: Start velocity (n,) [unit/s].
+        a0: Start acceleration (n,) [unit/s^2].
+        p1: End position (n,).
+        v1: End velocity (n,) [unit/s].
+        a1: End acceleration (n,) [unit/s^2].
+        duration_s: T [s] (> 0).
+
+    Raises:
+        InvalidPlanningInput: A non-positive or non-finite duration.
+    """
+    T = check_time("duration_s", duration_s)
+    p0, v0, a0, p1, v1, a1 = np.broadcast_arrays(*(np.atleast_1d(np.asarray(x, dtype=float))
+                                                  for x in (p0, v0, a0, p1, v1, a1)))
+    dp = p1 - p0
+    c3 = (20.0 * dp - (8.0 * v1 + 12.0 * v0) * T - (3.0 * a0 - a1) * T**2) / (2.0 * T**3)
+    c4 = (-30.0 * dp + (14.0 * v1 + 16.0 * v0) * T + (3.0 * a0 - 2.0 * a1) * T**2) / (2.0 * T**4)
+    c5 = (12.0 * dp - 6.0 * (v1 + v0) * T - (a0 - a1) * T**2) / (2.0 * T**5)
+    return np.vstack([p0, v0, 0.5 * a0, c3, c4, c5])
+
+
+def polynomial_at(coeffs: np.ndarray, t_s: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Position, velocity and acceleration of ``sum_k coeffs[k] t^k`` at ``t_s`` (coeffs (K, n))."""
+    c = coeffs
+    t = float(t_s)
+    p = c[-1].copy()
+    for k in range(len(c) - 2, -1, -1):  # Horner
+        p = p * t + c[k]
+    v = c[-1] * (len(c) - 1)
+    for k in range(len(c) - 2, 0, -1):
+        v = v * t + c[k] * k
+    a = c[-1] * (len(c) - 1) * (len(c) - 2)
+    for k in range(len(c) - 2, 1, -1):
+        a = a * t + c[k] * k * (k - 1)
+    return p, v, a
+
+
+class SwingSample(NamedTuple):
+    """The swing foot's reference at one time, in W.
+
+    Attributes:
+        position: Foot frame origin (3,) [m].
+        velocity: Its velocity (3,) [m/s].
+        acceleration: Its acceleration (3,) [m/s^2].
+        yaw_rad: Foot yaw [rad] (the foot stays level: roll and pitch 0).
+        yaw_rate_rad_s: Yaw rate [rad/s].
+        phase: Fraction of the swing time elapsed, in [0, 1].
+    """
+
+    position: np.ndarray
+    velocity: np.ndarray
+    acceleration: np.ndarray
+    yaw_rad: float
+    yaw_rate_rad_s: float
+    phase: float
+
+
+class SwingTrajectory:
+    """The swing foot's path from lift-off at ``t0_s`` to its footstep at ``t0_s + duration_s``.
+
+    Args:
+        start_position: Foot frame origin at lift-off (3,) [m] in W.
+        start_yaw_rad: Foot yaw at lift-off [rad].
+        target_position: The footstep's foot frame origin (3,) [m] in W.
+        target_yaw_rad: The footstep's yaw [rad] (taken within pi of the start: the short way).
+        duration_s: Single-support time T [s] (> 0).
+        lift_height_m: Apex height [m] above the higher of the two ends (>= 0).
+        t0_s: Lift-off time [s].
+        horizontal_fraction: The horizontal motion and the yaw end at this fraction of T (in (0, 1]).
+
+    Raises:
+        InvalidPlanningInput: Non-finite poses, a non-positive duration, a negative lift or a
+            horizontal fraction outside (0, 1].
+    """
+
+    def __init__(self, start_position: npt.ArrayLike, start_yaw_rad: float, target_position: npt.ArrayLike,
+                 target_yaw_rad: float, duration_s: float, lift_height_m: float, t0_s: float = 0.0,
+                 horizontal_fraction: float = 1.0):
+        self.duration_s = check_time("duration_s", duration_s)
+        if not (math.isfinite(lift_height_m) and lift_height_m >= 0.0):
+            raise InvalidPlanningInput(f"lift_height_m must be finite and >= 0 [m]; got {lift_height_m!r}")
+        if not (math.isfinite(horizontal_fraction) and 0.0 < horizontal_fraction <= 1.0):
+            raise InvalidPlanningInput(f"horizontal_fraction must be in (0, 1]; got {horizontal_fraction!r}")
+        self.horizontal_end_s = float(t0_s) + horizontal_fraction * self.duration_s
+        p0 = _point("start_position", start_position)
+        p1 = _point("target_position", target_position)
+        self.t0_s = float(t0_s)
+        self.lift_height_m = float(lift_height_m)
+        start = np.array([p0[0], p0[1], float(start_yaw_rad)])
+        if not np.all(np.isfinite(start)):
+            raise InvalidPlanningInput(f"start_yaw_rad must be finite; got {start_yaw_rad!r}")
+        self._plane_t0 = self.t0_s
+        self._plane = quintic_coefficients(start, 0.0, 0.0, self._goal(start[2], p1, target_yaw_rad),
+                                           0.0, 0.0, self.horizontal_end_s - self.t0_s)
+        self.target_position = p1
+        self.target_yaw_rad = float(self._plane_end()[2])
+        half = 0.5 * self.duration_s
+        apex = max(p0[2], p1[2]) + self.lift_height_m
+        self._up = quintic_coefficients(p0[2], 0.0, 0.0, apex, 0.0, 0.0, half)
+        self._down = quintic_coefficients(apex, 0.0, 0.0, p1[2], 0.0, 0.0, half)
+
+    @property
+    def end_s(self) -> float:
+        """Planned touchdown time [s]."""
+        return self.t0_s + self.duration_s
+
+    def _plane_end(self) -> np.ndarray:
+        return polynomial_at(self._plane, self.horizontal_end_s - self._plane_t0)[0]
+
+    @staticmethod
+    def _goal(yaw_now: float, target: np.ndarray, target_yaw_rad: float) -> np.ndarray:
+        if not math.isfinite(target_yaw_rad):
+            raise InvalidPlanningInput(f"target_yaw_rad must be finite; got {target_yaw_rad!r}")
+        yaw = yaw_now + math.remainder(float(target_yaw_rad) - yaw_now, 2.0 * math.pi)
+        return np.array([target[0], target[1], yaw])
+
+    def retarget(self, t_s: float, target_position: npt.ArrayLike, target_yaw_rad: float) -> bool:
+        """Move the footstep (x, y, yaw) from time ``t_s`` on, continuously; the height profile stays.
+
+        Returns:
+            False (nothing changed) when less than :data:`MIN_RETARGET_S` of the horizontal motion is left.
+
+        Raises:
+            InvalidPlanningInput: A non-finite target.
+        """
+        left = self.horizontal_end_s - t_s
+        p1 = _point("target_position", target_position)
+        if left < MIN_RETARGET_S:
+            return False
+        p, v, a = polynomial_at(self._plane, max(0.0, t_s - self._plane_t0))
+        goal = self._goal(float(p[2]), p1, target_yaw_rad)
+        self._plane = quintic_coefficients(p, v, a, goal, 0.0, 0.0, left)
+        self._plane_t0 = float(t_s)
+        self.target_position = np.array([p1[0], p1[1], self.target_position[2]])
+        self.target_yaw_rad = float(goal[2])
+        return True
+
+    def at(self, t_s: float) -> SwingSample:
+        """The reference at time ``t_s`` [s] (held at the ends outside the swing)."""
+        tau = min(max(t_s - self.t0_s, 0.0), self.duration_s)
+        p, v, a = polynomial_at(self._plane, max(0.0, min(t_s, self.horizontal_end_s) - self._plane_t0))
+        if t_s >= self.horizontal_end_s:
+            v, a = np.zeros(3), np.zeros(3)
+        half = 0.5 * self.duration_s
+        if tau <= half:
+            z, vz, az = polynomial_at(self._up, tau)
+        else:
+            z, vz, az = polynomial_at(self._down, tau - half)
+        if t_s <= self.t0_s or t_s >= self.end_s:  # at rest outside the swing
+            v, a, vz, az = np.zeros(3), np.zeros(3), np.zeros(1), np.zeros(1)
+        return SwingSample(np.array([p[0], p[1], z[0]]), np.array([v[0], v[1], vz[0]]),
+                           np.array([a[0], a[1], az[0]]), float(p[2]), float(v[2]),
+                           tau / self.duration_s)
+
+
+def _point(label: str, value: npt.ArrayLike) -> np.ndarray:
+    arr = np.array(value, dtype=float)
+    if arr.shape != (3,) or not np.all(np.isfinite(arr)):
+        raise InvalidPlanningInput(f"{label} must be a finite (3,) position [m] in W; got {value!r}")
+    return arr

@@ -1,0 +1,174 @@
+"""The DCM plan: its dynamics, continuity at phase switches, the ZMP inside the support, the feedback law."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from mbctl.planners import InvalidPlanningInput
+from mbctl.planners.dcm import (
+    DcmPlan,
+    clamp_to_polygon,
+    convex_hull,
+    dcm_feedback,
+    dcm_omega,
+    polygon_margin,
+)
+from mbctl.planners.footsteps import Footstep, FootstepPlanner, GaitTiming, StepLimits, VelocityCommand
+
+OMEGA = dcm_omega(0.64, 9.81)  # 3.915 rad/s
+#: A G1-like sole: the contact points' rectangle (m) in the foot frame.
+SOLE = np.array([[-0.05, 0.025], [-0.05, -0.025], [0.12, 0.03], [0.12, -0.03]])
+CENTRE = SOLE.mean(axis=0)
+
+
+def _walk(command=(0.4, 0.05, 0.2), n=6, t_ds=0.1):
+    """Footsteps of a walk from both feet at rest, and the plan through them (as the walker builds it)."""
+    limits = StepLimits(0.37, 0.22, 0.23, 0.237, 0.1, 0.69)
+    planner = FootstepPlanner(limits, GaitTiming(0.5, t_ds), ("left", "right"))
+    right = Footstep("right", -1, np.array([0.0, -0.1185, 0.0]), 0.0)
+    left = Footstep("left", 1, np.array([0.0, 0.1185, 0.0]), 0.0)
+    steps = [left, right, *planner.plan(right, VelocityCommand(*command), n)]
+    vrps = [s.point_W([*CENTRE, 0.0])[:2] for s in steps[1:]]
+    vrps.append(0.5 * (vrps[-1] + vrps[-2]))
+    xi0 = 0.5 * (steps[0].position[:2] + steps[1].position[:2]) + [0.01, 0.0]
+    t1 = 0.8 - 0.5 * t_ds
+    switches = t1 + 0.6 * np.arange(len(vrps))  # one per VRP after xi0
+    return steps, DcmPlan(OMEGA, [xi0, *vrps], switches, t_ds, 0.5, (0.0, xi0, np.zeros(2)))
+
+
+def test_omega_and_bad_heights():
+    assert OMEGA == pytest.approx(math.sqrt(9.81 / 0.64), rel=1e-15)
+    with pytest.raises(InvalidPlanningInput, match="com_height_m"):
+        dcm_omega(0.0)
+
+
+def test_two_vrps_match_the_closed_form():
+    # r0 = 0, r1 = 0.2, switch at 1 s, no double support, at rest on r1 after: xi(1) = 0.2 and on
+    # segment 0 xi(t) = exp(omega (t - 1)) 0.2
+    plan = DcmPlan(OMEGA, [[0.0, 0.0], [0.2, 0.0]], [1.0], 0.0)
+    for t in (0.0, 0.5, 0.9):
+        ref = plan.at(t)
+        assert ref.xi[0] == pytest.approx(0.2 * math.exp(OMEGA * (t - 1.0)), rel=1e-12)
+        assert ref.xi_dot[0] == pytest.approx(OMEGA * ref.xi[0], rel=1e-12)
+        assert ref.vrp[0] == pytest.approx(0.0, abs=1e-15)
+    after = plan.at(1.5)
+    assert after.xi[0] == 0.2 and after.xi_dot[0] == 0.0 and after.vrp[0] == 0.2
+
+
+def test_backward_recursion_gives_each_switchs_dcm():
+    vrps = np.array([[0.0, 0.0], [0.2, 0.1], [0.4, -0.1], [0.5, 0.0]])
+    t = np.array([1.0, 1.6, 2.2])
+    plan = DcmPlan(OMEGA, vrps, t, 0.0)
+    e = math.exp(-OMEGA * 0.6)
+    xi2 = vrps[3]
+    xi1 = vrps[2] + e * (xi2 - vrps[2])
+    xi0 = vrps[1] + e * (xi1 - vrps[1])
+    np.testing.assert_allclose(plan.xi_switch, [xi0, xi1, xi2], atol=1e-15)
+
+
+def test_in_single_support_the_dcm_runs_away_from_the_stance_vrp():
+    steps, plan = _walk()
+    for t in np.linspace(0.9, 3.6, 40):
+        ref = plan.at(t)
+        np.testing.assert_allclose(ref.xi_dot, OMEGA * (ref.xi - ref.vrp), atol=1e-12)  # by definition
+    # away from the double-support windows the VRP is the stance foot's sole centre
+    for k, t in enumerate(0.8 + 0.6 * np.arange(5) + 0.3):
+        np.testing.assert_allclose(plan.at(t).vrp, steps[k + 1].point_W([*CENTRE, 0.0])[:2], atol=1e-12)
+
+
+def test_dcm_vrp_and_their_rates_are_continuous_at_every_phase_switch():
+    _, plan = _walk()
+    eps = 1e-9
+    edges = [w for a, b, _ in plan._windows for w in (a, b)]
+    assert len(edges) == 2 * 8  # the start window and one per later switch
+    for edge in edges:
+        a, b = plan.at(edge - eps), plan.at(edge + eps)
+        np.testing.assert_allclose(a.xi, b.xi, atol=1e-8)
+        np.testing.assert_allclose(a.xi_dot, b.xi_dot, atol=1e-7)
+        np.testing.assert_allclose(a.vrp, b.vrp, atol=1e-7)  # so the CMP reference does not jump
+
+
+def test_the_plan_starts_at_rest_and_ends_at_rest_on_the_last_vrp():
+    _, plan = _walk()
+    start = plan.at(0.0)
+    np.testing.assert_allclose(start.xi, plan.vrps[0], atol=1e-15)
+    assert np.abs(start.xi_dot).max() < 1e-15
+    end = plan.at(20.0)
+    np.testing.assert_allclose(end.xi, plan.vrps[-1], atol=1e-15)
+    assert np.abs(end.xi_dot).max() == 0.0
+
+
+def _support(steps, plan, t):
+    """The support polygon at t: both feet in a double-support window (switch j: the feet of VRPs j and
+    j + 1, VRP j >= 1 being steps[j]), else the stance foot (VRP k's)."""
+    feet = [steps[int(np.searchsorted(plan.switch_times_s, t, side="right"))]]
+    for j, (a, b, _) in enumerate(plan._windows):
+        if a <= t <= b:
+            feet = steps[j:j + 2]
+    pts = [f.point_W([*p, 0.0])[:2] for f in feet for p in SOLE]
+    return convex_hull(np.array(pts))
+
+
+@pytest.mark.parametrize("command", [(0.4, 0.0, 0.0), (0.0, 0.1, 0.0), (-0.2, 0.0, 0.3), (0.3, -0.05, -0.4)])
+def test_the_zmp_reference_stays_inside_the_support_polygon(command):
+    steps, plan = _walk(command)
+    margins = [polygon_margin(plan.at(t).vrp, _support(steps, plan, t)) for t in np.arange(0.75, 4.0, 0.002)]
+    # in single support the VRP is the sole centre: 25 mm from the sole's sides (the sole is 50 to 60 mm
+    # wide); in double support it crosses between the feet, inside their hull
+    assert min(margins) > 0.02
+    assert min(margins) <= 0.0275  # the single-support centre margin is reached: the check is tight
+
+
+def test_dcm_feedback_makes_the_error_decay_at_its_gain():
+    # the linear inverted pendulum xddot = omega^2 (x - p) with p from the feedback law, from a 3 cm
+    # DCM error: the error decays as exp(-k t)
+    _, plan = _walk((0.3, 0.0, 0.0))
+    k, dt = 3.0, 1e-4
+    x, v = plan.at(1.0).xi + [0.03, -0.02], np.zeros(2)
+    x = x - v / OMEGA
+    errors = []
+    for i in range(int(0.8 / dt)):
+        t = 1.0 + i * dt
+        ref = plan.at(t)
+        p = dcm_feedback(x + v / OMEGA, ref, OMEGA, k)
+        errors.append(np.linalg.norm(x + v / OMEGA - ref.xi))
+        v = v + OMEGA**2 * (x - p) * dt
+        x = x + v * dt
+    e0 = errors[0]
+    for j in (2000, 5000, 7999):
+        assert errors[j] == pytest.approx(e0 * math.exp(-k * j * dt), rel=0.01)
+
+
+def test_feedback_without_error_is_the_reference_vrp():
+    _, plan = _walk()
+    ref = plan.at(1.234)
+    np.testing.assert_array_equal(dcm_feedback(ref.xi, ref, OMEGA, 3.0), ref.vrp)
+
+
+def test_hull_margin_and_clamp_on_a_square():
+    pts = np.array([[0, 0], [1, 0], [1, 1], [0, 1], [0.5, 0.5], [1, 0.5]], dtype=float)
+    hull = convex_hull(pts)
+    assert len(hull) == 4
+    assert polygon_margin([0.5, 0.5], hull) == pytest.approx(0.5)
+    assert polygon_margin([0.9, 0.5], hull) == pytest.approx(0.1)
+    assert polygon_margin([2.0, 0.5], hull) == pytest.approx(-1.0)
+    assert polygon_margin([2.0, 2.0], hull) == pytest.approx(-math.sqrt(2))
+    np.testing.assert_allclose(clamp_to_polygon([2.0, 0.5], hull, 0.1), [0.9, 0.5], atol=1e-9)
+    np.testing.assert_allclose(clamp_to_polygon([2.0, 3.0], hull, 0.1), [0.9, 0.9], atol=1e-9)
+    np.testing.assert_allclose(clamp_to_polygon([0.3, 0.4], hull, 0.1), [0.3, 0.4], atol=0)  # inside: kept
+    # a margin wider than the polygon shrinks to what fits: the centre
+    np.testing.assert_allclose(clamp_to_polygon([5.0, 0.5], hull, 0.7), [0.5005, 0.5], atol=1e-6)
+
+
+def test_plan_input_errors():
+    with pytest.raises(InvalidPlanningInput, match="switch_times_s"):
+        DcmPlan(OMEGA, [[0, 0], [1, 0]], [1.0, 2.0], 0.1)
+    with pytest.raises(InvalidPlanningInput, match="increase"):
+        DcmPlan(OMEGA, [[0, 0], [1, 0], [2, 0]], [1.0, 1.05], 0.1)
+    with pytest.raises(InvalidPlanningInput, match="vrps"):
+        DcmPlan(OMEGA, [[0, 0, 0]], [], 0.1)
+    with pytest.raises(InvalidPlanningInput, match="initial time"):
+        DcmPlan(OMEGA, [[0, 0], [1, 0]], [1.0], 0.1, initial=(2.0, [0, 0], [0, 0]))
