@@ -61,7 +61,8 @@ def ik(
     priority: Annotated[
         list[str] | None,
         typer.Option("--priority", help="NAME=LEVEL: a target frame or com at priority LEVEL (0 highest; "
-                     "others at 0; default: one weighted level) (repeatable)."),
+                     "tasks not named go one level below the lowest named level, with the posture; "
+                     "default: one weighted level) (repeatable)."),
     ] = None,
     avoid_collisions: Annotated[
         bool, typer.Option("--avoid-collisions", help="Avoid the default collision set (the G1: forearms "

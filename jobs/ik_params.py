@@ -64,7 +64,8 @@ class IKParams:
         model_dir: Explicit Menagerie model directory for a known robot.
         roots: Bodies whose trees are the robot (default: the trees the actuators drive).
         poses: Full-pose and relative targets (:class:`TargetSpec`), beside ``targets``.
-        priorities: (task, level) pairs (a target frame or "com"; 0 is the highest level).
+        priorities: (task, level) pairs (a target frame or "com"; 0 is the highest level); tasks
+            not named go one level below the lowest named level.
         avoid_collisions: Avoid the default collision set (the G1's self-collision set; for other
             robots every robot geom against every other, adjacent bodies excluded).
         collision_pairs: More pairs to avoid, "A:B" (see ``mbctl.robots.collision``).

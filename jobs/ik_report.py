@@ -99,6 +99,7 @@ def payload(robot: Robot, ik: WholeBodyIK, params: IKParams, task_set: str, star
         "targets_relative": params.relative,
         "com": list(params.com_xy) if params.com_xy is not None else None,
         "priorities": dict(params.priorities),
+        "unnamed_tasks_level": (len(res.levels) - 1) if params.priorities else None,
         "levels": _levels(res),
         "residuals": residual_table(res.residuals),
         "plant_residual_m": plant.position_m,
@@ -148,7 +149,8 @@ def summary(name: str, task_set: str, start: str, clipped: dict[str, float], par
         note = "  (regulariser, not a target)" if residual.regularising else ""
         lines.append(f"  {task:20s} {text}{note}")
     if len(res.levels) > 1:
-        lines.append("priority levels (0 first; each level's largest residual):")
+        lines.append(f"priority levels (0 first; tasks not named by --priority at level {len(res.levels) - 1}, "
+                     "the last; each level's largest residual):")
         for k, (names, residual) in enumerate(zip(res.levels, res.level_residuals, strict=True)):
             text = ", ".join(f"{_unit(key)[0]} {v:.3e} {_unit(key)[1]}"
                              for key, v in residual.as_dict().items())

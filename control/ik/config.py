@@ -48,9 +48,10 @@ class WholeBodyIKConfig:
         base_max_angular_velocity: Base angular speed bound per axis [rad/s] (floating base only).
         dt: Step duration [s] the velocity bounds are scaled by.
         priorities: ``(task, level)`` pairs: level 0 is solved first, each next level within the
-            optimum of the levels above (a lexicographic solve). Tasks not named are at level 0;
-            posture and damping are always in the last level. Levels are renumbered 0, 1, ...
-            in order. Empty: one weighted level.
+            optimum of the levels above (a lexicographic solve). Tasks not named go one level
+            below the lowest named one (``max(level) + 1``: ``com=0`` alone puts the CoM above
+            every other task); posture and damping are always in the last level. Levels are
+            renumbered 0, 1, ... in order. Empty: one weighted level.
         collision_pairs: Geom pairs kept apart (:class:`~mbctl.robots.collision.CollisionPair`).
         min_distance_m: Minimum distance [m] of every collision pair.
         collision_detection_distance_m: Pairs farther apart than this [m] are not constrained.
@@ -194,13 +195,23 @@ class WholeBodyIKConfig:
                 *(("damping",) if self.damping_cost > 0.0 else ()))
 
     @property
+    def unnamed_level(self) -> int:
+        """The level (before renumbering) of tasks not named in ``priorities``: one below the lowest
+        named level, ``max(level) + 1`` (0 without priorities)."""
+        return max((k for _, k in self.priorities), default=-1) + 1
+
+    @property
     def levels(self) -> tuple[tuple[str, ...], ...]:
-        """Task names by priority level (level 0 first; one level without priorities)."""
+        """Task names by priority level (level 0 first; one level without priorities).
+
+        Tasks not named in ``priorities`` are at :attr:`unnamed_level`, below every named one.
+        """
         given = dict(self.priorities)
+        unnamed = self.unnamed_level
         regularisers = {"posture", "damping"}
-        ranks = sorted({given.get(t, 0) for t in self.task_names if t not in regularisers})
+        ranks = sorted({given.get(t, unnamed) for t in self.task_names if t not in regularisers})
         if not ranks:
             ranks = [0]
-        level_of = {t: ranks.index(given.get(t, 0)) for t in self.task_names if t not in regularisers}
+        level_of = {t: ranks.index(given.get(t, unnamed)) for t in self.task_names if t not in regularisers}
         last = len(ranks) - 1
         return tuple(tuple(t for t in self.task_names if level_of.get(t, last) == k) for k in range(last + 1))

@@ -363,13 +363,30 @@ def test_option_values_parse_into_the_parameters():
         options.ik("g1", target=["left_palm=0,0,1,1,0,0,0"], orientation=["left_palm=0,1,0,0"])
 
 
+def test_com_priority_alone_puts_every_other_task_below_it(g1, tmp_path):
+    """``--priority com=0`` alone: the tasks not named go one level below (level 1), so the CoM is
+    met in the plant (0.5 um); before, they went to level 0 with the CoM, one weighted level, and
+    the palm's pull left the CoM 82.6 mm from its target."""
+    params = IKParams("g1", targets=(("left_palm", (0.9, 0.3, 1.0)),), com_xy=(0.0, 0.0),
+                      priorities=(("com", 0),))
+    record = run_job(IK, params, tmp_path)
+    assert record.exit_code == 1  # the palm is out of reach
+    pose = _pose(tmp_path)
+    assert pose["plant_residual_m"]["com"] < 1e-5  # 82.6e-3 m with the unnamed tasks at level 0
+    assert [level["tasks"] for level in pose["levels"]] == [
+        ["com"], ["left_foot", "right_foot", "left_palm", "right_palm", "pelvis", "posture"]]
+    assert pose["unnamed_tasks_level"] == 1
+    assert "tasks not named by --priority at level 1" in record.summary()
+
+
 def test_unreachable_palm_under_a_level_0_com_holds_the_com_in_the_plant(g1, tmp_path):
-    """The palm cannot reach 0.9 m ahead without the CoM leaving the feet's x-y: with the CoM at
-    level 0 the plant's CoM stays within 1e-4 m of its target, and the palm still gets as close
-    as a near-hard weighted CoM (1000 times the usual weight) lets it."""
+    """The palm cannot reach 0.9 m ahead without the CoM leaving the feet's x-y: with the CoM (and
+    every task but the palm) at level 0 the plant's CoM stays within 1e-4 m of its target, and the
+    palm still gets as close as a near-hard weighted CoM (1000 times the usual weight) lets it."""
     target = (0.9, 0.3, 1.0)
+    level_0 = (*FEET, "right_palm", PELVIS, "com")
     params = IKParams("g1", targets=(("left_palm", target),), com_xy=(0.0, 0.0),
-                      priorities=(("com", 0), ("left_palm", 1)), max_iters=80)
+                      priorities=(*((task, 0) for task in level_0), ("left_palm", 1)), max_iters=80)
     record = run_job(IK, params, tmp_path)
     assert record.exit_code == 1  # out of reach: not converged, never a silent claim
     pose = _pose(tmp_path)

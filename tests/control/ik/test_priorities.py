@@ -67,8 +67,10 @@ def test_levels_are_checked(two_link):
 
 def test_config_levels_renumber_and_put_regularisers_last():
     cfg = g1_config(priorities=(("com", 2), ("left_palm", 5)), damping_cost=1e-3)
-    assert cfg.levels == (("left_foot", "right_foot", "right_palm", "pelvis"), ("com",),
-                          ("left_palm", "posture", "damping"))
+    # the tasks not named go one level below the lowest named one (6, renumbered 2)
+    assert cfg.unnamed_level == 6
+    assert cfg.levels == (("com",), ("left_palm",),
+                          ("left_foot", "right_foot", "right_palm", "pelvis", "posture", "damping"))
     assert g1_config().levels == (g1_config().task_names,)
 
 
