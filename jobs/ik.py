@@ -16,7 +16,8 @@ the joint and the margin, unless ``--clip-start`` clips it into them.
 Collisions. ``--avoid-collisions`` (the default set: the G1's self-collision set, for other
 robots every robot geom against every other, adjacent bodies excluded) and ``--collision-pair
 A:B`` put a collision-avoidance limit in the IK (both backends, the same geom pairs). The G1 is
-always checked against its default set, other robots against the pairs they avoid.
+always checked against its default set, other robots against the pairs they avoid (none avoided:
+nothing is checked, and ``collision_free`` is null, never true).
 
 Plant check (never a silent wrong answer, :mod:`mbctl.jobs.ik_plant`): every target measured in
 MuJoCo at the final pose, and the collision pairs at every configuration the IK visited. The run is

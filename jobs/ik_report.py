@@ -19,25 +19,25 @@ class Verdict(NamedTuple):
     Attributes:
         converged: IK residuals, plant residuals and the collision check all passed.
         collision_free: Every checked pair stayed at or above the minimum distance on the whole
-            path (True when no pair is checked).
+            path; None when no pair is checked (an unchecked claim is never True).
         status: The status phrase of the summary's first line.
     """
 
     converged: bool
-    collision_free: bool
+    collision_free: bool | None
     status: str
 
     @classmethod
     def of(cls, res: IKResult, plant: PlantResiduals, collisions: PathCollisions | None, params: IKParams,
            blocked_within_m: float) -> Verdict:
         """Judge a solve: the IK's own residuals, the plant's, the body's distances on the path."""
-        clear = collisions is None or collisions.clear_of(params.min_distance_m)
+        clear = None if collisions is None else collisions.clear_of(params.min_distance_m)
         on_plant = converged(plant.task_residuals(), _tolerance(params))
-        if res.converged and on_plant and clear:
+        if res.converged and on_plant and clear is not False:
             return cls(True, clear, "converged")
         if res.converged and not on_plant:
             return cls(False, clear, "NOT converged (the MuJoCo plant disagrees with the IK's model)")
-        if not clear and collisions is not None:
+        if clear is False and collisions is not None:
             where = (f"pair {collisions.closest_pair} at {collisions.min_distance_m * 1e3:.1f} mm at step "
                      f"{collisions.closest_step}, minimum {params.min_distance_m * 1e3:g} mm")
             if not params.avoids:

@@ -166,6 +166,17 @@ def test_unreachable_target_exits_1_with_the_closest_pose(two_link, tmp_path):
     assert pose["plant_residual_m"]["end_effector"] == pytest.approx(1.0 - 0.615, abs=5e-3)
 
 
+def test_collision_free_is_null_when_no_pair_is_checked(two_link, tmp_path):
+    """A robot without a default collision set, no pair named: nothing was measured, so
+    ``collision_free`` is null (it was ``true``, for poses whose arms interpenetrate too); the G1
+    tests below show a checked run's boolean."""
+    record = run_job(IK, IKParams("two_link", targets=(("end_effector", (0.3, 0.3, 0.0)),)), tmp_path)
+    pose = _pose(tmp_path)
+    assert record.exit_code == 0 and pose["converged"] is True
+    assert pose["collision_free"] is None and record.values["collision_free"] is None
+    assert pose["collision_pairs_checked"] == 0 and "collision check: none" in record.summary()
+
+
 def test_singular_start_is_not_passed_off_as_the_closest_pose(two_link, tmp_path):
     """(0.05, 0, 0) is reachable (r_min = 0.015 m), but from the straight arm the error lies in
     the Jacobian's null space: the step vanishes, the run exits 1 and says the start may be singular."""
