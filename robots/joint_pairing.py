@@ -280,6 +280,8 @@ def _rebuild(
         joint_ids[0] = model.addJoint(0, pin.JointModelFreeFlyer(), pin.SE3.Identity(), root.name)
         model.appendBodyToJoint(joint_ids[0], X_F0.act(parsed.inertias[0]), pin.SE3.Identity())
         armature += [0.0] * 6
+    else:  # a fixed base: the root link's inertia (a URDF's base link) stays on the universe
+        model.inertias[0] = parsed.inertias[0].copy()
     for j in order:
         parent = int(parsed.parents[j])
         placement = parsed.jointPlacements[j]

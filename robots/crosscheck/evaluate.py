@@ -132,7 +132,8 @@ def crosscheck(
     if frames.missing:
         notes.append(
             f"not compared: {len(frames.missing)} MuJoCo frames have no Pinocchio frame of the "
-            f"same name ({_first(frames.missing)})"
+            f"same name and kind (a body: a BODY frame; a site: an OP_FRAME or a link on a fixed joint) "
+            f"({_first(frames.missing)})"
         )
     states = sample_states(robot, n_states, seed, sampling)
     t0 = time.perf_counter()

@@ -1,7 +1,10 @@
 """The frames both engines compare, and the Jacobian entries worth comparing.
 
 :func:`match_frames` pairs the robot's MuJoCo bodies and sites with the Pinocchio frames of the
-same names. Pinocchio's frame Jacobians are formed per chunk of states the way Pinocchio forms
+same names and of their kind (:func:`site_frame`): a body with a BODY frame; a site with an
+OP_FRAME, else with a frame a fixed joint welds on (a URDF has no sites: its idiom is a link on a
+fixed joint, which Pinocchio's parser makes a FIXED_JOINT frame and a BODY frame), never with the
+frame of a moving joint or of a moving link that shares its name (aloha's finger sites and joints). Pinocchio's frame Jacobians are formed per chunk of states the way Pinocchio forms
 them (:func:`frame_jacobians`), because Pinocchio has no call for many frames and 50 calls per
 state cost more than the rest of its work: for LOCAL_WORLD_ALIGNED the columns of the joints that
 support the frame with the linear rows shifted to the frame's origin, ``v_F = v_O - p_WF x w``
@@ -34,7 +37,7 @@ class Frames(NamedTuple):
         mj_body_ids: MuJoCo body ids of the body frames.
         mj_site_ids: MuJoCo site ids of the site frames.
         names: Frame names (nf,).
-        missing: MuJoCo bodies and sites without a Pinocchio frame of their name, in words.
+        missing: MuJoCo bodies and sites without a Pinocchio frame of their name and kind, in words.
     """
 
     pin_ids: list[int]
@@ -45,7 +48,11 @@ class Frames(NamedTuple):
 
 
 def match_frames(robot: Robot) -> Frames:
-    """The robot's MuJoCo bodies and sites paired with the Pinocchio frames of the same names."""
+    """The robot's MuJoCo bodies and sites paired with the Pinocchio frames of the same names and kind.
+
+    A body pairs with the BODY frame of its name, a site with :func:`site_frame`; joints pair with
+    joints by name elsewhere (``robots/joint_pairing.py``), never with a body or site.
+    """
     pm = robot.pin_model
     pin_ids, body_ids, site_ids, names, missing = [], [], [], [], []
     for b, name in zip(robot.robot_body_ids, robot.bodies, strict=True):
@@ -56,16 +63,33 @@ def match_frames(robot: Robot) -> Frames:
         else:
             missing.append(f"body {name or f'#{b}'}")
     for s, name in zip(robot.robot_site_ids, robot.sites, strict=True):
-        if name and pm.existFrame(name, pin.FrameType.OP_FRAME):
-            pin_ids.append(pm.getFrameId(name, pin.FrameType.OP_FRAME))
-        elif name and pm.existFrame(name):
-            pin_ids.append(pm.getFrameId(name))
-        else:
+        fid = site_frame(pm, name) if name else None
+        if fid is None:
             missing.append(f"site {name or f'#{s}'}")
             continue
+        pin_ids.append(fid)
         site_ids.append(s)
         names.append(name)
     return Frames(pin_ids, np.array(body_ids, dtype=int), np.array(site_ids, dtype=int), names, missing)
+
+
+def site_frame(pm: pin.Model, name: str) -> int | None:
+    """The Pinocchio frame that is MuJoCo site ``name``'s counterpart, or None.
+
+    In this order: the OP_FRAME of that name (an MJCF site, in either Pinocchio builder); the
+    FIXED_JOINT frame of that name, or the BODY frame of that name that a fixed joint welds on
+    (a URDF link on a fixed joint, the URDF's site). A JOINT frame (a moving joint) or the BODY
+    frame of a moving link is never a site's counterpart, whatever its name.
+    """
+    if pm.existFrame(name, pin.FrameType.OP_FRAME):
+        return int(pm.getFrameId(name, pin.FrameType.OP_FRAME))
+    if pm.existFrame(name, pin.FrameType.FIXED_JOINT):
+        return int(pm.getFrameId(name, pin.FrameType.FIXED_JOINT))
+    if pm.existFrame(name, pin.FrameType.BODY):
+        fid = int(pm.getFrameId(name, pin.FrameType.BODY))
+        if pm.frames[int(pm.frames[fid].parentFrame)].type == pin.FrameType.FIXED_JOINT:
+            return fid
+    return None
 
 
 def support_mask(pm: pin.Model, frame_ids: list[int]) -> np.ndarray:
