@@ -31,6 +31,19 @@ def test_two_link_setup_figures(two_link):
     assert np.all(np.abs(sim.q - q0) > 0.5)
 
 
+def test_read_state_is_a_whole_robot_state(two_link_torque):
+    """read_state builds its RobotState without the namedtuple's __new__ (per cycle): every field
+    must be given. A 3-item tuple made ``repr`` raise TypeError and ``.estimated`` IndexError."""
+    sim = Simulator(two_link_torque)
+    sim.step(torque([0.1, -0.1]), 7)
+    state = sim.read_state()
+    assert len(state) == len(type(state)._fields) == 5
+    assert repr(state).startswith("RobotState(q=array(") and "tick=7" in repr(state)
+    assert state.estimated == () and state.tick == sim.n_steps == 7
+    assert state.time_s == pytest.approx(7 * two_link_torque.mj_model.opt.timestep, abs=1e-15)
+    assert state == type(state)(state.q, state.v, state.time_s, (), 7)
+
+
 def test_simulator_runs_the_control_loop_as_a_robot_interface(two_link_torque):
     """control.loop.run drives the simulator through read_state / send / sync only."""
     sim = Simulator(two_link_torque, control_period_s=0.004)
