@@ -129,6 +129,40 @@ def _made_by_the_run(folder: Path, name: Any, digest: Any) -> bool:
     return stat.S_ISREG(_lstat_mode(path)) and sha256_file(path) == digest.lower()
 
 
+def _previous_report(path: Path) -> dict[str, Any]:
+    """The folder's ``report.json`` as a dict ({} when absent, a link, or not a report)."""
+    import json
+
+    report = path / REPORT_NAME
+    if report.is_symlink() or not report.is_file():
+        return {}
+    try:
+        data = json.loads(read_text_nofollow(report))
+    except (OSError, ValueError):
+        return {}
+    return data if isinstance(data, dict) else {}
+
+
+def refuse_another_jobs_run(path: Path, job: str) -> None:
+    """OutputError if ``path`` holds a run of another job (its ``report.json`` names that job).
+
+    A run replaces the previous run of its own job in its folder; the run of another job (an
+    excitation log that ``mbctl identify RUN --output RUN`` would read and then delete) is kept,
+    and the new run refused before anything is written.
+    """
+    data = _previous_report(path)
+    other = data.get("job")
+    if not isinstance(other, str) or not other or other == job:
+        return
+    hashes = data.get("output_sha256")
+    files = sorted(hashes) if isinstance(hashes, dict) else []
+    held = f" ({', '.join(files[:6])}{' ...' if len(files) > 6 else ''})" if files else ""
+    raise OutputError(
+        f"output folder {path} holds a run of `mbctl {other}` (its {REPORT_NAME} says job {other!r}){held}; "
+        f"`mbctl {job}` would replace that run's files: choose another --output (a folder of its own, "
+        f"e.g. out/{job}), or delete that run's files first")
+
+
 def clear_previous_run(path: Path) -> None:
     """Remove the previous run's outputs, its report and dead temp files.
 
@@ -137,15 +171,9 @@ def clear_previous_run(path: Path) -> None:
     cannot make a run delete a user's file; a file edited since the run is left alone. A report
     that is a symbolic link is removed without being read.
     """
-    import json
-
     report = path / REPORT_NAME
     if report.exists() or report.is_symlink():
-        try:
-            data = json.loads(read_text_nofollow(report))
-        except (OSError, ValueError):
-            data = {}
-        hashes = data.get("output_sha256") if isinstance(data, dict) else None
+        hashes = _previous_report(path).get("output_sha256")
         for name, digest in hashes.items() if isinstance(hashes, dict) else ():
             if _made_by_the_run(path, name, digest):
                 (path / name).unlink()

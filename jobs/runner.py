@@ -15,7 +15,8 @@ The runner owns the output folder (one run per folder):
 - The files of an earlier run in the folder (those its ``report.json`` lists with their SHA-256
   and that still have it, the report itself and temporary files of dead processes) are removed
   before the new run writes anything, so no file of an earlier run survives beside a new one,
-  and no other file is removed (see :func:`clear_previous_run`).
+  and no other file is removed (see :func:`clear_previous_run`). A folder that holds another
+  job's run is refused (:class:`OutputError`, exit 2), naming the folder and that job.
 - ``report.json`` is written when the work starts (status ``running``) and again at the end in
   every case: ``completed``, ``interrupted`` (Ctrl-C or SIGTERM), ``diverged`` (the plant
   diverged) or ``failed`` (with the message), with the values known so far, the row count, the
@@ -51,6 +52,7 @@ from mbctl.jobs.run_folder import (
     clear_previous_run,
     folder_lock,
     output_hashes,
+    refuse_another_jobs_run,
     refuse_link,
 )
 from mbctl.jobs.run_folder import check_output_file as check_output_file
@@ -431,6 +433,7 @@ def run_job(
     check_output_names(folder, [REPORT_NAME, TRAJECTORY_NAME, MODEL_NAME, csv_name(job.name),
                                 *([VIDEO_NAME] if video is not None else [])])
     refuse_link(folder / csv_name(job.name))  # the streamed CSV is opened in place: never via a link
+    refuse_another_jobs_run(folder, job.name)  # a run replaces its own job's run, never another's
     work = job.prepare(params)
     progress = Progress(enabled=not quiet and sys.stdout.isatty())
     ctx = RunContext(folder, job.name, progress=progress, video=video)

@@ -119,6 +119,33 @@ def test_no_file_of_an_earlier_run_survives(tmp_path):
     assert read_csv(tmp_path / "toy.csv")["x_m"].size == 2
 
 
+def test_a_folder_that_holds_another_jobs_run_is_refused(tmp_path):
+    """``mbctl identify RUN --output RUN`` deleted the excitation it read: a run replaces a run of
+    its own job only; another job's run is refused before prepare, naming the folder and the job."""
+    run_job(TOY, Params(rows=3, plot=True), tmp_path)
+    before = {name: (tmp_path / name).read_bytes() for name in os.listdir(tmp_path)}
+    calls = []
+    other = Job("other", lambda p: calls.append(p))
+    with pytest.raises(OutputError, match=f"output folder {tmp_path} holds a run of `mbctl toy` "
+                                          r".*\(toy.csv, toy.png\); `mbctl other` would replace"):
+        run_job(other, Params(), tmp_path)
+    assert calls == [] and {name: (tmp_path / name).read_bytes() for name in os.listdir(tmp_path)} == before
+    assert run_job(TOY, Params(rows=2), tmp_path).status == "completed"  # its own job replaces it
+
+
+def test_cli_identify_into_its_excitation_folder_exits_2_and_keeps_the_log(tmp_path):
+    run = tmp_path / "excite"
+    run.mkdir()
+    (run / "excite.csv").write_text("time_s\n0.0\n")
+    (run / "report.json").write_text(json.dumps({"job": "excite", "status": "completed",
+                                                 "output_sha256": {"excite.csv": "0" * 64}}))
+    out = _cli("identify", str(run), "--output", str(run))
+    assert out.returncode == 2, out.stdout + out.stderr
+    assert f"output folder {run} holds a run of `mbctl excite`" in out.stderr and "Traceback" not in out.stderr
+    assert sorted(os.listdir(run)) == ["excite.csv", "report.json"]
+    assert (run / "excite.csv").read_text() == "time_s\n0.0\n"
+
+
 def test_a_second_run_into_a_held_folder_refuses(tmp_path):
     holder = subprocess.Popen([sys.executable, "-c", "import time; time.sleep(30)"])
     try:
