@@ -34,6 +34,12 @@ dual active set, called directly) on the whole problem. daqp was picked by bench
 bound on every variable) proxqp took ~3x and osqp ~17x as long, and osqp stopped far from the
 optimum at its default tolerances; ``WBCConfig.solver`` runs those through qpsolvers.
 
+With ``WBCConfig.friction_feedforward`` the model's joint friction (Pinocchio's ``friction`` and
+``damping``: the MJCF's ``frictionloss`` and ``damping``) is added to the QP's torques at the
+velocity the cycle plans, ``v + vdot dt`` (a smooth sign for the Coulomb part), then clamped to the
+torque limits: an unloaded limb whose torques are below its dry friction follows its task instead
+of sticking.
+
 When the QP has no solution, ``WBCConfig.on_infeasible`` decides: raise
 :class:`~mbctl.control.exceptions.WBCInfeasible`, or ("damp") switch for good to joint damping
 ``tau = -kd v`` and record when, so a simulation goes on and shows whether the robot falls.
@@ -389,10 +395,20 @@ class WholeBodyController:
             self.infeasible_at_s, self.infeasible_message = state.time_s, str(error)
             return self._fallback(state, t0)
         tau = T @ x + b_a
+        if cfg.friction_feedforward:
+            self._add_friction(tau, x[:nv], dt_s)
         self.steps += 1
         self.last = WBCSolution(tau, x[:nv], x[nv:], self._force_slices, self._points_F, poses,
                                 time.perf_counter() - t0, qp_time)
         return Command(CommandKind.TORQUE, tau, self._command_names)
+
+    def _add_friction(self, tau: np.ndarray, vdot: np.ndarray, dt_s: float) -> None:
+        """``tau += f_c tanh(v_plan / speed) + d v_plan``, ``v_plan = v + vdot dt``; clamped to the limits."""
+        a = self._a
+        v_plan = self.state.v[a] + vdot[a] * dt_s
+        coulomb, viscous = self.model.friction[self._act], self.model.damping[self._act]
+        tau += coulomb * np.tanh(v_plan / self._config.friction_speed_rad_s) + viscous * v_plan
+        np.clip(tau, self.tau_low, self.tau_high, out=tau)
 
     def _fallback(self, state: RobotState, t0: float) -> Command:
         """Joint damping ``tau = -kd v`` within the torque limits (the ``on_infeasible="damp"`` fallback)."""
