@@ -5,9 +5,11 @@ passes the next frame time (``fps`` frames per simulated second) and hands it to
 once, so an interrupted run leaves a playable video of what ran. The MP4 is fragmented
 (``-movflags frag_keyframe+empty_moov``, a keyframe every 0.5 s, each fragment flushed to disk):
 playable up to about 0.6 s before its end even if the process and its encoder die before closing
-it. It is written beside its name and renamed into place when closed (the job runner closes on
-Ctrl-C and SIGTERM), so a symbolic link planted at its name is never followed; a process killed
-outright leaves it under its temporary name (``.video.mp4.*.tmp``).
+it. It is written at its own name from the first frame (ffmpeg writes to its stdout, a file we
+create after removing whatever was at the name: a symbolic link planted there is never
+followed), so a process killed outright (SIGKILL) leaves ``video.mp4`` where a user and ``mbctl
+replay`` look for it; the encoder, which outlives it, then reads the end of its input and
+finishes the file.
 With no recorder the simulator pays nothing.
 
 Encoder: imageio-ffmpeg, which ships its own ffmpeg binary (no system install);
@@ -17,18 +19,22 @@ imported; ``mbctl.gl.choose_gl_backend`` probes EGL, then OSMesa, in subprocesse
 
 from __future__ import annotations
 
+import contextlib
 import os
 import re
+import subprocess
+import tempfile
 from collections.abc import Callable
 from dataclasses import dataclass
+from fractions import Fraction
 from pathlib import Path
-from typing import Any
+from typing import IO
 
 import mujoco
 import numpy as np
 
 from mbctl.gl import INSTALL_HINT, VideoError
-from mbctl.sim.atomic import BesideFile
+from mbctl.sim.atomic import FILE_MODE
 from mbctl.sim.simulator import Simulator
 from mbctl.sim.trajectory import base_body
 
@@ -171,12 +177,27 @@ def add_markers(
 KEYFRAME_INTERVAL_S, LOOKAHEAD_S = 0.5, 1.0 / 3.0
 
 
-class _Writer:
-    """An MP4 writer into a file beside ``path``, renamed to ``path`` when closed.
+def _create_new(path: Path) -> int:
+    """A write descriptor on a new file at ``path`` (mode 0644).
 
-    ffmpeg opens its output by name and would follow a symbolic link planted there; it writes
-    a temporary file of ours instead (:class:`~mbctl.sim.atomic.BesideFile`), so no link is ever
-    followed. Closing (the job runner closes on Ctrl-C and SIGTERM too) publishes what was written.
+    Whatever was there (a file, a symbolic link) is removed first, never followed or written
+    through (``O_EXCL | O_NOFOLLOW``).
+    """
+    with contextlib.suppress(FileNotFoundError):
+        os.unlink(path)
+    return os.open(path, os.O_WRONLY | os.O_CREAT | os.O_EXCL | os.O_NOFOLLOW, FILE_MODE)
+
+
+class _Writer:
+    """An MP4 written at ``path`` as it is encoded.
+
+    ffmpeg reads raw frames on its stdin and writes the fragmented MP4 on its stdout, which is
+    the file (created by us, ``_create_new``).
+
+    ffmpeg never opens a file by name, so no symbolic link is ever followed; the video is at its
+    final name from the first frame, so a run killed outright (SIGKILL) leaves ``video.mp4``
+    itself, playable up to its last fragment (and whole once ffmpeg, which outlives the killed
+    process, reads the end of its input). A video without frames is never created.
     """
 
     def __init__(self, path: Path, fps: float):
@@ -185,44 +206,78 @@ class _Writer:
         except ImportError:
             raise VideoError("video needs imageio and imageio-ffmpeg: pip install 'mbctl[video]'") from None
         try:
-            imageio_ffmpeg.get_ffmpeg_exe()
+            self._exe = imageio_ffmpeg.get_ffmpeg_exe()
         except RuntimeError as exc:
             raise VideoError(f"no ffmpeg for the video: {exc}; pip install 'mbctl[video]'") from None
         if path.is_dir():
             raise VideoError(f"{path} is a directory; give a file name for the video")
-        self.path, self.fps, self._ffmpeg = path, fps, imageio_ffmpeg
-        self.out = BesideFile(path)
-        self._frames: Any = None  # ffmpeg's frame generator, started by the first frame (its size)
+        self.path, self.fps = path, fps
+        self._proc: subprocess.Popen[bytes] | None = None  # started by the first frame (its size)
+        self._log: IO[bytes] | None = None
+
+    def _command(self, width: int, height: int) -> list[str]:
+        keyframes, lookahead = (max(1, round(t * self.fps)) for t in (KEYFRAME_INTERVAL_S, LOOKAHEAD_S))
+        return [self._exe, "-y", "-f", "rawvideo", "-vcodec", "rawvideo", "-s", f"{width}x{height}",
+                "-pix_fmt", "rgb24", "-r", str(Fraction(self.fps).limit_denominator()), "-i", "-", "-an",
+                "-vcodec", "libx264", "-pix_fmt", "yuv420p", "-v", "error", "-crf", "23",
+                "-g", str(keyframes), "-x264-params", f"rc-lookahead={lookahead}",
+                # fragmented, each fragment flushed: playable up to the last fragment if the process dies
+                "-movflags", "frag_keyframe+empty_moov", "-flush_packets", "1", "-f", "mp4", "pipe:1"]
+
+    def _start(self, width: int, height: int) -> subprocess.Popen[bytes]:
+        try:
+            fd = _create_new(self.path)
+        except OSError as exc:
+            raise VideoError(f"cannot create the video {str(self.path)!r}: {exc.strerror or exc}") from None
+        self._log = tempfile.TemporaryFile()
+        try:
+            return subprocess.Popen(self._command(width, height), stdin=subprocess.PIPE, stdout=fd,
+                                    stderr=self._log, start_new_session=True)
+        except OSError as exc:
+            raise VideoError(f"cannot start the video encoder for {str(self.path)!r}: {exc}; "
+                             "pip install 'mbctl[video]'") from exc
+        finally:
+            os.close(fd)  # ffmpeg holds the file now
 
     def append_data(self, frame: np.ndarray) -> None:
         """Encode one frame (height, width, 3) uint8."""
-        if self._frames is None:
-            try:
-                self._frames = self._ffmpeg.write_frames(
-                    str(self.out.tmp), (frame.shape[1], frame.shape[0]), fps=self.fps, codec="libx264",
-                    macro_block_size=2, quality=None, ffmpeg_log_level="error",
-                    # fragmented: playable up to the last fragment if the process dies
-                    output_params=["-crf", "23", "-g", str(max(1, round(KEYFRAME_INTERVAL_S * self.fps))),
-                                   "-x264-params", f"rc-lookahead={max(1, round(LOOKAHEAD_S * self.fps))}",
-                                   "-movflags", "frag_keyframe+empty_moov", "-flush_packets", "1",
-                                   "-f", "mp4"])
-                self._frames.send(None)
-            except Exception as exc:  # imageio-ffmpeg raises several types for a missing ffmpeg
-                self._frames = None
-                raise VideoError(f"cannot start the video encoder for {str(self.path)!r}: {exc}; "
-                                 "pip install 'mbctl[video]'") from exc
-        self._frames.send(np.ascontiguousarray(frame))
+        if self._proc is None:
+            self._proc = self._start(frame.shape[1], frame.shape[0])
+        stdin = self._proc.stdin
+        try:
+            if stdin is None:
+                raise BrokenPipeError
+            stdin.write(np.ascontiguousarray(frame, dtype=np.uint8).tobytes())
+            stdin.flush()  # the whole frame reaches ffmpeg now: none is lost if this process is killed
+        except (BrokenPipeError, ValueError):
+            raise VideoError(f"the video encoder stopped writing {str(self.path)!r}: "
+                             f"{self._errors(self._proc.wait())}") from None
+
+    def _errors(self, code: int) -> str:
+        """The encoder's exit code and the end of what it printed."""
+        text = b""
+        if self._log is not None:
+            self._log.seek(0)
+            text = self._log.read()
+        tail = text.decode(errors="replace").strip()[-500:]
+        return f"ffmpeg exit {code}" + (f": {tail}" if tail else "")
 
     def close(self) -> None:
-        """Finish the file and rename it into place (idempotent; a video without frames is not published)."""
-        if self._frames is None:
-            self.out.discard()
+        """Finish the file (idempotent; a video without frames is never created)."""
+        proc, self._proc = self._proc, None
+        if proc is None:
             return
         try:
-            self._frames.close()
+            if proc.stdin is not None:
+                with contextlib.suppress(BrokenPipeError):
+                    proc.stdin.close()
+            code = proc.wait()
+            if code != 0:
+                raise VideoError(f"the video encoder failed on {str(self.path)!r}: {self._errors(code)}")
         finally:
-            self.out.publish()
-            self._frames = None
+            if self._log is not None:
+                self._log.close()
+                self._log = None
 
 
 def _open_writer(path: Path, fps: float) -> _Writer:

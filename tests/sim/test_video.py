@@ -2,7 +2,12 @@
 
 from __future__ import annotations
 
+import os
 import shutil
+import signal
+import subprocess
+import sys
+import textwrap
 import time
 from pathlib import Path
 
@@ -71,7 +76,7 @@ def test_the_file_on_disk_plays_to_within_a_second_of_the_last_frame(tmp_path):
     for _ in range(1500):  # 3 s at 2 ms: 90 frames sent
         sim.step(torque([1.0, -0.5]))
     assert rec.frames == 90
-    (on_disk,) = tmp_path.glob(".live.mp4.*.tmp")  # written beside its name until closed
+    on_disk = tmp_path / "live.mp4"  # written at its name from the first frame
     snapshot, readable, deadline = tmp_path / "snapshot.mp4", 0, time.monotonic() + 60.0
     while readable < 60 and time.monotonic() < deadline:
         shutil.copyfile(on_disk, snapshot)  # what a reader finds on disk now
@@ -110,6 +115,65 @@ def test_interrupted_run_leaves_a_playable_video(tmp_path):
     assert record.status == "interrupted" and record.exit_code == 130
     assert _frames(tmp_path / "video.mp4").shape[0] == 9  # 0.3 s x 30 fps
     assert load_trajectory(tmp_path)[2].shape == (151, 2)
+
+
+#: The run killed with SIGKILL: 1.5 s of the arm filmed (45 frames), then it waits to be killed.
+_KILLED_RUN = textwrap.dedent("""
+    import sys, time
+    from mbctl.jobs.runner import Job, Outcome, run_job
+    from mbctl.robots import load_robot, torque
+    from mbctl.sim import Simulator
+    from mbctl.sim.video import VideoSpec
+
+    def prepare(params):
+        def work(ctx):
+            sim = ctx.attach(Simulator(load_robot("two_link_torque")))
+            for _ in range(750):
+                sim.step(torque([1.0, -0.5]))
+            print("filmed", flush=True)
+            time.sleep(600)
+            return Outcome(True, (), "")
+        return work
+
+    run_job(Job("clip", prepare), None, sys.argv[1], video=VideoSpec(320, 240))
+""")
+
+
+def _writers_of(path: Path) -> list[int]:
+    """Pids of the processes whose stdout is ``path`` (the encoder of a killed run)."""
+    pids = []
+    for proc in Path("/proc").iterdir():
+        try:
+            if proc.name.isdigit() and os.readlink(proc / "fd" / "1") == str(path):
+                pids.append(int(proc.name))
+        except OSError:
+            continue
+    return pids
+
+
+def test_a_run_killed_with_sigkill_leaves_its_video_at_its_name(tmp_path):
+    """SIGKILL mid-run: the video was ``.video.mp4.*.tmp`` (hidden, and removed by the next run);
+    now it is ``video.mp4``, and the encoder, which outlives the run, finishes it: all 45 frames."""
+    run = tmp_path / "run"
+    child = subprocess.Popen([sys.executable, "-c", _KILLED_RUN, str(run)], stdout=subprocess.PIPE, text=True)
+    try:
+        assert child.stdout is not None and child.stdout.readline() == "filmed\n"
+        encoders = _writers_of(run / "video.mp4")
+        assert len(encoders) == 1  # ffmpeg writes the video at its name while the run goes on
+        child.send_signal(signal.SIGKILL)
+    finally:
+        child.kill()
+        child.wait()
+    assert child.returncode == -signal.SIGKILL
+    for pid in encoders:  # the encoder reads the end of its input and closes the file
+        for _ in range(600):
+            if pid not in _writers_of(run / "video.mp4"):
+                break
+            time.sleep(0.1)
+    assert not _writers_of(run / "video.mp4")
+    names = sorted(p.name for p in run.iterdir())
+    assert "video.mp4" in names and not [n for n in names if "mp4" in n and n != "video.mp4"], names
+    assert _frames(run / "video.mp4").shape == (45, 240, 320, 3)
 
 
 @pytest.mark.parametrize("text", ["640", "640x", "x480", "640x481", "8x8", "abcxdef"])
