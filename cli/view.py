@@ -92,10 +92,16 @@ def replay(
     port: PortOpt = 0,
 ) -> None:
     """Play a recorded run back: in MuJoCo's viewer, to an MP4 with --video, or in the browser with --web."""
+    from mbctl.jobs.exceptions import JobError
     from mbctl.jobs.runner import OutputError, check_output_file
     from mbctl.sim.trajectory import TRAJECTORY_NAME, load_trajectory
     from mbctl.sim.video import VideoSpec, film_trajectory, parse_size
 
+    if web and (video or output is not None):
+        given = " and ".join(o for o, on in (("--video", video), ("--output", output is not None)) if on)
+        raise JobError(f"replay --web serves the run to the browser and writes no file; {given} "
+                       "(an MP4) cannot go with it: run `mbctl replay RUN_DIR --video` for the MP4, "
+                       "and `mbctl replay RUN_DIR --web` for the browser")
     if not (run_dir / TRAJECTORY_NAME).is_file():
         raise OutputError(
             f"{str(run_dir)!r} holds no {TRAJECTORY_NAME}: not a run folder of a simulating job"

@@ -45,6 +45,9 @@ def test_bad_input_exits_2_with_a_message(tmp_path):
     assert out.returncode == 2 and "holds no trajectory.npz" in out.stderr
     out = _mbctl("render", "two_link", "--output", str(tmp_path / "arm.jpg"))
     assert out.returncode == 2 and "--output must be a .png file" in out.stderr
+    out = _mbctl("replay", str(tmp_path), "--web", "--video")  # --video was silently ignored
+    assert out.returncode == 2 and "replay --web serves the run to the browser and writes no file; " \
+        "--video (an MP4) cannot go with it" in out.stderr, out.stderr
 
 
 def test_replay_of_a_damaged_run_exits_2_naming_the_problem(tmp_path):
