@@ -81,7 +81,8 @@ def ik(
         typer.Option("--max-velocity", help="JOINT=SPEED per-joint velocity limit (rad/s) (repeatable)."),
     ] = None,
     damping: Annotated[
-        float, typer.Option("--damping", help="Weight of a minimum-motion (damping) task (0: none).")
+        float, typer.Option("--damping", help="Weight of a minimum-motion (damping) task, in [0, 100] "
+                            "(0: none; the targets' weight is 5).")
     ] = 0.0,
     clip_start: Annotated[
         bool, typer.Option("--clip-start", help="Clip a start outside the joint limits into them.")

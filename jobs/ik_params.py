@@ -26,6 +26,12 @@ SOLVERS = ("daqp", "osqp")
 #: Orientation tolerance [rad] per metre of position tolerance.
 RAD_PER_M_TOL = 10.0
 
+#: Largest ``--damping`` weight [cost]/[rad]: 20 times the targets' 5 [cost]/[m]. A step then
+#: closes about (5 / 100)^2 = 0.25 % of a target's error (Jacobian gains near 1 m/rad), so the
+#: iteration cap ends the solve; far above it the damping is the whole cost: at 1e4 every step
+#: vanished ("stalled", blamed on the target) and at 1e8 the QP solver failed (daqp, iteration limit).
+MAX_DAMPING_COST = 100.0
+
 
 class TargetSpec(NamedTuple):
     """One frame's target as given on the command line.
@@ -124,8 +130,10 @@ class IKParams:
             )
         if not (math.isfinite(self.min_distance_m) and -0.05 <= self.min_distance_m < 0.1):
             raise IKSetupError(f"min distance must be in [-0.05, 0.1) m; got {self.min_distance_m!r}")
-        if not (math.isfinite(self.damping_cost) and self.damping_cost >= 0.0):
-            raise IKSetupError(f"damping must be a weight >= 0; got {self.damping_cost!r}")
+        if not (math.isfinite(self.damping_cost) and 0.0 <= self.damping_cost <= MAX_DAMPING_COST):
+            raise IKSetupError(f"--damping must be a weight in [0, {MAX_DAMPING_COST:g}] [cost]/[rad] (the "
+                               f"targets' weight is 5; above {MAX_DAMPING_COST:g} the damping stops every "
+                               f"step and the QP fails); got {self.damping_cost!r}")
         try:
             for text in self.collision_pairs:
                 CollisionPair.parse(text)
@@ -211,26 +219,36 @@ def _name_and_values(text: str, option: str, example: str) -> tuple[str, str]:
     return name.strip(), values
 
 
+def _frame_and_reference(name: str, option: str, text: str) -> tuple[str, str | None]:
+    """``FRAME`` or ``FRAME@REF`` -> (frame, reference or None); IKSetupError if a side is empty.
+
+    An empty reference (``FRAME@=...``) is refused, never read as the world.
+    """
+    frame, at, reference = (part.strip() for part in name.partition("@"))
+    if not frame or (at and not reference):
+        raise IKSetupError(f"{option} FRAME@REF needs both names (REF: a site or body the pose is "
+                           f"given in; leave out @REF for the world); got {text!r}")
+    return frame, reference or None
+
+
 def parse_target(text: str) -> TargetSpec:
     """``FRAME[@REF]=X,Y,Z[,QW,QX,QY,QZ]`` -> TargetSpec; IKSetupError if malformed."""
     name, values = _name_and_values(text, "--target",
                                     "FRAME=X,Y,Z[,QW,QX,QY,QZ] (e.g. left_palm=0.3,0.2,0.9)")
-    frame, _, reference = name.partition("@")
-    if not frame.strip() or ("@" in name and not reference.strip()):
-        raise IKSetupError(f"--target FRAME@REF needs both names; got {text!r}")
+    frame, reference = _frame_and_reference(name, "--target", text)
     numbers = parse_numbers(values, (3, 7), f"--target {name} (m, then an optional quaternion)",
                             "X,Y,Z or X,Y,Z,QW,QX,QY,QZ")
     quat = _unit_quat(numbers[3:], f"--target {name}") if len(numbers) == 7 else None
-    return TargetSpec(frame.strip(), (numbers[0], numbers[1], numbers[2]), quat, reference.strip() or None)
+    return TargetSpec(frame, (numbers[0], numbers[1], numbers[2]), quat, reference)
 
 
 def parse_orientation(text: str) -> TargetSpec:
     """``FRAME[@REF]=QW,QX,QY,QZ`` -> TargetSpec (orientation only)."""
     name, values = _name_and_values(text, "--orientation", "FRAME=QW,QX,QY,QZ (e.g. left_palm=1,0,0,0)")
-    frame, _, reference = name.partition("@")
+    frame, reference = _frame_and_reference(name, "--orientation", text)
     numbers = parse_numbers(values, (4,), f"--orientation {name}", "QW,QX,QY,QZ")
     quat = _unit_quat(numbers, f"--orientation {name}")
-    return TargetSpec(frame.strip(), None, quat, reference.strip() or None)
+    return TargetSpec(frame, None, quat, reference)
 
 
 def parse_priority(text: str) -> tuple[str, int]:

@@ -355,6 +355,25 @@ def test_target_text_errors(text, message):
         parse_target(text)
 
 
+def test_an_empty_reference_or_an_implausible_damping_is_refused():
+    """``--orientation left_palm@=...`` meant the world, and ``--damping 1e12`` ended in a QP
+    failure that never named the damping: both are refused, naming the value."""
+    from mbctl.jobs import options
+    from mbctl.jobs.ik_params import MAX_DAMPING_COST, parse_orientation
+
+    empty = "left_palm@=1,0,0,0"
+    with pytest.raises(IKSetupError, match=f"--orientation FRAME@REF needs both names .* got '{empty}'"):
+        parse_orientation(empty)
+    assert parse_orientation("left_palm @ torso_link=1,0,0,0").reference == "torso_link"
+    assert parse_orientation("left_palm=1,0,0,0").reference is None
+    target = ["left_palm=0.3,0.25,0.9"]
+    with pytest.raises(IKSetupError, match=r"--damping must be a weight in \[0, 100\] .*got 1000000000000.0"):
+        options.ik("g1", target=target, damping=1e12)
+    with pytest.raises(IKSetupError, match="--damping must be a weight in"):
+        options.ik("g1", target=target, damping=-1.0)
+    assert options.ik("g1", target=target, damping=MAX_DAMPING_COST).damping_cost == 100.0
+
+
 def test_option_values_parse_into_the_parameters():
     from mbctl.jobs import options
 
