@@ -23,7 +23,8 @@ from typing import Any
 import pinocchio as pin
 
 from mbctl.exceptions import ToolkitError
-from mbctl.robots.edits import add_payload, scale_link_masses
+from mbctl.robots.edits import add_payload, check_payload_offset, scale_link_masses
+from mbctl.robots.exceptions import RobotError
 from mbctl.robots.model_pair import Robot
 from mbctl.robots.registry import load_robot
 
@@ -52,7 +53,7 @@ def parse_payload(text: str) -> Payload:
 
     Raises:
         ModelOptionError: Not of that form, a mass that is not > 0, or an offset of other than 3
-            finite numbers.
+            finite numbers or farther than ``MAX_PAYLOAD_OFFSET_M`` from the body.
     """
     form = "KG@BODY[:X,Y,Z] (e.g. 2.0@torso_link:0.05,0,0.25)"
     mass_text, at, rest = text.partition("@")
@@ -76,6 +77,10 @@ def parse_payload(text: str) -> Payload:
             raise ModelOptionError(f"--payload offset must be X,Y,Z in metres (body frame); got "
                                    f"{offset_text!r}")
         offset = (values[0], values[1], values[2])
+        try:
+            check_payload_offset(offset)
+        except RobotError as exc:
+            raise ModelOptionError(f"--payload {text!r}: {exc}") from None
     return Payload(mass, body.strip(), offset)
 
 
@@ -148,6 +153,7 @@ def build_models(robot: Robot, options: ModelOptions, edit: Callable[[Robot], Ro
     Raises:
         ModelOptionError: A controller model whose joints differ from the robot's.
         UnknownNameError: A payload on a body the robot does not have.
+        RobotError: A payload heavier than ``MAX_PAYLOAD_MASS_RATIO`` times the robot.
         ModelFileError: A controller model MuJoCo or Pinocchio cannot read.
     """
     plant = robot

@@ -15,6 +15,16 @@ from mbctl.robots.model_pair import Robot
 #: centre): close to a point mass, and MuJoCo writes an inertial only with some inertia.
 PAYLOAD_RADIUS_M = 0.01
 
+#: Largest payload mass, as a multiple of the robot's own mass [-]. A payload is something the
+#: robot carries: at 1000 times its mass its actuators cannot hold it, and the payload's share of
+#: M(q) swamps the links the options exist to study (1e30 kg made a plant that still "ran").
+MAX_PAYLOAD_MASS_RATIO = 1000.0
+
+#: Largest distance [m] of a payload from the body it is fixed to: beyond the reach of any robot
+#: in the catalogue (the G1 is 1.3 m tall). At 1e9 m both engines' forward kinematics lose the
+#: 1e-9 m the load-time agreement check holds them to (double precision: 1e9 x 2.2e-16 = 2e-7 m).
+MAX_PAYLOAD_OFFSET_M = 10.0
+
 
 def position_to_motor(robot: Robot, actuators: Iterable[str] | None = None) -> Robot:
     """Turn position (or velocity) actuators into torque motors, so torque controllers can run.
@@ -253,6 +263,14 @@ def scale_link_masses(robot: Robot, factor: float) -> Robot:
     return robot.with_edits(f"plant link masses and inertias x {factor:g}", mj_edit=edit)
 
 
+def check_payload_offset(offset_m: Iterable[float]) -> None:
+    """RobotError if a payload offset (3,) [m] is farther than :data:`MAX_PAYLOAD_OFFSET_M` from its body."""
+    distance = float(np.linalg.norm(np.asarray(list(offset_m), dtype=float)))
+    if not distance <= MAX_PAYLOAD_OFFSET_M:
+        raise RobotError(f"payload offset {list(offset_m)} m is {distance:g} m from its body; a payload "
+                         f"sits on the robot, at most {MAX_PAYLOAD_OFFSET_M:g} m away")
+
+
 def add_payload(robot: Robot, mass_kg: float, body: str, offset_m: Iterable[float] = (0.0, 0.0, 0.0)
                 ) -> Robot:
     """Fix a payload (a small solid sphere, nearly a point mass) to ``body``, in both engines.
@@ -269,7 +287,9 @@ def add_payload(robot: Robot, mass_kg: float, body: str, offset_m: Iterable[floa
 
     Raises:
         UnknownNameError: ``body`` is not a body of the robot.
-        RobotError: A mass that is not > 0 or an offset that is not 3 finite numbers.
+        RobotError: A mass that is not > 0 or above :data:`MAX_PAYLOAD_MASS_RATIO` times the
+            robot's mass, or an offset that is not 3 finite numbers within
+            :data:`MAX_PAYLOAD_OFFSET_M` of the body.
     """
     if body not in robot.bodies:
         from mbctl.robots.exceptions import UnknownNameError
@@ -278,8 +298,14 @@ def add_payload(robot: Robot, mass_kg: float, body: str, offset_m: Iterable[floa
     offset = np.asarray(list(offset_m), dtype=float)
     if not (np.isfinite(mass_kg) and mass_kg > 0):
         raise RobotError(f"payload mass must be finite and > 0 kg; got {mass_kg}")
+    robot_mass = float(np.sum(robot.mj_model.body_mass[list(robot.robot_body_ids)]))
+    if mass_kg > MAX_PAYLOAD_MASS_RATIO * robot_mass:
+        raise RobotError(f"payload mass {mass_kg:g} kg is more than {MAX_PAYLOAD_MASS_RATIO:g} times the "
+                         f"robot's own mass ({robot_mass:.4g} kg): at most "
+                         f"{MAX_PAYLOAD_MASS_RATIO * robot_mass:.4g} kg for {robot.name!r}")
     if offset.shape != (3,) or not np.all(np.isfinite(offset)):
         raise RobotError(f"payload offset must be 3 finite numbers [m]; got {offset_m!r}")
+    check_payload_offset(offset)
     name = f"payload_{body}"
     inertia = 0.4 * mass_kg * PAYLOAD_RADIUS_M**2
 

@@ -24,6 +24,8 @@ def test_payload_parses(text, payload):
 @pytest.mark.parametrize("text, message", [
     ("2.0", "must look like KG@BODY"), ("x@b", "the mass 'x' is not a number"), ("-1@b", "mass must be > 0"),
     ("1@b:1,2", "offset must be X,Y,Z"), ("1@:1,2,3", "must look like KG@BODY"),
+    # an offset of 1e9 m failed later, as the load-time agreement check's FK difference
+    ("1@b:1e9,0,0", r"offset \[1000000000.0, 0.0, 0.0\] m is 1e\+09 m from its body; .* at most 10 m"),
 ])
 def test_bad_payloads_are_refused(text, message):
     with pytest.raises(ModelOptionError, match=message):
@@ -41,6 +43,19 @@ def test_plant_gets_the_hidden_truth_and_the_controller_does_not(two_link_torque
                                 "controller_model": "the robot's own"}
     with pytest.raises(UnknownNameError, match="Did you mean 'link2'"):
         build_models(two_link_torque_gravity, ModelOptions(payload="1@link3"))
+
+
+def test_a_payload_heavier_than_1000_robots_is_refused(two_link_torque_gravity):
+    """``--payload 1e30@link2`` made a plant (and a run) with a 1e30 kg point mass on a 1.75 kg arm."""
+    from mbctl.robots.exceptions import RobotError
+
+    robot_mass = float(np.sum(two_link_torque_gravity.mj_model.body_mass))
+    assert robot_mass == pytest.approx(1.75)
+    with pytest.raises(RobotError, match=r"payload mass 1e\+30 kg is more than 1000 times the robot's own "
+                                         r"mass \(1.75 kg\): at most 1750 kg for 'two_link_torque'"):
+        build_models(two_link_torque_gravity, ModelOptions(payload="1e30@link2"))
+    heaviest = build_models(two_link_torque_gravity, ModelOptions(payload="1750@link2"))
+    assert sum(i.mass for i in heaviest.plant.pin_model.inertias) == pytest.approx(1751.75)
 
 
 def test_controller_model_from_a_file_of_the_same_robot(two_link_torque_gravity, two_link_torque, tmp_path):
