@@ -50,10 +50,15 @@ def sweep(
         bool, typer.Option("--force", help=f"Run a grid of more than {MAX_SWEEP_TASKS:,} tasks.")
     ] = False,
 ) -> None:
-    """Run JOB for every combination of the values (times the seeds); exit 1 if a row failed."""
+    """Run JOB for every combination of the values (times the seeds); exit 1 if a row did not pass.
+
+    A row does not pass when its run failed, diverged or ended outside its bound; the summary
+    says which rows and why, and prints the metric of every row.
+    """
     from mbctl.jobs.catalog import parse_grid
     from mbctl.jobs.runner import Progress
     from mbctl.jobs.sweep import CSV_NAME, SweepConfig, run_sweep
+    from mbctl.jobs.sweep_table import metric_table, summary_lines
 
     grid = parse_grid(job, param or [], seeds)
     folder = output or Path("out") / f"sweep-{job}"
@@ -70,6 +75,7 @@ def sweep(
                      "run folder: dropped (this grid's ones ran again)")
     if result.note:
         lines.append(result.note)
+    lines += summary_lines(result.rows) + metric_table(result.rows, list(grid), result.metric)
     if result.status == "interrupted":
         lines.insert(0, "interrupted: the remaining tasks were cancelled; --resume runs them")
     typer.echo("\n".join(lines), err=result.status != "completed")

@@ -121,6 +121,7 @@ class SweepResult:
         files: sweep.csv, sweep.json and (if drawn) sweep.png.
         wall_time_s: Wall time [s] from submitting the first task to the last result.
         note: Why no plot was drawn, if none was.
+        metric: The report value plotted and tabulated.
     """
 
     status: str
@@ -133,6 +134,7 @@ class SweepResult:
     note: str | None = None
     earlier: list[dict[str, Any]] = field(default_factory=list)
     unsound: int = 0
+    metric: str = ""
 
     @property
     def exit_code(self) -> int:
@@ -196,7 +198,10 @@ def run_task(job: str, values: dict[str, Any], run_dir: str) -> dict[str, Any]:
         spec = entry(job)
         params = spec.params(values)
         record = run_job(job_with_cached_robot(spec, params), params, Path(run_dir), quiet=True)
-        return {"status": record.status, "exit_code": record.exit_code, "error": record.message,
+        error = record.message
+        if record.status == "completed" and record.outcome is not None and not record.outcome.passed:
+            error = f"outside its bound: {record.outcome.bound}"  # why the row exits 1
+        return {"status": record.status, "exit_code": record.exit_code, "error": error,
                 "values": json.loads(json.dumps(record.values, default=str))}
     except Exception as exc:  # noqa: BLE001 - any failure is the row's error, never a lost sweep
         return {"status": "failed", "exit_code": EXIT_OUT_OF_BOUND, "error": f"{type(exc).__name__}: {exc}",
@@ -442,7 +447,7 @@ def run_sweep(config: SweepConfig, progress: Progress | None = None, client: Any
         ordered = [rows[k] for k in keys if k in rows]
         result = SweepResult(status, ordered, ran, skipped,
                              [r for r in ordered if r["status"] != "completed"], wall_time_s=wall,
-                             earlier=extra, unsound=unsound)
+                             earlier=extra, unsound=unsound, metric=config.metric or spec.main_value)
         result.files["csv"] = write_csv(folder / CSV_NAME, every_row(), names)
         plot = _plot(spec, config, every_row(), names, folder / PLOT_NAME)
         if plot is not None:
@@ -457,6 +462,8 @@ def run_sweep(config: SweepConfig, progress: Progress | None = None, client: Any
             "wall_time_s": wall, "metric": config.metric or spec.main_value,
             "versions": versions(), "cluster": cluster,
             "failures": [{k: r[k] for k in [*names, "status", "error", "run_dir"]} for r in result.failures],
+            "outside_bound": [{k: r[k] for k in [*names, "error", "run_dir"]} for r in ordered
+                              if r["status"] == "completed" and str(r["exit_code"]) != str(EXIT_OK)],
             "outputs": {role: p.name for role, p in result.files.items()},
         })
     return result

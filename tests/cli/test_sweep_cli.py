@@ -52,6 +52,26 @@ def test_sweep_on_an_existing_scheduler(dask_client, tmp_path):
     assert (tmp_path / "s" / "sweep.png").exists()
 
 
+def test_a_sweep_that_exits_1_says_which_rows_and_why_with_the_metric_table(dask_client, tmp_path):
+    """Every row of this IK sweep completes outside its bound (the CoM of the arm cannot reach
+    (0.3, 0.3)): the sweep exits 1, and used to say only "0 not completed"."""
+    out = mbctl("sweep", "ik", "--param", "robot=two_link", "--param", "com=0.3,0.3;0.05,0", "--param",
+                "tol=1e-3", "--scheduler", dask_client.scheduler.address, "--output", str(tmp_path / "s"),
+                "--quiet")
+    assert out.returncode == 1, out.stdout + out.stderr
+    text = out.stdout + out.stderr
+    assert "exit 1: 2 of 2 rows did not pass: 2 completed outside their bound, 0 not completed" in text
+    assert "max_plant_residual_m by row:" in text
+    table = text[text.index("max_plant_residual_m by row:"):].splitlines()
+    assert table[1].split() == ["robot", "com", "tol", "max_plant_residual_m", "status", "exit", "why",
+                                "(not", "passed)"]
+    bound = "outside its bound: every IK and plant (MuJoCo) residual within 0.001 m and 0.01 rad"
+    assert table[2].startswith("  two_link  0.3,0.3") and table[2].endswith(bound)
+    assert table[2].split()[3:6] == ["0.213", "completed", "1"]  # the CoM 0.213 m from its target
+    with (tmp_path / "s" / "sweep.csv").open() as f:
+        assert [r["error"] for r in csv.DictReader(f)] == [bound, bound]
+
+
 def test_a_symlink_under_runs_exits_2(tmp_path):
     (tmp_path / "s" / "runs").mkdir(parents=True)
     (tmp_path / "s" / "runs" / "duration=0.1").symlink_to(tmp_path)

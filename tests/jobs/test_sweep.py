@@ -185,6 +185,29 @@ def test_plot_line_over_one_option_with_seeds_and_heat_map_over_two(tmp_path):
     assert plot_sweep(rows, ["states", "seed"], "missing", "t", tmp_path / "none.png") is None
 
 
+def test_the_summary_says_which_rows_did_not_pass_and_why():
+    from mbctl.jobs.sweep_table import TABLE_ROWS, metric_table, summary_lines
+
+    rows = [{"model_error": "0.0", "rms_error_m": "0.000115", "status": "completed", "exit_code": "0",
+             "error": ""},
+            {"model_error": "10.0", "rms_error_m": "0.0242", "status": "completed", "exit_code": "1",
+             "error": "outside its bound: RMS error <= 1 mm"},
+            {"model_error": "50.0", "rms_error_m": "", "status": "diverged", "exit_code": "1",
+             "error": "the plant diverged at t = 0.3 s (BADQACC)"}]
+    assert summary_lines(rows[:1]) == []
+    assert summary_lines(rows) == ["exit 1: 2 of 3 rows did not pass: 1 completed outside their bound, 1 "
+                                   "not completed (failed, diverged or interrupted); the table says which "
+                                   "and why"]
+    assert metric_table(rows, ["model_error"], "rms_error_m") == [
+        "rms_error_m by row:",
+        "  model_error  rms_error_m  status     exit  why (not passed)",
+        "  0            0.000115     completed  0",
+        "  10           0.0242       completed  1     outside its bound: RMS error <= 1 mm",
+        "  50           -            diverged   1     the plant diverged at t = 0.3 s (BADQACC)"]
+    many = metric_table(rows * TABLE_ROWS, ["model_error"], "rms_error_m")
+    assert len(many) == 2 + TABLE_ROWS + 1 and many[-1] == f"  ... {2 * TABLE_ROWS} more rows in sweep.csv"
+
+
 def test_run_folder_names_are_safe_and_distinct():
     from mbctl.jobs.sweep import run_name
 
