@@ -91,6 +91,7 @@ class SwingSample(NamedTuple):
         yaw_rad: Foot yaw [rad] (the foot stays level: roll and pitch 0).
         yaw_rate_rad_s: Yaw rate [rad/s].
         phase: Fraction of the swing time elapsed, in [0, 1].
+        yaw_acceleration_rad_s2: Yaw acceleration [rad/s^2].
     """
 
     position: np.ndarray
@@ -99,6 +100,7 @@ class SwingSample(NamedTuple):
     yaw_rad: float
     yaw_rate_rad_s: float
     phase: float
+    yaw_acceleration_rad_s2: float = 0.0
 
 
 class SwingTrajectory:
@@ -196,7 +198,7 @@ class SwingTrajectory:
             v, a, vz, az = np.zeros(3), np.zeros(3), np.zeros(1), np.zeros(1)
         return SwingSample(np.array([p[0], p[1], z[0]]), np.array([v[0], v[1], vz[0]]),
                            np.array([a[0], a[1], az[0]]), float(p[2]), float(v[2]),
-                           tau / self.duration_s)
+                           tau / self.duration_s, float(a[2]))
 
 
 def _point(label: str, value: npt.ArrayLike) -> np.ndarray:

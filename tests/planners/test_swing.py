@@ -70,6 +70,8 @@ def test_velocity_and_acceleration_are_the_derivatives_of_the_path():
         np.testing.assert_allclose((b.position - a.position) / (2 * h), mid.velocity, atol=1e-6)
         np.testing.assert_allclose((b.velocity - a.velocity) / (2 * h), mid.acceleration, atol=5e-4)
         assert (b.yaw_rad - a.yaw_rad) / (2 * h) == pytest.approx(mid.yaw_rate_rad_s, abs=1e-6)
+        assert (b.yaw_rate_rad_s - a.yaw_rate_rad_s) / (2 * h) == pytest.approx(mid.yaw_acceleration_rad_s2,
+                                                                                abs=5e-4)
 
 
 def test_horizontal_motion_ends_first_then_the_foot_descends_vertically():

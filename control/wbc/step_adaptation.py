@@ -1,0 +1,163 @@
+"""Step adaptation: the swing footstep re-planned by a small QP when the measured DCM leaves its tube.
+
+In single support on the stance VRP r_s, the DCM follows ``xi(t) = r_s + exp(omega (t - t1)) (xi(t1) -
+r_s)`` to the next switch t1. The later footsteps are placed relative to the swing footstep, so moving
+it by d moves the plan's ``xi(t1)`` by d, and the plan at t by ``exp(-omega (t1 - t)) d``. A DCM error
+``e = xi - xi_ref`` measured at t is therefore absorbed by the footstep moved by
+``d = exp(omega (t1 - t)) e``: the plan through the moved footstep passes through the measured DCM.
+
+The CMP feedback on the stance foot corrects errors up to what the sole allows; the **tube** is that
+part, ``tube = fraction (reach - margin) / (1 + k / omega)`` per axis of the stance foot's heading
+frame (reach: from the sole centre to the sole polygon's edge, forward or back and sideways, the
+nearer; ``1 + k / omega`` the feedback law's factor). Only
+the error outside the tube is stepped away, ``e_out = sign(e) max(|e| - tube, 0)``.
+
+**The QP** (2 variables: the footstep's offset x = (forward, sideways) from the stance foot in its
+heading frame S)::
+
+    min_x  |x - x_des|^2 + w |x - x_nom|^2        x_des = x_nom + R_SW d,   w: nominal_weight
+    s.t.   -max_backward <= x_fwd <= max_forward
+           min_width <= s x_side <= nominal_width + max_outward           (s: +1 left, -1 right)
+           x inside the reach polygon: an 8-gon inscribed in the half-ellipses with semi-axes
+           (max_forward or max_backward, max_outward) about the nominal stance (0, s w)
+
+solved by the control layer's QP floor (:mod:`mbctl.control.qp`, daqp). The footstep's yaw is the
+nominal one. The result says whether the DCM left its tube and whether a limit stopped the step from
+going all the way (``limited``: the robot then relies on the next step as well).
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from typing import NamedTuple
+
+import numpy as np
+import numpy.typing as npt
+
+from mbctl.control.exceptions import WBCSetupError
+from mbctl.control.qp import QPData, QPSolver
+from mbctl.planners.dcm import convex_hull
+from mbctl.planners.footsteps import Footstep, FootstepPlanner
+
+#: Vertices of the reach polygon [-].
+REACH_VERTICES = 8
+
+
+class StepAdaptation(NamedTuple):
+    """One adaptation of the swing footstep.
+
+    Attributes:
+        footstep: The footstep to swing to.
+        shift_m: Its shift from the nominal footstep (2,) [m] in W.
+        outside_tube: The measured DCM was outside its tube (else the nominal footstep is kept).
+        limited: A step limit stopped the footstep short of where the DCM needed it.
+        solve_time_s: The QP's solve time [s] (0 when the DCM was inside its tube).
+    """
+
+    footstep: Footstep
+    shift_m: np.ndarray
+    outside_tube: bool
+    limited: bool
+    solve_time_s: float
+
+
+def dcm_tube(sole_points_F: npt.ArrayLike, margin_m: float, gain_1_s: float, omega_rad_s: float,
+             fraction: float) -> np.ndarray:
+    """Half-widths (forward, sideways) [m] of the DCM tube (see the module docstring).
+
+    Args:
+        sole_points_F: The sole's contact points (n, 3) [m] in the foot frame.
+        margin_m: The CMP's margin inside the sole [m].
+        gain_1_s: The DCM feedback gain k [1/s].
+        omega_rad_s: ``sqrt(g / z_c)`` [rad/s].
+        fraction: The share of the correctable error kept in the tube, in [0, 1].
+    """
+    pts = np.asarray(sole_points_F, dtype=float)[:, :2]
+    centre = pts.mean(axis=0)
+    hull = convex_hull(pts)
+    a, b = hull, np.roll(hull, -1, axis=0)
+    normal = np.column_stack([(b - a)[:, 1], -(b - a)[:, 0]])  # outward (counter-clockwise hull)
+    depth = (normal * (a - centre)).sum(axis=1)  # n . (a - c) > 0: the centre is inside
+    reach = np.empty(2)
+    for axis in range(2):  # the nearest edge along +axis and -axis
+        along = normal[:, axis]
+        reach[axis] = min(float(np.min(depth[along > 0] / along[along > 0])),
+                          float(np.min(depth[along < 0] / -along[along < 0])))
+    return fraction * np.maximum(reach - margin_m, 0.0) / (1.0 + gain_1_s / omega_rad_s)
+
+
+class StepAdapter:
+    """The step-adaptation QP of one walker (see the module docstring).
+
+    Args:
+        planner: The footstep planner (its limits bound the QP).
+        omega_rad_s: ``sqrt(g / z_c)`` [rad/s].
+        tube_m: The DCM tube's half-widths (forward, sideways) [m].
+        nominal_weight: w [-] (> 0): how much the footstep prefers the nominal one.
+
+    Raises:
+        WBCSetupError: A non-positive omega or weight, or a tube that is not 2 finite values >= 0.
+    """
+
+    def __init__(self, planner: FootstepPlanner, omega_rad_s: float, tube_m: npt.ArrayLike,
+                 nominal_weight: float = 0.01):
+        tube = np.asarray(tube_m, dtype=float)
+        if not (omega_rad_s > 0 and nominal_weight > 0 and tube.shape == (2,) and np.all(np.isfinite(tube))
+                and np.all(tube >= 0)):
+            raise WBCSetupError(f"step adaptation needs omega > 0, nominal_weight > 0 and a tube of 2 values "
+                                f">= 0; got {omega_rad_s!r}, {nominal_weight!r}, {tube_m!r}")
+        self.planner, self.omega, self.tube_m = planner, float(omega_rad_s), tube
+        self.nominal_weight = nominal_weight
+        self._solver = QPSolver(2)
+        self._H = 2.0 * (1.0 + nominal_weight) * np.eye(2)
+        lim = planner.limits
+        angles = 2.0 * math.pi * np.arange(REACH_VERTICES) / REACH_VERTICES
+        self._unit = np.column_stack([np.cos(angles), np.sin(angles)])
+        self._axes = (lim.max_forward_m, lim.max_backward_m, lim.max_outward_m)
+
+    def _reach_rows(self, side: int) -> tuple[np.ndarray, np.ndarray]:
+        """The reach polygon ``G x <= h`` about the nominal stance (0, side w), for a step on ``side``."""
+        fwd, back, out = self._axes
+        w = self.planner.limits.nominal_width_m
+        u = self._unit
+        vertices = np.column_stack([np.where(u[:, 0] >= 0, fwd, back) * u[:, 0], out * u[:, 1] + side * w])
+        nxt = np.roll(vertices, -1, axis=0)
+        edge = nxt - vertices
+        normal = np.column_stack([edge[:, 1], -edge[:, 0]])  # outward for counter-clockwise vertices
+        return normal, (normal * vertices).sum(axis=1)
+
+    def adapt(self, stance: Footstep, nominal: Footstep, dcm_error_W: npt.ArrayLike,
+              time_to_switch_s: float) -> StepAdaptation:
+        """The swing footstep for a DCM error measured ``time_to_switch_s`` [s] before the next switch.
+
+        Args:
+            stance: The stance footstep.
+            nominal: The command's footstep for the swing foot.
+            dcm_error_W: ``xi - xi_ref`` (2,) [m] in W, the reference being the plan through ``nominal``.
+            time_to_switch_s: ``t1 - t`` [s] (>= 0).
+        """
+        c, s = math.cos(stance.yaw_rad), math.sin(stance.yaw_rad)
+        e = np.asarray(dcm_error_W, dtype=float)
+        e_S = np.array([c * e[0] + s * e[1], -s * e[0] + c * e[1]])
+        out = np.sign(e_S) * np.maximum(np.abs(e_S) - self.tube_m, 0.0)
+        if not out.any():
+            return StepAdaptation(nominal, np.zeros(2), False, False, 0.0)
+        d_nom = nominal.position[:2] - stance.position[:2]
+        x_nom = np.array([c * d_nom[0] + s * d_nom[1], -s * d_nom[0] + c * d_nom[1]])
+        x_des = x_nom + math.exp(self.omega * max(time_to_switch_s, 0.0)) * out
+        lim, side = self.planner.limits, nominal.side
+        widths = np.array([lim.min_width_m, lim.nominal_width_m + lim.max_outward_m]) * side
+        lb = np.array([-lim.max_backward_m, widths.min()])
+        ub = np.array([lim.max_forward_m, widths.max()])
+        G, h = self._reach_rows(side)
+        optimum = (x_des + self.nominal_weight * x_nom) / (1.0 + self.nominal_weight)  # H x* = -c
+        t0 = time.perf_counter()
+        result = self._solver.solve(QPData(self._H, -(self._H @ optimum), lb, ub, G, h))
+        solve_time = time.perf_counter() - t0
+        x = result.x if result.x is not None else x_nom  # (never None: the stance (0, s w) is feasible)
+        d = np.array([c * x[0] - s * x[1], s * x[0] + c * x[1]])
+        position = np.array([stance.position[0] + d[0], stance.position[1] + d[1], nominal.position[2]])
+        step = nominal._replace(position=position)
+        return StepAdaptation(step, position[:2] - nominal.position[:2], True,
+                              bool(np.abs(x - optimum).max() > 1e-9), solve_time)

@@ -1,0 +1,394 @@
+"""Walking on the whole-body QP: footsteps, a DCM plan, swing feet and contact switches, for any biped.
+
+One :class:`WalkingController` is a :class:`~mbctl.control.controller.Controller` (``compute(state)
+-> torque Command``, ``reset()``) that runs against any robot interface, in-process or over DDS.
+Each cycle:
+
+1. **Gait phase** (:mod:`mbctl.control.wbc.gait`): the start (both feet, the weight shifts), then
+   single support (one foot swings) and double support, alternating. A foot leaves with a force
+   ramp (its release starts ``ramp_s`` before the double support ends, so it is free when single
+   support begins) and lands with one (constrained where it touched down, its force ramping up).
+   The options are :class:`~mbctl.control.wbc.walking_config.WalkingConfig`'s. Touchdown is
+   detected from contact: ``contact_force(foot)`` (the plant's contact sensor in sim)
+   above ``touchdown_force_n``, else from kinematics (the sole within
+   ``touchdown_height_m`` of the ground, as over DDS where the base comes from
+   the estimator). An early touchdown (after ``early_touchdown_phase`` of the
+   swing) ends the swing there; a late one lowers the foot further at
+   ``late_descent_m_s``, down to ``late_extension_m`` below
+   the footstep, and lands it there at the latest.
+2. **Footsteps** (:mod:`mbctl.planners.footsteps`): the swing foot's footstep and the next
+   ``preview_steps`` from the velocity command (clamped to the model's limits; the clamp is
+   reported), which may change every cycle and is followed at ``max_acceleration``; the footsteps'
+   yaw rate also corrects the heading error (the heading reference integrates the yaw-rate
+   command), and their speed the measured speed's error over the last step (the speed loop). The
+   swing footstep follows the command until ``retarget_until_phase`` of the swing, moved by the
+   step-adaptation QP when the measured DCM leaves its tube (:mod:`mbctl.control.wbc.step_adaptation`).
+3. **DCM** (:mod:`mbctl.planners.dcm`): the plan through the footsteps' sole centres, the measured
+   DCM ``xi = x + xdot / omega`` (CoM from the state), the feedback law's desired CMP, clamped into
+   the support polygon (the active feet's contact points) less ``cmp_margin_m``,
+   and the CoM task's acceleration ``xddot = omega^2 (x - p_cmp)`` (horizontal; the height is a
+   PD on ``z_c`` above the ground).
+4. **Tasks**: the swing foot as a pose task (:mod:`mbctl.planners.swing`: lift, land at rest),
+   pelvis and torso orientation (upright, heading between the feet), angular-momentum damping
+   and the posture (the arms hang), from the standing task set
+   (:func:`~mbctl.control.wbc.standing.standing_controller`); then the QP.
+
+Nothing here names a robot: feet, base and torso frames and the reference configuration are
+parameters (the G1's come from :mod:`mbctl.robots.g1` in the jobs).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field
+
+import numpy as np
+import pinocchio as pin
+
+from mbctl.control.exceptions import WBCSetupError
+from mbctl.control.tasks.base import AccelerationGains
+from mbctl.control.tasks.frame_pose import FramePoseTask
+from mbctl.control.tasks.state import DynamicsState
+from mbctl.control.wbc.config import WBCConfig
+from mbctl.control.wbc.gait import Gait, GaitEvent
+from mbctl.control.wbc.standing import Standing, standing_controller
+from mbctl.control.wbc.step_adaptation import StepAdaptation, StepAdapter, dcm_tube
+from mbctl.control.wbc.walking_config import WalkingConfig
+from mbctl.planners.dcm import DcmPlan, clamp_to_polygon, convex_hull, dcm_feedback, dcm_omega, polygon_margin
+from mbctl.planners.footsteps import (
+    CommandClamp,
+    Footstep,
+    FootstepPlanner,
+    VelocityCommand,
+    step_limits_from_model,
+)
+from mbctl.planners.swing import SwingSample
+from mbctl.robots.commands import Command
+from mbctl.robots.interface import RobotState
+from mbctl.robots.model_pair import Robot
+
+#: ``contact_force(foot) -> normal force [N]`` measured on a foot (None: not measured).
+ContactForce = Callable[[str], "float | None"]
+
+#: Where each double support's DCM switch sits in it [-] (0.5: centred).
+DS_ALPHA = 0.5
+
+
+class SwingFootTask(FramePoseTask):
+    """The swing foot's pose with its turning fed forward: a frame pose task plus a yaw rate and acceleration.
+
+    ``a_des = a_ref + kp log6(X_FT) + kd (v_ref - J_F v)`` in F, with ``v_ref = R_FW [v_W; w_W]`` and
+    ``a_ref = R_FW [a_W; alpha_W]``, ``w_W = (0, 0, yaw rate)``, ``alpha_W = (0, 0, yaw acceleration)``
+    (the frame pose task's angular references are zero, so a turning foot would lag).
+    """
+
+    def __init__(self, frame: str, model: pin.Model, cost: float, servo: AccelerationGains):
+        super().__init__(frame, model, cost, cost, name=f"{frame} swing", servo=servo)
+        self.yaw_rate_rad_s = 0.0
+        self.yaw_acceleration_rad_s2 = 0.0
+
+    def set_swing_target(self, sample: SwingSample) -> None:
+        """The target pose, velocity and acceleration from a swing path sample (a level foot at its yaw)."""
+        X = pin.SE3(pin.rpy.rpyToMatrix(0.0, 0.0, sample.yaw_rad), sample.position)
+        self.set_target(X, sample.velocity, sample.acceleration)
+        self.yaw_rate_rad_s = sample.yaw_rate_rad_s
+        self.yaw_acceleration_rad_s2 = sample.yaw_acceleration_rad_s2
+
+    def desired_acceleration(self, state: DynamicsState, J: np.ndarray) -> np.ndarray:
+        """``a_ref + kp log6(X_FT) + kd (v_ref - J_F v)`` (6,) in F, with the yaw references."""
+        R_FW = state.frame_pose(self.frame_id).rotation.T
+        v_ref = np.concatenate([R_FW @ self.v_ref_W, R_FW[:, 2] * self.yaw_rate_rad_s])
+        a_ref = np.concatenate([R_FW @ self.a_ref_W, R_FW[:, 2] * self.yaw_acceleration_rad_s2])
+        return a_ref + self._kp * self.compute_error(state) + self._kd * (v_ref - J @ state.v)
+
+
+@dataclass
+class WalkingStatus:
+    """What the last cycle planned and measured (horizontal quantities in W).
+
+    Attributes:
+        time_s: The state's time [s].
+        phase: "start", "single" or "double".
+        stance: The supporting foot ("both" outside single support).
+        dcm: Measured DCM (2,) [m].
+        dcm_ref: The plan's DCM (2,) [m].
+        zmp_ref: The plan's VRP (the ZMP reference) (2,) [m].
+        zmp_ref_margin_m: Its margin in the support polygon [m] (> 0 inside).
+        cmp: Desired CMP from the feedback law, before the clamp (2,) [m].
+        cmp_margin_m: Its margin in the support polygon [m] (< 0: the clamp moved it).
+        cmp_clamped: The CMP given to the CoM (2,) [m].
+        com_acceleration: The CoM acceleration asked of the QP (3,) [m/s^2].
+        footsteps: The footsteps planned (the swing foot's first).
+        event: What happened this cycle (a release, a lift-off, a touchdown), or None.
+        adaptation: The last step adaptation (None before the first single support).
+    """
+
+    time_s: float = 0.0
+    phase: str = "start"
+    stance: str = "both"
+    dcm: np.ndarray = field(default_factory=lambda: np.zeros(2))
+    dcm_ref: np.ndarray = field(default_factory=lambda: np.zeros(2))
+    zmp_ref: np.ndarray = field(default_factory=lambda: np.zeros(2))
+    zmp_ref_margin_m: float = 0.0
+    cmp: np.ndarray = field(default_factory=lambda: np.zeros(2))
+    cmp_margin_m: float = 0.0
+    cmp_clamped: np.ndarray = field(default_factory=lambda: np.zeros(2))
+    com_acceleration: np.ndarray = field(default_factory=lambda: np.zeros(3))
+    footsteps: tuple[Footstep, ...] = ()
+    event: GaitEvent | None = None
+    adaptation: StepAdaptation | None = None
+
+
+class WalkingController:
+    """A biped walking on the whole-body QP after a velocity command (see the module docstring).
+
+    Example::
+
+        walker = WalkingController(robot, ("left_foot", "right_foot"), "pelvis", "torso_link", q_start)
+        walker.set_command((0.3, 0.0, 0.0))     # any cycle: vx [m/s], vy [m/s], yaw rate [rad/s]
+        command = walker.compute(state)          # RobotState in, torque Command out
+        walker.status.dcm, walker.steps
+
+    Args:
+        robot: The robot (torque actuators; its model gives the step limits).
+        feet: The (left, right) foot frames.
+        base_frame: The floating base's frame (held upright, heading between the feet).
+        torso_frame: An upper-body frame held upright too, or None.
+        reference_q: The standing configuration (nq,) the walk starts from (the posture target, the
+            nominal stance width).
+        config: Walking options.
+        pin_model: The controller's analytic model (default ``robot.pin_model``).
+        contact_force: ``foot -> measured normal force [N]`` (or None), for touchdown detection.
+
+    Raises:
+        WBCSetupError: Bad options or frames.
+        InvalidPlanningInput: A CoM height the legs cannot walk at.
+    """
+
+    reference_type = None
+
+    def __init__(self, robot: Robot, feet: Sequence[str], base_frame: str, torso_frame: str | None,
+                 reference_q: np.ndarray, config: WalkingConfig | None = None,
+                 pin_model: pin.Model | None = None, contact_force: ContactForce | None = None):
+        self.config = cfg = config or WalkingConfig()
+        if len(feet) != 2:
+            raise WBCSetupError(f"walking needs two feet (left, right); got {list(feet)}")
+        self.feet = (feet[0], feet[1])
+        wbc_config = WBCConfig(**{**cfg.wbc.__dict__, "ramp_s": cfg.ramp_s})
+        self.standing: Standing = standing_controller(robot, self.feet, base_frame, torso_frame, pin_model,
+                                                      wbc_config)
+        self.wbc = self.standing.controller
+        self.standing.com.set_cost(cfg.com_cost)
+        self.standing.com.servo = cfg.height_gains
+        self.standing.momentum.set_cost(cfg.momentum_cost)
+        self.model = self.wbc.model
+        self._data = self.model.createData()
+        self.reference_q = np.array(reference_q, dtype=float)
+        points = self.wbc.contacts[self.feet[0]].contact.points_F
+        self.sole_centre_F = points.mean(axis=0)
+        self.limits = step_limits_from_model(robot, self.feet, points, self.reference_q, cfg.com_height_m)
+        self.planner = FootstepPlanner(self.limits, cfg.timing, self.feet)
+        self.omega = dcm_omega(cfg.com_height_m, float(np.linalg.norm(self.model.gravity.linear)))
+        tube = dcm_tube(points, cfg.cmp_margin_m, cfg.dcm_gain_1_s, self.omega, cfg.dcm_tube_fraction)
+        self.adapter = StepAdapter(self.planner, self.omega, tube)
+        self.swing_tasks = {f: SwingFootTask(f, self.model, cfg.swing_cost, cfg.swing_gains)
+                            for f in self.feet}
+        self.contact_force = contact_force
+        self._fids = {f: self.model.getFrameId(f) for f in self.feet}
+        self._clamp = self.planner.clamp(VelocityCommand())
+        self.status = WalkingStatus()
+        self.gait: Gait | None = None
+        self.reset()
+
+    # ------------------------------------------------------------------ the command
+    @property
+    def command(self) -> CommandClamp:
+        """The velocity command as requested and as applied (within the step limits)."""
+        return self._clamp
+
+    def set_command(self, command: VelocityCommand | tuple[float, float, float]) -> CommandClamp:
+        """Walk at (vx [m/s], vy [m/s], yaw rate [rad/s]) in the body frame from now on (any cycle).
+
+        Returns:
+            What the step limits made of it.
+
+        Raises:
+            InvalidPlanningInput: A non-finite command.
+        """
+        self._clamp = self.planner.clamp(command)
+        return self._clamp
+
+    @property
+    def velocity(self) -> VelocityCommand:
+        """The command the walk follows now: the applied one, reached at ``max_acceleration``."""
+        return self._command
+
+    @property
+    def steps(self) -> int:
+        """Footsteps taken (touchdowns)."""
+        return 0 if self.gait is None else self.gait.steps
+
+    def reset(self) -> None:
+        """Start again at the next state (standing on both feet where they are), at rest."""
+        self.wbc.reset()
+        for task in self.swing_tasks.values():
+            self.wbc.remove_task(task)
+        self.gait = None
+        self._command, self._steer = VelocityCommand(), VelocityCommand()
+        self._t_last: float | None = None
+        #: The heading the walk holds [rad]: the start's, turned by the yaw-rate command.
+        self.heading_ref_rad = 0.0
+        #: The speed loop's correction (forward, sideways) [m/s] added to the command's.
+        self.speed_correction = np.zeros(2)
+        self._last_mid: tuple[float, np.ndarray] | None = None
+        self._adaptation: StepAdaptation | None = None
+
+    def _follow_command(self, t: float, gait: Gait) -> None:
+        """The walk's command toward the applied one at ``max_acceleration``; the footsteps' command.
+
+        The footsteps' command adds the heading error at ``heading_gain_1_s`` to the yaw rate and
+        the speed loop's correction to the speed.
+        """
+        dt = 0.0 if self._t_last is None else max(0.0, t - self._t_last)
+        self._t_last = t
+        limits = self.config.max_acceleration
+        self._command = VelocityCommand(*(c + min(max(g - c, -a * dt), a * dt) for c, g, a in
+                                          zip(self._command, self._clamp.applied, limits, strict=True)))
+        self.heading_ref_rad += self._command.yaw_rate_rad_s * dt
+        error = math.remainder(self.heading_ref_rad - gait.heading(t), 2.0 * math.pi)
+        vx, vy, wz = self._command
+        self._steer = VelocityCommand(vx + self.speed_correction[0], vy + self.speed_correction[1],
+                                      wz + self.config.heading_gain_1_s * error)
+
+    def _correct_speed(self, t: float, gait: Gait) -> None:
+        """After a touchdown: the speed loop on the feet's mean speed over the last step.
+
+        The feet's midpoint moves (vx, vy) T per step when the steps land where planned; step
+        adaptation moves them off it, and a bias of the DCM (model error) would do so every step,
+        so the walk would go faster or slower than commanded. The correction integrates the
+        difference, ``c += speed_gain (v_command - v_measured)`` in the body frame, within
+        +-``max_speed_correction_m_s``.
+        """
+        mid = 0.5 * (gait.placed[self.feet[0]].position[:2] + gait.placed[self.feet[1]].position[:2])
+        last, self._last_mid = self._last_mid, (t, mid)
+        if last is None or gait.steps < 3 or t <= last[0]:
+            return
+        c, s = math.cos(self.heading_ref_rad), math.sin(self.heading_ref_rad)
+        d = (mid - last[1]) / (t - last[0])
+        measured = np.array([c * d[0] + s * d[1], -s * d[0] + c * d[1]])
+        cap = self.config.max_speed_correction_m_s
+        error = np.array(self._command[:2]) - measured
+        self.speed_correction = np.clip(self.speed_correction + self.config.speed_gain * error, -cap, cap)
+
+    # ------------------------------------------------------------------ per cycle
+    def _kinematics(self, state: RobotState) -> tuple[np.ndarray, np.ndarray, dict[str, pin.SE3]]:
+        """CoM (3,) [m], its velocity (3,) [m/s] and the feet's poses X_WF, from the state."""
+        m, d = self.model, self._data
+        com = pin.centerOfMass(m, d, state.q, state.v).copy()
+        vcom = d.vcom[0].copy()
+        poses = {f: pin.updateFramePlacement(m, d, fid).copy() for f, fid in self._fids.items()}
+        return com, vcom, poses
+
+    def compute(self, state: RobotState, reference: object = None) -> Command:
+        """Torques for ``state``: gait phase, footsteps, DCM, task targets, QP (see the module docstring).
+
+        Args:
+            state: Measured state, Pinocchio convention.
+            reference: Unused (the command is set with :meth:`set_command`).
+
+        Raises:
+            WBCInfeasible: The QP has no solution and the QP's ``on_infeasible`` is "raise".
+        """
+        cfg = self.config
+        t = state.time_s
+        com, vcom, poses = self._kinematics(state)
+        gait = self.gait or self._start(state, com, poses)
+        self._follow_command(t, gait)
+        event = gait.advance(t, poses, self._steer, self._touching(gait, poses))
+        if event is not None and event.kind == "touchdown":
+            self._correct_speed(t, gait)
+        xi = com[:2] + vcom[:2] / self.omega
+        if gait.retargetable(t):
+            gait.retarget(t, self._swing_footstep(gait, t, xi))
+        plan, steps = self._plan(gait, t)
+        ref = plan.at(t)
+        hull = convex_hull(np.vstack([
+            (poses[f].rotation @ self.wbc.contacts[f].contact.points_F.T).T[:, :2] + poses[f].translation[:2]
+            for f in self.feet if self.wbc.contacts[f].active]))
+        cmp = dcm_feedback(xi, ref, self.omega, cfg.dcm_gain_1_s)
+        cmp_c = clamp_to_polygon(cmp, hull, cfg.cmp_margin_m)
+        z_ref, vz_ref, az_ref = gait.height(t)
+        acc = np.array([*(self.omega**2 * (com[:2] - cmp_c)), az_ref])
+        # the CoM task: its horizontal error is zero by construction, so the acceleration is the DCM law's
+        self.standing.com.set_target([com[0], com[1], z_ref], [vcom[0], vcom[1], vz_ref], acc)
+        self._orient(gait.heading(t))
+        self._swing(gait, t)
+        self.status = WalkingStatus(t, gait.phase, gait.stance_name, xi, ref.xi, ref.vrp,
+                                    polygon_margin(ref.vrp, hull), cmp, polygon_margin(cmp, hull), cmp_c, acc,
+                                    tuple(steps), event, self._adaptation)
+        return self.wbc.compute(state)
+
+    def _start(self, state: RobotState, com: np.ndarray, poses: dict[str, pin.SE3]) -> Gait:
+        """Both feet held where they are, the tasks' targets at the state, the gait's start phase."""
+        self.standing.hold(state)
+        self.standing.posture.set_target(self.reference_q)
+        self.gait = Gait(self.wbc, self.planner, self.config, self.sole_centre_F, poses, state.time_s, com)
+        self.heading_ref_rad = self.gait.heading(state.time_s)
+        return self.gait
+
+    def _touching(self, gait: Gait, poses: dict[str, pin.SE3]) -> Callable[[str], bool]:
+        """Whether a foot touches the ground: the measured force if any, else the sole's height."""
+        def touching(foot: str) -> bool:
+            if self.contact_force is not None:
+                force = self.contact_force(foot)
+                if force is not None:
+                    return force > self.config.touchdown_force_n
+            sole_z = poses[foot].act(self.sole_centre_F)[2]
+            return bool(sole_z <= gait.ground_z + self.config.touchdown_height_m)
+        return touching
+
+    def _swing_footstep(self, gait: Gait, t: float, xi: np.ndarray) -> Footstep:
+        """The swing footstep: the command's, moved by the step-adaptation QP if the DCM left its tube."""
+        swing = gait.swing
+        if swing is None:
+            raise WBCSetupError("no swing foot to place outside single support")
+        stance = gait.placed[swing.stance]
+        nominal = self.planner.next_footstep(stance, self._steer)
+        if not self.config.step_adaptation:
+            return nominal
+        plan, _ = self._plan(gait, t, nominal)
+        self._adaptation = self.adapter.adapt(stance, nominal, xi - plan.at(t).xi, plan.switch_times_s[0] - t)
+        return self._adaptation.footstep
+
+    def _plan(self, gait: Gait, t: float,
+              swing_step: Footstep | None = None) -> tuple[DcmPlan, list[Footstep]]:
+        """The DCM plan from now through the swing footstep (or ``swing_step``) and the preview footsteps."""
+        cfg = self.config
+        first, vrps, t1, stance, initial = gait.plan_start(t, DS_ALPHA, self._steer)
+        if swing_step is not None:
+            first = stance = swing_step
+        steps = [first] if first is not None else []
+        steps += self.planner.plan(stance, self._steer, cfg.preview_steps)
+        vrps += [gait.vrp(s) for s in steps]
+        before_last = steps[-2] if len(steps) > 1 else stance
+        vrps.append(0.5 * (gait.vrp(steps[-1]) + gait.vrp(before_last)))  # the stop: between the last two
+        switches = t1 + cfg.timing.step_s * np.arange(len(vrps) - 1)
+        return DcmPlan(self.omega, vrps, switches, cfg.timing.double_support_s, DS_ALPHA, initial), steps
+
+    def _orient(self, yaw: float) -> None:
+        """Pelvis and torso upright, heading ``yaw`` [rad]."""
+        X = pin.SE3(pin.rpy.rpyToMatrix(0.0, 0.0, yaw), np.zeros(3))
+        self.standing.base.set_target(X)
+        if self.standing.torso is not None:
+            self.standing.torso.set_target(X)
+
+    def _swing(self, gait: Gait, t: float) -> None:
+        """The swing foot's task on its path; the other foot's task off."""
+        for foot, task in self.swing_tasks.items():
+            sample = gait.swing_sample(foot, t)
+            if sample is None:
+                self.wbc.remove_task(task)
+                continue
+            task.set_swing_target(sample)
+            self.wbc.add_task(task)

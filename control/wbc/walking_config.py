@@ -1,0 +1,111 @@
+"""Options of the walking controller (:class:`~mbctl.control.wbc.walking.WalkingController`)."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+from mbctl.control.exceptions import WBCSetupError
+from mbctl.control.tasks.base import AccelerationGains
+from mbctl.control.wbc.config import WBCConfig
+from mbctl.planners.footsteps import GaitTiming
+
+
+@dataclass(frozen=True)
+class WalkingConfig:
+    """Options of the walking controller (units in the names).
+
+    Attributes:
+        com_height_m: CoM height above the soles while walking [m].
+        timing: Single and double support times.
+        start_s: Time on both feet before the first swing [s] (the weight shifts, the CoM lowers).
+        lift_height_m: Swing foot apex above the ground [m].
+        landing_depth_m: The swing path ends this far below the ground [m], so the foot touches
+            down on time although it lags its reference a little (it lands at rest on the path).
+        step_adaptation: Move the swing footstep to absorb the DCM error outside its tube
+            (:mod:`mbctl.control.wbc.step_adaptation`).
+        dcm_tube_fraction: The DCM tube, as a fraction of the error the CMP feedback can correct
+            within the sole: errors beyond it are stepped away.
+        dcm_gain_1_s: DCM feedback gain k [1/s] (the error decays as exp(-k t)).
+        cmp_margin_m: The desired CMP stays this far inside the support polygon [m].
+        preview_steps: Footsteps planned ahead of the swing foot's (>= 1).
+        ramp_s: Contact force ramp [s] (<= the double support time).
+        swing_horizontal_fraction: The swing foot reaches its footstep's x, y and yaw at this
+            fraction of the swing, then descends vertically.
+        swing_gains: PD gains of the swing foot's pose task.
+        swing_cost: Weight of the swing foot's pose task [cost]/[m, rad].
+        com_cost: Weight of the CoM task [cost]/[m] (the standing set's is 10).
+        momentum_cost: Weight of the angular-momentum damping [cost]/[N m] (the standing set's is 0.2).
+        height_gains: PD gains of the CoM height (the CoM task's; its horizontal error is zero by
+            construction: the horizontal acceleration is the DCM law's).
+        touchdown_force_n: A measured normal force above this [N] is a touchdown.
+        touchdown_height_m: Without a force measurement: the sole this close to the ground [m].
+        early_touchdown_phase: A contact counts as a touchdown from this fraction of the swing on.
+        late_descent_m_s: A late foot keeps descending at this speed [m/s] ...
+        late_extension_m: ... to at most this far below its footstep [m], where it lands.
+        retarget_until_phase: The swing footstep follows the command up to this fraction of the swing.
+        heading_gain_1_s: The footsteps turn by the yaw-rate command plus this gain [1/s] times the
+            heading error (the heading reference integrates the yaw-rate command), so slips do not
+            accumulate into a turn.
+        speed_gain: Gain [-] of the speed loop, per step (0: off): the footsteps' speed is corrected by
+            this fraction of the command minus the feet's measured speed over the last step.
+        max_speed_correction_m_s: Its largest correction [m/s].
+        max_acceleration: How fast the walking speed follows the command: (forward [m/s^2],
+            sideways [m/s^2], turning [rad/s^2]) (a step change of command is ramped).
+        wbc: The QP's options (its ``ramp_s`` is replaced by ``ramp_s`` above).
+    """
+
+    com_height_m: float = 0.64
+    timing: GaitTiming = field(default_factory=lambda: GaitTiming(0.5, 0.1))
+    start_s: float = 0.8
+    lift_height_m: float = 0.07
+    landing_depth_m: float = 0.005
+    step_adaptation: bool = True
+    dcm_tube_fraction: float = 0.5
+    dcm_gain_1_s: float = 3.0
+    cmp_margin_m: float = 0.01
+    preview_steps: int = 3
+    ramp_s: float = 0.05
+    swing_horizontal_fraction: float = 0.8
+    swing_gains: AccelerationGains = AccelerationGains(15.0, 1.0)
+    swing_cost: float = 3.0
+    com_cost: float = 30.0
+    momentum_cost: float = 0.2
+    height_gains: AccelerationGains = AccelerationGains(10.0, 1.0)
+    touchdown_force_n: float = 20.0
+    touchdown_height_m: float = 0.003
+    early_touchdown_phase: float = 0.7
+    late_descent_m_s: float = 0.2
+    late_extension_m: float = 0.03
+    retarget_until_phase: float = 0.6
+    heading_gain_1_s: float = 1.0
+    speed_gain: float = 0.3
+    max_speed_correction_m_s: float = 0.15
+    max_acceleration: tuple[float, float, float] = (0.5, 0.5, 1.0)
+    wbc: WBCConfig = field(default_factory=WBCConfig)
+
+    def __post_init__(self) -> None:
+        checks = {
+            "com_height_m": self.com_height_m > 0, "start_s": self.start_s >= self.timing.double_support_s,
+            "lift_height_m": self.lift_height_m >= 0, "landing_depth_m": self.landing_depth_m >= 0,
+            "swing_horizontal_fraction": 0 < self.swing_horizontal_fraction <= 1,
+            "dcm_gain_1_s": self.dcm_gain_1_s > 0, "cmp_margin_m": self.cmp_margin_m >= 0,
+            "dcm_tube_fraction": 0 <= self.dcm_tube_fraction <= 1, "preview_steps": self.preview_steps >= 1,
+            "ramp_s": 0 < self.ramp_s <= self.timing.double_support_s, "swing_cost": self.swing_cost > 0,
+            "com_cost": self.com_cost > 0, "momentum_cost": self.momentum_cost >= 0,
+            "touchdown_force_n": self.touchdown_force_n > 0,
+            "touchdown_height_m": self.touchdown_height_m >= 0,
+            "early_touchdown_phase": 0 <= self.early_touchdown_phase <= 1,
+            "late_descent_m_s": self.late_descent_m_s > 0, "late_extension_m": self.late_extension_m >= 0,
+            "retarget_until_phase": 0 <= self.retarget_until_phase <= 1,
+            "heading_gain_1_s": self.heading_gain_1_s >= 0, "speed_gain": 0 <= self.speed_gain <= 1,
+            "max_speed_correction_m_s": self.max_speed_correction_m_s >= 0,
+        }
+        for name, ok in checks.items():
+            value = getattr(self, name)
+            if not (math.isfinite(value) and ok):
+                raise WBCSetupError(f"WalkingConfig.{name}={value!r} is out of range")
+        if len(self.max_acceleration) != 3 or not all(math.isfinite(a) and a > 0
+                                                      for a in self.max_acceleration):
+            raise WBCSetupError(f"WalkingConfig.max_acceleration must be 3 finite values > 0 (m/s^2, m/s^2, "
+                                f"rad/s^2); got {self.max_acceleration!r}")

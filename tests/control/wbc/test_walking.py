@@ -1,0 +1,182 @@
+"""Walking on the whole-body QP, on the biped built in code (conftest.py), in MuJoCo.
+
+Contact switches with force ramps (a foot's weight goes 1 -> 0 before it lifts, 0 -> 1 after it
+lands, its QP force with it), the gait's events in order, early and late touchdowns, the command
+clamp, the step-adaptation QP and the swing foot task's turning references.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from mbctl.control import run
+from mbctl.control.exceptions import WBCSetupError
+from mbctl.control.tasks import AccelerationGains, DynamicsState
+from mbctl.control.wbc import (
+    StepAdapter,
+    SwingFootTask,
+    WalkingConfig,
+    WalkingController,
+    WBCConfig,
+    dcm_tube,
+)
+from mbctl.planners import Footstep, FootstepPlanner, GaitTiming, InvalidPlanningInput, StepLimits
+from mbctl.planners.swing import SwingSample
+from mbctl.sim import Simulator
+from mbctl.sim.monitor import PlantMonitor
+
+FEET = ("l_sole", "r_sole")
+#: The biped's CoM stands at 0.517 m; it walks 1.7 cm lower.
+CONFIG = WalkingConfig(com_height_m=0.5, wbc=WBCConfig(on_infeasible="damp"))
+
+
+def _walk(robot, crouch, command, duration_s, config=CONFIG, measured=True, every=None):
+    """Run the walker on the biped in MuJoCo; returns (walker, log, per-cycle records)."""
+    q0 = crouch(robot)
+    sim = Simulator(robot)
+    sim.set_state(q0, np.zeros(robot.nv))
+    walker = WalkingController(robot, FEET, "pelvis", "torso", q0, config)
+    monitor = PlantMonitor(sim, {f: cs.contact.geoms for f, cs in walker.wbc.contacts.items()}).attach()
+    if measured:
+        walker.contact_force = lambda f: monitor.contacts[f].normal_n if monitor.contacts else None
+    walker.set_command(command)
+    rows = []
+
+    def on_step(k, state, ref, cmd):
+        sol, s = walker.wbc.solution, walker.status
+        rows.append((state.time_s, s.phase, s.event, {f: walker.wbc.contacts[f].weight for f in FEET},
+                     {f: float(sol.forces_W[f][:, 2].sum()) for f in FEET},
+                     {f: monitor.contacts[f].normal_n for f in FEET}, np.linalg.norm(s.dcm - s.dcm_ref)))
+        return state.q[2] < 0.4
+
+    log = run(sim, walker, None, duration_s, on_step=on_step)
+    return walker, log, rows
+
+
+def test_the_biped_walks_forward_with_ramped_contact_switches(tiny_biped, crouch):
+    walker, log, rows = _walk(tiny_biped, crouch, (0.15, 0.0, 0.0), 3.2)
+    assert log.cycles == 1600 and log.q[:, 2].min() > 0.5  # did not fall (pelvis starts at 0.55 m)
+    assert walker.wbc.infeasible_at_s is None
+    # 0.15 m/s reached at 0.5 m/s^2 from the first step at 0.8 s: about 0.3 m forward, straight
+    assert 0.2 < log.q[-1, 0] - log.q[0, 0] < 0.45 and abs(log.q[-1, 1] - log.q[0, 1]) < 0.05
+    events = [(r[2].kind, r[2].foot) for r in rows if r[2] is not None]
+    assert events[:6] == [("release", "l_sole"), ("lift-off", "l_sole"), ("touchdown", "l_sole"),
+                          ("release", "r_sole"), ("lift-off", "r_sole"), ("touchdown", "r_sole")]
+    assert walker.steps == sum(kind == "touchdown" for kind, _ in events) >= 4
+    # the first release ramps the left foot's weight 1 -> 0 over ramp_s = 0.05 s (25 cycles), its QP
+    # force following; the plant's force reaches zero with it, and the foot lifts off at zero
+    t_release = next(r[0] for r in rows if r[2] and r[2].kind == "release")
+    ramp = [r for r in rows if t_release <= r[0] <= t_release + 0.05 + 1e-9]
+    weights = [r[3]["l_sole"] for r in ramp]
+    np.testing.assert_allclose(weights, np.maximum(1.0 - 0.04 * np.arange(1, len(ramp) + 1), 0.0), atol=1e-12)
+    assert abs(ramp[-1][4]["l_sole"]) < 1e-9 and ramp[-1][5]["l_sole"] < 5.0  # N: the plant's follows
+    # the first touchdown ramps it back 0 -> 1 while the QP loads it (one step of the ramp in its cycle)
+    t_down = next(r[0] for r in rows if r[2] and r[2].kind == "touchdown")
+    after = [r for r in rows if t_down <= r[0] <= t_down + 0.06]
+    assert after[0][3]["l_sole"] == pytest.approx(0.04) and after[-1][3]["l_sole"] == 1.0
+    # when the right foot lifts off, the left carries the weight (23.3 kg), in the QP and in the plant
+    lift = next(r for r in rows if r[2] and r[2].kind == "lift-off" and r[2].foot == "r_sole")
+    mg = tiny_biped.mj_model.body_subtreemass[1] * 9.81
+    assert lift[4]["l_sole"] == pytest.approx(mg, rel=0.1) and lift[5]["l_sole"] == pytest.approx(mg, rel=0.1)
+    # the DCM stays within 2 cm of its plan (measured 0.3 cm RMS)
+    assert max(r[6] for r in rows) < 0.02
+
+
+def test_early_and_late_touchdowns(tiny_biped, crouch):
+    # without a force sensor the sole's height detects the touchdowns
+    walker, _, _ = _walk(tiny_biped, crouch, (0.1, 0.0, 0.0), 2.0, measured=False)
+    assert walker.steps >= 2 and sum(walker.gait.touchdowns.values()) == walker.steps
+    # a contact sensor that always reads 100 N: the touchdown comes at the early phase (70 % of 0.5 s)
+    q0 = crouch(tiny_biped)
+    sim = Simulator(tiny_biped)
+    sim.set_state(q0, np.zeros(tiny_biped.nv))
+    early = WalkingController(tiny_biped, FEET, "pelvis", "torso", q0, CONFIG, contact_force=lambda f: 100.0)
+    events = []
+    run(sim, early, None, 1.5, on_step=lambda k, s, r, c: events.append(early.status.event) and False)
+    lift = next(e for e in events if e and e.kind == "lift-off")
+    down = next(e for e in events if e and e.kind == "touchdown")
+    assert down.timing == "early"
+    assert down.time_s - lift.time_s == pytest.approx(0.7 * 0.5, abs=0.0021)
+    # a sensor that never reads contact and a detector that never fires: the foot descends 0.2 m/s
+    # past its planned touchdown and is put down 0.03 m lower, 0.15 s late ("forced")
+    late_config = WalkingConfig(com_height_m=0.5, touchdown_height_m=0.0, landing_depth_m=0.0,
+                                wbc=WBCConfig(on_infeasible="damp"))
+    late = WalkingController(tiny_biped, FEET, "pelvis", "torso", q0, late_config,
+                             contact_force=lambda f: 0.0)
+    sim = Simulator(tiny_biped)
+    sim.set_state(q0, np.zeros(tiny_biped.nv))
+    events = []
+    run(sim, late, None, 1.6, on_step=lambda k, s, r, c: events.append(late.status.event) and False)
+    lift = next(e for e in events if e and e.kind == "lift-off")
+    down = next(e for e in events if e and e.kind == "touchdown")
+    assert down.timing == "forced" and late.gait.touchdowns["forced"] == 1
+    assert down.time_s - lift.time_s == pytest.approx(0.5 + 0.03 / 0.2, abs=0.0021)
+
+
+def test_the_command_is_clamped_and_reported(tiny_biped, crouch):
+    walker = WalkingController(tiny_biped, FEET, "pelvis", "torso", crouch(tiny_biped), CONFIG)
+    clamp = walker.set_command((5.0, 0.0, 0.0))
+    assert clamp.limited_by == ("forward step",)
+    assert clamp.applied.vx_m_s == pytest.approx(walker.limits.max_forward_m / 0.6, rel=1e-12)
+    assert walker.command is clamp
+    with pytest.raises(InvalidPlanningInput, match="finite"):
+        walker.set_command((math.inf, 0.0, 0.0))
+    with pytest.raises(WBCSetupError, match="two feet"):
+        WalkingController(tiny_biped, ["l_sole"], "pelvis", "torso", crouch(tiny_biped), CONFIG)
+    with pytest.raises(WBCSetupError, match="ramp_s"):
+        WalkingConfig(ramp_s=0.2)
+
+
+LIMITS = StepLimits(0.36, 0.2, 0.2, 0.24, 0.1, 0.6)
+SOLE = np.array([[-0.05, 0.025, -0.035], [-0.05, -0.025, -0.035], [0.12, 0.03, -0.035],
+                 [0.12, -0.03, -0.035]])
+OMEGA = math.sqrt(9.81 / 0.64)
+
+
+def _adapter():
+    tube = dcm_tube(SOLE, 0.01, 3.0, OMEGA, 0.5)
+    return StepAdapter(FootstepPlanner(LIMITS, GaitTiming(0.5, 0.1), ("left", "right")), OMEGA, tube), tube
+
+
+def test_the_dcm_tube_is_what_the_cmp_corrects_in_the_sole():
+    _, tube = _adapter()
+    # sole centre (0.035, 0): 0.085 m to the toe and heel; sideways the sole is 2.75 cm wide there (2.5 at
+    # the heel, 3 at the toe); less the 1 cm margin, over 1 + k / omega, half of it
+    np.testing.assert_allclose(tube, 0.5 * np.array([0.075, 0.0175]) / (1 + 3.0 / OMEGA), rtol=1e-12)
+
+
+def test_step_adaptation_moves_the_footstep_by_the_error_outside_the_tube():
+    adapter, tube = _adapter()
+    stance = Footstep("right", -1, np.array([1.0, 0.0, 0.0]), math.pi / 2)  # heading +y: forward is +y
+    nominal = Footstep("left", 1, np.array([0.76, 0.2, 0.0]), math.pi / 2)  # 0.2 ahead, 0.24 to its left
+    inside = adapter.adapt(stance, nominal, [0.0, 0.5 * tube[0]], 0.3)
+    assert not inside.outside_tube and inside.footstep is nominal and inside.solve_time_s == 0.0
+    # 1 cm forward beyond the tube, 0.3 s before the switch: the footstep goes exp(omega 0.3) cm further
+    moved = adapter.adapt(stance, nominal, [0.0, tube[0] + 0.01], 0.3)
+    assert moved.outside_tube and not moved.limited
+    expected = 0.01 * math.exp(OMEGA * 0.3) / (1 + adapter.nominal_weight)
+    np.testing.assert_allclose(moved.shift_m, [0.0, expected], atol=1e-9)
+    assert moved.footstep.yaw_rad == nominal.yaw_rad
+    # an error pushing the foot across the stance foot: held at the narrowest width, reported
+    crossing = adapter.adapt(stance, nominal, [0.2, 0.0], 0.3)  # +x is to the stance's right
+    assert crossing.limited
+    d = crossing.footstep.position - stance.position
+    assert -d[0] == pytest.approx(LIMITS.min_width_m, abs=1e-9)  # the width toward its side (-x here)
+
+
+def test_the_swing_task_feeds_the_yaw_rate_and_acceleration_forward(tiny_biped, crouch):
+    model = tiny_biped.pin_model
+    state = DynamicsState(model, crouch(tiny_biped), np.zeros(model.nv))
+    task = SwingFootTask("l_sole", model, 3.0, AccelerationGains(15.0, 1.0))
+    X = state.frame_pose(task.frame_id)
+    yaw = math.atan2(X.rotation[1, 0], X.rotation[0, 0])
+    task.set_swing_target(SwingSample(X.translation.copy(), np.zeros(3), np.zeros(3), yaw, 0.8, 0.5, 2.0))
+    J, _ = task.jacobian_and_drift(state)
+    a = task.desired_acceleration(state, J)
+    # at the target, at rest: the angular part is R_FW (0, 0, alpha + kd rate), kd = 2 zeta omega = 30
+    R_FW = X.rotation.T
+    np.testing.assert_allclose(a[3:], R_FW[:, 2] * (2.0 + 30.0 * 0.8), atol=1e-9)
+    np.testing.assert_allclose(a[:3], 0.0, atol=1e-9)
