@@ -149,8 +149,9 @@ def summary(name: str, task_set: str, start: str, clipped: dict[str, float], par
         note = "  (regulariser, not a target)" if residual.regularising else ""
         lines.append(f"  {task:20s} {text}{note}")
     if len(res.levels) > 1:
-        lines.append(f"priority levels (0 first; tasks not named by --priority at level {len(res.levels) - 1}, "
-                     "the last; each level's largest residual):")
+        last = len(res.levels) - 1
+        lines.append(f"priority levels (0 first; tasks not named by --priority at level {last}, the last; "
+                     "each level's largest residual):")
         for k, (names, residual) in enumerate(zip(res.levels, res.level_residuals, strict=True)):
             text = ", ".join(f"{_unit(key)[0]} {v:.3e} {_unit(key)[1]}"
                              for key, v in residual.as_dict().items())

@@ -196,8 +196,10 @@ class WholeBodyIKConfig:
 
     @property
     def unnamed_level(self) -> int:
-        """The level (before renumbering) of tasks not named in ``priorities``: one below the lowest
-        named level, ``max(level) + 1`` (0 without priorities)."""
+        """The level (before renumbering) of tasks not named in ``priorities``.
+
+        One below the lowest named level, ``max(level) + 1`` (0 without priorities).
+        """
         return max((k for _, k in self.priorities), default=-1) + 1
 
     @property

@@ -4,9 +4,11 @@
 same names and of their kind (:func:`site_frame`): a body with a BODY frame; a site with an
 OP_FRAME, else with a frame a fixed joint welds on (a URDF has no sites: its idiom is a link on a
 fixed joint, which Pinocchio's parser makes a FIXED_JOINT frame and a BODY frame), never with the
-frame of a moving joint or of a moving link that shares its name (aloha's finger sites and joints). Pinocchio's frame Jacobians are formed per chunk of states the way Pinocchio forms
-them (:func:`frame_jacobians`), because Pinocchio has no call for many frames and 50 calls per
-state cost more than the rest of its work: for LOCAL_WORLD_ALIGNED the columns of the joints that
+frame of a moving joint or of a moving link that shares its name (aloha's finger sites and joints).
+
+Pinocchio's frame Jacobians are formed per chunk of states the way Pinocchio forms them
+(:func:`frame_jacobians`), because Pinocchio has no call for many frames and 50 calls per state
+cost more than the rest of its work: for LOCAL_WORLD_ALIGNED the columns of the joints that
 support the frame with the linear rows shifted to the frame's origin, ``v_F = v_O - p_WF x w``
 (``getFrameJacobian``); the test suite checks it against that function.
 

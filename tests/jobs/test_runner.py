@@ -141,7 +141,8 @@ def test_cli_identify_into_its_excitation_folder_exits_2_and_keeps_the_log(tmp_p
                                                  "output_sha256": {"excite.csv": "0" * 64}}))
     out = _cli("identify", str(run), "--output", str(run))
     assert out.returncode == 2, out.stdout + out.stderr
-    assert f"output folder {run} holds a run of `mbctl excite`" in out.stderr and "Traceback" not in out.stderr
+    assert f"output folder {run} holds a run of `mbctl excite`" in out.stderr
+    assert "Traceback" not in out.stderr
     assert sorted(os.listdir(run)) == ["excite.csv", "report.json"]
     assert (run / "excite.csv").read_text() == "time_s\n0.0\n"
 

@@ -40,9 +40,10 @@ def _link(name: str, mass: float, com: str, inertia: tuple[float, float, float])
 
 
 def _joint(name: str, kind: str, parent: str, child: str, xyz: str, axis: str, limits: str) -> str:
+    lower, upper = limits.split()
     return (f'<joint name="{name}" type="{kind}"><parent link="{parent}"/><child link="{child}"/>'
             f'<origin xyz="{xyz}"/><axis xyz="{axis}"/>'
-            f'<limit lower="{limits.split()[0]}" upper="{limits.split()[1]}" effort="10" velocity="10"/></joint>')
+            f'<limit lower="{lower}" upper="{upper}" effort="10" velocity="10"/></joint>')
 
 
 def urdf(j1: str = "j1", site_link: bool = True) -> str:
