@@ -15,6 +15,7 @@ import pinocchio as pin
 
 from mbctl.robots.exceptions import ModelMismatchError
 from mbctl.robots.plant_kinematics import PlantKinematics
+from mbctl.robots.site_frames import site_frame
 
 if TYPE_CHECKING:
     from mbctl.robots.model_pair import Robot
@@ -78,11 +79,11 @@ def _kinematics_problems(robot: Robot, n_random: int = 2, seed: int = 0) -> list
     upper = np.where(np.isfinite(pm.upperPositionLimit), pm.upperPositionLimit, 1.0).clip(-1e3, 1e3)
     np.random.seed(seed)  # pin.randomConfiguration draws from numpy's global generator
     configurations = [pin.neutral(pm)] + [pin.randomConfiguration(pm, lower, upper) for _ in range(n_random)]
-    frames = [(kind, name, i, pm.getFrameId(name, ftype))
-              for kind, names, ids, ftype in (
-                  ("body", robot.bodies, robot.robot_body_ids, pin.FrameType.BODY),
-                  ("site", robot.sites, robot.robot_site_ids, pin.FrameType.OP_FRAME))
-              for name, i in zip(names, ids, strict=True)]
+    frames = [("body", name, i, pm.getFrameId(name, pin.FrameType.BODY))
+              for name, i in zip(robot.bodies, robot.robot_body_ids, strict=True)]
+    frames += [("site", name, i, pm.nframes if fid is None else fid)  # a site's counterpart: site_frame
+               for name, i in zip(robot.sites, robot.robot_site_ids, strict=True)
+               for fid in (site_frame(pm, name),)]
     missing = [f"{kind} {name!r}" for kind, name, _, fid in frames if fid >= pm.nframes]
     if missing:
         return [f"missing in Pinocchio: {', '.join(missing[:8])}"

@@ -29,6 +29,7 @@ import numpy as np
 import pinocchio as pin
 
 from mbctl.robots.model_pair import Robot
+from mbctl.robots.site_frames import site_frame
 
 
 class Frames(NamedTuple):
@@ -73,25 +74,6 @@ def match_frames(robot: Robot) -> Frames:
         site_ids.append(s)
         names.append(name)
     return Frames(pin_ids, np.array(body_ids, dtype=int), np.array(site_ids, dtype=int), names, missing)
-
-
-def site_frame(pm: pin.Model, name: str) -> int | None:
-    """The Pinocchio frame that is MuJoCo site ``name``'s counterpart, or None.
-
-    In this order: the OP_FRAME of that name (an MJCF site, in either Pinocchio builder); the
-    FIXED_JOINT frame of that name, or the BODY frame of that name that a fixed joint welds on
-    (a URDF link on a fixed joint, the URDF's site). A JOINT frame (a moving joint) or the BODY
-    frame of a moving link is never a site's counterpart, whatever its name.
-    """
-    if pm.existFrame(name, pin.FrameType.OP_FRAME):
-        return int(pm.getFrameId(name, pin.FrameType.OP_FRAME))
-    if pm.existFrame(name, pin.FrameType.FIXED_JOINT):
-        return int(pm.getFrameId(name, pin.FrameType.FIXED_JOINT))
-    if pm.existFrame(name, pin.FrameType.BODY):
-        fid = int(pm.getFrameId(name, pin.FrameType.BODY))
-        if pm.frames[int(pm.frames[fid].parentFrame)].type == pin.FrameType.FIXED_JOINT:
-            return fid
-    return None
 
 
 def support_mask(pm: pin.Model, frame_ids: list[int]) -> np.ndarray:

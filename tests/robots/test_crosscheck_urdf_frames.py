@@ -108,3 +108,11 @@ def test_a_renamed_fixed_base_keeps_its_root_links_mass(write):
     assert total == pytest.approx(float(np.sum(robot.mj_model.body_mass)), abs=1e-12)  # 8.8 kg
     report = crosscheck(robot, n_states=10)
     assert report.passed and not any("mass differs" in n for n in report.notes), report.to_text()
+
+
+def test_the_load_time_check_pairs_sites_by_the_same_rule(write):
+    """The exact twin loads with the agreement check on: its site is the URDF link on a fixed joint
+    (before, the check looked for an OP_FRAME only: "missing in Pinocchio: site 'finger'")."""
+    robot_file, urdf_file = write()
+    robot = load_robot(robot_file, pin_model_file=urdf_file)  # check=True: raises on a mismatch
+    assert site_frame(robot.pin_model, "finger") is not None
