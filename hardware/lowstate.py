@@ -8,14 +8,13 @@ Every LowState taken from ``rt/lowstate`` is decoded and checked before it can b
   ``--state-crc off``), counted as ``crc_unchecked``; a non-zero wrong CRC is refused even then;
 - **values**: a non-finite or non-unit IMU quaternion (norm off 1 by more than
   :data:`QUAT_TOLERANCE`), non-finite gyro, accelerometer or joints: ``bad_states``, never a crash;
-- **order**: while the tick does not advance (Unitree's simulator leaves it 0; a robot held in
-  ``mbctl serve g1 --lockstep`` before its first command), states are taken in arrival order: the
-  latest to arrive is the newest, except that once the loop runs a byte-for-byte repeat of the
-  newest is no new state (it carries nothing new: a publisher that sent the same sample again).
-  From the first state whose tick is past the newest's (the G1, ``mbctl serve g1``), states are
-  ordered by tick: one whose tick is not past the newest is ``superseded`` (reordered or
-  repeated), and one whose tick is further ahead than the time since the last state can explain
-  (a spoofed 2^32 - 1) is a bad state, not the new clock. The report says which order it ended in
+- **order**: a tick of 0 is a stream that does not count its states (Unitree's simulator leaves
+  it 0): such states are taken in arrival order, the latest to arrive is the newest. From the first
+  non-zero tick (the G1, ``mbctl serve g1``), states are ordered by tick: one whose tick is behind
+  the newest's is ``superseded`` (reordered), one with the same tick is the same state again (a
+  robot held still, as ``mbctl serve g1 --lockstep`` before its first command: not a new state),
+  and one whose tick is further ahead than the time since the last state can explain (a spoofed
+  2^32 - 1) is a bad state, not the new clock. The report says which order it ended in
   (``state_order``).
 
 The time of a state is the robot's own once its tick advances (tick steps times the period, from
@@ -23,9 +22,9 @@ the newest state's time then, so a run's timing does not depend on when this pro
 reading), and its arrival time before.
 
 The rate is measured at connect (:meth:`LowStateStream.measured_period`): the median, over the
-first :data:`RATE_STATES` advancing states, of the mean interval between arrivals
-:data:`RATE_SPAN` states apart (robust to a stall and to a burst), rounded to two significant
-digits (a robot's timer runs at a round rate: 2.003 ms is the G1's 2 ms).
+first :data:`RATE_STATES` valid arrivals (a held robot's repeats included: they come at its rate),
+of the mean interval between arrivals :data:`RATE_SPAN` apart (robust to a stall and to a burst),
+rounded to two significant digits (a robot's timer runs at a round rate: 2.003 ms is the G1's 2 ms).
 """
 
 from __future__ import annotations
@@ -68,7 +67,8 @@ class StreamCounts:
         bad_crc_zero: Of those, with CRC 0 (unsigned: Unitree's simulator).
         crc_unchecked: Accepted with CRC 0, unchecked (only with ``check_crc=False``).
         bad_states: Refused for their values or a tick far ahead.
-        superseded: Valid but not newer than the newest (tick order).
+        older: Valid but behind the newest (tick order: reordered).
+        repeated: Valid with the newest's tick again (tick order: a robot held still).
     """
 
     seen: int = 0
@@ -78,7 +78,18 @@ class StreamCounts:
     bad_crc_zero: int = 0
     crc_unchecked: int = 0
     bad_states: int = 0
-    superseded: int = 0
+    older: int = 0
+    repeated: int = 0
+
+    @property
+    def arrivals(self) -> int:
+        """Valid states that arrived, newest or not (the rate is measured on them)."""
+        return self.valid + self.older + self.repeated
+
+    @property
+    def superseded(self) -> int:
+        """Valid states that were not the newest when they arrived."""
+        return self.older + self.repeated
 
 
 class LowStateStream:
@@ -99,7 +110,6 @@ class LowStateStream:
         self._codec = low_state_codec()
         self.counts = StreamCounts()
         self.order: str | None = None
-        self.first_tick: int | None = None
         self.tick = 0
         self.tick_step = 0  # smallest positive tick difference seen (tick order)
         self.last_rx = -math.inf
@@ -107,17 +117,16 @@ class LowStateStream:
         self.period_s: float | None = None
         self._clock: tuple[int, float] | None = None  # (tick, time) the tick clock counts from
         self._arrivals: list[float] = []
-        self._payload = b""
         self._base = (0, 0)  # (tick, states before it) the losses count from
         self.q = np.zeros(n_motors)
         self.dq = np.zeros(n_motors)
         self.imu = ImuReading(np.array([1.0, 0, 0, 0]), np.zeros(3), np.zeros(3))
         self.mode_machine = 0
 
-    @property
-    def advancing(self) -> int:
-        """States accepted as newer than the one before (those the rate is measured on)."""
-        return self.counts.valid
+    def connected(self, arrivals: int) -> bool:
+        """Whether ``arrivals`` valid states came, and one after the first that is not behind it."""
+        c = self.counts
+        return c.arrivals >= arrivals and c.valid + c.repeated >= 2
 
     def drain(self) -> bool:
         """Take every waiting LowState; whether a newer valid one was accepted."""
@@ -150,61 +159,53 @@ class LowStateStream:
             c.bad_states += 1
             return False
         tick = int(msg["tick"])
+        if self.period_s is None:
+            self._arrivals.append(now)
         if not self._newer(tick, now):
             return False
-        if self.order == ORDER_ARRIVAL and self.period_s is not None and data == self._payload:
-            c.superseded += 1  # the loop runs: a repeat of the newest is no new state
-            return False
         c.valid += 1
-        self._payload = data
         self.time_s = self._time_of(tick, now)
         self.tick, self.last_rx = tick, now
         self.q = motors["q"].astype(float)
         self.dq = motors["dq"].astype(float)
         self.imu = ImuReading(quat, imu["gyroscope"].astype(float), imu["accelerometer"].astype(float))
         self.mode_machine = int(msg["mode_machine"])
-        if self.period_s is None:
-            self._arrivals.append(now)
         return True
 
     def _newer(self, tick: int, now: float) -> bool:
         """Whether a valid state with ``tick`` is newer than the newest (counting the ones that are not)."""
         c = self.counts
-        if self.first_tick is None:
-            self.first_tick = tick
+        if self.order is None or (self.order == ORDER_ARRIVAL and tick == 0):
+            self.order = ORDER_ARRIVAL if tick == 0 else ORDER_TICK
+            if self.order == ORDER_TICK:
+                self._base = (tick, c.valid)  # losses count from here
             return True
-        if self.order != ORDER_TICK:  # arrival order until the tick advances
-            if tick == self.tick:
-                self.order = ORDER_ARRIVAL
-                return True
-            if tick < self.tick:
-                c.superseded += 1
-                return False
-            self._start_ticking(tick)
+        if self.order == ORDER_ARRIVAL:  # the first non-zero tick: the robot's clock starts
+            self.order = ORDER_TICK
+            self._base = (tick, c.valid)
             return True
         step = tick - self.tick
-        if step <= 0:
-            c.superseded += 1
+        if step < 0:
+            c.older += 1
+            return False
+        if step == 0:
+            c.repeated += 1
             return False
         if self.period_s is not None and self.tick_step:
             explained = math.ceil((now - self.last_rx) / self.period_s)
             if step > self.tick_step * (2 * explained + TICK_SLACK_STATES):
                 c.bad_states += 1
                 return False
-        self.tick_step = step if not self.tick_step else min(self.tick_step, step)
+        if not self.tick_step:
+            self.tick_step = step
+            if self.period_s is not None:  # the tick clock starts from the newest state
+                self._clock = (self.tick, self.time_s)
+        self.tick_step = min(self.tick_step, step)
         return True
-
-    def _start_ticking(self, tick: int) -> None:
-        """The tick advanced for the first time: order by tick, its clock from the newest state on."""
-        self.order = ORDER_TICK
-        self.tick_step = tick - self.tick
-        self._base = (self.tick, self.counts.valid - 1)  # losses count from the newest state on
-        if self.period_s is not None:
-            self._clock = (self.tick, self.time_s)
 
     def _time_of(self, tick: int, now: float) -> float:
         """The state's time [s]: on the tick clock once it runs, else its arrival."""
-        if self._clock is None or self.order != ORDER_TICK:
+        if self._clock is None:
             return now - self.t0
         tick0, time0 = self._clock
         return time0 + (tick - tick0) / self.tick_step * self.period_s  # type: ignore[operator]
@@ -225,7 +226,7 @@ class LowStateStream:
         """The loop's period [s] from now on; in tick order the tick clock counts from the newest state."""
         self.period_s = period_s
         self._arrivals.clear()
-        if self.order == ORDER_TICK:
+        if self.order == ORDER_TICK and self.tick_step:
             self._clock = (self.tick, self.time_s)
 
     @property
@@ -253,6 +254,7 @@ class LowStateStream:
                          "joints or IMU, or a tick far ahead)")
         if c.valid:
             parts.append(f"{c.valid} valid")
-        if c.superseded:
-            parts.append(f"{c.superseded} that never advance (their tick not past {self.tick})")
+        if c.older or c.repeated:
+            parts.append(f"{c.superseded} that never advance (their tick not past {self.tick}: {c.older} "
+                         f"behind, {c.repeated} the same)")
         return ", ".join(parts)

@@ -216,14 +216,24 @@ class UnitreeHG:
     # ------------------------------------------------------------------ activation
     def _connect(self) -> None:
         o, stream = self.options, self.stream
-        need = 2 if o.rate_hz else RATE_STATES  # two tell the order; more time the rate
+        need = 2 if o.rate_hz else RATE_STATES  # two tell a stream that goes on; more time its rate
         deadline = self._t0 + o.connect_timeout_s
-        while stream.advancing < need:
+        while not stream.connected(need):
             remaining = deadline - time.perf_counter()
             if remaining <= 0:
                 raise NoRobotError(self._no_robot_message())
             if self._reader.wait(min(remaining, 0.05)):
                 stream.drain()
+        while not o.dry_run and not self._writer.matched():  # a command before that would be lost
+            remaining = deadline - time.perf_counter()
+            if remaining <= 0:
+                raise NoRobotError(
+                    f"no robot: its state arrives on {TOPIC_LOWSTATE} (DDS domain {o.domain}, network "
+                    f"interface {o.network_interface!r}) but nothing reads {TOPIC_LOWCMD} within "
+                    f"{o.connect_timeout_s:g} s: "
+                    "a robot that publishes and does not listen (check its low-level mode), or a discovery "
+                    "that works one way only (check the network configuration)")
+            time.sleep(min(remaining, 0.005))
         period = 1.0 / o.rate_hz if o.rate_hz else stream.measured_period()
         low, high = PERIOD_RANGE_S
         if period is None or not low <= period <= high:

@@ -6,7 +6,8 @@
     keyframe. Gains come from ``omega``, ``zeta`` and a *stance inertia* per joint: arm and waist
     joints use ``M_jj(q)`` (the subtree they move); leg joints carry the body above them, so they
     use ``max(M_jj, m d_j^2 / 2)`` with m the robot mass and d_j the distance from the joint to
-    the centre of mass (half the body per leg).
+    the centre of mass (half the body per leg); each D gain is then kept below the joint's own
+    inertia over 10 ms (:func:`damping_with_margin`: a light foot stays stable with the loop's delay).
 ``g1_track``
     Pelvis welded at the keyframe pose (``weld_base``), torque motors, joint-space computed
     torque following jerk-limited ruckig trajectories through waypoints that move both arms,
@@ -85,6 +86,26 @@ def stance_inertia(robot: Robot, q: np.ndarray, joints: tuple[str, ...]) -> np.n
             d = float(np.linalg.norm(com - data.oMi[model.getJointId(name)].translation))
             out[i] = max(out[i], 0.5 * mass * d * d)
     return out
+
+
+#: The longest loop delay [s] g1-stand's damping keeps its margin at: Unitree's simulator at its
+#: 5 ms publishes the sensors of the step before, so a command acts two periods after the state it
+#: came from (the G1 at 2 ms: one to two periods, 2-4 ms).
+MARGIN_DELAY_S = 0.01
+
+
+def damping_with_margin(gains: PDGains, robot: Robot, q: np.ndarray, joints: tuple[str, ...]) -> PDGains:
+    """``gains`` with each D gain at most the joint's own inertia M_jj(q) over :data:`MARGIN_DELAY_S`.
+
+    A sampled loop applies its damping explicitly and late: a link whose own inertia is small (a
+    foot off the floor: its ankle's M_jj is ~0.03 kg m^2, its stance inertia ~9 kg m^2) stays
+    stable only while kd tau / M_jj stays small (explicit damping diverges from 2). Keeping it <= 1
+    at 10 ms of delay: on Unitree's G1 model at its 5 ms, g1-stand stands from omega 8 to 10 rad/s
+    (falls at 12, and at 10 without this); the stiffness is kept (it carries the stance).
+    """
+    M = pin.crba(robot.pin_model, robot.pin_model.createData(), q)
+    own = np.array([M[robot.joint(j).idx_v, robot.joint(j).idx_v] for j in joints])
+    return PDGains(gains.kp, np.minimum(gains.kd, own / MARGIN_DELAY_S))
 
 
 def _set(q: np.ndarray, names: list[str], values: dict[str, float]) -> np.ndarray:
@@ -247,7 +268,8 @@ def prepare_stand(params: StandParams, robot: Robot | None = None) -> Work:
     q0 = robot.keyframe_q(KEYFRAME)
     probe = PDGravity(robot, PDGains(np.ones(1), np.ones(1)))
     inertia = stance_inertia(models.controller, q0, probe.joints)
-    gains = gains_from_frequency(params.omega_rad_s, params.zeta, inertia)
+    gains = damping_with_margin(gains_from_frequency(params.omega_rad_s, params.zeta, inertia),
+                                models.controller, q0, probe.joints)
     plant = prepare_plant(params.plant, robot, KEYFRAME)
 
     def work(ctx: RunContext) -> Outcome:

@@ -167,6 +167,13 @@ class RawWriter:
         if ret < 0:
             raise ChannelError(f"DDS write failed with return code {ret}")
 
+    def matched(self) -> int:
+        """How many readers of this topic discovery has matched with this writer.
+
+        A sample written before the robot's reader matched is lost.
+        """
+        return int(self._writer.get_publication_matched_status().current_count)
+
 
 class RawReader:
     """Takes serialized messages of one topic; waits for them with the GIL released."""
@@ -190,6 +197,10 @@ class RawReader:
     def wait(self, timeout_s: float) -> bool:
         """Block (GIL released) until a sample is waiting or ``timeout_s`` passed; whether one is."""
         return self._waitset.wait(max(0, int(timeout_s * 1e9))) > 0
+
+    def matched(self) -> int:
+        """How many writers of this topic discovery has matched with this reader."""
+        return int(self._reader.get_subscription_matched_status().current_count)
 
 
 class Channel:

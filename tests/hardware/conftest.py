@@ -29,14 +29,13 @@ class FakeG1:
         bad_crc: Publish every message with a wrong CRC.
         unsigned: Leave every message's CRC 0, as Unitree's simulator does.
         period_s: Its state period [s].
-        tick_step: How much the tick advances per message (0: never, as Unitree's simulator;
-            negative: it runs backwards).
-        vary: Change a measured value (motor 0's tau_est) in every message (a robot's sensors do;
-            a still fake otherwise repeats itself byte for byte).
+        tick_step: How much the tick advances per message (0: never; negative: it runs backwards).
+        tick0: The first message's tick (0 with ``tick_step`` 0: Unitree's simulator).
     """
 
     def __init__(self, domain: int, q: np.ndarray, quat_wxyz=(1.0, 0.0, 0.0, 0.0), bad_crc: bool = False,
-                 unsigned: bool = False, period_s: float = PERIOD_S, tick_step: int = 1, vary: bool = False):
+                 unsigned: bool = False, period_s: float = PERIOD_S, tick_step: int = 1,
+                 tick0: int = 1 << 20):
         self.channel = Channel(domain)
         lowcmd, lowstate = message_types()
         self._writer = self.channel.writer(TOPIC_LOWSTATE, lowstate)
@@ -44,12 +43,12 @@ class FakeG1:
         self._state = low_state_codec()
         m = self._state.message
         m["mode_machine"] = 5
-        m["tick"] = 1 << 20
+        m["tick"] = tick0 - tick_step
         m["motor_state"]["q"][:29] = q
         m["imu_state"]["quaternion"] = quat_wxyz
         m["imu_state"]["accelerometer"] = (0.0, 0.0, 9.81)
         self._bad_crc, self._unsigned = bad_crc, unsigned
-        self.period_s, self._tick_step, self._vary = period_s, tick_step, vary
+        self.period_s, self._tick_step = period_s, tick_step
         self._once: dict[str, object] = {}
         self._publishing = True
         self._lock = threading.Lock()  # the published message and its flags, vs. the publishing thread
@@ -63,8 +62,6 @@ class FakeG1:
     def _publish(self) -> None:
         m = self._state.message
         m["tick"] = int(m["tick"]) + self._tick_step
-        if self._vary:  # a sensor's last bits change from one sample to the next
-            m["motor_state"]["tau_est"][0] = float(m["motor_state"]["tau_est"][0]) + 1e-3
         saved = {}
         for field, value in self._once.items():  # this message only
             saved[field] = m["imu_state"][field].copy() if field == "quaternion" else m[field].copy()

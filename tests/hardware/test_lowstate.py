@@ -41,8 +41,8 @@ def test_a_wrong_crc_is_refused_even_when_crc_0_is_accepted(g1, fake_g1, dds_dom
         _open(g1, dds_domain, connect_timeout_s=0.5, check_state_crc=False)
 
 
-def test_a_tick_that_does_not_advance_orders_states_by_arrival(g1, fake_g1, dds_domain):
-    fake_g1(tick_step=0, vary=True)
+def test_a_tick_of_0_orders_states_by_arrival(g1, fake_g1, dds_domain):
+    fake_g1(tick_step=0, tick0=0)  # as Unitree's simulator: the same bytes each time, still new states
     with _open(g1, dds_domain) as robot:
         log = run(robot, ConstantTorque(g1), HOLD, 0.04)
         report = robot.report()
@@ -51,17 +51,20 @@ def test_a_tick_that_does_not_advance_orders_states_by_arrival(g1, fake_g1, dds_
     assert np.all(np.diff(log.t_s) > 0)  # each cycle a state that arrived later
 
 
-def test_repeats_of_one_state_are_no_new_state_and_the_loss_says_so(g1, fake_g1, dds_domain):
-    """A tick that never advances and values that never change: connected, then the loop sees nothing new."""
+def test_a_tick_that_stays_is_one_state_held_and_the_loss_says_so(g1, fake_g1, dds_domain):
+    """A non-zero tick that never advances: a robot held still connects, then the loop sees nothing new."""
     fake_g1(tick_step=0)
     with _open(g1, dds_domain, watchdog_periods=3) as robot:
-        with pytest.raises(LinkLost, match=r"\d+ valid, \d+ that never advance \(their tick not past \d+\)"):
+        assert robot.control_period_s == 0.002  # its repeats come at its rate
+        with pytest.raises(LinkLost, match=r"1 valid, (\d+) that never advance \(their tick not past \d+: 0 "
+                                           r"behind, \1 the same\)"):
             run(robot, ConstantTorque(g1), HOLD, 1.0)
 
 
 def test_a_tick_running_backwards_never_advances_and_is_no_robot(g1, fake_g1, dds_domain):
     fake_g1(tick_step=-1)
-    with pytest.raises(NoRobotError, match=r"1 valid, \d+ that never advance"):
+    with pytest.raises(NoRobotError, match=r"1 valid, (\d+) that never advance \(their tick not past \d+: \1 "
+                                           r"behind, 0 the same\)"):
         _open(g1, dds_domain, connect_timeout_s=0.3)
 
 

@@ -1,0 +1,150 @@
+"""mbctl's DDS client against the robot side Unitree ships: its Python simulator, run headless, unchanged.
+
+Unitree's ``UnitreeSdk2Bridge`` (``../shared/unitree_mujoco``, tests/hardware/unitree_sim_harness.py)
+discovers by multicast on ``lo``, leaves the LowState's CRC and tick 0, publishes every
+``SIMULATE_DT`` (5 ms by default, the G1's 2 ms too) and applies each LowCmd's
+``tau + kp (q* - q) + kd (dq* - dq)`` when it arrives. The client connects with ``--state-crc off``
+and orders states by arrival; the jobs stay up on Unitree's G1 model (heavier than Menagerie's);
+the motor table moves the joint it names; a simulator that dies mid-run gets the damping command
+and the run exits 1 with the link's figures; no simulator at all is exit 2.
+
+The simulator steps once per command (``pace="command"``, no faster than real time), so a loaded
+machine slows these runs instead of failing them; the DDS watchdog is widened for the same reason
+(the timing is bench/bench_dds.py's business).
+"""
+
+from __future__ import annotations
+
+import threading
+
+import numpy as np
+import pytest
+
+from mbctl.control.loop import run
+from mbctl.hardware import DdsOptions, UnitreeG1
+from mbctl.jobs.g1 import ArmPDParams, StandParams, prepare_arm_pd, prepare_stand
+from mbctl.jobs.g1_wbc import WBCParams
+from mbctl.jobs.g1_wbc import prepare as prepare_wbc
+from mbctl.jobs.plant import PlantOptions
+from mbctl.jobs.runner import Job, run_job
+from mbctl.robots.commands import position_target
+from mbctl.robots.g1 import G1_FALL, crouched_start
+from tests.conftest import run_mbctl
+from tests.hardware.test_unitree_g1 import HOLD, ConstantTorque, StillBase
+from tests.hardware.unitree_sim_harness import G1_DT, UNITREE_DT, unitree_mujoco, unitree_sim
+from tests.hardware.wire_tap import WireTap, is_damping
+
+#: The watchdog of these runs [periods]: a loaded machine may stall either process (see the docstring).
+WATCHDOG = 100
+
+
+def _plant(domain: int) -> PlantOptions:
+    return PlantOptions("dds", domain, state_crc="off", watchdog_periods=WATCHDOG)
+
+
+def _job(name, prepare, params, g1, folder):
+    return run_job(Job(name, lambda p: prepare(p, g1)), params, folder)
+
+
+@pytest.mark.parametrize(("job", "dt"), [("g1-wbc stand", UNITREE_DT), ("g1-stand", UNITREE_DT),
+                                         ("g1-arm-pd", G1_DT)])
+def test_the_g1_jobs_stay_up_on_unitree_s_simulator(g1, dds_domain, tmp_path, job, dt):
+    """g1-wbc and g1-stand at Unitree's 5 ms, g1-arm-pd at the G1's 2 ms.
+
+    At 5 ms Unitree's simulator applies the motor law once per step, explicitly, from the step
+    before's sensors: the Menagerie position actuators' kv (4.7-10.8 N m s/rad) diverge there, as
+    any D gain above ~M_jj / 5 ms would (kd halved stands); the G1's firmware runs that law far faster.
+    """
+    start = crouched_start(g1) if job == "g1-wbc stand" else g1.keyframe_q("stand")
+    with unitree_sim(dds_domain, g1, start, tmp_path, dt=dt) as sim:
+        if job == "g1-wbc stand":
+            record = _job("g1-wbc", prepare_wbc, WBCParams("stand", 2.0, plant=_plant(dds_domain)), g1,
+                          tmp_path / "run")
+        elif job == "g1-stand":
+            record = _job(job, prepare_stand, StandParams(2.0, plant=_plant(dds_domain)), g1,
+                          tmp_path / "run")
+        else:
+            record = _job(job, prepare_arm_pd, ArmPDParams(2.0, plant=_plant(dds_domain)), g1,
+                          tmp_path / "run")
+    assert record.status == "completed", record.message
+    v = record.values
+    assert v["cycles"] == round(2.0 / dt) and v["state_rate_hz"] == pytest.approx(1 / dt)
+    assert v["state_order"] == "arrival" and v["crc_unchecked"] > v["cycles"] and v["bad_crc"] == 0
+    assert v["watchdog_events"] == 0 and v["damped"] is True
+    pelvis = sim.pelvis_z_m()  # Unitree's simulator's own: the truth
+    assert pelvis["min"] > G1_FALL.base_min_z_m + 0.2, pelvis
+    assert record.exit_code == 0, (record.outcome, v)
+
+
+def test_the_motor_table_moves_the_joint_it_names(g1, dds_domain, tmp_path):
+    """Held by position targets, then one joint's target moved: that joint follows, no other (2 ms)."""
+    q0 = g1.keyframe_q("stand")
+    joint, delta = "left_elbow_joint", 0.3
+    with unitree_sim(dds_domain, g1, q0, tmp_path, dt=G1_DT):
+        options = DdsOptions(domain=dds_domain, check_state_crc=False, watchdog_periods=WATCHDOG)
+        with UnitreeG1(g1, StillBase(), options) as robot:
+            target = {j: float(q0[g1.joint(j).idx_q]) for j in robot.motors.joints}
+
+            def hold(cycles: int) -> np.ndarray:
+                for _ in range(cycles):
+                    robot.read_state()
+                    robot.send(position_target(target))
+                    robot.sync()
+                return robot.read_state().q[7:]
+
+            held = hold(250)  # settled under its weight
+            target[joint] += delta
+            moved = hold(250) - held
+    names = sorted((j for j in g1.joints if g1.joint(j).kind == "hinge"), key=lambda j: g1.joint(j).idx_q)
+    i = names.index(joint)
+    assert moved[i] == pytest.approx(delta, abs=0.05)
+    others = np.abs(np.delete(moved, i))
+    assert others.max() < 0.1 * delta, names[int(np.argmax(others)) + (np.argmax(others) >= i)]
+
+
+def test_a_simulator_killed_mid_run_gets_damping_and_the_run_exits_1_with_the_link_figures(
+        g1, dds_domain, tmp_path):
+    with unitree_sim(dds_domain, g1, crouched_start(g1), tmp_path) as sim, WireTap(dds_domain) as tap:
+        def kill_after_200_commands():
+            if tap.wait_for(200, timeout_s=120):
+                sim.proc.kill()
+
+        killer = threading.Thread(target=kill_after_200_commands, daemon=True)
+        killer.start()
+        record = _job("g1-wbc", prepare_wbc, WBCParams("stand", 30.0, plant=_plant(dds_domain)), g1,
+                      tmp_path / "run")
+        killer.join(timeout=5)
+    assert (record.status, record.exit_code) == ("failed", 1), record.message
+    assert record.message.startswith("link lost: no new LowState for")
+    assert "sent the damping command" in record.message
+    v = record.values  # the link's figures, though the loop failed
+    assert v["interface"] == "dds" and v["states_received"] > 200 and v["watchdog_events"] == 1
+    assert v["state_order"] == "arrival" and v["damped"] is True and "messages_lost" in v
+    damped = [is_damping(c, g1) for c in tap.commands]
+    last_command = len(damped) - damped[::-1].index(False)  # after the loop's last command
+    assert len(damped) - last_command >= 2 and all(damped[last_command:])
+
+
+def test_no_simulator_is_exit_2_saying_nothing_was_seen(g1, dds_domain, tmp_path):
+    unitree_mujoco()  # this file's tests run where the simulator is (skipped or failed otherwise)
+    out = run_mbctl("g1-wbc", "stand", "--interface", "dds", "--domain", str(dds_domain), "--state-crc",
+                    "off", "--output", str(tmp_path), timeout=120)
+    assert out.returncode == 2, out.stderr
+    assert "nothing was seen on the domain" in out.stderr and "Traceback" not in out.stderr
+
+
+def test_after_the_loop_damping_reaches_unitree_s_simulator_every_period(g1, dds_domain, tmp_path):
+    """Safe at every end, on the robot side Unitree ships: damping at its 5 ms period until close()."""
+    with unitree_sim(dds_domain, g1, g1.keyframe_q("stand"), tmp_path) as sim:
+        options = DdsOptions(domain=dds_domain, check_state_crc=False, watchdog_periods=WATCHDOG)
+        # the tap after the client connected: the client then waited for the simulator's reader itself
+        with UnitreeG1(g1, StillBase(), options) as robot, WireTap(dds_domain) as tap:
+            assert tap.wait_matched()
+            log = run(robot, ConstantTorque(g1), HOLD, 0.1)
+            n_loop = log.cycles
+            assert tap.wait_for(n_loop + 40)
+            after = tap.commands[n_loop:]
+            gaps = np.diff(tap.times[n_loop:])
+        assert sim.proc.poll() is None  # it was there all along
+    assert len(after) >= 40 and all(is_damping(c, g1) for c in after)
+    assert np.median(gaps) == pytest.approx(UNITREE_DT, rel=0.25)

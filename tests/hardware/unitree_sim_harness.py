@@ -1,0 +1,149 @@
+"""Unitree's own Python simulator as the robot in the tests: found next to the clone, run headless.
+
+The copy of unitree_mujoco (its ``simulate_python`` and G1 model, read-only, used unchanged; see
+its SOURCE.md) lives in ``../shared/unitree_mujoco`` next to the repository, as CI has it (the
+same place as the Menagerie copy ``.ci/run`` uses). Without it the tests skip, except in CI,
+where they fail: CI must run them (as the G1 model rule in tests/conftest.py).
+
+:func:`unitree_sim` starts tests/hardware/unitree_sim_runner.py as a subprocess on the test's
+DDS domain and ``lo``, at a start pose of mbctl's G1 (the same kinematics: Unitree's G1 and
+Menagerie's share their joints and feet), and yields it once it serves.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import re
+import signal
+import subprocess
+import sys
+import threading
+import time
+from collections.abc import Iterator
+from contextlib import contextmanager
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import mbctl
+from mbctl.robots.model_pair import Robot
+
+#: Where CI (and a developer's machine) keeps the copy: ``../shared/unitree_mujoco`` next to the clone.
+UNITREE_MUJOCO = Path(mbctl.__file__).resolve().parent.parent / "shared" / "unitree_mujoco"
+RUNNER = Path(__file__).with_name("unitree_sim_runner.py")
+#: Unitree's default SIMULATE_DT [s] (200 Hz), and the G1's own 500 Hz.
+UNITREE_DT, G1_DT = 0.005, 0.002
+#: Seconds the runner gets to load MuJoCo and join DDS.
+START_S = 120.0
+
+
+def unitree_mujoco() -> Path:
+    """The copy's root; skips the test without it (fails it in CI)."""
+    bridge = UNITREE_MUJOCO / "simulate_python" / "unitree_sdk2py_bridge.py"
+    if bridge.is_file():
+        return UNITREE_MUJOCO
+    message = f"Unitree's simulator (unitree_mujoco) not at {UNITREE_MUJOCO}"
+    if os.environ.get("CI"):
+        pytest.fail(f"CI must have {message} (../shared/unitree_mujoco next to the clone)")
+    pytest.skip(message)
+
+
+def start_pose(robot: Robot, q: np.ndarray) -> dict:
+    """mbctl's configuration ``q`` (nq,) as the runner's start (base x, y, z, qw, qx, qy, qz; joints)."""
+    base = [*q[:3], q[6], q[3], q[4], q[5]]  # MuJoCo's quaternion order w, x, y, z
+    joints = {name: float(q[j.idx_q]) for name, j in robot.joints.items() if j.kind in ("hinge", "slide")}
+    return {"base": [float(x) for x in base], "joints": joints}
+
+
+@dataclass
+class UnitreeSim:
+    """A running simulator: its process, and once it ended what it wrote (its last line: the pelvis).
+
+    Attributes:
+        proc: The runner's process.
+        log: Its stderr after the serving line (set when it has stopped).
+    """
+
+    proc: subprocess.Popen[str]
+    log: str = ""
+
+    def pelvis_z_m(self) -> dict[str, float]:
+        """The pelvis height [m] it reported at its end: start, min while commanded (before the damping
+        command), final."""
+        found = re.search(r"pelvis z start (\S+) m, min (\S+) m until the damping command, final (\S+) m",
+                          self.log)
+        if found is None:
+            pytest.fail(f"Unitree's simulator did not report the pelvis: {self.log}")
+        return dict(zip(("start", "min", "final"), map(float, found.groups()), strict=True))
+
+
+@contextmanager
+def unitree_sim(domain: int, robot: Robot, q: np.ndarray, folder: Path, *, dt: float = UNITREE_DT,
+                pace: str = "command", idle_timeout_s: float = 30.0) -> Iterator[UnitreeSim]:
+    """Unitree's simulator on ``domain`` (lo) with the G1 at ``q``; yields it once it serves.
+
+    At the end of the block it is stopped (SIGINT) unless it stopped by itself; wait for that (its
+    idle timeout) with ``sim.proc.wait()`` inside the block to read its own last line.
+
+    Args:
+        domain: The test's DDS domain.
+        robot: mbctl's G1 (its joint names and configuration layout).
+        q: The start configuration (nq,), Pinocchio convention.
+        folder: Where the start pose file is written.
+        dt: SIMULATE_DT [s].
+        pace: "command" (one physics step per command, no faster than real time) or "wall".
+        idle_timeout_s: It stops this long [s] after its last command (or its start).
+    """
+    root = unitree_mujoco()
+    start = folder / "unitree_start.json"
+    start.write_text(json.dumps(start_pose(robot, q)))
+    proc = subprocess.Popen([sys.executable, str(RUNNER), "--root", str(root), "--domain", str(domain),
+                             "--dt", str(dt), "--pace", pace, "--start", str(start), "--idle-timeout",
+                             str(idle_timeout_s)], stdout=subprocess.DEVNULL, stderr=subprocess.PIPE,
+                            text=True)
+    sim = UnitreeSim(proc)
+    try:
+        line = _first_line(proc)
+        if "serving" not in line:
+            pytest.fail(f"Unitree's simulator did not start: {line}{proc.stderr.read()}")
+        yield sim
+    finally:
+        sim.log = stop(proc)
+
+
+def _first_line(proc: subprocess.Popen[str]) -> str:
+    got: list[str] = []
+    reader = threading.Thread(target=lambda: got.append(proc.stderr.readline()), daemon=True)
+    reader.start()
+    reader.join(START_S)
+    if not got:
+        proc.kill()
+        pytest.fail(f"Unitree's simulator wrote nothing within {START_S:g} s (killed)")
+    return got[0]
+
+
+def stop(proc: subprocess.Popen[str]) -> str:
+    """End the simulator (SIGINT, then kill) and return the rest of its stderr."""
+    if proc.poll() is None:
+        proc.send_signal(signal.SIGINT)
+        try:
+            proc.wait(timeout=10)
+        except subprocess.TimeoutExpired:
+            proc.kill()
+            proc.wait()
+    rest = proc.stderr.read() if proc.stderr and not proc.stderr.closed else ""
+    if proc.stderr:
+        proc.stderr.close()
+    return rest
+
+
+def kill_after(proc: subprocess.Popen[str], delay_s: float) -> threading.Timer:
+    """SIGKILL ``proc`` after ``delay_s`` [s] (a robot whose link dies mid-run); the timer, started."""
+    timer = threading.Timer(delay_s, lambda: proc.poll() is None and proc.kill())
+    timer.daemon = True
+    timer.start()
+    time.sleep(0)
+    return timer
