@@ -25,10 +25,10 @@ app = typer.Typer(
 def _register_commands() -> None:
     # One module per command family; each exposes register(app). Imported here, not at module
     # top, so `mbctl --help` stays fast and a broken family names itself in the traceback.
-    from mbctl.cli import demo, g1, g1_wbc, ik, robots, serve, sim, sweep, view, xcheck
+    from mbctl.cli import demo, g1, g1_walk, g1_wbc, ik, robots, serve, sim, sweep, view, xcheck
     from mbctl.cli import identify as identification
 
-    for family in (robots, sim, demo, g1, g1_wbc, xcheck, ik, sweep, view, serve, identification):
+    for family in (robots, sim, demo, g1, g1_wbc, g1_walk, xcheck, ik, sweep, view, serve, identification):
         family.register(app)
 
 

@@ -24,6 +24,8 @@ from mbctl.jobs import options as opts
 from mbctl.jobs.demo import DEMO
 from mbctl.jobs.demo import prepare as prepare_demo
 from mbctl.jobs.g1 import G1_ARM_PD, G1_STAND, G1_TRACK, prepare_arm_pd, prepare_stand, prepare_track
+from mbctl.jobs.g1_walk import G1_WALK, g1_walk_params
+from mbctl.jobs.g1_walk import prepare as prepare_walk
 from mbctl.jobs.g1_wbc import G1_WBC
 from mbctl.jobs.g1_wbc import prepare as prepare_wbc
 from mbctl.jobs.ik import IK
@@ -193,6 +195,7 @@ CATALOG: dict[str, CatalogEntry] = {e.name: e for e in (
     CatalogEntry(G1_TRACK, opts.g1_track, "joint_rms_error_rad", prepare_track, _g1),
     CatalogEntry(G1_ARM_PD, opts.g1_arm_pd, "joint_rms_error_rad", prepare_arm_pd, _g1),
     CatalogEntry(G1_WBC, opts.g1_wbc, "max_foot_slip_m", prepare_wbc, _g1),
+    CatalogEntry(G1_WALK, g1_walk_params, "distance_m", prepare_walk, _g1),
     CatalogEntry(XCHECK, opts.xcheck, "passed"),
     CatalogEntry(IK, opts.ik, "max_plant_residual_m", prepare_ik, _named),
 )}

@@ -24,4 +24,4 @@ WBC_DEFAULT_DURATION_S = {"stand": 10.0, "squat": 10.0, "one-foot": 14.0, "reach
 SERVE_STARTS = ("stand", "crouched")
 
 #: The jobs ``mbctl sweep`` runs (``mbctl.jobs.catalog.CATALOG``), in its order.
-SWEEP_JOBS = ("demo", "joint-step", "g1-stand", "g1-track", "g1-arm-pd", "g1-wbc", "xcheck", "ik")
+SWEEP_JOBS = ("demo", "joint-step", "g1-stand", "g1-track", "g1-arm-pd", "g1-wbc", "g1-walk", "xcheck", "ik")

@@ -9,7 +9,7 @@ is placed from the stance footstep S (x, y, yaw) as
 
 so the body advances (vx, vy, wz) T per step on average: every footstep turns the feet by wz T,
 each step moves the swing foot vx T ahead of the stance foot, and sideways the foot on the side of
-the motion steps out by 2 |vy| T while the other closes to the nominal width w. Each footstep is
+the motion steps out by ``2 |vy| T`` while the other closes to the nominal width w. Each footstep is
 then projected into the step limits (:meth:`FootstepPlanner.limit_step`; turning while stepping
 can carry it past one), so the width is never below ``w_min`` and the feet never cross.
 
@@ -20,23 +20,23 @@ can carry it past one), so the width is never below ``w_min`` and the feet never
   configuration (straight legs), the sole being ``sole_depth`` below the foot frame. Walking with
   the CoM at ``z_c``, the hip is at ``h = z_c - (z_com - z_hip)`` of the reference (standing)
   configuration; keeping the knee off its straight-leg singularity (at most
-  :data:`MAX_EXTENSION` L from hip to sole), the foot reaches ``r = sqrt((0.97 L)^2 - h^2)`` in
+  ``MAX_EXTENSION`` L from hip to sole), the foot reaches ``r = sqrt((0.97 L)^2 - h^2)`` in
   front of or behind the hip. In double support the hip is between the feet, so a step (foot to
-  foot) is at most ``2 r``; :data:`REACH_USE` of it is used (the CoM is not exactly midway at
-  touchdown). Backward steps get :data:`BACKWARD_FRACTION` of that (the sole extends further in
+  foot) is at most ``2 r``; ``REACH_USE`` of it is used (the CoM is not exactly midway at
+  touchdown). Backward steps get ``BACKWARD_FRACTION`` of that (the sole extends further in
   front of the ankle than behind: a backward step lands on the short side). Sideways the feet
-  spread by at most :data:`LATERAL_FRACTION` r beyond the nominal width (each leg, with the hips
+  spread by at most ``LATERAL_FRACTION`` r beyond the nominal width (each leg, with the hips
   midway, then spans half of it).
 - *Foot size.* The nominal width w is the feet's distance in the reference configuration. The
-  narrowest stance keeps the soles' inner edges :data:`CLEARANCE_M` apart: ``w_min = sole width
+  narrowest stance keeps the soles' inner edges ``CLEARANCE_M`` apart: ``w_min = sole width
   + clearance``.
-- *Hip yaw range.* The feet turn by at most :data:`YAW_FRACTION` of the smaller hip-yaw range
+- *Hip yaw range.* The feet turn by at most ``YAW_FRACTION`` of the smaller hip-yaw range
   (the leg's joint whose axis is vertical at the neutral configuration), and by no more than the
   angle at which the turned foot's toe would reach the clearance of the other sole:
   ``asin((w - w_min) / toe)``, toe the sole's reach in front of the foot frame.
 - *Timing* (:class:`GaitTiming`) is the controller's: single support within
-  [:data:`MIN_SINGLE_SUPPORT_S`, :data:`MAX_SINGLE_SUPPORT_S`], double support within
-  [:data:`MIN_DOUBLE_SUPPORT_S`, :data:`MAX_DOUBLE_SUPPORT_S`].
+  [``MIN_SINGLE_SUPPORT_S``, ``MAX_SINGLE_SUPPORT_S``], double support within
+  [``MIN_DOUBLE_SUPPORT_S``, ``MAX_DOUBLE_SUPPORT_S``].
 
 **Clamping.** The command is clamped per axis (forward/backward step, lateral step, yaw), then
 (vx, vy) scaled together onto the reach ellipse ``(vx T / step_x)^2 + (2 vy T / step_y)^2 <= 1``;

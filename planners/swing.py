@@ -2,7 +2,7 @@
 
 The path is planned in W over the single-support time T, from the foot's pose at lift-off to its
 footstep; each coordinate is a quintic polynomial (position, velocity and acceleration given at
-both ends, the closed form of :mod:`mbctl.planners.polynomial` evaluated at one time, for the
+both ends, the closed form of ``mbctl.planners.polynomial`` evaluated at one time, for the
 control cycle):
 
 - **Horizontal** (x, y) and **yaw**: from the lift-off state to the footstep at rest, over the
@@ -11,7 +11,7 @@ control cycle):
   (a new velocity command, a re-planned step): :meth:`SwingTrajectory.retarget`
   starts a new quintic from the current position, velocity and acceleration to the new footstep
   over the horizontal time left, so the path stays twice differentiable; once less than
-  :data:`MIN_RETARGET_S` of it is left, the footstep is frozen (a late change would need an
+  ``MIN_RETARGET_S`` of it is left, the footstep is frozen (a late change would need an
   acceleration the leg cannot give).
 - **Height**: up from the lift-off height ``z0`` to ``max(z0, z1) + h`` at ``T/2`` and down to the
   footstep's height ``z1`` at T, each half a quintic at rest at its ends, so the foot leaves and
@@ -166,7 +166,7 @@ class SwingTrajectory:
         """Move the footstep (x, y, yaw) from time ``t_s`` on, continuously; the height profile stays.
 
         Returns:
-            False (nothing changed) when less than :data:`MIN_RETARGET_S` of the horizontal motion is left.
+            False (nothing changed) when less than ``MIN_RETARGET_S`` of the horizontal motion is left.
 
         Raises:
             InvalidPlanningInput: A non-finite target.

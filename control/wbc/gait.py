@@ -12,7 +12,7 @@ constrains the foot where it is (its force ramping up) and records the footstep 
 double support is timed from the planned touchdown when the foot lands early (the DCM plan's
 clock does not jump), from the actual one when it lands late.
 
-Each phase gives the DCM plan its start (:meth:`Gait.plan_start`): the VRPs in force now, the
+Each phase gives the DCM plan its start (``Gait.plan_start``): the VRPs in force now, the
 next switch time, and in the start phase the initial DCM at rest.
 """
 

@@ -34,7 +34,7 @@ Each cycle:
    (:func:`~mbctl.control.wbc.standing.standing_controller`); then the QP.
 
 Nothing here names a robot: feet, base and torso frames and the reference configuration are
-parameters (the G1's come from :mod:`mbctl.robots.g1` in the jobs).
+parameters (the G1's come from ``mbctl.robots.g1`` in the jobs).
 """
 
 from __future__ import annotations
@@ -83,8 +83,10 @@ class SwingFootTask(FramePoseTask):
     (the frame pose task's angular references are zero, so a turning foot would lag).
     """
 
-    def __init__(self, frame: str, model: pin.Model, cost: float, servo: AccelerationGains):
-        super().__init__(frame, model, cost, cost, name=f"{frame} swing", servo=servo)
+    def __init__(self, frame: str, model: pin.Model, cost: float, servo: AccelerationGains,
+                 orientation_cost: float | None = None):
+        super().__init__(frame, model, cost, cost if orientation_cost is None else orientation_cost,
+                         name=f"{frame} swing", servo=servo)
         self.yaw_rate_rad_s = 0.0
         self.yaw_acceleration_rad_s2 = 0.0
 
@@ -192,8 +194,8 @@ class WalkingController:
         self.omega = dcm_omega(cfg.com_height_m, float(np.linalg.norm(self.model.gravity.linear)))
         tube = dcm_tube(points, cfg.cmp_margin_m, cfg.dcm_gain_1_s, self.omega, cfg.dcm_tube_fraction)
         self.adapter = StepAdapter(self.planner, self.omega, tube)
-        self.swing_tasks = {f: SwingFootTask(f, self.model, cfg.swing_cost, cfg.swing_gains)
-                            for f in self.feet}
+        self.swing_tasks = {f: SwingFootTask(f, self.model, cfg.swing_cost, cfg.swing_gains,
+                                             cfg.swing_orientation_cost) for f in self.feet}
         self.contact_force = contact_force
         self._fids = {f: self.model.getFrameId(f) for f in self.feet}
         self._clamp = self.planner.clamp(VelocityCommand())

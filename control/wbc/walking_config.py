@@ -33,7 +33,9 @@ class WalkingConfig:
         swing_horizontal_fraction: The swing foot reaches its footstep's x, y and yaw at this
             fraction of the swing, then descends vertically.
         swing_gains: PD gains of the swing foot's pose task.
-        swing_cost: Weight of the swing foot's pose task [cost]/[m, rad].
+        swing_cost: Weight of the swing foot's position [cost]/[m].
+        swing_orientation_cost: Weight of the swing foot's orientation [cost]/[rad] (a foot that lands
+            tilted touches down on an edge).
         com_cost: Weight of the CoM task [cost]/[m] (the standing set's is 10).
         momentum_cost: Weight of the angular-momentum damping [cost]/[N m] (the standing set's is 0.2).
         height_gains: PD gains of the CoM height (the CoM task's; its horizontal error is zero by
@@ -69,6 +71,7 @@ class WalkingConfig:
     swing_horizontal_fraction: float = 0.8
     swing_gains: AccelerationGains = AccelerationGains(15.0, 1.0)
     swing_cost: float = 3.0
+    swing_orientation_cost: float = 3.0
     com_cost: float = 30.0
     momentum_cost: float = 0.2
     height_gains: AccelerationGains = AccelerationGains(10.0, 1.0)
@@ -92,6 +95,7 @@ class WalkingConfig:
             "dcm_gain_1_s": self.dcm_gain_1_s > 0, "cmp_margin_m": self.cmp_margin_m >= 0,
             "dcm_tube_fraction": 0 <= self.dcm_tube_fraction <= 1, "preview_steps": self.preview_steps >= 1,
             "ramp_s": 0 < self.ramp_s <= self.timing.double_support_s, "swing_cost": self.swing_cost > 0,
+            "swing_orientation_cost": self.swing_orientation_cost > 0,
             "com_cost": self.com_cost > 0, "momentum_cost": self.momentum_cost >= 0,
             "touchdown_force_n": self.touchdown_force_n > 0,
             "touchdown_height_m": self.touchdown_height_m >= 0,

@@ -1,0 +1,296 @@
+"""``mbctl g1-walk SCENARIO``: the G1 walks on the whole-body QP in torque mode, checked in the plant.
+
+The Menagerie position actuators become torque motors (force ranges kept, never raised); the
+walking controller (:class:`mbctl.control.wbc.WalkingController`: footsteps, a DCM plan with step
+adaptation, swing feet and force-ramped contact switches on the whole-body QP) follows a velocity
+command, (vx, vy, yaw rate) in the body frame, from the crouched start. In-process, touchdowns are
+detected from the plant's contact sensor (the normal force MuJoCo applied on each foot's geoms);
+over DDS from the sole's height (the base from the estimator).
+
+Scenarios (``--speed VX[,VY[,YAW_RATE]]`` m/s, m/s, rad/s; default in :data:`DEFAULT_SPEED`):
+
+- ``forward``: (vx, vy, yaw rate) as given; ``backward``: the same with vx backward (-|vx|);
+  ``side``: sideways; ``turn``: turning (the speed's vector as given in every case but backward).
+
+Checked in the plant (MuJoCo), by a :class:`~mbctl.sim.monitor.PlantMonitor`: the fall
+(:data:`mbctl.robots.g1.G1_FALL`), the CoM, the feet's measured forces and slip. ``distance_m``
+is the pelvis's horizontal displacement (the plant's own state), ``commanded_displacement_m``
+the command integrated over the run (speed x duration for a constant command; the heading turned
+by the yaw rate), ``displacement_fraction`` the displacement along it over its length, and for a
+turn ``yaw_fraction`` the pelvis's turn over the commanded one. A run passes (exit 0) when the G1
+did not fall, the median foot slip is within :data:`MAX_MEDIAN_SLIP_M` and the displacement
+(yaw for ``turn``) is at least :data:`MIN_FRACTION` of the commanded one.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+import pinocchio as pin
+
+from mbctl.control.exceptions import WBCSetupError
+from mbctl.control.loop import run
+from mbctl.control.wbc import WalkingConfig, WalkingController, WBCConfig
+from mbctl.jobs.g1_walk_choices import WALK_DEFAULT_DURATION_S, WALK_DEFAULT_SPEED, WALK_SCENARIOS
+from mbctl.jobs.g1_walk_log import WalkLog
+from mbctl.jobs.model_options import ModelOptions, build_models
+from mbctl.jobs.plant import Plant, PlantOptions, dry_run, plant_lines, prepare_plant, report_plant
+from mbctl.jobs.runner import Job, Outcome, RunContext, Work
+from mbctl.limits import check_duration
+from mbctl.planners import VelocityCommand
+from mbctl.robots.edits import position_to_motor, scale_masses
+from mbctl.robots.g1 import FEET, G1_FALL, KEYFRAME, PELVIS, TORSO, crouched_start, with_palm_sites
+from mbctl.robots.model_pair import Robot
+from mbctl.robots.registry import load_robot
+from mbctl.sim.monitor import PlantMonitor
+
+SCENARIOS = WALK_SCENARIOS
+DEFAULT_SPEED = WALK_DEFAULT_SPEED
+DEFAULT_DURATION_S = WALK_DEFAULT_DURATION_S
+#: A run passes with at least this fraction of the commanded displacement (yaw for a turn) [-].
+MIN_FRACTION = 0.9
+#: ... and a median foot slip within this [m].
+MAX_MEDIAN_SLIP_M = 0.005
+
+
+def parse_speed(text: str) -> tuple[float, float, float]:
+    """``"VX[,VY[,YAW_RATE]]"`` -> (vx [m/s], vy [m/s], yaw rate [rad/s]); missing ones are 0.
+
+    Raises:
+        WBCSetupError: Not 1 to 3 finite numbers.
+    """
+    parts = [p.strip() for p in text.split(",")]
+    try:
+        values = [float(p) for p in parts]
+    except ValueError:
+        values = []
+    if not 1 <= len(values) <= 3 or not all(math.isfinite(v) for v in values):
+        raise WBCSetupError(f"--speed must be VX[,VY[,YAW_RATE]] (m/s, m/s, rad/s), e.g. 0.3 or 0,0.2 or "
+                            f"0,0,0.5; got {text!r}")
+    return (values + [0.0, 0.0])[0], (values + [0.0, 0.0])[1], (values + [0.0, 0.0, 0.0])[2]
+
+
+@dataclass(frozen=True)
+class WalkParams:
+    """Parameters of ``mbctl g1-walk`` (field names are the CLI options).
+
+    Attributes:
+        scenario: One of :data:`SCENARIOS`.
+        speed: The command "VX[,VY[,YAW_RATE]]" (m/s, m/s, rad/s), or None for the scenario's.
+        duration: Simulated time [s] (None: the scenario's default).
+        model_error: The controller model's link masses and inertias off by this [%].
+        model_dir: Explicit G1 folder (else MENAGERIE_ROOT, the package cache).
+        plant: In-process (with an optional link model) or the G1 over DDS.
+        models: A hidden payload or mass error on the in-process plant, or the controller's model
+            from a file.
+    """
+
+    scenario: str = "forward"
+    speed: str | None = None
+    duration: float | None = None
+    model_error: float = 0.0
+    model_dir: str | None = None
+    plant: PlantOptions = PlantOptions()
+    models: ModelOptions = ModelOptions()
+
+    def __post_init__(self) -> None:
+        self.plant.check_models(self.models)
+        if self.scenario not in SCENARIOS:
+            raise WBCSetupError(f"unknown scenario {self.scenario!r}; choose one of {', '.join(SCENARIOS)}")
+        check_duration(self.duration)
+        if self.duration is not None and not (math.isfinite(self.duration) and self.duration > 0):
+            raise WBCSetupError(f"duration must be a positive number of seconds; got {self.duration}")
+        if self.speed is not None:
+            parse_speed(self.speed)
+        if not (math.isfinite(self.model_error) and -50 < self.model_error < 100):
+            raise WBCSetupError(f"model_error must be a percentage in (-50, 100); got {self.model_error}")
+
+    @property
+    def duration_s(self) -> float:
+        """The simulated time [s]."""
+        return DEFAULT_DURATION_S[self.scenario] if self.duration is None else self.duration
+
+    @property
+    def command(self) -> VelocityCommand:
+        """The velocity command (backward: vx made negative)."""
+        vx, vy, wz = DEFAULT_SPEED[self.scenario] if self.speed is None else parse_speed(self.speed)
+        return VelocityCommand(-abs(vx) if self.scenario == "backward" else vx, vy, wz)
+
+
+def g1_walk_params(scenario: str = "forward", speed: str | None = None, duration: float | None = None,
+                   model_error: float = 0.0, model_dir: str | None = None, **options: Any) -> WalkParams:
+    """``mbctl g1-walk``: speed "VX[,VY[,YAW_RATE]]" (m/s, m/s, rad/s), duration (s), model_error (%).
+
+    ``options`` are the G1 jobs' plant options (:func:`mbctl.jobs.options.plant`'s, in their units)
+    and the model options (``payload``, ``plant_error``, ``controller_model``); the signature lists
+    them (:data:`_PARAMETERS`), so the command line and ``mbctl sweep`` read the same names.
+    """
+    from mbctl.jobs.options import plant
+
+    model = {k: options.pop(k) for k in _MODEL_OPTIONS if k in options}
+    return WalkParams(scenario, speed, duration, model_error, model_dir, plant(**options),
+                      ModelOptions(**model))
+
+
+#: The model options and their defaults (``mbctl.jobs.model_options.ModelOptions``'s fields).
+_MODEL_OPTIONS = {"payload": (str | None, None), "plant_error": (float, 0.0),
+                  "controller_model": (str | None, None)}
+
+
+def _signature() -> None:
+    """Give :func:`g1_walk_params` the full signature: its own options, the plant's, the model's."""
+    import inspect
+    import typing
+
+    from mbctl.jobs.options import plant
+
+    own = [p for p in inspect.signature(g1_walk_params).parameters.values() if p.kind != p.VAR_KEYWORD]
+    hints = {**typing.get_type_hints(g1_walk_params), **typing.get_type_hints(plant)}
+    keyword = inspect.Parameter.POSITIONAL_OR_KEYWORD
+    plant_params = [p.replace(kind=keyword) for p in inspect.signature(plant).parameters.values()]
+    model = [inspect.Parameter(k, keyword, default=d) for k, (_, d) in _MODEL_OPTIONS.items()]
+    hints.update({k: t for k, (t, _) in _MODEL_OPTIONS.items()})
+    g1_walk_params.__signature__ = inspect.Signature(  # type: ignore[attr-defined]
+        [*own, *plant_params, *model], return_annotation=WalkParams)
+    g1_walk_params.__annotations__ = {p: hints[p] for p in inspect.signature(g1_walk_params).parameters}
+    g1_walk_params.__annotations__["return"] = WalkParams
+
+
+_signature()
+
+
+def g1_walker(robot: Robot, start_q: np.ndarray, pin_model: pin.Model | None = None,
+              config: WalkingConfig | None = None) -> WalkingController:
+    """The walking controller on a torque-mode G1 (G1 frame names), from the start configuration."""
+    return WalkingController(robot, FEET, PELVIS, TORSO, start_q,
+                             config or WalkingConfig(wbc=WBCConfig(on_infeasible="damp")), pin_model)
+
+
+def prepare(params: WalkParams, robot: Robot | None = None) -> Work:
+    """Load the G1 (or take ``robot``, a Menagerie G1) in torque mode with palm sites (no output yet)."""
+    def edit(r: Robot) -> Robot:
+        return position_to_motor(with_palm_sites(r))
+
+    models = build_models(edit(robot or load_robot("g1", model_dir=params.model_dir)), params.models, edit)
+    robot = models.plant
+    pin_model = models.controller_model
+    if params.model_error:
+        pin_model = scale_masses(pin_model, 1.0 + params.model_error / 100.0)
+    start_q = crouched_start(robot)
+    walker = g1_walker(robot, start_q, pin_model)  # bad limits or frames: exit 2 before any output
+    walker.set_command(params.command)
+    plant = prepare_plant(params.plant, robot, KEYFRAME, start_q=start_q, contact_forces=True)
+
+    def work(ctx: RunContext) -> Outcome:
+        with plant(ctx) as p:
+            ctx.sections["models"] = models.section()
+            if p.options.dry_run:
+                return dry_run(ctx, p, params.duration_s)
+            return _run(ctx, params, robot, walker, p)
+
+    return work
+
+
+def commanded_path(t: np.ndarray, command: VelocityCommand, yaw0: float) -> tuple[np.ndarray, float]:
+    """The command integrated over times ``t`` (k,) [s]: the displacement (2,) [m] in W and the turn [rad]."""
+    dt = np.diff(t, prepend=t[0])
+    yaw = yaw0 + command.yaw_rate_rad_s * (t - t[0])
+    c, s = np.cos(yaw), np.sin(yaw)
+    d = np.array([np.sum((c * command.vx_m_s - s * command.vy_m_s) * dt),
+                  np.sum((s * command.vx_m_s + c * command.vy_m_s) * dt)])
+    return d, float(yaw[-1] - yaw0)
+
+
+def _run(ctx: RunContext, params: WalkParams, robot: Robot, walker: WalkingController, p: Plant) -> Outcome:
+    iface, sim = p.interface, p.sim
+    monitor = None
+    if sim is not None:  # the plant's own measurements: in-process only
+        feet = {name: cs.contact.geoms for name, cs in walker.wbc.contacts.items()}
+        monitor = PlantMonitor(sim, feet, sites=FEET, fall_rule=G1_FALL.reason).attach()
+        walker.contact_force = lambda f: monitor.contacts[f].normal_n if monitor.contacts else None
+    n = max(1, int(round(params.duration_s / iface.control_period_s)))
+    mass_kg = monitor.mass_kg if monitor is not None else float(robot.mj_model.body_subtreemass[1])
+    log = WalkLog(ctx, walker, monitor, None, n, mass_kg * float(np.linalg.norm(robot.mj_model.opt.gravity)))
+    clamp = walker.command
+    ctx.sections["inputs"] = {
+        "scenario": params.scenario, "keyframe": KEYFRAME,
+        "controller": "walking on the whole-body QP (control/wbc)",
+        "command_requested": list(clamp.requested), "command_applied": list(clamp.applied),
+        "command_limited_by": list(clamp.limited_by), "model_error_pct": params.model_error,
+        "step_limits": walker.limits.__dict__, "timing_s": walker.config.timing.__dict__,
+        "com_height_m": walker.config.com_height_m, "tasks": [t.name for t in walker.wbc.tasks]}
+    ctx.progress.start(n, f"g1-walk {params.scenario}")
+    start = sim.read_state() if sim is not None else iface.read_state()
+    run_log = run(iface, walker, None, params.duration_s, on_step=log.on_step)
+    values = log.values()
+    end = sim.read_state() if sim is not None else iface.read_state()
+    values.update(_displacement(start.q, end.q, run_log.t_s, clamp.applied))
+    truth_fell = report_plant(ctx, p, run_log, G1_FALL.base_min_z_m)
+    if truth_fell is not None:
+        values["fell"] = truth_fell
+    from mbctl.jobs.g1_walk_plots import walk_plots
+
+    walk_plots(ctx, log, walker, params, values)
+    return _outcome(params, values, iface.time_s)
+
+
+def _yaw(q: np.ndarray) -> float:
+    return float(pin.rpy.matrixToRpy(pin.Quaternion(q[6], q[3], q[4], q[5]).matrix())[2])
+
+
+def _displacement(q0: np.ndarray, q1: np.ndarray, t: np.ndarray, command: VelocityCommand) -> dict[str, Any]:
+    """The pelvis's displacement and turn against the command's (report values)."""
+    d = q1[:2] - q0[:2]
+    cmd, cmd_yaw = commanded_path(t, command, _yaw(q0))
+    turned = math.remainder(_yaw(q1) - _yaw(q0) - cmd_yaw, 2 * math.pi) + cmd_yaw  # the unwrapped turn
+    length = float(np.linalg.norm(cmd))
+    duration = float(t[-1] - t[0]) if len(t) > 1 else 0.0
+    return {
+        "distance_m": float(np.linalg.norm(d)),
+        "mean_speed_m_s": float(np.linalg.norm(d)) / duration if duration > 0 else None,
+        "displacement_m": d.tolist(),
+        "commanded_displacement_m": cmd.tolist(),
+        "displacement_fraction": float(d @ cmd) / length**2 if length > 1e-9 else None,
+        "yaw_rad": turned, "commanded_yaw_rad": cmd_yaw,
+        "yaw_fraction": turned / cmd_yaw if abs(cmd_yaw) > 1e-9 else None,
+    }
+
+
+def _outcome(params: WalkParams, v: dict[str, Any], time_s: float) -> Outcome:
+    """Pass: no fall, the median slip within bound, the displacement (or the turn) commanded."""
+    fraction = v["yaw_fraction"] if params.scenario == "turn" else v["displacement_fraction"]
+    slip = v["median_foot_slip_m"]
+    checks = [v["fell"] is False, fraction is not None and fraction >= MIN_FRACTION,
+              slip is None or slip <= MAX_MEDIAN_SLIP_M]
+    fell = f"FELL ({v['fall_reason']}) at {v['fall_time_s']:.2f} s" if v["fell"] else "walked"
+    what = "turn" if params.scenario == "turn" else "displacement"
+    force = (v.get("contact_force_error") or {}).get("single") or {}
+    lines = (
+        f"g1-walk {params.scenario} {time_s:.2f} s: {fell}; {v['steps']} steps, {v['distance_m']:.3f} m at "
+        f"{v['mean_speed_m_s'] or 0:.3f} m/s, {what} {100 * (fraction or 0):.1f} % of the command "
+        f"({v['yaw_rad']:.2f} of {v['commanded_yaw_rad']:.2f} rad turned)",
+        f"foot slip max {_mm(v['max_foot_slip_m'])}, median {_mm(v['median_foot_slip_m'])}; DCM RMS "
+        f"{_mm(v['dcm_rms_m'])}; ZMP reference margin min {_mm(v['min_zmp_margin_m'])}; contact force QP vs "
+        f"MuJoCo in single support median {_n(force.get('median_N'))}, p95 {_n(force.get('p95_N'))}, max "
+        f"{_n(force.get('max_N'))}",
+        f"controller {v['controller_time_median_us']:.0f} us median (QP "
+        f"{v['qp_solve_time_median_us'] or 0:.0f} us); steps adapted "
+        f"{v['step_adaptations']['steps_adapted']} ({v['step_adaptations']['steps_limited']} held short by a "
+        f"limit); touchdowns {v['touchdowns']}", *plant_lines(v))
+    bound = (f"no fall, {what} >= {MIN_FRACTION:.0%} of the commanded, median foot slip <= "
+             f"{MAX_MEDIAN_SLIP_M * 1e3:g} mm")
+    return Outcome(all(checks), lines, bound)
+
+
+def _mm(x: float | None) -> str:
+    return "n/a" if x is None else f"{x * 1e3:.2f} mm"
+
+
+def _n(x: float | None) -> str:
+    return "n/a" if x is None else f"{x:.1f} N"
+
+
+G1_WALK = Job("g1-walk", prepare)

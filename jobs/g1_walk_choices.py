@@ -1,0 +1,13 @@
+"""The names ``mbctl g1-walk`` lists in its help, free of heavy imports (as :mod:`mbctl.jobs.choices`)."""
+
+from __future__ import annotations
+
+#: ``mbctl g1-walk SCENARIO``.
+WALK_SCENARIOS = ("forward", "backward", "side", "turn")
+
+#: Each scenario's default command: (vx [m/s], vy [m/s], yaw rate [rad/s]).
+WALK_DEFAULT_SPEED = {"forward": (0.3, 0.0, 0.0), "backward": (0.3, 0.0, 0.0), "side": (0.0, 0.2, 0.0),
+                      "turn": (0.0, 0.0, 0.5)}
+
+#: Default simulated time [s] per scenario.
+WALK_DEFAULT_DURATION_S = {"forward": 20.0, "backward": 20.0, "side": 20.0, "turn": 20.0}

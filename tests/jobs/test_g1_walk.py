@@ -1,0 +1,85 @@
+"""``mbctl g1-walk``: a short G1 walk in MuJoCo, its figures read back from the streamed CSV."""
+
+from __future__ import annotations
+
+import json
+import math
+from functools import partial
+
+import numpy as np
+import pytest
+
+from mbctl.control.exceptions import WBCSetupError
+from mbctl.jobs.g1_walk import WalkParams, commanded_path, g1_walk_params, parse_speed, prepare
+from mbctl.jobs.runner import Job, run_job
+from mbctl.planners import VelocityCommand
+
+KEYS = {"fell", "distance_m", "mean_speed_m_s", "steps", "max_foot_slip_m", "median_foot_slip_m",
+        "min_zmp_margin_m", "dcm_rms_m", "contact_force_error", "displacement_fraction", "yaw_fraction",
+        "touchdowns", "step_adaptations", "controller_time_median_us"}
+
+
+def _run(g1, folder, **kw):
+    return run_job(Job("g1-walk", partial(prepare, robot=g1)), WalkParams(**kw), folder)
+
+
+def _csv(record):
+    path = record.files["csv"]
+    names = path.read_text().splitlines()[0].split(",")
+    rows = np.loadtxt(path, delimiter=",", skiprows=1)
+    return {name: rows[:, i] for i, name in enumerate(names)}
+
+
+def test_the_g1_walks_forward_and_the_csv_says_so(g1, tmp_path):
+    record = _run(g1, tmp_path, scenario="forward", speed="0.3", duration=4.0)
+    v = record.values
+    assert record.status == "completed" and KEYS <= set(v)
+    assert v["fell"] is False and v["controller_fallback_at_s"] is None
+    c = _csv(record)
+    assert record.rows == len(c["time_s"]) == 2000
+    # from the CSV: the pelvis went forward (0.3 m/s from the first step at 0.8 s, reached at 0.5 m/s^2)
+    dx, dy = c["pelvis_x_m"][-1] - c["pelvis_x_m"][0], c["pelvis_y_m"][-1] - c["pelvis_y_m"][0]
+    assert 0.7 < dx < 1.0 and abs(dy) < 0.05  # measured 0.83 m
+    assert c["pelvis_z_m"].min() > 0.65  # it never sagged toward the fall height (0.5 m)
+    assert v["distance_m"] == pytest.approx(math.hypot(dx, dy), abs=0.01)  # the report's, from the plant
+    # at least 4 steps, alternating feet (the CSV's stance column: 1 left, 2 right in single support)
+    stances = c["stance"][c["phase"] == 1]
+    changes = stances[np.flatnonzero(np.diff(stances)) + 1]
+    assert v["steps"] >= 5 and np.all(np.abs(np.diff(changes)) == 1)
+    # the DCM follows its plan: RMS from the CSV's columns equals the report's, within 2 cm
+    err = np.hypot(c["dcm_x_m"] - c["dcm_ref_x_m"], c["dcm_y_m"] - c["dcm_ref_y_m"])
+    assert np.sqrt(np.mean(err**2)) == pytest.approx(v["dcm_rms_m"], rel=1e-9) and v["dcm_rms_m"] < 0.02
+    # the ZMP reference stays inside the support polygon (in single support the sole's centre: 27 mm in)
+    assert 0.005 < v["min_zmp_margin_m"] <= 0.028
+    # one foot carries the weight in single support, in MuJoCo: the swing foot's force is zero
+    single = c["phase"] == 1
+    swing_fz = np.where(c["stance"] == 1, c["right_foot_fz_mj_N"], c["left_foot_fz_mj_N"])[single]
+    assert np.median(swing_fz) == 0.0
+    mg = g1.mj_model.body_subtreemass[1] * 9.81
+    force = v["contact_force_error"]["single"]
+    assert force["median_N"] < 0.05 * mg and force["p95_N"] <= force["max_N"]
+    report = json.loads(record.report_path.read_text())
+    assert {"csv", "plot", "g1_walk_forces.png"} <= set(report["outputs"])
+    assert report["inputs"]["command_applied"] == [0.3, 0.0, 0.0]
+
+
+def test_commanded_path_integrates_the_command_with_its_turn():
+    t = np.linspace(0.0, 2.0, 2001)
+    d, yaw = commanded_path(t, VelocityCommand(0.5, 0.0, 0.0), 0.0)
+    np.testing.assert_allclose(d, [1.0, 0.0], atol=1e-9)
+    d, yaw = commanded_path(t, VelocityCommand(0.5, 0.0, math.pi / 2), 0.0)  # a quarter circle of radius 1/pi
+    assert yaw == pytest.approx(math.pi)
+    np.testing.assert_allclose(d, [0.0, 2 / math.pi], atol=2e-3)
+
+
+def test_speed_parsing_and_bad_input():
+    assert parse_speed("0.3") == (0.3, 0.0, 0.0) and parse_speed("0,0.2") == (0.0, 0.2, 0.0)
+    assert WalkParams("backward", speed="0.3").command == VelocityCommand(-0.3, 0.0, 0.0)
+    assert WalkParams("turn").command == VelocityCommand(0.0, 0.0, 0.5)
+    for bad in ("", "a", "1,2,3,4", "nan"):
+        with pytest.raises(WBCSetupError, match="--speed must be"):
+            parse_speed(bad)
+    with pytest.raises(WBCSetupError, match="unknown scenario 'jog'"):
+        WalkParams("jog")
+    params = g1_walk_params("side", "0,0.1", 2.0, latency_ms=2.0, payload="1.0@torso_link")
+    assert params.plant.latency_ms == 2.0 and params.models.payload == "1.0@torso_link"
