@@ -14,11 +14,11 @@ from mbctl.cli._run import (
     execute,
     video_spec,
 )
-from mbctl.cli.plant_options import MODEL_PARAMETERS, with_options
+from mbctl.cli.plant_options import MODEL_PARAMETERS, PLANT_PARAMETERS, with_options
 from mbctl.cli.robots import ModelDirOpt, RobotArg, SceneOpt
 
 
-@with_options(MODEL_PARAMETERS)
+@with_options(PLANT_PARAMETERS, MODEL_PARAMETERS)
 def excite(
     robot: RobotArg,
     duration: Annotated[
@@ -40,7 +40,12 @@ def excite(
     video_size: VideoSizeOpt = "640x480",
     extra: dict[str, Any] | None = None,
 ) -> None:
-    """Drive the plant through an optimised excitation and record the identification log."""
+    """Drive the plant through an optimised excitation and record the identification log.
+
+    The G1 runs in-process or, with --interface dds, on its low-level DDS (a robot, or `mbctl serve
+    g1 --start crouched`) with the safety of the G1 jobs; its balance watch scales the motion down,
+    or stops it into a stance, before it falls.
+    """
     from mbctl.jobs import options
     from mbctl.jobs.excite import EXCITE
 

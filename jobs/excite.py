@@ -8,7 +8,9 @@ joint-space computed torque. The Menagerie G1: a whole-body excitation on its fe
 (:mod:`mbctl.jobs.excite_g1`).
 
 The plant may hide a truth (``--payload``, ``--plant-error``); the controller and the design never
-see it. Every cycle streams a row of the identification log (:mod:`mbctl.jobs.ident_log`).
+see it. Every cycle streams a row of the identification log (:mod:`mbctl.jobs.ident_log`). The G1
+also runs over its low-level DDS (``--interface dds`` and the other plant options of the G1 jobs,
+:mod:`mbctl.jobs.plant`); fixed-base robots run in-process only.
 """
 
 from __future__ import annotations
@@ -22,8 +24,9 @@ from mbctl.control.computed_torque import ComputedTorque
 from mbctl.control.exceptions import ControllerSetupError
 from mbctl.control.gains import gains_from_frequency
 from mbctl.control.loop import run
-from mbctl.jobs.ident_log import CSV_NAME, SECTION, header, log_row
+from mbctl.jobs.ident_log import CONTACTS, CSV_NAME, SECTION, TORQUES, header, log_row
 from mbctl.jobs.model_options import ModelOptions, Models, build_models, models_line
+from mbctl.jobs.plant import PlantOptions
 from mbctl.jobs.plots import joint_colors, new_figure
 from mbctl.jobs.recording import q_columns, v_columns
 from mbctl.jobs.runner import Job, Outcome, RunContext, Work
@@ -59,7 +62,8 @@ class ExciteParams:
         gravity: Switch on the robot's gravity (the 2-link arm's, in its plane).
         scene: Scene MJCF for MuJoCo that includes the robot.
         model_dir: Explicit Menagerie folder (the G1).
-        plant: Hidden plant changes and the controller's model.
+        models: Hidden plant changes and the controller's model.
+        plant: In-process (default, optionally through a link model) or the G1 over DDS.
     """
 
     robot: str
@@ -71,8 +75,10 @@ class ExciteParams:
     scene: str | None = None
     model_dir: str | None = None
     models: ModelOptions = ModelOptions()
+    plant: PlantOptions = PlantOptions()
 
     def __post_init__(self) -> None:
+        self.plant.check_models(self.models)
         if self.duration is not None and not (np.isfinite(self.duration) and self.duration > 0):
             raise ControllerSetupError(f"duration must be a positive number of seconds; got {self.duration}")
         if not (np.isfinite(self.period) and self.period > 0):
@@ -84,9 +90,15 @@ class ExciteParams:
 
 
 def log_section(params: ExciteParams, robot: Robot, joints: tuple[str, ...], bodies: tuple[str, ...],
-                period_s: float, excitation: dict[str, Any]) -> dict[str, Any]:
-    """The report's ``identification_log`` section (see :mod:`mbctl.jobs.ident_log`)."""
+                period_s: float, excitation: dict[str, Any], measured: bool = True) -> dict[str, Any]:
+    """The report's ``identification_log`` section (see :mod:`mbctl.jobs.ident_log`).
+
+    ``measured``: the plant measured the torques and contacts (in-process); False over DDS, where
+    the log holds what the controller commanded.
+    """
+    source = "measured" if measured else "commanded"
     return {
+        "interface": params.plant.interface, "torques": TORQUES[source], "contacts": CONTACTS[source],
         "robot": params.robot, "scene": params.scene, "gravity": params.gravity,
         "model_dir": params.model_dir, "gravity_m_s2": [float(g) for g in robot.mj_model.opt.gravity],
         "model_fingerprint": model_fingerprint(robot), "joints": list(joints),
@@ -109,6 +121,10 @@ def prepare(params: ExciteParams, robot: Robot | None = None) -> Work:
         from mbctl.jobs.excite_g1 import prepare_g1
 
         return prepare_g1(params, loaded)
+    if params.plant != PlantOptions():
+        raise ControllerSetupError(
+            f"the plant options (--interface, the link, --estimate) are the G1's; {loaded.name!r} is excited "
+            "in-process only")
     if loaded.has_floating_base:
         raise ControllerSetupError(
             f"{loaded.name!r} has a floating base; excite runs fixed-base robots (computed torque on a "

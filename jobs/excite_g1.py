@@ -25,33 +25,39 @@ run with exit 1, every row kept.
 
 from __future__ import annotations
 
-from collections.abc import Callable
-from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
-import pinocchio as pin
 
 from mbctl.control.loop import run
-from mbctl.control.wbc import Scheduled
+from mbctl.control.wbc import Scheduled, WBCConfig
 from mbctl.jobs.excite import DEFAULT_DURATION_S, ExciteParams, log_section
-from mbctl.jobs.excite_g1_legs import SwingLegs
+from mbctl.jobs.excite_g1_balance import BalanceWatch, SupportPolygon
+from mbctl.jobs.excite_g1_log import ExciteLog, plot
+from mbctl.jobs.excite_g1_schedule import (
+    COM_AMPLITUDE_M,
+    COM_FREQUENCY_HZ,
+    PELVIS_AMPLITUDE_RAD,
+    PELVIS_FREQUENCY_HZ,
+    Schedule,
+    step_starts,
+)
+from mbctl.jobs.excite_g1_steps import STEP_TIMES_S
 from mbctl.jobs.g1_wbc import g1_whole_body
-from mbctl.jobs.ident_log import CSV_NAME, SECTION, header, log_row
+from mbctl.jobs.ident_log import CSV_NAME, SECTION, header
 from mbctl.jobs.model_options import Models, build_models, models_line
-from mbctl.jobs.plots import new_figure
+from mbctl.jobs.plant import Plant, dry_run, plant_lines, prepare_plant, report_plant
 from mbctl.jobs.runner import Outcome, RunContext, Work
+from mbctl.jobs.truth import truth_com
 from mbctl.planners.excitation import ExcitationDesign, ExcitationLimits, design_excitation
 from mbctl.planners.fourier import FourierTrajectory
 from mbctl.robots.collision import SelfClearance
-from mbctl.robots.commands import Command
 from mbctl.robots.edits import position_to_motor, weld_base
 from mbctl.robots.g1 import (
     FEET,
     FOOT_BODIES,
     G1_FALL,
     KEYFRAME,
-    PELVIS,
     TORSO,
     crouched_start,
     joint_role,
@@ -59,11 +65,8 @@ from mbctl.robots.g1 import (
     with_palm_sites,
 )
 from mbctl.robots.identification.threads import single_threaded_blas
-from mbctl.robots.interface import RobotState
 from mbctl.robots.model_pair import Robot
 from mbctl.sim.monitor import PlantMonitor
-from mbctl.sim.recorder import CsvStream
-from mbctl.sim.simulator import Simulator
 
 #: Range [rad] of each upper-body joint around the keyframe, (below, above); the shoulder roll
 #: only opens the arms outward and the elbow stays bent, away from the body.
@@ -77,24 +80,6 @@ UPPER_RANGES_RAD = {
 ARM_OPEN_RAD = 0.35
 #: Clearance [m] the designed upper-body motion keeps between the robot's own geoms.
 CLEARANCE_M = 0.03
-#: CoM motion: amplitude [m] and frequency [Hz] along x, y (sway) and z (squat depth).
-COM_AMPLITUDE_M = (0.02, 0.035, 0.04)
-COM_FREQUENCY_HZ = (0.23, 0.31, 0.4)
-#: Pelvis roll and pitch: amplitude [rad] and frequencies [Hz].
-PELVIS_AMPLITUDE_RAD = 0.05
-PELVIS_FREQUENCY_HZ = (0.17, 0.27)
-#: Ramp-in [s] of every motion from standing still.
-RAMP_S = 1.5
-#: A step phase: shift the CoM over the other foot, unload, lift, hold, lower, reload, shift back [s].
-STEP_TIMES_S = (1.5, 0.6, 0.8, 1.0, 0.8, 0.6, 1.5)
-#: Fraction by which the upper body's and the pelvis's motion shrink while the CoM is over one foot.
-STEP_CALM = 0.8
-#: Height [m] a foot is lifted to during a step (straight up from where it left the floor).
-LIFT_HEIGHT_M = 0.05
-#: The steps run only in excitations at least this long [s].
-MIN_DURATION_FOR_STEPS_S = 16.0
-
-
 def upper_joints(robot: Robot) -> tuple[str, ...]:
     """The waist and arm joints (the upper body the Fourier excitation moves), model order."""
     return tuple(j for j in robot.joints if joint_role(j) in UPPER_RANGES_RAD)
@@ -170,135 +155,12 @@ def design_upper_body(nominal: Robot, q_start: np.ndarray, params: ExciteParams
     return combined, designs, scale
 
 
-@dataclass
-class _Schedule:
-    """Task references over time: CoM, pelvis and torso orientation, posture, contacts."""
-
-    wb: Any           # what g1_whole_body returns (its controller and com/pelvis/torso/posture tasks)
-    robot: Robot      # the plant's robot (joint names and indices)
-    model: pin.Model  # the controller's model (the schedule's own kinematics)
-    upper: FourierTrajectory
-    q0: np.ndarray
-    steps: list[tuple[str, float]]
-
-    def __post_init__(self) -> None:
-        model = self.model
-        self.data = model.createData()
-        self.iq_upper = np.array([self.robot.joint(j).idx_q for j in self.upper.names])
-        self.feet_fid = {f: model.getFrameId(f) for f in FEET}
-        self.torso_fid, self.pelvis_fid = model.getFrameId(TORSO), model.getFrameId(PELVIS)
-        pin.framesForwardKinematics(model, self.data, self.q0)
-        self.feet_y = {f: float(self.data.oMf[fid].translation[1]) for f, fid in self.feet_fid.items()}
-        self.c0 = np.array(pin.centerOfMass(model, self.data, self.q0))
-        self.com_ref = self.c0.copy()
-        self.released: set[str] = set()  # steps whose foot was released
-        self.landed: set[str] = set()    # steps whose foot was put down again
-        self.lift_off: dict[str, pin.SE3] = {}  # where each free foot left the floor
-        self.legs = SwingLegs(model, FEET)  # each foot's leg IK, and its record
-
-    def _orientation_torso(self, R_pelvis: np.ndarray, q: np.ndarray) -> np.ndarray:
-        """The torso's world orientation with the pelvis at R_pelvis and the waist at q's."""
-        model = self.model
-        pin.framesForwardKinematics(model, self.data, q)
-        X_PT = self.data.oMf[self.pelvis_fid].actInv(self.data.oMf[self.torso_fid])
-        return R_pelvis @ X_PT.rotation
-
-    def update(self, t: float, state: RobotState) -> None:
-        """Set every task's reference for time ``t`` [s] at the measured ``state``."""
-        step = self._step_phase(t, state)
-        ramp = _smooth(t / RAMP_S)
-        # over one foot the upper body and the pelvis calm down: a small sole bears little moment
-        calm = ramp * (1.0 - STEP_CALM * (step[1] if step is not None else 0.0))
-        q_ref = self.q0.copy()
-        q_up, _, _ = self.upper.sample([t])
-        start = self.upper.q_start  # the opened arms the oscillation starts from, at rest
-        q_ref[self.iq_upper] = (self.q0[self.iq_upper] + ramp * (start - self.q0[self.iq_upper])
-                                + calm * (q_up[0] - start))
-        w = 2 * np.pi * np.asarray(COM_FREQUENCY_HZ)
-        A = np.asarray(COM_AMPLITUDE_M)
-        sway = np.array([A[0] * np.sin(w[0] * t), A[1] * np.sin(w[1] * t), -A[2] * (1 - np.cos(w[2] * t))])
-        dsway = np.array([A[0] * w[0] * np.cos(w[0] * t), A[1] * w[1] * np.cos(w[1] * t),
-                          -A[2] * w[2] * np.sin(w[2] * t)])
-        ddsway = np.array([-A[0] * w[0] ** 2 * np.sin(w[0] * t), -A[1] * w[1] ** 2 * np.sin(w[1] * t),
-                           -A[2] * w[2] ** 2 * np.cos(w[2] * t)])
-        com, dcom, ddcom = self.c0 + ramp * sway, ramp * dsway, ramp * ddsway
-        if step is not None:  # a step: the CoM over the stance foot, sway and squat paused
-            foot, s_shift, height = step
-            stance_y = self.feet_y[FEET[1] if foot == FEET[0] else FEET[0]]
-            com = com + s_shift * (np.array([self.c0[0], stance_y, self.c0[2]]) - com)
-            dcom, ddcom = (1 - s_shift) * dcom, (1 - s_shift) * ddcom
-            if foot in self.lift_off:
-                target = pin.SE3(self.lift_off[foot].rotation,
-                                 self.lift_off[foot].translation + [0.0, 0.0, height])
-                self._swing_leg(t, q_ref, state, foot, target)
-        self.com_ref = com
-        self.wb.com.set_target(com, dcom, ddcom)
-        wp = 2 * np.pi * np.asarray(PELVIS_FREQUENCY_HZ)
-        roll, pitch = calm * PELVIS_AMPLITUDE_RAD * np.sin(wp * t)
-        R_pelvis = pin.rpy.rpyToMatrix(roll, pitch, 0.0)
-        self.wb.base.set_target(pin.SE3(R_pelvis, np.zeros(3)))
-        q_fk = q_ref.copy()
-        q_fk[:7] = [0, 0, 0, 0, 0, 0, 1]
-        self.wb.torso.set_target(pin.SE3(self._orientation_torso(R_pelvis, q_fk), np.zeros(3)))
-        self.wb.posture.set_target(q_ref)
-
-    def _swing_leg(self, t: float, q_ref: np.ndarray, state: RobotState, foot: str, X_WF: pin.SE3) -> None:
-        """Leg joints in ``q_ref`` that put ``foot`` at ``X_WF`` from the measured base pose at ``t`` [s].
-
-        The posture task then carries the free foot straight up and back to where it lifted off,
-        whatever the pelvis does meanwhile. A target the leg cannot reach leaves the damped closest
-        pose and is counted (:class:`~mbctl.jobs.excite_g1_legs.SwingLegs`), never passed on silently.
-        """
-        idx_q, q_leg = self.legs.solve(t, foot, X_WF, state.q)
-        q_ref[idx_q] = q_leg
-
-    def _step_phase(self, t: float, state: RobotState) -> tuple[str, float, float] | None:
-        """(foot, CoM shift fraction, foot height [m]) during a step, else None; drives the contacts.
-
-        Phases (:data:`STEP_TIMES_S`): shift the CoM over the other foot; release the foot (force
-        ramp, :data:`STEP_TIMES_S`'s second phase, longer than the controller's ramp); then lift it
-        straight up, hold, lower it to where it left the floor; put it down (constraint back, force
-        ramp up) when the lowering ends; shift the CoM back.
-        """
-        shift, _, lift, _, lower, _, back = STEP_TIMES_S
-        marks = np.cumsum(STEP_TIMES_S)
-        ctrl = self.wb.controller
-        for foot, t0 in self.steps:
-            tau = t - t0
-            if not 0.0 <= tau <= marks[-1]:
-                continue
-            key = f"{foot}@{t0}"
-            s_shift = _smooth(tau / shift) if tau < marks[5] else 1.0 - _smooth((tau - marks[5]) / back)
-            if tau >= marks[0] and key not in self.released:
-                ctrl.release(foot)
-                self.released.add(key)
-            height = 0.0
-            free = tau >= marks[1] and key not in self.landed
-            if free and foot not in self.lift_off:
-                pin.framesForwardKinematics(self.model, self.data, np.asarray(state.q))
-                self.lift_off[foot] = pin.SE3(self.data.oMf[self.feet_fid[foot]])
-            if free and tau < marks[2]:
-                height = LIFT_HEIGHT_M * _smooth((tau - marks[1]) / lift)
-            elif free and tau < marks[3]:
-                height = LIFT_HEIGHT_M
-            elif free and tau < marks[4]:
-                # down to 2 mm below where it lifted off, so the sole lands flat and pressed
-                height = (LIFT_HEIGHT_M + 0.002) * (1.0 - _smooth((tau - marks[3]) / lower)) - 0.002
-            elif free:
-                ctrl.touch_down(foot)
-                self.landed.add(key)
-                self.lift_off.pop(foot, None)
-            return foot, s_shift, height
-        return None
-
-
-def _smooth(s: float) -> float:
-    s = min(max(s, 0.0), 1.0)
-    return s * s * (3 - 2 * s)
-
-
 def prepare_g1(params: ExciteParams, loaded: Robot) -> Work:
-    """The G1 in torque mode with palm sites; the upper body's excitation designed (no output yet)."""
+    """The G1 in torque mode with palm sites; the upper body's excitation designed; over DDS, connected.
+
+    Raises:
+        NoRobotError, JointOutOfLimits, ChannelError: Over DDS, before anything is written (exit 2).
+    """
     def edit(r: Robot) -> Robot:
         return position_to_motor(with_palm_sites(r))
 
@@ -306,37 +168,73 @@ def prepare_g1(params: ExciteParams, loaded: Robot) -> Work:
     q_start = crouched_start(models.controller)
     upper, designs, shrink = design_upper_body(models.controller, q_start, params)
     duration = params.duration or DEFAULT_DURATION_S
+    # over DDS this connects now: no robot, or one outside its limits, is bad input (exit 2)
+    plant = prepare_plant(params.plant, models.plant, KEYFRAME, start_q=q_start, contact_forces=True)
 
     def work(ctx: RunContext) -> Outcome:
-        with single_threaded_blas():  # the whole-body QP's matrices are small: threads only cost
-            return _run(ctx, params, models, q_start, upper, designs, shrink, duration)
+        with plant(ctx) as p, single_threaded_blas():  # the whole-body QP's matrices are small
+            ctx.sections["plant"] = models.section()
+            if p.options.dry_run:
+                return dry_run(ctx, p, duration)
+            return _run(ctx, params, models, p, upper, (designs, shrink), duration)
 
     return work
 
 
-def _run(ctx: RunContext, params: ExciteParams, models: Models, q_start: np.ndarray,
-         upper: FourierTrajectory, designs: list[ExcitationDesign], shrink: float, duration: float
-         ) -> Outcome:
-    plant = models.plant
-    sim = ctx.attach(Simulator(plant), contact_forces=True)
-    sim.reset(KEYFRAME)
-    sim.set_state(q_start, np.zeros(plant.nv))
-    wb = g1_whole_body(plant, models.controller_model)
-    wb.hold(sim.read_state())
-    steps: list[tuple[str, float]] = []
-    if duration >= MIN_DURATION_FOR_STEPS_S:
-        total = sum(STEP_TIMES_S)
-        steps = [(FEET[0], 0.45 * duration - total), (FEET[1], 0.8 * duration - total)]
-    schedule = _Schedule(wb, plant, models.controller_model, upper, q_start.copy(), steps)
-    bodies = FOOT_BODIES
-    joints = tuple(a.joint for a in plant.actuators.values())  # the controller's order: actuators
-    # what the log records, measured by the plant each period: the actuators' torques, the feet's
-    # contact wrenches, contacts elsewhere on the robot, its CoM, and whether it fell (G1_FALL)
-    monitor = PlantMonitor(sim, fall_rule=G1_FALL.reason, joints=joints, wrench_bodies=bodies,
-                           count_elsewhere=True).attach()
-    excitation: dict[str, Any] = {
+def _run(ctx: RunContext, params: ExciteParams, models: Models, p: Plant, upper: FourierTrajectory,
+         design: tuple[list[ExcitationDesign], float], duration: float) -> Outcome:
+    iface, sim = p.interface, p.sim  # sim: the in-process plant (None over DDS)
+    wb = g1_whole_body(models.plant, models.controller_model, WBCConfig(friction_feedforward=True))
+    state = iface.read_state()
+    wb.hold(state)
+    steps = step_starts(duration)
+    watch = BalanceWatch()
+    schedule = Schedule(wb, models.plant, models.controller_model, upper, np.array(state.q), steps, watch)
+    bodies, joints = FOOT_BODIES, wb.controller.joints.joints  # joints: the commands' order
+    monitor = None
+    if sim is not None:  # the plant measures what the log records: torques, wrenches, contacts, falls
+        monitor = PlantMonitor(sim, fall_rule=G1_FALL.reason, joints=joints, wrench_bodies=bodies,
+                               count_elsewhere=True).attach()
+    soles = {f: cs.contact.points_F for f, cs in wb.controller.contacts.items()}
+    polygon = SupportPolygon(models.controller_model, soles, dict(zip(FEET, bodies, strict=True)))
+    dt = iface.control_period_s
+    ctx.sections[SECTION] = log_section(params, models.controller, joints, bodies, dt,
+                                        _excitation(upper, design, steps), measured=monitor is not None)
+    csv = ctx.open_csv(header(models.plant, joints, bodies, measured=monitor is not None), CSV_NAME)
+    log = ExciteLog(csv, wb, lambda: schedule.com_ref, polygon, watch, monitor, ctx.progress.advance,
+                    p.estimator)
+    ctx.progress.start(max(1, int(round(duration / dt))), "excite g1")
+    # the schedule moves the task targets from the measured state (the swing leg's IK starts at the
+    # base's pose): the state it gets is the one the loop just read (no time passes between)
+    run_log = run(iface, Scheduled(wb.controller, schedule.update), None, duration, on_step=log.on_step)
+    truth_fell = report_plant(ctx, p, run_log, G1_FALL.base_min_z_m)
+    fell = None if log.fall_reason is None else f"{log.fall_reason} at t={log.fall_time_s:.2f} s"
+    if truth_fell:
+        fell = fell or "the bridge's truth log: the pelvis went below the fall height"
+    com, com_from = np.asarray(log.com), "the plant" if monitor is not None else "the estimated state"
+    if p.options.truth is not None and len(log.t):
+        com, com_from = truth_com(p.options.truth, run_log.tick[:len(log.t)], run_log.q[:len(log.t)]), "truth"
+    com_err = com - np.asarray(log.com_ref)
+    checked = monitor is not None or truth_fell is not None  # over DDS without a truth log: unchecked
+    ctx.values.update({"duration_s": log.t[-1] - log.t[0] + dt if log.t else 0.0, "rows": len(log.t),
+                       "fell": True if fell else (False if checked else None), "fall_reason": fell,
+                       "com_error_rms_m": float(np.sqrt(np.mean(np.sum(com_err**2, 1)))),
+                       "com_error_from": com_from,
+                       "waist_condition_number": design[0][0].condition_number,
+                       "arm_condition_number": design[0][1].condition_number,
+                       "samples_with_other_contacts": log.rows_with_other_contacts if monitor else None,
+                       "swing_leg_ik": schedule.legs.section(), **watch.section()})
+    plot(ctx, log, bodies, joints, fell, measured=monitor is not None)
+    return _outcome(ctx, models, schedule, log, design, fell)
+
+
+def _excitation(upper: FourierTrajectory, design: tuple[list[ExcitationDesign], float],
+                steps: list[tuple[str, float]]) -> dict[str, Any]:
+    """The ``excitation`` entry of the log's section."""
+    designs, shrink = design
+    return {
         "kind": "whole-body control on the feet: upper-body Fourier excitation, CoM squat and sway, pelvis "
-                "roll and pitch, steps",
+                "roll and pitch, steps; scaled down or stopped by the balance watch",
         "upper_body": {"joints": list(upper.names), "period_s": upper.period_s, "harmonics": upper.harmonics,
                        "condition_number": {"waist": designs[0].condition_number,
                                             "left_arm": designs[1].condition_number},
@@ -348,99 +246,40 @@ def _run(ctx: RunContext, params: ExciteParams, models: Models, q_start: np.ndar
         "com": {"amplitude_m": COM_AMPLITUDE_M, "frequency_hz": COM_FREQUENCY_HZ},
         "pelvis": {"amplitude_rad": PELVIS_AMPLITUDE_RAD, "frequency_hz": PELVIS_FREQUENCY_HZ},
         "steps": [{"foot": f, "start_s": t0, "phases_s": STEP_TIMES_S} for f, t0 in steps],
-        "swing_leg": "foot pose task, damped least squares on the leg's joints from the measured state "
-                     "(control.ik.ChainIK) to the tolerance in values.swing_leg_ik",
-        "controller": "whole-body inverse dynamics QP (control/wbc)",
+        "swing_leg": "a foot pose task in the QP while the foot is free, and the leg's joints for the "
+                     "posture task by damped least squares from the measured state (control.ik.ChainIK) "
+                     "to the "
+                     "tolerance in values.swing_leg_ik",
+        "controller": "whole-body inverse dynamics QP (control/wbc), with joint-friction feed-forward",
     }
-    dt = sim.control_period_s
-    ctx.sections[SECTION] = log_section(params, models.controller, joints, bodies, dt, excitation)
-    ctx.sections["plant"] = models.section()
-    log = _Log(ctx.open_csv(header(plant, joints, bodies), CSV_NAME), schedule, monitor, ctx.progress.advance)
-    ctx.progress.start(max(1, int(round(duration / dt))), "excite g1")
-    # the schedule moves the task targets from the measured state (the swing leg's IK starts at the
-    # base's pose): the plant's state now is the one the loop just read (no time passes between)
-    controller = Scheduled(wb.controller, schedule.update)
-    run(sim, controller, None, duration, on_step=log.on_step)
-    fell = (None if monitor.fall_reason is None
-            else f"{monitor.fall_reason} at t={monitor.fall_time_s:.2f} s")
-    com_err = np.asarray(log.com) - np.asarray(log.com_ref)
-    ctx.values.update({"duration_s": sim.time_s, "rows": len(log.t), "fell": fell is not None,
-                       "fall_reason": fell, "com_error_rms_m": float(np.sqrt(np.mean(np.sum(com_err**2, 1)))),
-                       "waist_condition_number": designs[0].condition_number,
-                       "arm_condition_number": designs[1].condition_number,
-                       "samples_with_other_contacts": log.rows_with_other_contacts,
-                       "swing_leg_ik": schedule.legs.section()})
-    _plot(ctx, log, bodies, joints, fell)
-    lines = [f"excite g1: {sim.time_s:.1f} s on its feet ({'FELL: ' + fell if fell else 'stood'}); "
-             f"regressor condition numbers: waist {designs[0].condition_number:.3g} (random start "
-             f"{designs[0].initial_condition_number:.3g}), arm {designs[1].condition_number:.3g} (random "
-             f"start {designs[1].initial_condition_number:.3g}); amplitude x{shrink:.2f} for "
-             f"{CLEARANCE_M * 100:g} cm clearance, {len(steps)} steps, CoM RMS "
-             f"{ctx.values['com_error_rms_m'] * 1e3:.1f} mm, "
-             f"{log.rows_with_other_contacts} rows with contacts elsewhere",
+
+
+def _outcome(ctx: RunContext, models: Models, schedule: Schedule, log: ExciteLog,
+             design: tuple[list[ExcitationDesign], float], fell: str | None) -> Outcome:
+    """The summary lines; passed: did not fall (as far as the plant says) and was not stopped."""
+    (waist, arm), shrink = design
+    v, watch = ctx.values, schedule.watch
+    if fell:
+        state = "FELL: " + fell
+    elif watch.stopped_at_s is not None:
+        state = f"STOPPED into a stance at t={watch.stopped_at_s:.2f} s: {watch.stop_reason}"
+    else:
+        state = "stood" if v["fell"] is not None else "fall not checked (no truth log)"
+    others = v["samples_with_other_contacts"]
+    lines = [f"excite g1: {v['duration_s']:.1f} s on its feet ({state}); regressor condition numbers: waist "
+             f"{waist.condition_number:.3g} (random start {waist.initial_condition_number:.3g}), arm "
+             f"{arm.condition_number:.3g} (random start {arm.initial_condition_number:.3g}); amplitude "
+             f"x{shrink:.2f} for {CLEARANCE_M * 100:g} cm clearance, {len(schedule.steps)} steps, CoM RMS "
+             f"{v['com_error_rms_m'] * 1e3:.1f} mm ({v['com_error_from']})"
+             + ("" if others is None else f", {others} rows with contacts elsewhere"),
+             f"balance: min margin {v['min_balance_margin_m'] * 1e3:.1f} mm at "
+             f"t={v['min_balance_margin_at_s']:.2f} s"
+             + "".join(f"; scaled to x{s:.2f} at t={t:.2f} s ({why})" for t, s, _, why in watch.scalings),
              f"log: {len(log.t)} rows in {CSV_NAME}; identify it with: mbctl identify {ctx.output_dir}"]
     if schedule.legs.solves:
         lines.insert(1, schedule.legs.line())
     if models.options.hidden or models.options.controller_model:
         lines.insert(1, models_line(models.section()))
-    return Outcome(fell is None, tuple(lines), "did not fall")
-
-
-class _Log:
-    """Each control cycle (the loop's ``on_step``): the identification log's row, from the plant monitor.
-
-    Also kept for the report and the plot: times [s], the CoM reference and the plant's CoM (3,)
-    [m] at the row's time, the feet's normal forces [N] and the actuators' torques [N m].
-    """
-
-    def __init__(self, csv: CsvStream, schedule: _Schedule, monitor: PlantMonitor, tick: Callable[[], None]):
-        self.csv, self.schedule, self.monitor, self.tick = csv, schedule, monitor, tick
-        self.t: list[float] = []
-        self.com_ref: list[np.ndarray] = []
-        self.com: list[np.ndarray] = []
-        self.fz: list[np.ndarray] = []
-        self.tau: list[np.ndarray] = []
-        self.rows_with_other_contacts = 0
-
-    def on_step(self, k: int, state: RobotState, reference: object, command: Command) -> bool:
-        """Write cycle ``k``'s row; True (end the run) once the robot fell."""
-        monitor = self.monitor
-        self.csv.write(log_row(state, monitor))
-        self.rows_with_other_contacts += monitor.contacts_elsewhere > 0
-        self.t.append(state.time_s)
-        self.com_ref.append(self.schedule.com_ref.copy())
-        self.com.append(monitor.com_W)
-        self.fz.append(monitor.wrenches_W[:, 2].copy())
-        self.tau.append(monitor.joint_torques)
-        self.tick()
-        return monitor.fall_reason is not None
-
-
-def _plot(ctx: RunContext, log: _Log, bodies: tuple[str, ...], joints: tuple[str, ...],
-          fell: str | None) -> None:
-    """CoM (reference dashed), the feet's normal forces, and the torques of the most loaded joints."""
-    t = np.asarray(log.t)
-    fig, axes = new_figure(3, 1, (12.0, 9.0), layout="constrained")
-    com, ref = np.asarray(log.com), np.asarray(log.com_ref)
-    for i, (axis, color) in enumerate(zip("xyz", ("tab:red", "tab:green", "tab:blue"), strict=True)):
-        axes[0][0].plot(t, (com[:, i] - ref[0, i]) * 1e3, color=color, lw=1.2, label=f"CoM {axis}")
-        axes[0][0].plot(t, (ref[:, i] - ref[0, i]) * 1e3, "--", color=color, lw=0.8)
-    axes[0][0].set_ylabel("CoM - start (mm)")
-    axes[0][0].set_title("CoM measured in MuJoCo (solid) and its reference (dashed)"
-                         + (f"; FELL: {fell}" if fell else ""), fontsize=10)
-    fz = np.asarray(log.fz)
-    for k, b in enumerate(bodies):
-        axes[1][0].plot(t, fz[:, k], lw=1.0, label=b)
-    axes[1][0].set_ylabel("normal force (N)")
-    axes[1][0].set_title("contact force on each foot (MuJoCo)", fontsize=10)
-    tau = np.asarray(log.tau)
-    top = np.argsort(-np.abs(tau).max(0))[:6]
-    for i in top:
-        axes[2][0].plot(t, tau[:, i], lw=0.9, label=joints[i])
-    axes[2][0].set_ylabel("applied torque (N m)")
-    axes[2][0].set_xlabel("time (s)")
-    axes[2][0].set_title("the six most loaded joints", fontsize=10)
-    for r in range(3):
-        axes[r][0].grid(True, alpha=0.3)
-        axes[r][0].legend(fontsize=8, loc="upper right", ncol=3)
-    ctx.save_figure(fig, "excite.png")
+    lines[1:1] = plant_lines(v)
+    passed = fell is None and watch.stopped_at_s is None
+    return Outcome(passed, tuple(lines), "did not fall and was not stopped by the balance watch")

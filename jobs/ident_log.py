@@ -4,16 +4,21 @@ A run folder holds ``excite.csv`` (one row per control cycle, streamed) and ``re
 whose ``identification_log`` section says how to read it. Columns, Pinocchio's convention:
 
 * ``time_s``; the full q (:func:`~mbctl.jobs.recording.q_columns`) and v (``v_columns``),
-* ``tau_<joint>_N_m``: the torque the actuators applied to each actuated joint over the cycle
-  that starts at the row's state (MuJoCo's ``qfrc_actuator`` after the step: clamped, geared),
-* per contact body B (the feet of a robot that stands): ``contact_<B>`` (1 while touching) and
-  its contact wrench ``w_<B>_fx_N`` ... ``w_<B>_mz_N_m`` (force, and moment about B's origin,
-  world axes: what a foot force sensor would give; ``identify`` uses it only when asked),
-* ``other_contacts``: contacts on the robot elsewhere (samples identification must not use).
+* ``tau_<joint>_N_m``: the torque on each actuated joint over the cycle that starts at the
+  row's state. In-process, what the actuators applied (MuJoCo's ``qfrc_actuator`` after the step:
+  clamped, geared); over DDS, what the cycle commanded (the LowCmd's ``tau`` in torque mode,
+  ``kp = kd = 0``), not the motors' ``tau_est`` (:data:`TORQUES`, and the identification guide),
+* per contact body B (the feet of a robot that stands): ``contact_<B>`` (1 while touching) and,
+  in-process, its contact wrench ``w_<B>_fx_N`` ... ``w_<B>_mz_N_m`` (force, and moment about B's
+  origin, world axes: what a foot force sensor would give; ``identify`` uses it only when asked).
+  Over DDS nothing measures the feet: the flag is the controller's (the foot's contact constraint
+  in force) and there are no wrench columns,
+* ``other_contacts`` (in-process): contacts on the robot elsewhere (samples identification must
+  not use); over DDS nothing counts them and the column is absent.
 
 The section: the robot (name or file, scene, gravity, Menagerie folder), the dynamics
 fingerprint of the nominal model, the joints of the torque columns, the contact bodies, the
-timestep and control period, and the excitation.
+timestep and control period, where the torques and contacts come from, and the excitation.
 """
 
 from __future__ import annotations
@@ -34,6 +39,14 @@ from mbctl.sim.monitor import PlantMonitor
 SECTION = "identification_log"
 CSV_NAME = "excite.csv"
 WRENCH = ("fx_N", "fy_N", "fz_N", "mx_N_m", "my_N_m", "mz_N_m")
+#: What the torque and contact columns hold, by plant (the section's ``torques`` and ``contacts``).
+TORQUES = {"measured": "applied by the plant's actuators over the cycle (MuJoCo's qfrc_actuator)",
+           "commanded": "commanded for the cycle (LowCmd tau, torque mode kp = kd = 0), not the motors' "
+                        "tau_est: the torque held over the cycle, noise-free, as the samples' forward "
+                        "differences assume; the gap to the link's torque is the joint friction and "
+                        "armature that --friction and --armature identify"}
+CONTACTS = {"measured": "touching, with the wrenches, measured by the plant",
+            "commanded": "the controller's contact constraints (no force sensor: no wrenches)"}
 
 
 def tau_columns(joints: tuple[str, ...]) -> list[str]:
@@ -49,10 +62,25 @@ def contact_columns(bodies: tuple[str, ...]) -> list[str]:
     return out
 
 
-def header(robot: Robot, joints: tuple[str, ...], bodies: tuple[str, ...]) -> list[str]:
-    """The CSV's columns (see the module docstring)."""
+def header(robot: Robot, joints: tuple[str, ...], bodies: tuple[str, ...],
+           measured: bool = True) -> list[str]:
+    """The CSV's columns (see the module docstring); ``measured=False``: a DDS log (flags only, no counts)."""
+    if not measured:
+        return ["time_s", *q_columns(robot), *v_columns(robot), *tau_columns(joints),
+                *(f"contact_{b}" for b in bodies)]
     return ["time_s", *q_columns(robot), *v_columns(robot), *tau_columns(joints), *contact_columns(bodies),
             "other_contacts"]
+
+
+def command_row(state: RobotState, tau: np.ndarray, contacts: np.ndarray) -> list[float]:
+    """One row of a DDS log (:func:`header` with ``measured=False``).
+
+    Args:
+        state: The state the cycle's command was computed from (base estimated).
+        tau: The torques the cycle commanded (k,) [N m], in the header's joint order.
+        contacts: Whether the controller held each contact body on the ground (c,).
+    """
+    return [state.time_s, *state.q, *state.v, *tau, *(float(c) for c in contacts)]
 
 
 def log_row(state: RobotState, monitor: PlantMonitor) -> list[float]:

@@ -105,10 +105,10 @@ def plant(interface: str = "sim", domain: int = 0, network_interface: str = "lo"
 def serve(robot: str = "g1", start: str = "stand", domain: int = 0, network_interface: str = "lo",
           latency_ms: float = 0.0, jitter_ms: float = 0.0, drop: float = 0.0, imu_noise: float = 0.0,
           seed: int = 0, duration: float | None = None, idle_timeout: float | None = None,
-          model_dir: str | None = None) -> ServeParams:
+          model_dir: str | None = None, lockstep: bool = False) -> ServeParams:
     """``mbctl serve``: latency and jitter in ms, drop a probability, duration and idle_timeout in s."""
     return ServeParams(robot, start, domain, network_interface, latency_ms, jitter_ms, drop, imu_noise, seed,
-                       duration, idle_timeout, model_dir)
+                       duration, idle_timeout, model_dir, lockstep)
 
 
 def g1_wbc(scenario: str = "stand", duration: float | None = None, impulse: float | None = None,
@@ -196,11 +196,19 @@ def ik(robot: str, target: list[str] | None = None, com: str | None = None, back
 
 def excite(robot: str, duration: float | None = None, seed: int = 0, period: float = 5.0, harmonics: int = 5,
            gravity: bool = True, scene: str | None = None, model_dir: str | None = None,
+           interface: str = "sim", domain: int = 0, network_interface: str = "lo", latency_ms: float = 0.0,
+           jitter_ms: float = 0.0, drop: float = 0.0, imu_noise: float = 0.0, estimate: bool = False,
+           link_seed: int = 0, truth: Path | None = None, watchdog_periods: int = WATCHDOG_PERIODS,
+           dry_run: bool = False, state_crc: str = "on", rate_hz: float | None = None,
+           wait_s: float = CONNECT_TIMEOUT_S, dds_config: Path | None = None,
            payload: str | None = None, plant_error: float = 0.0,
            controller_model: str | None = None) -> ExciteParams:
-    """``mbctl excite``: duration and period in s; model options (payload KG@BODY[:X,Y,Z], %, MJCF)."""
+    """``mbctl excite``: duration and period in s; the plant options (the G1); model options (as demo)."""
     return ExciteParams(robot, duration, seed, period, harmonics, gravity, scene, model_dir,
-                        ModelOptions(payload, plant_error, controller_model))
+                        ModelOptions(payload, plant_error, controller_model), plant(
+                            interface, domain, network_interface, latency_ms, jitter_ms, drop, imu_noise,
+                            estimate, link_seed, truth, watchdog_periods, dry_run, state_crc, rate_hz, wait_s,
+                            dds_config))
 
 
 def identify(runs: list[str], robot: str | None = None, bodies: str | None = None, friction: bool = False,

@@ -161,12 +161,15 @@ class Plant:
         interface: The robot API the control loop drives.
         sim: The in-process plant (None over DDS).
         options: The plant options.
+        estimator: The base-state estimator behind the plant's states (over DDS, or in-process with
+            ``--estimate``), which a job that lifts a foot tells the feet on the ground; else None.
     """
 
     interface: RobotInterface
     sim: Simulator | None
     options: PlantOptions
     ctx: RunContext | None = None
+    estimator: LegKinematicsEstimator | None = None
 
     def close(self) -> None:
         """Leave the robot in a safe state (DDS: damping) and close the connection (the plant contract)."""
@@ -211,12 +214,13 @@ def prepare_plant(options: PlantOptions, robot: Robot, keyframe: str | None = No
             print(f"mbctl: waiting up to {options.wait_s:g} s for the robot's state on DDS domain "
                   f"{options.domain}, network interface {options.network_interface!r} (--wait-s)",
                   file=sys.stderr, flush=True)
-        dds = UnitreeG1(robot, g1_estimator(robot), DdsOptions(
+        legs = g1_estimator(robot)
+        dds = UnitreeG1(robot, legs, DdsOptions(
             domain=options.domain, network_interface=options.network_interface, rate_hz=options.rate_hz,
             connect_timeout_s=options.wait_s, watchdog_periods=options.watchdog_periods,
             dry_run=options.dry_run, check_state_crc=options.state_crc == "on",
             cyclone_config=options.dds_config))
-        return lambda ctx: Plant(dds, None, options, ctx)
+        return lambda ctx: Plant(dds, None, options, ctx, legs)
 
     def make(ctx: RunContext) -> Plant:
         sim = Simulator(robot)
@@ -228,7 +232,7 @@ def prepare_plant(options: PlantOptions, robot: Robot, keyframe: str | None = No
             return Plant(sim, sim, options)
         q = sim.read_state().q
         estimator = g1_estimator(robot, (float(q[0]), float(q[1]))) if options.estimate else None
-        return Plant(LinkedSimulator(sim, options.link, estimator, G1_IMU), sim, options)
+        return Plant(LinkedSimulator(sim, options.link, estimator, G1_IMU), sim, options, estimator=estimator)
 
     return make
 

@@ -102,7 +102,8 @@ def _check_mode(samples: Samples, contact: str) -> None:
                                   f"{', '.join(CONTACT_MODES)}")
     if contact == "measured" and samples.contacts.shape[1] and samples.wrenches is None:
         raise IdentificationError("contact mode 'measured' needs measured contact wrenches, and the log "
-                                  "has none; use 'projected' (joint torques only)")
+                                  "has none (a log recorded over DDS has none: the G1 has no foot force "
+                                  "sensors); use 'projected' (joint torques only)")
 
 
 class SampleEquations:
