@@ -30,7 +30,7 @@ from typing import Any
 
 import numpy as np
 
-from mbctl.jobs.ident_log import read_run
+from mbctl.jobs.ident_log import CONTACTS, TORQUES, read_run
 from mbctl.jobs.recording import q_columns
 from mbctl.jobs.runner import Job, Outcome, RunContext, Work
 from mbctl.robots.crosscheck import crosscheck
@@ -211,7 +211,9 @@ def report_dict(params: IdentifyParams, robot: Robot, ident: Identification, sec
         "robot": robot.name,
         "model_fingerprint": fingerprint,
         "logs": [{"run": r, "recorded_with_fingerprint": s.get("model_fingerprint"),
-                  "same_nominal_model": s.get("model_fingerprint") == fingerprint}
+                  "same_nominal_model": s.get("model_fingerprint") == fingerprint,
+                  "interface": s.get("interface", "sim"), "torques": s.get("torques", TORQUES["measured"]),
+                  "contacts": s.get("contacts", CONTACTS["measured"])}
                  for r, s in zip(params.runs, sections, strict=True)],
         "method": method,
         "noise_added": {"torque_pct": params.torque_noise, "encoder_rad": params.encoder_noise,
@@ -281,7 +283,8 @@ def _write(ctx: RunContext, params: IdentifyParams, robot: Robot, ident: Identif
         f"{len(report['identifiability']['not_identified'])} not identifiable alone (kept at the prior where "
         "the data are silent; reasons in the report)",
         f"validation torque RMSE: nominal {v['torque_rmse_nominal']:.4g} N m, identified "
-        f"{v['torque_rmse_identified']:.4g} N m ({report['method']['contacts']})",
+        f"{v['torque_rmse_identified']:.4g} N m ({report['method']['contacts']}); torques: "
+        + "; ".join(sorted({log["torques"].split(" (")[0] for log in report["logs"]})),
         f"identified.xml: parameters round trip {round_trip:.1e}, cross-check max rel. error "
         f"{xcheck_error:.1e} ({XCHECK_STATES} states); identification took {seconds:.2f} s",
     ]

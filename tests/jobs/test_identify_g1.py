@@ -52,6 +52,7 @@ def test_torso_payload_identified_from_joint_torques(g1_run, tmp_path):
     assert record.exit_code == 0, record.message
     report = json.loads((tmp_path / "id" / "identify_report.json").read_text())
     assert report["method"]["contacts"].startswith("projected onto the null space of the contact Jacobian")
+    assert report["logs"][0]["interface"] == "sim" and report["logs"][0]["torques"].startswith("applied")
     truth = to_inertial(_torso_with_payload(load_robot(g1_run / "model.xml")))
     torso = report["bodies"]["torso_link"]
     assert abs(torso["mass_kg"]["identified"] - truth.mass_kg) < 0.1
