@@ -34,22 +34,27 @@ def serve(
     duration: Annotated[
         float | None, typer.Option("--duration", help="Stop after this wall time (s).")] = None,
     idle_timeout: Annotated[
-        float | None, typer.Option("--idle-timeout", help="Stop once no command came for this long (s) "
-                                                          "after the first.")] = None,
+        float | None, typer.Option("--idle-timeout", help="Stop once no command came for this long (s), "
+                                                          "counted from the start until the first.")] = None,
+    lockstep: Annotated[bool, typer.Option("--lockstep", help="Advance the physics one period per command "
+                                                              "received (no faster than real time): the same "
+                                                              "result on a loaded machine.")] = False,
     model_dir: ModelDirOpt = None,
     output: OutputOpt = None,
     quiet: QuietOpt = False,
 ) -> None:
     """Run the MuJoCo G1 as the robot on DDS (rt/lowcmd in, rt/lowstate out); truth.csv in the run folder.
 
-    The physics waits for the first valid command. Ctrl-C stops it (exit 130, every row kept).
+    The physics waits for the first valid command. Ctrl-C stops it (exit 130, every row kept); a plant
+    that diverges stops it (exit 1).
     """
     from mbctl.jobs import options
     from mbctl.jobs.serve import SERVE
 
     params = options.serve(robot=robot, start=start, domain=domain, network_interface=network_interface,
                            latency_ms=latency_ms, jitter_ms=jitter_ms, drop=drop, imu_noise=imu_noise,
-                           seed=seed, duration=duration, idle_timeout=idle_timeout, model_dir=model_dir)
+                           seed=seed, duration=duration, idle_timeout=idle_timeout, model_dir=model_dir,
+                           lockstep=lockstep)
     execute(SERVE, params, output, quiet)
 
 

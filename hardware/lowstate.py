@@ -21,10 +21,12 @@ The time of a state is the robot's own once its tick advances (tick steps times 
 the newest state's time then, so a run's timing does not depend on when this process got round to
 reading), and its arrival time before.
 
-The rate is measured at connect (:meth:`LowStateStream.measured_period`): the median, over the
-first :data:`RATE_STATES` valid arrivals (a held robot's repeats included: they come at its rate),
-of the mean interval between arrivals :data:`RATE_SPAN` apart (robust to a stall and to a burst),
-rounded to two significant digits (a robot's timer runs at a round rate: 2.003 ms is the G1's 2 ms).
+The rate is measured at connect (:meth:`LowStateStream.measured_period`): over the first
+:data:`RATE_STATES` valid arrivals (a held robot's repeats included: they come at its rate), the
+mean interval between arrivals :data:`RATE_SPAN` apart, its lower quartile (a stall of either
+process only lengthens intervals; a burst shortens one span, not most), snapped to the nearest of
+:data:`ROUND_RATES_HZ` within :data:`SNAP` (a robot's timer runs at a round rate: 2.06 ms measured on
+a loaded machine is the G1's 2 ms), else rounded to two significant digits.
 """
 
 from __future__ import annotations
@@ -46,6 +48,10 @@ ORDER_TICK, ORDER_ARRIVAL = "tick", "arrival"
 RATE_STATES = 26
 #: States apart of the arrival intervals whose median gives the rate.
 RATE_SPAN = 5
+#: The rates [Hz] robots' timers run at, which a measured rate is snapped to.
+ROUND_RATES_HZ = (2000.0, 1000.0, 500.0, 400.0, 250.0, 200.0, 100.0, 50.0)
+#: How far [fraction] a measured period may be from a round one and still be taken for it.
+SNAP = 0.1
 #: The state periods [s] accepted from the measurement (0.5 ms to 50 ms: 2 kHz to 20 Hz).
 PERIOD_RANGE_S = (0.5e-3, 50e-3)
 #: How far the IMU quaternion's norm may be from 1 (float32 on the wire: ~1e-7 when normalised).
@@ -216,9 +222,12 @@ class LowStateStream:
         if t.size < RATE_STATES:
             return None
         spans = (t[RATE_SPAN:] - t[:-RATE_SPAN]) / RATE_SPAN
-        period = float(np.median(spans))
+        period = float(np.percentile(spans, 25))
         if period <= 0:
             return period
+        nearest = 1.0 / min(ROUND_RATES_HZ, key=lambda hz: abs(1.0 / hz - period))
+        if abs(period - nearest) <= SNAP * nearest:
+            return nearest
         digits = 1 - math.floor(math.log10(period))
         return round(period, digits)
 

@@ -1,9 +1,12 @@
 """``mbctl serve g1``: the MuJoCo G1 as a robot on DDS, recording its ground truth.
 
-The bridge (:mod:`mbctl.sim.dds_bridge`) runs paced to wall-clock time until ``--duration`` (wall
-seconds), ``--idle-timeout`` seconds without a command after the first, or Ctrl-C (status
-``interrupted``, exit 130; every truth row written so far is kept). Its run folder holds
-``truth.csv`` (base pose, CoM, feet, contact forces per physics step, with the LowState tick),
+The bridge (:mod:`mbctl.sim.dds_bridge`) runs paced to wall-clock time (``--lockstep``: one period
+per command received, no faster than real time) until ``--duration`` (wall seconds),
+``--idle-timeout`` seconds without a command (counted from its start until the first), or Ctrl-C
+(status ``interrupted``, exit 130; every truth row written so far is kept). A plant that diverges
+stops it (status ``diverged``, exit 1, naming the acceleration and how stale the last command was).
+Its run folder holds ``truth.csv`` (base pose, CoM, feet, contact forces per physics step, with the
+LowState tick),
 ``trajectory.npz`` + ``model.xml`` for ``mbctl replay``, and ``report.json`` with its counts (commands
 received and applied, bad CRC, wrong mode, link drops) and its own period statistics.
 """
@@ -48,6 +51,7 @@ class ServeParams:
     duration: float | None = None
     idle_timeout: float | None = None
     model_dir: str | None = None
+    lockstep: bool = False
 
     def __post_init__(self) -> None:
         if self.robot != "g1":
@@ -58,6 +62,9 @@ class ServeParams:
             value = getattr(self, name)
             if value is not None and not (np.isfinite(value) and value > 0):
                 raise ServeError(f"{name} must be a positive number of seconds; got {value}")
+        if self.lockstep and (self.latency_ms or self.jitter_ms or self.drop):
+            raise ServeError("--lockstep advances one period per command: --latency-ms, --jitter-ms and "
+                             "--drop need a wall clock; leave them out, or run without --lockstep")
         self.link  # noqa: B018 - validates the link numbers
 
     @property
@@ -70,7 +77,8 @@ def prepare(params: ServeParams) -> Work:
     """Load the G1 and open DDS (errors here exit 2 before any output)."""
     robot = load_robot("g1", model_dir=params.model_dir)
     start_q = robot.keyframe_q(KEYFRAME) if params.start == "stand" else crouched_start(robot)
-    bridge = G1Bridge(robot, start_q, BridgeOptions(params.domain, params.network_interface, params.link))
+    bridge = G1Bridge(robot, start_q, BridgeOptions(params.domain, params.network_interface, params.link,
+                                                    lockstep=params.lockstep))
 
     def work(ctx: RunContext) -> Outcome:
         ctx.attach(bridge.sim)
@@ -79,7 +87,8 @@ def prepare(params: ServeParams) -> Work:
         ctx.sections["inputs"] = {"start": params.start, "mode_machine": bridge.options.mode_machine,
                                   "robot_edits": list(bridge.robot.source.edits)}
         print(f"mbctl serve g1: {SERVING} {params.domain}, network interface "
-              f"{params.network_interface!r} (Ctrl-C to stop)", file=sys.stderr, flush=True)
+              f"{params.network_interface!r}{', lock-step' if params.lockstep else ''} (Ctrl-C to stop)",
+              file=sys.stderr, flush=True)
 
         def on_step(tick: int, wall_s: float) -> None:
             csv.write(bridge.truth_row(tick, wall_s))

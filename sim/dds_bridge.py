@@ -19,6 +19,18 @@ Each physics step (the G1's 2 ms, paced to wall-clock time) the bridge
 Until the first valid command the physics is paused (states are still published, the IMU reading
 at rest), like a robot held still in its harness, so a client starts from the same pose as the
 in-process run.
+
+Lock-step (``lockstep``): the physics advances one control period per command received, no faster
+than real time, and publishes one state per command (the state that step starts from, as above):
+a run over DDS then gives the same result however loaded the machine is. Until the first command
+the held state is published every period with one tick (1: the same state again, which a client
+does not take for a new one), so a client connects, measures the rate and starts from it; each
+step's state then advances the tick. No link model (delays need a wall clock).
+
+A bridge that diverges stops and says so (:class:`~mbctl.sim.exceptions.SimulationDiverged`,
+exit 1): MuJoCo's divergence warnings, or an acceleration beyond :data:`MAX_QACC` (a state no
+robot reaches), naming how long the last command had been applied (stale torques from a client
+that went away). Its idle timeout counts from its start: a bridge nobody commands stops too.
 """
 
 from __future__ import annotations
@@ -36,7 +48,7 @@ import numpy.typing as npt
 
 from mbctl.robots.model_pair import Robot
 from mbctl.sim.contacts import measure_contacts
-from mbctl.sim.exceptions import SimError
+from mbctl.sim.exceptions import SimError, SimulationDiverged
 from mbctl.sim.imu import ImuReader
 from mbctl.sim.link import DelayLine, LinkSpec
 from mbctl.sim.simulator import Simulator
@@ -56,6 +68,24 @@ BRIDGE_START_S = 120.0
 
 class BridgeStartError(SimError):
     """A bridge process (``mbctl serve``) did not start serving."""
+
+
+class BridgeDiverged(SimulationDiverged):
+    """The bridge's plant reached an acceleration no robot does (MuJoCo itself had not flagged it).
+
+    Attributes:
+        peak_qacc: The largest joint or base acceleration of the step [rad/s^2, m/s^2].
+        stale_s: How long [s] the last command had been applied.
+    """
+
+    def __init__(self, peak_qacc: float, time_s: float, stale_s: float):
+        self.peak_qacc, self.stale_s = peak_qacc, stale_s
+        self.warnings, self.time_s = {"qacc": 1}, time_s
+        SimError.__init__(self, (
+            f"the bridge's plant diverged near t={time_s:.4f} s: an acceleration of {peak_qacc:.3g} "
+            f"(beyond {MAX_QACC:g}: no robot moves so) after its last command had been applied for "
+            f"{stale_s:.3f} s (stale torques from a client that went away, or a command that drives the "
+            "plant apart); the bridge stops instead of serving a diverged plant"))
 
 
 def wait_until_serving(process: subprocess.Popen[str], timeout_s: float = BRIDGE_START_S) -> str:
@@ -83,6 +113,9 @@ def wait_until_serving(process: subprocess.Popen[str], timeout_s: float = BRIDGE
 FORCE_EVERY = 10
 #: ``mode_machine`` the bridge reports (the robot's type code; clients copy it into LowCmd_).
 BRIDGE_MODE_MACHINE = 5
+#: The largest joint or base acceleration [rad/s^2, m/s^2] a sane plant step gives; beyond it the
+#: bridge has diverged.
+MAX_QACC = 1e5
 
 
 def motor_pd_actuators(robot: Robot) -> Robot:
@@ -115,12 +148,20 @@ class BridgeOptions:
         network_interface: ``lo`` unless a real network is meant.
         link: Latency, jitter, drops and IMU noise (applied to both directions).
         mode_machine: The ``mode_machine`` reported and required in commands.
+        lockstep: One physics period per command received (see the module docstring).
     """
 
     domain: int = 0
     network_interface: str = LOOPBACK
     link: LinkSpec = LinkSpec()
     mode_machine: int = BRIDGE_MODE_MACHINE
+    lockstep: bool = False
+
+    def __post_init__(self) -> None:
+        link = self.link
+        if self.lockstep and (link.latency_ms or link.jitter_ms or link.drop):
+            raise SimError("a lock-step bridge advances one period per command: latency, jitter and drops "
+                           "need a wall clock; leave them out, or run without --lockstep")
 
 
 #: Columns of the truth log (world frame W, MuJoCo's quaternion order w, x, y, z).
@@ -180,6 +221,8 @@ class G1Bridge:
         self.counts = {"commands_received": 0, "commands_applied": 0, "bad_crc": 0, "bad_encoding": 0,
                        "wrong_mode_machine": 0, "mode_pr_ab": 0, "non_finite": 0, "states_published": 0}
         self.started = False
+        self.peak_qacc = 0.0  # the largest |qacc| of a step so far
+        self._last_command_s = 0.0
         self.channel = Channel(self.options.domain, self.options.network_interface)
         try:
             lowcmd, lowstate = message_types()
@@ -230,7 +273,9 @@ class G1Bridge:
     def _publish_state(self, now: float) -> int:
         """Fill and send the LowState_ of the state the step started from (read between its halves)."""
         msg = self._state.message
-        tick = int(msg["tick"]) + 1
+        tick = int(msg["tick"])
+        if self.started or not self.options.lockstep or tick == 0:  # lock-step: held is one state
+            tick += 1
         msg["tick"] = tick
         ms = msg["motor_state"]
         n = self.motors.n
@@ -260,21 +305,31 @@ class G1Bridge:
                 *d.subtree_com[self._root], *feet, *self._forces]
 
     # ------------------------------------------------------------------ loop
-    def step(self, now: float) -> int:
+    def step(self, now: float, command: np.ndarray | None = None) -> int:
         """One period: commands in, physics (once started), state out; the tick published.
 
         The LowState carries the state the physics step starts from (the plant's present); the step
         then advances it to the next period. Between its two halves (``Simulator.step_begin`` and
         ``step_end``) MuJoCo holds that state's kinematics and sensors, so no extra forward pass.
+
+        Args:
+            now: Time [s] since the bridge started.
+            command: Lock-step: the command this step applies; None takes the ones that arrived and
+                applies the newest the link delivers.
+
+        Raises:
+            SimulationDiverged: MuJoCo's divergence warnings, or an acceleration beyond :data:`MAX_QACC`.
         """
-        for data in self._reader.take(32):
-            motors = self._valid_command(data)
-            if motors is not None:
-                self._commands.send(now, motors)
-        command = self._commands.receive(now)
+        if command is None:
+            for data in self._reader.take(32):
+                motors = self._valid_command(data)
+                if motors is not None:
+                    self._commands.send(now, motors)
+            command = self._commands.receive(now)
         if command is not None:
             self._apply(command)
             self.started = True
+            self._last_command_s = now
         sim, d = self.sim, self.sim.data
         if self.started:
             sim.step_begin()
@@ -286,6 +341,7 @@ class G1Bridge:
         self._t_start = float(d.time)
         if self.started:
             sim.step_end()
+            self._check(now)
         tick = self._publish_state(now)
         for _ in range(64):
             payload = self._states.receive(now)
@@ -295,37 +351,69 @@ class G1Bridge:
             self.counts["states_published"] += 1
         return tick
 
+    def _check(self, now: float) -> None:
+        """Raise :class:`BridgeDiverged` if the step's acceleration is beyond a robot's."""
+        peak = float(np.abs(self.sim.data.qacc).max())
+        self.peak_qacc = max(self.peak_qacc, peak)
+        if not peak <= MAX_QACC:  # NaN too
+            raise BridgeDiverged(peak, self._t_start, now - self._last_command_s)
+
     def serve(self, duration_s: float | None = None, idle_timeout_s: float | None = None,
               on_step: Callable[[int, float], None] | None = None) -> str:
-        """Run until ``duration_s`` of wall time, or ``idle_timeout_s`` without commands after the first.
+        """Run until ``duration_s`` of wall time, or ``idle_timeout_s`` without a command.
 
         Args:
             duration_s: Stop after this long [s] (None: until interrupted).
-            idle_timeout_s: Stop once no command has arrived for this long [s] after the first.
+            idle_timeout_s: Stop once no command has arrived for this long [s], counted from the
+                last command or, before any, from the start.
             on_step: Called with (tick, wall time [s]) after each period (e.g. the truth log).
 
         Returns:
             Why it stopped: "duration" or "idle".
+
+        Raises:
+            SimulationDiverged: The plant diverged (see :meth:`step`).
         """
         t0 = self.clock.start()
         last_applied, last_change = 0, t0
         while True:
             now = time.perf_counter()
-            tick = self.step(now - t0)
-            if on_step is not None:
-                on_step(tick, now - t0)
+            if self.options.lockstep and self.started:
+                ends = [t for t in (duration_s, idle_timeout_s and last_change - t0 + idle_timeout_s) if t]
+                steps = self._lockstep(t0, min([*ends, now - t0 + 0.1]) - (now - t0))
+            else:
+                steps = [(self.step(now - t0), now - t0)]
+            for tick, wall_s in steps:
+                if on_step is not None:
+                    on_step(tick, wall_s)
+            now = time.perf_counter()
             applied = self.counts["commands_applied"]
             if applied != last_applied:
                 last_applied, last_change = applied, now
             if duration_s is not None and now - t0 >= duration_s:
                 return "duration"
-            if idle_timeout_s is not None and applied and now - last_change >= idle_timeout_s:
+            if idle_timeout_s is not None and now - last_change >= idle_timeout_s:
                 return "idle"
-            self.clock.wait()
+            if not (self.options.lockstep and self.started):
+                self.clock.wait()
+
+    def _lockstep(self, t0: float, wait_s: float) -> list[tuple[int, float]]:
+        """Wait up to ``wait_s`` [s] for commands; one step for each, no faster than real time."""
+        steps: list[tuple[int, float]] = []
+        if not self._reader.wait(max(0.0, wait_s)):
+            return steps
+        for data in self._reader.take(32):
+            motors = self._valid_command(data)
+            if motors is not None:
+                self.clock.wait()  # a client slower than the period counts a miss here
+                wall_s = time.perf_counter() - t0
+                steps.append((self.step(wall_s, motors), wall_s))
+        return steps
 
     def stats(self) -> dict[str, Any]:
         """What the bridge counted: messages, link drops, its own period statistics."""
         return {**self.counts, "steps": self.sim.n_steps, "simulated_time_s": self.sim.time_s,
+                "lockstep": self.options.lockstep, "peak_qacc": self.peak_qacc,
                 "commands_lost_by_link": self._commands.dropped,
                 "states_lost_by_link": self._states.dropped, **asdict(self.clock.stats())}
 

@@ -42,3 +42,37 @@ def test_a_silent_bridge_is_killed_after_the_timeout():
         wait_until_serving(proc, timeout_s=0.5)  # the configured timeout, named: no wall-clock bound
     assert proc.wait(timeout=5) != 0  # killed
     proc.stderr.close()
+
+
+def test_a_bridge_whose_plant_diverges_says_so(g1, dds_domain, monkeypatch):
+    """An acceleration beyond MAX_QACC stops the bridge naming it and the command's age (a diverged run)."""
+    import numpy as np
+
+    from mbctl.sim import dds_bridge
+    from mbctl.sim.dds_bridge import BridgeDiverged, BridgeOptions, G1Bridge
+    from mbctl.sim.exceptions import SimulationDiverged
+    from mbctl.unitree.motors import MOTOR_ENABLED
+
+    bridge = G1Bridge(g1, g1.keyframe_q("stand"), BridgeOptions(domain=dds_domain, lockstep=True))
+    try:
+        command = np.zeros(bridge.motors.n, dtype=dds_bridge.low_cmd_codec().message["motor_cmd"].dtype)
+        command["mode"] = MOTOR_ENABLED
+        bridge.step(0.1, command.copy())  # a sane step: no torque, the robot starts to sag
+        assert 0 < bridge.peak_qacc < dds_bridge.MAX_QACC
+        monkeypatch.setattr(dds_bridge, "MAX_QACC", bridge.peak_qacc / 10)  # the bound moved, not the physics
+        expected = (r"diverged near t=0\.0020 s: an acceleration of .* after its last command had been "
+                    r"applied for 0\.150 s \(stale torques")
+        with pytest.raises(BridgeDiverged, match=expected) as err:
+            bridge.step(0.25)
+        assert isinstance(err.value, SimulationDiverged)  # the runner's "diverged": exit 1
+    finally:
+        bridge.close()
+
+
+def test_lockstep_refuses_a_link_model():
+    from mbctl.sim.dds_bridge import BridgeOptions
+    from mbctl.sim.exceptions import SimError
+    from mbctl.sim.link import LinkSpec
+
+    with pytest.raises(SimError, match="latency, jitter and drops need a wall clock"):
+        BridgeOptions(link=LinkSpec(latency_ms=2.0), lockstep=True)
