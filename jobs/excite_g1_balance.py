@@ -30,7 +30,7 @@ swing legs were fixed, the payload excitation went under 2 mm at t = 18.71 s (a 
 its edge as it was released) and fell at 25.62 s, and the 16 s one went under 2 mm at 7.20 s,
 0.65 s before its QP had no solution. With 8 kg hidden on the left elbow the margin goes under
 2 mm as the first foot is released (t = 3.30 s): the step is cut short and the G1 stands to the
-end; without the cut its QP had no solution at 4.27 s.
+end; without the watch its QP has no solution at 4.29 s.
 """
 
 from __future__ import annotations
