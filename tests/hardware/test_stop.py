@@ -16,6 +16,7 @@ from mbctl.control.loop import run
 from mbctl.hardware import DdsOptions, UnitreeG1
 from mbctl.robots.commands import torque
 from tests.hardware.test_unitree_g1 import HOLD, ConstantTorque, StillBase, _is_damping, _wait_for
+from tests.hardware.wire_tap import WireTap, after_the_loop
 
 #: Damping commands watched after the loop (0.1 s at 500 Hz).
 WATCHED = 50
@@ -80,3 +81,24 @@ def test_a_new_command_after_the_loop_resumes_and_a_dry_run_sends_nothing(g1, fa
         assert robot.report().safety.damped is None
     time.sleep(0.02)
     assert len(fake.commands) == n_closed
+
+
+def watch_the_wire_after_the_loop(g1, domain: int, options: DdsOptions, period_s: float) -> None:
+    """A loop against a plant, then the wire until close(): only damping, at ``period_s``, while open."""
+    # the tap after the client connected: the client waited for the plant's reader itself
+    with UnitreeG1(g1, StillBase(), options) as robot, WireTap(domain) as tap:
+        assert tap.wait_matched()
+        log = run(robot, ConstantTorque(g1), HOLD, 0.1)
+        assert log.cycles == round(0.1 / period_s)
+        assert tap.wait_for(log.cycles + WATCHED)
+        damped, gaps = after_the_loop(tap, g1)
+    assert_damping_at_the_period(damped, gaps, period_s)
+
+
+def test_after_the_loop_damping_reaches_mbctl_s_bridge_every_period(g1, dds_domain, tmp_path):
+    from tests.jobs.test_dds_jobs import bridge
+
+    with bridge(dds_domain, tmp_path / "serve") as proc:
+        options = DdsOptions(domain=dds_domain, watchdog_periods=500)
+        watch_the_wire_after_the_loop(g1, dds_domain, options, 0.002)
+        assert proc.poll() is None

@@ -20,7 +20,6 @@ import threading
 import numpy as np
 import pytest
 
-from mbctl.control.loop import run
 from mbctl.hardware import DdsOptions, UnitreeG1
 from mbctl.jobs.g1 import ArmPDParams, StandParams, prepare_arm_pd, prepare_stand
 from mbctl.jobs.g1_wbc import WBCParams
@@ -30,9 +29,10 @@ from mbctl.jobs.runner import Job, run_job
 from mbctl.robots.commands import position_target
 from mbctl.robots.g1 import G1_FALL, crouched_start
 from tests.conftest import run_mbctl
-from tests.hardware.test_unitree_g1 import HOLD, ConstantTorque, StillBase
+from tests.hardware.test_stop import watch_the_wire_after_the_loop
+from tests.hardware.test_unitree_g1 import StillBase
 from tests.hardware.unitree_sim_harness import G1_DT, UNITREE_DT, unitree_mujoco, unitree_sim
-from tests.hardware.wire_tap import WireTap, is_damping
+from tests.hardware.wire_tap import WireTap, after_the_loop
 
 #: The watchdog of these runs [periods]: a loaded machine may stall either process (see the docstring).
 WATCHDOG = 100
@@ -120,9 +120,8 @@ def test_a_simulator_killed_mid_run_gets_damping_and_the_run_exits_1_with_the_li
     v = record.values  # the link's figures, though the loop failed
     assert v["interface"] == "dds" and v["states_received"] > 200 and v["watchdog_events"] == 1
     assert v["state_order"] == "arrival" and v["damped"] is True and "messages_lost" in v
-    damped = [is_damping(c, g1) for c in tap.commands]
-    last_command = len(damped) - damped[::-1].index(False)  # after the loop's last command
-    assert len(damped) - last_command >= 2 and all(damped[last_command:])
+    damped, _ = after_the_loop(tap, g1)
+    assert len(damped) >= 2 and all(damped)
 
 
 def test_no_simulator_is_exit_2_saying_nothing_was_seen(g1, dds_domain, tmp_path):
@@ -137,14 +136,5 @@ def test_after_the_loop_damping_reaches_unitree_s_simulator_every_period(g1, dds
     """Safe at every end, on the robot side Unitree ships: damping at its 5 ms period until close()."""
     with unitree_sim(dds_domain, g1, g1.keyframe_q("stand"), tmp_path) as sim:
         options = DdsOptions(domain=dds_domain, check_state_crc=False, watchdog_periods=WATCHDOG)
-        # the tap after the client connected: the client then waited for the simulator's reader itself
-        with UnitreeG1(g1, StillBase(), options) as robot, WireTap(dds_domain) as tap:
-            assert tap.wait_matched()
-            log = run(robot, ConstantTorque(g1), HOLD, 0.1)
-            n_loop = log.cycles
-            assert tap.wait_for(n_loop + 40)
-            after = tap.commands[n_loop:]
-            gaps = np.diff(tap.times[n_loop:])
+        watch_the_wire_after_the_loop(g1, dds_domain, options, UNITREE_DT)
         assert sim.proc.poll() is None  # it was there all along
-    assert len(after) >= 40 and all(is_damping(c, g1) for c in after)
-    assert np.median(gaps) == pytest.approx(UNITREE_DT, rel=0.25)

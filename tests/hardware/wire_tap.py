@@ -70,3 +70,10 @@ def is_damping(cmd: np.ndarray, robot: Robot) -> bool:
     kd = default_damping(MotorMap.for_robot(robot))
     return bool(np.all(cmd["kp"] == 0) and np.allclose(cmd["kd"], kd, rtol=1e-6) and np.all(cmd["tau"] == 0)
                 and np.all(cmd["mode"] == 1))
+
+
+def after_the_loop(tap: WireTap, robot: Robot) -> tuple[list[bool], np.ndarray]:
+    """The commands after the loop's last non-damping one: whether each is damping, and their gaps [s]."""
+    damped = [is_damping(c, robot) for c in tap.commands]
+    first = len(damped) - damped[::-1].index(False) if False in damped else 0
+    return damped[first:], np.diff(tap.times[first:])
