@@ -9,7 +9,12 @@ import typer
 from mbctl.cli._run import OutputOpt, QuietOpt, VideoOpt, VideoSizeOpt, execute, video_spec
 from mbctl.cli.plant_options import MODEL_PARAMETERS, PLANT_PARAMETERS, with_options
 from mbctl.cli.robots import ModelDirOpt
-from mbctl.jobs.g1_walk_choices import WALK_DEFAULT_DURATION_S, WALK_DEFAULT_SPEED, WALK_SCENARIOS
+from mbctl.jobs.g1_walk_choices import (
+    WALK_DEFAULT_DURATION_S,
+    WALK_DEFAULT_SPEED,
+    WALK_PUSH_PHASES,
+    WALK_SCENARIOS,
+)
 
 
 @with_options(PLANT_PARAMETERS, MODEL_PARAMETERS)
@@ -27,6 +32,22 @@ def g1_walk(
         typer.Option("--duration", help="Simulated time (s) (default per scenario: " + ", ".join(
             f"{k} {v:g}" for k, v in WALK_DEFAULT_DURATION_S.items()) + ")."),
     ] = None,
+    impulse: Annotated[
+        float | None,
+        typer.Option("--impulse", help="Push impulse (N s): a force on the pelvis held 0.1 s (push only; "
+                                       "default 15)."),
+    ] = None,
+    direction: Annotated[
+        float | None,
+        typer.Option("--direction", help="Push direction (deg): 0 = +x (the start heading), 90 = +y (its "
+                                         "left); default: 8 directions 45 deg apart, 3 s apart (push only)."),
+    ] = None,
+    push_phase: Annotated[
+        str | None,
+        typer.Option("--push-phase", help=f"The gait phase a push starts in: {', '.join(WALK_PUSH_PHASES)} "
+                                          "(10 % or 60 % of the swing, or double support; push only; default "
+                                          "early)."),
+    ] = None,
     model_error: Annotated[
         float, typer.Option("--model-error", help="Controller model link masses off by PCT (%).")
     ] = 0.0,
@@ -39,13 +60,14 @@ def g1_walk(
 ) -> None:
     """Walk the G1 in torque mode (footsteps, DCM, swing feet on the whole-body QP); exit 1 if it fell.
 
-    Exit 1 too below 90 % of the commanded displacement (the turn for `turn`) or above a 5 mm median
-    foot slip. --interface dds runs the same controller over the G1's low-level DDS (`mbctl serve g1
-    --start crouched`).
+    Exit 1 too below 90 % of the commanded displacement (the turn for `turn`; for `push`, a push not
+    survived) or above a 5 mm median foot slip. --interface dds runs the same controller over the
+    G1's low-level DDS (`mbctl serve g1 --start crouched`).
     """
     from mbctl.jobs.g1_walk import G1_WALK, g1_walk_params
 
-    params = g1_walk_params(scenario=scenario, speed=speed, duration=duration, model_error=model_error,
+    params = g1_walk_params(scenario=scenario, speed=speed, duration=duration, impulse=impulse,
+                            direction=direction, push_phase=push_phase, model_error=model_error,
                             model_dir=model_dir, **(extra or {}))
     execute(G1_WALK, params, output, quiet, video_spec(video, video_size))
 

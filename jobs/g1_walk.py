@@ -11,6 +11,9 @@ Scenarios (``--speed VX[,VY[,YAW_RATE]]`` m/s, m/s, rad/s; default in :data:`DEF
 
 - ``forward``: (vx, vy, yaw rate) as given; ``backward``: the same with vx backward (-|vx|);
   ``side``: sideways; ``turn``: turning (the speed's vector as given in every case but backward).
+- ``push``: walking, pushed on the pelvis (``--impulse`` N s over 0.1 s, default 15; ``--direction``
+  deg, default eight directions 45 deg apart; ``--push-phase`` early, late or double, default early:
+  :mod:`mbctl.jobs.g1_walk_push`); it passes when every push was survived. In-process only.
 
 Checked in the plant (MuJoCo), by a :class:`~mbctl.sim.monitor.PlantMonitor`: the fall
 (:data:`mbctl.robots.g1.G1_FALL`), the CoM, the feet's measured forces and slip. ``distance_m``
@@ -34,8 +37,14 @@ import pinocchio as pin
 from mbctl.control.exceptions import WBCSetupError
 from mbctl.control.loop import run
 from mbctl.control.wbc import WalkingConfig, WalkingController, WBCConfig
-from mbctl.jobs.g1_walk_choices import WALK_DEFAULT_DURATION_S, WALK_DEFAULT_SPEED, WALK_SCENARIOS
+from mbctl.jobs.g1_walk_choices import (
+    WALK_DEFAULT_DURATION_S,
+    WALK_DEFAULT_SPEED,
+    WALK_PUSH_PHASES,
+    WALK_SCENARIOS,
+)
 from mbctl.jobs.g1_walk_log import WalkLog
+from mbctl.jobs.g1_walk_push import FIRST_PUSH_S, PUSH_PERIOD_S, PhasePushes
 from mbctl.jobs.model_options import ModelOptions, build_models
 from mbctl.jobs.plant import Plant, PlantOptions, dry_run, plant_lines, prepare_plant, report_plant
 from mbctl.jobs.runner import Job, Outcome, RunContext, Work
@@ -54,6 +63,8 @@ DEFAULT_DURATION_S = WALK_DEFAULT_DURATION_S
 MIN_FRACTION = 0.9
 #: ... and a median foot slip within this [m].
 MAX_MEDIAN_SLIP_M = 0.005
+#: Default push impulse [N s].
+DEFAULT_IMPULSE_N_S = 15.0
 
 
 def parse_speed(text: str) -> tuple[float, float, float]:
@@ -81,6 +92,9 @@ class WalkParams:
         scenario: One of :data:`SCENARIOS`.
         speed: The command "VX[,VY[,YAW_RATE]]" (m/s, m/s, rad/s), or None for the scenario's.
         duration: Simulated time [s] (None: the scenario's default).
+        impulse: Push impulse [N s] (push only; None: 15).
+        direction: Push direction [deg] in the world's x-y plane (push only; None: eight, 45 deg apart).
+        push_phase: The gait phase a push starts in: early, late or double (push only; None: early).
         model_error: The controller model's link masses and inertias off by this [%].
         model_dir: Explicit G1 folder (else MENAGERIE_ROOT, the package cache).
         plant: In-process (with an optional link model) or the G1 over DDS.
@@ -91,6 +105,9 @@ class WalkParams:
     scenario: str = "forward"
     speed: str | None = None
     duration: float | None = None
+    impulse: float | None = None
+    direction: float | None = None
+    push_phase: str | None = None
     model_error: float = 0.0
     model_dir: str | None = None
     plant: PlantOptions = PlantOptions()
@@ -107,11 +124,40 @@ class WalkParams:
             parse_speed(self.speed)
         if not (math.isfinite(self.model_error) and -50 < self.model_error < 100):
             raise WBCSetupError(f"model_error must be a percentage in (-50, 100); got {self.model_error}")
+        self._check_push()
+
+    def _check_push(self) -> None:
+        given = [n for n in ("impulse", "direction", "push_phase") if getattr(self, n) is not None]
+        if self.scenario != "push":
+            if given:
+                raise WBCSetupError(f"--{given[0].replace('_', '-')} applies to the push scenario only")
+            return
+        if self.plant.interface == "dds":
+            raise WBCSetupError("the push scenario needs the in-process plant (--interface sim): over DDS "
+                                "nothing can push the robot")
+        if self.impulse is not None and not (math.isfinite(self.impulse) and self.impulse >= 0):
+            raise WBCSetupError(f"impulse must be a finite impulse >= 0 N s; got {self.impulse}")
+        if self.direction is not None and not math.isfinite(self.direction):
+            raise WBCSetupError(f"direction must be a finite angle in degrees; got {self.direction}")
+        if self.push_phase is not None and self.push_phase not in WALK_PUSH_PHASES:
+            raise WBCSetupError(f"unknown push phase {self.push_phase!r}; choose one of "
+                                f"{', '.join(WALK_PUSH_PHASES)}")
 
     @property
     def duration_s(self) -> float:
-        """The simulated time [s]."""
-        return DEFAULT_DURATION_S[self.scenario] if self.duration is None else self.duration
+        """The simulated time [s] (one push: its start, its period and the start phase)."""
+        if self.duration is not None:
+            return self.duration
+        if self.scenario == "push" and self.direction is not None:
+            return FIRST_PUSH_S + PUSH_PERIOD_S + 1.0
+        return DEFAULT_DURATION_S[self.scenario]
+
+    @property
+    def push_directions_deg(self) -> list[float]:
+        """The push directions [deg] (none outside the push scenario)."""
+        if self.scenario != "push":
+            return []
+        return [k * 45.0 for k in range(8)] if self.direction is None else [self.direction]
 
     @property
     def command(self) -> VelocityCommand:
@@ -121,8 +167,10 @@ class WalkParams:
 
 
 def g1_walk_params(scenario: str = "forward", speed: str | None = None, duration: float | None = None,
-                   model_error: float = 0.0, model_dir: str | None = None, **options: Any) -> WalkParams:
-    """``mbctl g1-walk``: speed "VX[,VY[,YAW_RATE]]" (m/s, m/s, rad/s), duration (s), model_error (%).
+                   impulse: float | None = None, direction: float | None = None,
+                   push_phase: str | None = None, model_error: float = 0.0, model_dir: str | None = None,
+                   **options: Any) -> WalkParams:
+    """``mbctl g1-walk``: speed "VX[,VY[,YAW_RATE]]", duration (s), impulse (N s), direction (deg), %.
 
     ``options`` are the G1 jobs' plant options (:func:`mbctl.jobs.options.plant`'s, in their units)
     and the model options (``payload``, ``plant_error``, ``controller_model``); the signature lists
@@ -131,8 +179,8 @@ def g1_walk_params(scenario: str = "forward", speed: str | None = None, duration
     from mbctl.jobs.options import plant
 
     model = {k: options.pop(k) for k in _MODEL_OPTIONS if k in options}
-    return WalkParams(scenario, speed, duration, model_error, model_dir, plant(**options),
-                      ModelOptions(**model))
+    return WalkParams(scenario, speed, duration, impulse, direction, push_phase, model_error, model_dir,
+                      plant(**options), ModelOptions(**model))
 
 
 #: The model options and their defaults (``mbctl.jobs.model_options.ModelOptions``'s fields).
@@ -206,14 +254,23 @@ def commanded_path(t: np.ndarray, command: VelocityCommand, yaw0: float) -> tupl
 
 def _run(ctx: RunContext, params: WalkParams, robot: Robot, walker: WalkingController, p: Plant) -> Outcome:
     iface, sim = p.interface, p.sim
-    monitor = None
+    monitor, pushes = None, None
     if sim is not None:  # the plant's own measurements: in-process only
         feet = {name: cs.contact.geoms for name, cs in walker.wbc.contacts.items()}
         monitor = PlantMonitor(sim, feet, sites=FEET, fall_rule=G1_FALL.reason).attach()
         walker.contact_force = lambda f: monitor.contacts[f].normal_n if monitor.contacts else None
+        if params.scenario == "push":
+            pushes = PhasePushes(sim.model, walker, params.push_directions_deg,
+                                 DEFAULT_IMPULSE_N_S if params.impulse is None else params.impulse,
+                                 params.push_phase or "early")
+            sim.add_perturbation(pushes)
+    estimator = getattr(iface, "estimator", None)  # the base from an estimator (over DDS, --estimate)
+    if estimator is not None and hasattr(estimator, "set_contacts"):
+        walker.contact_listener = estimator.set_contacts  # it switches its stance foot with the gait
     n = max(1, int(round(params.duration_s / iface.control_period_s)))
     mass_kg = monitor.mass_kg if monitor is not None else float(robot.mj_model.body_subtreemass[1])
-    log = WalkLog(ctx, walker, monitor, None, n, mass_kg * float(np.linalg.norm(robot.mj_model.opt.gravity)))
+    mg_n = mass_kg * float(np.linalg.norm(robot.mj_model.opt.gravity))
+    log = WalkLog(ctx, walker, monitor, pushes, n, mg_n)
     clamp = walker.command
     ctx.sections["inputs"] = {
         "scenario": params.scenario, "keyframe": KEYFRAME,
@@ -226,6 +283,8 @@ def _run(ctx: RunContext, params: WalkParams, robot: Robot, walker: WalkingContr
     start = sim.read_state() if sim is not None else iface.read_state()
     run_log = run(iface, walker, None, params.duration_s, on_step=log.on_step)
     values = log.values()
+    if pushes is not None:
+        values.update(pushes.values(bool(values["fell"])))
     end = sim.read_state() if sim is not None else iface.read_state()
     values.update(_displacement(start.q, end.q, run_log.t_s, clamp.applied))
     truth_fell = report_plant(ctx, p, run_log, G1_FALL.base_min_z_m)
@@ -260,11 +319,14 @@ def _displacement(q0: np.ndarray, q1: np.ndarray, t: np.ndarray, command: Veloci
 
 
 def _outcome(params: WalkParams, v: dict[str, Any], time_s: float) -> Outcome:
-    """Pass: no fall, the median slip within bound, the displacement (or the turn) commanded."""
+    """Pass: no fall, the median slip within bound, the commanded displacement or turn (push: survived)."""
     fraction = v["yaw_fraction"] if params.scenario == "turn" else v["displacement_fraction"]
     slip = v["median_foot_slip_m"]
-    checks = [v["fell"] is False, fraction is not None and fraction >= MIN_FRACTION,
-              slip is None or slip <= MAX_MEDIAN_SLIP_M]
+    checks = [v["fell"] is False, slip is None or slip <= MAX_MEDIAN_SLIP_M]
+    if params.scenario == "push":
+        checks.append(v["pushes_survived"] == v["pushes_planned"])
+    else:
+        checks.append(fraction is not None and fraction >= MIN_FRACTION)
     fell = f"FELL ({v['fall_reason']}) at {v['fall_time_s']:.2f} s" if v["fell"] else "walked"
     what = "turn" if params.scenario == "turn" else "displacement"
     force = (v.get("contact_force_error") or {}).get("single") or {}
@@ -280,8 +342,16 @@ def _outcome(params: WalkParams, v: dict[str, Any], time_s: float) -> Outcome:
         f"{v['qp_solve_time_median_us'] or 0:.0f} us); steps adapted "
         f"{v['step_adaptations']['steps_adapted']} ({v['step_adaptations']['steps_limited']} held short by a "
         f"limit); touchdowns {v['touchdowns']}", *plant_lines(v))
-    bound = (f"no fall, {what} >= {MIN_FRACTION:.0%} of the commanded, median foot slip <= "
-             f"{MAX_MEDIAN_SLIP_M * 1e3:g} mm")
+    if params.scenario == "push":
+        lines += (f"pushes: {v['pushes_survived']} of {v['pushes_planned']} survived ("
+                  + "; ".join(f"{p['direction_deg']:g} deg at {p['time_s']:.2f} s, {p['phase']}: "
+                              f"{'survived' if p['survived'] else 'FELL'}, recovered in "
+                              f"{p['recovery_steps'] if p['recovery_steps'] is not None else 'n/a'} steps"
+                              for p in v["pushes"]) + ")",)
+        bound = f"no fall, every push survived, median foot slip <= {MAX_MEDIAN_SLIP_M * 1e3:g} mm"
+    else:
+        bound = (f"no fall, {what} >= {MIN_FRACTION:.0%} of the commanded, median foot slip <= "
+                 f"{MAX_MEDIAN_SLIP_M * 1e3:g} mm")
     return Outcome(all(checks), lines, bound)
 
 

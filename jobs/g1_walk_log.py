@@ -23,7 +23,6 @@ from mbctl.jobs.runner import RunContext
 from mbctl.robots.g1 import FEET
 from mbctl.robots.interface import RobotState
 from mbctl.sim.monitor import PlantMonitor
-from mbctl.sim.perturb import PushSchedule
 
 #: A foot supports (its slip counts) when MuJoCo measures at least this fraction of m g on it.
 SUPPORT_FRACTION = 0.1
@@ -67,13 +66,14 @@ class WalkLog:
         ctx: The run.
         walker: The walking controller.
         monitor: The plant's measurements (None over DDS).
-        pushes: The pushes on the plant (or None).
+        pushes: The pushes on the plant (:class:`~mbctl.jobs.g1_walk_push.PhasePushes`, or None): armed
+            and scored here each cycle.
         n: Cycles.
         mg_n: The plant's weight m g [N].
     """
 
     def __init__(self, ctx: RunContext, walker: WalkingController, monitor: PlantMonitor | None,
-                 pushes: PushSchedule | None, n: int, mg_n: float):
+                 pushes: Any, n: int, mg_n: float):
         self.ctx, self.walker, self.monitor, self.pushes, self.mg = ctx, walker, monitor, pushes, mg_n
         header = [*COLUMNS, *(f"{f}_{c}" for f in FEET for c in FOOT_COLUMNS)]
         self.csv = ctx.open_csv(header)
@@ -129,10 +129,13 @@ class WalkLog:
         self._footprints(state.time_s)
         self.csv.write(row)
         self.k = k + 1
+        fallen = mon is not None and mon.fall_reason is not None
+        if self.pushes is not None and mon is not None:
+            self.pushes.on_cycle(state.time_s, mon.sim.time_s, fallen)
         self.ctx.progress.advance()
         if k % VALUES_EVERY == 0:
             self.values()
-        return mon is not None and mon.fall_reason is not None
+        return fallen
 
     def _footprints(self, t: float) -> None:
         """Both feet where they stand at the first cycle; then each foot where it touched down."""
@@ -212,6 +215,7 @@ class WalkLog:
             "fall_reason": None if mon is None else mon.fall_reason,
             "fall_time_s": None if mon is None else mon.fall_time_s,
             "controller_fallback_at_s": w.wbc.infeasible_at_s,
+            "controller_fallback_reason": w.wbc.infeasible_message,
             "steps": w.steps,
             "touchdowns": dict(gait.touchdowns) if gait is not None else {},
             "max_foot_slip_m": float(slips.max()) if observed and slips.size else None,

@@ -11,6 +11,7 @@ from mbctl.planners.cartesian import (
     to_joint_trajectory,
 )
 from mbctl.planners.dcm import (
+    ConvexPolygon,
     DcmPlan,
     DcmReference,
     clamp_to_polygon,
@@ -60,6 +61,7 @@ __all__ = [
     "CartesianTrajectory",
     "CirclePath",
     "CommandClamp",
+    "ConvexPolygon",
     "DcmPlan",
     "DcmReference",
     "Footstep",

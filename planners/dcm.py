@@ -122,24 +122,36 @@ class DcmPlan:
                 nxt = r[k + 1] + math.exp(-self.omega * (t[k + 1] - t[k])) * (nxt - r[k + 1])
             xi_switch[k] = nxt
         self.xi_switch = xi_switch
-        # each window [a, b] around a switch: quintic coefficients from the exponentials' ends
-        self._windows: list[tuple[float, float, np.ndarray]] = []
+        #: The double-support windows (start, end) [s] around the switches (the first from the initial
+        #: time when given); each window's quintic is computed when first evaluated.
+        self.windows: list[tuple[float, float]] = []
+        self._window_switch: list[int] = []
+        self._coefficients: dict[int, np.ndarray] = {}
         for k in range(len(t)):
             a = t[k] - self.alpha * self.double_support_s
             b = t[k] + (1.0 - self.alpha) * self.double_support_s
             if k == 0 and initial is not None:
-                t0, xi0, xid0 = initial
-                if t0 > b:
-                    raise InvalidPlanningInput(f"initial time {t0} s is after the first window's end {b} s")
-                a = float(t0)
+                if initial[0] > b:
+                    raise InvalidPlanningInput(f"initial time {initial[0]} s is after the first window's end "
+                                               f"{b} s")
+                a = float(initial[0])
+            if b - a > 1e-12:
+                self.windows.append((a, b))
+                self._window_switch.append(k)
+        self._initial = initial
+
+    def _window(self, i: int) -> np.ndarray:
+        """The quintic (6, 2) of window ``i``: the exponentials' (or the initial) states at its ends."""
+        coeffs = self._coefficients.get(i)
+        if coeffs is None:
+            (a, b), k = self.windows[i], self._window_switch[i]
+            if k == 0 and self._initial is not None:
+                _, xi0, xid0 = self._initial
                 start = (np.asarray(xi0, dtype=float), np.asarray(xid0, dtype=float), np.zeros(2))
             else:
                 start = self._exponential(k, a)
-            if b - a <= 1e-12:
-                continue
-            end = self._exponential(k + 1, b)
-            self._windows.append((a, b, quintic_coefficients(*start, *end, b - a)))
-        self._initial = initial
+            coeffs = self._coefficients[i] = quintic_coefficients(*start, *self._exponential(k + 1, b), b - a)
+        return coeffs
 
     def _segment(self, t_s: float) -> int:
         """The VRP index in force at ``t_s`` (ignoring the windows)."""
@@ -155,11 +167,11 @@ class DcmPlan:
 
     def at(self, t_s: float) -> DcmReference:
         """The plan at time ``t_s`` [s]."""
-        for a, b, coeffs in self._windows:
+        for i, (a, b) in enumerate(self.windows):
             if a <= t_s <= b:
-                xi, xid, _ = polynomial_at(coeffs, t_s - a)
+                xi, xid, _ = polynomial_at(self._window(i), t_s - a)
                 return DcmReference(xi, xid, xi - xid / self.omega)
-        if self._initial is not None and self._windows and t_s < self._windows[0][0]:
+        if self._initial is not None and self.windows and t_s < self.windows[0][0]:
             _, xi0, xid0 = self._initial
             xi = np.asarray(xi0, dtype=float).copy()
             return DcmReference(xi, np.zeros(2), xi.copy())
@@ -209,22 +221,88 @@ def _cross(o: tuple[float, float], a: tuple[float, float], b: tuple[float, float
     return (a[0] - o[0]) * (b[1] - o[1]) - (a[1] - o[1]) * (b[0] - o[0])
 
 
-def polygon_margin(point: npt.ArrayLike, hull: np.ndarray) -> float:
-    """Signed distance [m] from ``point`` (2,) to the edges of a convex polygon: > 0 inside.
+class ConvexPolygon:
+    """A convex polygon (a support polygon) with its edges' outward normals, for margins and clamps.
 
-    Inside it is the distance to the nearest edge line; outside, minus the distance to the polygon
-    (to a vertex or an edge). A hull of one or two points has no inside (the distance, negated).
+    Args:
+        hull: Its vertices (m, 2) [m], counter-clockwise (:func:`convex_hull`'s).
     """
-    p = np.asarray(point, dtype=float)[:2]
-    if len(hull) < 3:
-        return -_distance_to_chain(p, hull)
-    a, b = hull, np.roll(hull, -1, axis=0)
-    e = b - a
-    n = np.column_stack([e[:, 1], -e[:, 0]]) / np.linalg.norm(e, axis=1)[:, None]  # outward (CCW)
-    s = ((p - a) * n).sum(axis=1)
-    if np.all(s <= 0):
-        return float(-s.max())
-    return -_distance_to_chain(p, np.vstack([hull, hull[:1]]))
+
+    def __init__(self, hull: npt.ArrayLike):
+        self.hull = np.asarray(hull, dtype=float)
+        if len(self.hull) >= 3:
+            a, b = self.hull, np.roll(self.hull, -1, axis=0)
+            e = b - a
+            self._normals = np.column_stack([e[:, 1], -e[:, 0]]) / np.linalg.norm(e, axis=1)[:, None]
+            self._offsets = (a * self._normals).sum(axis=1)  # n_i . x <= offset_i inside
+            #: The largest margin anything can have inside [m] (the centroid's: at most the inradius).
+            self.depth = float((self._offsets - self._normals @ self.hull.mean(axis=0)).min())
+
+    @classmethod
+    def of_points(cls, points: npt.ArrayLike) -> ConvexPolygon:
+        """The convex hull of 2-D points (n, 2) [m]."""
+        return cls(convex_hull(points))
+
+    def margin(self, point: npt.ArrayLike) -> float:
+        """Signed distance [m] from ``point`` (2,) to the edges: > 0 inside.
+
+        Inside it is the distance to the nearest edge line; outside, minus the distance to the
+        polygon (to a vertex or an edge). A hull of one or two points has no inside (the distance,
+        negated).
+        """
+        p = np.asarray(point, dtype=float)[:2]
+        if len(self.hull) < 3:
+            return -_distance_to_chain(p, self.hull)
+        s = self._normals @ p - self._offsets
+        if s.max() <= 0:
+            return float(-s.max())
+        return -_distance_to_chain(p, np.vstack([self.hull, self.hull[:1]]))
+
+    def clamp(self, point: npt.ArrayLike, margin_m: float = 0.0) -> np.ndarray:
+        """The point of the polygon shrunk by ``margin_m`` nearest to ``point`` (2,) [m].
+
+        The shrunk polygon is the set of points at least ``margin_m`` inside every edge line; if the
+        margin leaves nothing (a polygon narrower than twice the margin) the margin is reduced to what
+        fits. Solved as a projection onto the half-planes by rounds of Dykstra's algorithm (the exact
+        projection onto an intersection of half-planes).
+        """
+        p = np.asarray(point, dtype=float)[:2].copy()
+        if len(self.hull) < 3:
+            return _nearest_on_chain(p, self.hull)
+        n = self._normals
+        c = self._offsets - min(max(margin_m, 0.0), 0.999 * self.depth)  # n_i . x <= c_i
+        if (n @ p - c).max() <= 1e-12:
+            return p
+        x = p
+        corrections = np.zeros((len(n), 2))
+        for _ in range(100):
+            moved = 0.0
+            for i in range(len(n)):
+                y = x + corrections[i]
+                excess = n[i] @ y - c[i]
+                x_new = y - max(excess, 0.0) * n[i]
+                corrections[i] = y - x_new
+                moved = max(moved, float(np.abs(x_new - x).max()))
+                x = x_new
+            if moved < 1e-10:
+                break
+        return x
+
+
+def polygon_margin(point: npt.ArrayLike, hull: np.ndarray) -> float:
+    """Signed distance [m] from ``point`` (2,) to the edges of a convex polygon (``hull``): > 0 inside.
+
+    See :meth:`ConvexPolygon.margin`.
+    """
+    return ConvexPolygon(hull).margin(point)
+
+
+def clamp_to_polygon(point: npt.ArrayLike, hull: np.ndarray, margin_m: float = 0.0) -> np.ndarray:
+    """The point of the convex polygon ``hull`` shrunk by ``margin_m`` nearest to ``point`` (2,) [m].
+
+    See :meth:`ConvexPolygon.clamp`.
+    """
+    return ConvexPolygon(hull).clamp(point, margin_m)
 
 
 def _distance_to_chain(p: np.ndarray, chain: np.ndarray) -> float:
@@ -234,42 +312,6 @@ def _distance_to_chain(p: np.ndarray, chain: np.ndarray) -> float:
     e = b - a
     u = np.clip(((p - a) * e).sum(axis=1) / np.maximum((e * e).sum(axis=1), 1e-300), 0.0, 1.0)
     return float(np.min(np.linalg.norm(a + u[:, None] * e - p, axis=1)))
-
-
-def clamp_to_polygon(point: npt.ArrayLike, hull: np.ndarray, margin_m: float = 0.0) -> np.ndarray:
-    """The point of the convex polygon shrunk by ``margin_m`` nearest to ``point`` (2,) [m].
-
-    The shrunk polygon is the set of points at least ``margin_m`` inside every edge line; if the
-    margin leaves nothing (a polygon narrower than twice the margin) the margin is reduced to what
-    fits. Solved as a projection onto the half-planes by a few rounds of Dykstra's algorithm (the
-    exact projection onto an intersection of half-planes).
-    """
-    p = np.asarray(point, dtype=float)[:2].copy()
-    if len(hull) < 3:
-        return _nearest_on_chain(p, hull)
-    a, b = hull, np.roll(hull, -1, axis=0)
-    e = b - a
-    n = np.column_stack([e[:, 1], -e[:, 0]]) / np.linalg.norm(e, axis=1)[:, None]
-    offset = (a * n).sum(axis=1)
-    centre = hull.mean(axis=0)
-    depth = float((offset - n @ centre).min())  # the centroid's margin: the most that fits
-    c = offset - min(max(margin_m, 0.0), 0.999 * depth)  # n_i . x <= c_i
-    if np.all(n @ p <= c + 1e-12):
-        return p
-    x = p
-    corrections = np.zeros((len(n), 2))
-    for _ in range(100):
-        moved = 0.0
-        for i in range(len(n)):
-            y = x + corrections[i]
-            excess = n[i] @ y - c[i]
-            x_new = y - max(excess, 0.0) * n[i]
-            corrections[i] = y - x_new
-            moved = max(moved, float(np.abs(x_new - x).max()))
-            x = x_new
-        if moved < 1e-10:
-            break
-    return x
 
 
 def _nearest_on_chain(p: np.ndarray, chain: np.ndarray) -> np.ndarray:

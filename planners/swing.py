@@ -67,17 +67,11 @@ def quintic_coefficients(p0: npt.ArrayLike, v0: npt.ArrayLike, a0: npt.ArrayLike
 
 def polynomial_at(coeffs: np.ndarray, t_s: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Position, velocity and acceleration of ``sum_k coeffs[k] t^k`` at ``t_s`` (coeffs (K, n))."""
-    c = coeffs
     t = float(t_s)
-    p = c[-1].copy()
-    for k in range(len(c) - 2, -1, -1):  # Horner
-        p = p * t + c[k]
-    v = c[-1] * (len(c) - 1)
-    for k in range(len(c) - 2, 0, -1):
-        v = v * t + c[k] * k
-    a = c[-1] * (len(c) - 1) * (len(c) - 2)
-    for k in range(len(c) - 2, 1, -1):
-        a = a * t + c[k] * k * (k - 1)
+    powers = [t**k for k in range(len(coeffs))]
+    p = np.dot(powers, coeffs)
+    v = np.dot([k * powers[k - 1] for k in range(1, len(coeffs))], coeffs[1:])
+    a = np.dot([k * (k - 1) * powers[k - 2] for k in range(2, len(coeffs))], coeffs[2:])
     return p, v, a
 
 
@@ -144,6 +138,7 @@ class SwingTrajectory:
         self.target_yaw_rad = float(self._plane_end()[2])
         half = 0.5 * self.duration_s
         apex = max(p0[2], p1[2]) + self.lift_height_m
+        self._cache: tuple[float, SwingSample] | None = None  # the last sample (a cycle asks for it again)
         self._up = quintic_coefficients(p0[2], 0.0, 0.0, apex, 0.0, 0.0, half)
         self._down = quintic_coefficients(apex, 0.0, 0.0, p1[2], 0.0, 0.0, half)
 
@@ -179,12 +174,24 @@ class SwingTrajectory:
         goal = self._goal(float(p[2]), p1, target_yaw_rad)
         self._plane = quintic_coefficients(p, v, a, goal, 0.0, 0.0, left)
         self._plane_t0 = float(t_s)
+        self._cache = None
         self.target_position = np.array([p1[0], p1[1], self.target_position[2]])
         self.target_yaw_rad = float(goal[2])
         return True
 
     def at(self, t_s: float) -> SwingSample:
-        """The reference at time ``t_s`` [s] (held at the ends outside the swing)."""
+        """The reference at time ``t_s`` [s] (held at the ends outside the swing; the caller may edit it)."""
+        cached = self._cache
+        if cached is not None and cached[0] == t_s:
+            s = cached[1]
+            return s._replace(position=s.position.copy(), velocity=s.velocity.copy(),
+                              acceleration=s.acceleration.copy())
+        sample = self._at(t_s)
+        self._cache = (t_s, sample._replace(position=sample.position.copy(), velocity=sample.velocity.copy(),
+                                            acceleration=sample.acceleration.copy()))
+        return sample
+
+    def _at(self, t_s: float) -> SwingSample:
         tau = min(max(t_s - self.t0_s, 0.0), self.duration_s)
         p, v, a = polynomial_at(self._plane, max(0.0, min(t_s, self.horizontal_end_s) - self._plane_t0))
         if t_s >= self.horizontal_end_s:

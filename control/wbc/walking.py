@@ -55,7 +55,7 @@ from mbctl.control.wbc.gait import Gait, GaitEvent
 from mbctl.control.wbc.standing import Standing, standing_controller
 from mbctl.control.wbc.step_adaptation import StepAdaptation, StepAdapter, dcm_tube
 from mbctl.control.wbc.walking_config import WalkingConfig
-from mbctl.planners.dcm import DcmPlan, clamp_to_polygon, convex_hull, dcm_feedback, dcm_omega, polygon_margin
+from mbctl.planners.dcm import ConvexPolygon, DcmPlan, dcm_feedback, dcm_omega
 from mbctl.planners.footsteps import (
     CommandClamp,
     Footstep,
@@ -162,6 +162,8 @@ class WalkingController:
         config: Walking options.
         pin_model: The controller's analytic model (default ``robot.pin_model``).
         contact_force: ``foot -> measured normal force [N]`` (or None), for touchdown detection.
+        contact_listener: Told ``{foot: in contact}`` whenever a foot's contact starts or ends (e.g.
+            a base-state estimator's ``set_contacts``, so it switches its stance foot with the gait).
 
     Raises:
         WBCSetupError: Bad options or frames.
@@ -172,7 +174,8 @@ class WalkingController:
 
     def __init__(self, robot: Robot, feet: Sequence[str], base_frame: str, torso_frame: str | None,
                  reference_q: np.ndarray, config: WalkingConfig | None = None,
-                 pin_model: pin.Model | None = None, contact_force: ContactForce | None = None):
+                 pin_model: pin.Model | None = None, contact_force: ContactForce | None = None,
+                 contact_listener: Callable[[dict[str, bool]], object] | None = None):
         self.config = cfg = config or WalkingConfig()
         if len(feet) != 2:
             raise WBCSetupError(f"walking needs two feet (left, right); got {list(feet)}")
@@ -197,6 +200,8 @@ class WalkingController:
         self.swing_tasks = {f: SwingFootTask(f, self.model, cfg.swing_cost, cfg.swing_gains,
                                              cfg.swing_orientation_cost) for f in self.feet}
         self.contact_force = contact_force
+        self.contact_listener = contact_listener
+        self._in_contact: dict[str, bool] = {}
         self._fids = {f: self.model.getFrameId(f) for f in self.feet}
         self._clamp = self.planner.clamp(VelocityCommand())
         self.status = WalkingStatus()
@@ -245,6 +250,7 @@ class WalkingController:
         self.speed_correction = np.zeros(2)
         self._last_mid: tuple[float, np.ndarray] | None = None
         self._adaptation: StepAdaptation | None = None
+        self._in_contact = {}
 
     def _follow_command(self, t: float, gait: Gait) -> None:
         """The walk's command toward the applied one at ``max_acceleration``; the footsteps' command.
@@ -310,16 +316,17 @@ class WalkingController:
         event = gait.advance(t, poses, self._steer, self._touching(gait, poses))
         if event is not None and event.kind == "touchdown":
             self._correct_speed(t, gait)
+        self._tell_contacts()
         xi = com[:2] + vcom[:2] / self.omega
         if gait.retargetable(t):
             gait.retarget(t, self._swing_footstep(gait, t, xi))
         plan, steps = self._plan(gait, t)
         ref = plan.at(t)
-        hull = convex_hull(np.vstack([
+        support = ConvexPolygon.of_points(np.vstack([
             (poses[f].rotation @ self.wbc.contacts[f].contact.points_F.T).T[:, :2] + poses[f].translation[:2]
             for f in self.feet if self.wbc.contacts[f].active]))
         cmp = dcm_feedback(xi, ref, self.omega, cfg.dcm_gain_1_s)
-        cmp_c = clamp_to_polygon(cmp, hull, cfg.cmp_margin_m)
+        cmp_c = support.clamp(cmp, cfg.cmp_margin_m)
         z_ref, vz_ref, az_ref = gait.height(t)
         acc = np.array([*(self.omega**2 * (com[:2] - cmp_c)), az_ref])
         # the CoM task: its horizontal error is zero by construction, so the acceleration is the DCM law's
@@ -327,9 +334,17 @@ class WalkingController:
         self._orient(gait.heading(t))
         self._swing(gait, t)
         self.status = WalkingStatus(t, gait.phase, gait.stance_name, xi, ref.xi, ref.vrp,
-                                    polygon_margin(ref.vrp, hull), cmp, polygon_margin(cmp, hull), cmp_c, acc,
+                                    support.margin(ref.vrp), cmp, support.margin(cmp), cmp_c, acc,
                                     tuple(steps), event, self._adaptation)
         return self.wbc.compute(state)
+
+    def _tell_contacts(self) -> None:
+        """Tell the contact listener which feet are on the ground (their contact in force), on a change."""
+        in_contact = {f: self.wbc.contacts[f].active for f in self.feet}
+        if in_contact != self._in_contact:
+            self._in_contact = in_contact
+            if self.contact_listener is not None:
+                self.contact_listener(dict(in_contact))
 
     def _start(self, state: RobotState, com: np.ndarray, poses: dict[str, pin.SE3]) -> Gait:
         """Both feet held where they are, the tasks' targets at the state, the gait's start phase."""

@@ -42,7 +42,7 @@ def test_every_example_is_tested_and_listed():
         "01_load_and_step.py", "02_pd_hold.py", "03_computed_torque_square.py",
         "04_g1_joint_step.py", "05_crosscheck_your_robot.py", "06_g1_whole_body_ik.py",
         "07_g1_whole_body_control.py", "08_arm_tool_pose.py", "09_identify_your_arm.py",
-        "10_g1_over_dds.py",
+        "10_g1_over_dds.py", "11_g1_walk.py",
     ]
     readme = (EXAMPLES / "README.md").read_text()
     for script in scripts:
@@ -210,3 +210,10 @@ def test_10_g1_over_dds(g1, dds_domain):
     assert abs(over_dds - in_process) < 1.0  # measured 0.15 mm (2 s squat)
     assert re.search(r"fell\s+no\s+no", out) and re.search(r"cycles\s+500\s+500", out)
     assert _processes_with("serve", "g1", "--start", "crouched", "--domain", str(dds_domain)) == []
+
+
+def test_11_g1_walk(g1):
+    out = _run("11_g1_walk.py", "--duration", "3").stdout
+    assert "fell: no" in out
+    assert _figure(r"walked [\d.]+ s: {n} steps", out) >= 3
+    assert 0.4 < _figure(r"pelvis moved {n} m", out) < 0.9  # 0.3 m/s from the first step at 0.8 s

@@ -82,7 +82,7 @@ def test_in_single_support_the_dcm_runs_away_from_the_stance_vrp():
 def test_dcm_vrp_and_their_rates_are_continuous_at_every_phase_switch():
     _, plan = _walk()
     eps = 1e-9
-    edges = [w for a, b, _ in plan._windows for w in (a, b)]
+    edges = [w for a, b in plan.windows for w in (a, b)]
     assert len(edges) == 2 * 8  # the start window and one per later switch
     for edge in edges:
         a, b = plan.at(edge - eps), plan.at(edge + eps)
@@ -105,7 +105,7 @@ def _support(steps, plan, t):
     """The support polygon at t: both feet in a double-support window (switch j: the feet of VRPs j and
     j + 1, VRP j >= 1 being steps[j]), else the stance foot (VRP k's)."""
     feet = [steps[int(np.searchsorted(plan.switch_times_s, t, side="right"))]]
-    for j, (a, b, _) in enumerate(plan._windows):
+    for j, (a, b) in enumerate(plan.windows):
         if a <= t <= b:
             feet = steps[j:j + 2]
     pts = [f.point_W([*p, 0.0])[:2] for f in feet for p in SOLE]
