@@ -17,7 +17,8 @@ Scenarios (``--speed VX[,VY[,YAW_RATE]]`` m/s, m/s, rad/s; default in :data:`DEF
 
 Checked in the plant (MuJoCo), by a :class:`~mbctl.sim.monitor.PlantMonitor`: the fall
 (:data:`mbctl.robots.g1.G1_FALL`), the CoM, the feet's measured forces and slip. ``distance_m``
-is the pelvis's horizontal displacement (the plant's own state), ``commanded_displacement_m``
+is the pelvis's horizontal displacement (the plant's own state in-process; over DDS the bridge's
+truth log with ``--truth``, else the estimate: ``displacement_source``), ``commanded_displacement_m``
 the command integrated over the run (speed x duration for a constant command; the heading turned
 by the yaw rate), ``displacement_fraction`` the displacement along it over its length, and for a
 turn ``yaw_fraction`` the pelvis's turn over the commanded one. A run passes (exit 0) when the G1
@@ -48,6 +49,7 @@ from mbctl.jobs.g1_walk_push import FIRST_PUSH_S, PUSH_PERIOD_S, PhasePushes
 from mbctl.jobs.model_options import ModelOptions, build_models
 from mbctl.jobs.plant import Plant, PlantOptions, dry_run, plant_lines, prepare_plant, report_plant
 from mbctl.jobs.runner import Job, Outcome, RunContext, Work
+from mbctl.jobs.truth import read_truth, truth_at_ticks
 from mbctl.limits import check_duration
 from mbctl.planners import VelocityCommand
 from mbctl.robots.edits import position_to_motor, scale_masses
@@ -286,7 +288,12 @@ def _run(ctx: RunContext, params: WalkParams, robot: Robot, walker: WalkingContr
     if pushes is not None:
         values.update(pushes.values(bool(values["fell"])))
     end = sim.read_state() if sim is not None else iface.read_state()
-    values.update(_displacement(start.q, end.q, run_log.t_s, clamp.applied))
+    q0, q1, source = start.q, end.q, "plant" if sim is not None else "estimator"
+    if p.options.truth is not None and run_log.cycles:  # over DDS, the bridge's own record of the pelvis
+        q0, q1 = (_truth_q(row) for row in truth_at_ticks(read_truth(p.options.truth),
+                                                           run_log.tick[[0, run_log.cycles - 1]]))
+        source = "truth log"
+    values.update(_displacement(q0, q1, run_log.t_s, clamp.applied), displacement_source=source)
     truth_fell = report_plant(ctx, p, run_log, G1_FALL.base_min_z_m)
     if truth_fell is not None:
         values["fell"] = truth_fell
@@ -294,6 +301,12 @@ def _run(ctx: RunContext, params: WalkParams, robot: Robot, walker: WalkingContr
 
     walk_plots(ctx, log, walker, params, values)
     return _outcome(params, values, iface.time_s)
+
+
+def _truth_q(row: np.void) -> np.ndarray:
+    """The base's configuration (7,) [m, quaternion xyzw] from a truth-log row (the bridge's plant)."""
+    return np.array([row["base_x_m"], row["base_y_m"], row["base_z_m"], row["base_qx"], row["base_qy"],
+                     row["base_qz"], row["base_qw"]], dtype=float)
 
 
 def _yaw(q: np.ndarray) -> float:
