@@ -47,11 +47,8 @@ def min_jerk(t: float, duration: float) -> Fraction:
     is largest at the end): the payload excitation's smallest balance margin went from 7.6 mm to
     10.7 mm.
     """
-    x = t / duration
-    if x <= 0.0 or x >= 1.0:
-        return float(x >= 1.0), 0.0, 0.0
-    return (x**3 * (10.0 - 15.0 * x + 6.0 * x * x), 30.0 * x * x * (1.0 - x) ** 2 / duration,
-            60.0 * x * (1.0 - x) * (1.0 - 2.0 * x) / duration**2)
+    s, ds, dds = minimum_jerk_at((0.0,), (1.0,), t, 0.0, duration)
+    return float(s[0]), float(ds[0]), float(dds[0])
 
 
 def _inverse_min_jerk(s: float) -> float:
