@@ -44,8 +44,8 @@ def min_jerk(t: float, duration: float) -> Fraction:
 
     The CoM's shift over a foot: its deceleration peaks before the end and is zero there, so the
     CoP overshoots the stance sole's centre less than with a cubic smooth step (whose deceleration
-    is largest at the end): the payload excitation's smallest balance margin went from 7.6 mm to
-    10.7 mm.
+    is largest at the end): the payload excitation's smallest balance margin (then of the CoM's
+    projection) went from 7.6 mm to 13.3 mm.
     """
     s, ds, dds = minimum_jerk_at((0.0,), (1.0,), t, 0.0, duration)
     return float(s[0]), float(ds[0]), float(dds[0])
