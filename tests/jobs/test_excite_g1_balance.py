@@ -1,4 +1,4 @@
-"""The excitation's balance watch: the support polygon's margins, a CoP from foot wrenches, scaling, stopping."""
+"""The excitation's balance watch: the support polygon's margins, a CoP from wrenches, scaling, stopping."""
 
 from __future__ import annotations
 
