@@ -48,6 +48,12 @@ def g1_walk(
                                           "(10 % or 60 % of the swing, or double support; push only; default "
                                           "early)."),
     ] = None,
+    waypoints: Annotated[
+        str | None,
+        typer.Option("--waypoints", help="The course: X,Y,YAW;X,Y,YAW;... (m, m, deg; the start is the "
+                                         "origin, heading +x) or a file of such lines (course only; default: "
+                                         "12 waypoints over about 10 m); --speed caps the command."),
+    ] = None,
     model_error: Annotated[
         float, typer.Option("--model-error", help="Controller model link masses off by PCT (%).")
     ] = 0.0,
@@ -67,7 +73,8 @@ def g1_walk(
     from mbctl.jobs.g1_walk import G1_WALK, g1_walk_params
 
     params = g1_walk_params(scenario=scenario, speed=speed, duration=duration, impulse=impulse,
-                            direction=direction, push_phase=push_phase, model_error=model_error,
+                            direction=direction, push_phase=push_phase, waypoints=waypoints,
+                            model_error=model_error,
                             model_dir=model_dir, **(extra or {}))
     execute(G1_WALK, params, output, quiet, video_spec(video, video_size))
 

@@ -11,6 +11,9 @@ Scenarios (``--speed VX[,VY[,YAW_RATE]]`` m/s, m/s, rad/s; default in :data:`DEF
 
 - ``forward``: (vx, vy, yaw rate) as given; ``backward``: the same with vx backward (-|vx|);
   ``side``: sideways; ``turn``: turning (the speed's vector as given in every case but backward).
+- ``course``: waypoints (``--waypoints X,Y,YAW;...`` m, m, deg, or a file; default 12 over about
+  10 m), the command toward each from the pelvis's pose, capped at ``--speed`` (the most forward,
+  sideways and turning): :mod:`mbctl.jobs.g1_walk_course`; it passes when every waypoint was reached.
 - ``push``: walking, pushed on the pelvis (``--impulse`` N s over 0.1 s, default 15; ``--direction``
   deg, default eight directions 45 deg apart; ``--push-phase`` early, late or double, default early:
   :mod:`mbctl.jobs.g1_walk_push`); it passes when every push was survived. In-process only.
@@ -44,6 +47,7 @@ from mbctl.jobs.g1_walk_choices import (
     WALK_PUSH_PHASES,
     WALK_SCENARIOS,
 )
+from mbctl.jobs.g1_walk_course import CourseWalker, parse_waypoints
 from mbctl.jobs.g1_walk_log import WalkLog
 from mbctl.jobs.g1_walk_push import FIRST_PUSH_S, PUSH_PERIOD_S, PhasePushes
 from mbctl.jobs.model_options import ModelOptions, build_models
@@ -97,6 +101,8 @@ class WalkParams:
         impulse: Push impulse [N s] (push only; None: 15).
         direction: Push direction [deg] in the world's x-y plane (push only; None: eight, 45 deg apart).
         push_phase: The gait phase a push starts in: early, late or double (push only; None: early).
+        waypoints: The course "X,Y,YAW;..." (m, m, deg) or a file of such lines (course only; None: the
+            default course).
         model_error: The controller model's link masses and inertias off by this [%].
         model_dir: Explicit G1 folder (else MENAGERIE_ROOT, the package cache).
         plant: In-process (with an optional link model) or the G1 over DDS.
@@ -110,6 +116,7 @@ class WalkParams:
     impulse: float | None = None
     direction: float | None = None
     push_phase: str | None = None
+    waypoints: str | None = None
     model_error: float = 0.0
     model_dir: str | None = None
     plant: PlantOptions = PlantOptions()
@@ -127,6 +134,10 @@ class WalkParams:
         if not (math.isfinite(self.model_error) and -50 < self.model_error < 100):
             raise WBCSetupError(f"model_error must be a percentage in (-50, 100); got {self.model_error}")
         self._check_push()
+        if self.waypoints is not None and self.scenario != "course":
+            raise WBCSetupError("--waypoints applies to the course scenario only")
+        if self.scenario == "course":
+            parse_waypoints(self.waypoints)
 
     def _check_push(self) -> None:
         given = [n for n in ("impulse", "direction", "push_phase") if getattr(self, n) is not None]
@@ -170,8 +181,8 @@ class WalkParams:
 
 def g1_walk_params(scenario: str = "forward", speed: str | None = None, duration: float | None = None,
                    impulse: float | None = None, direction: float | None = None,
-                   push_phase: str | None = None, model_error: float = 0.0, model_dir: str | None = None,
-                   **options: Any) -> WalkParams:
+                   push_phase: str | None = None, waypoints: str | None = None, model_error: float = 0.0,
+                   model_dir: str | None = None, **options: Any) -> WalkParams:
     """``mbctl g1-walk``: speed "VX[,VY[,YAW_RATE]]", duration (s), impulse (N s), direction (deg), %.
 
     ``options`` are the G1 jobs' plant options (:func:`mbctl.jobs.options.plant`'s, in their units)
@@ -181,8 +192,8 @@ def g1_walk_params(scenario: str = "forward", speed: str | None = None, duration
     from mbctl.jobs.options import plant
 
     model = {k: options.pop(k) for k in _MODEL_OPTIONS if k in options}
-    return WalkParams(scenario, speed, duration, impulse, direction, push_phase, model_error, model_dir,
-                      plant(**options), ModelOptions(**model))
+    return WalkParams(scenario, speed, duration, impulse, direction, push_phase, waypoints, model_error,
+                      model_dir, plant(**options), ModelOptions(**model))
 
 
 #: The model options and their defaults (``mbctl.jobs.model_options.ModelOptions``'s fields).
@@ -283,7 +294,10 @@ def _run(ctx: RunContext, params: WalkParams, robot: Robot, walker: WalkingContr
         "com_height_m": walker.config.com_height_m, "tasks": [t.name for t in walker.wbc.tasks]}
     ctx.progress.start(n, f"g1-walk {params.scenario}")
     start = sim.read_state() if sim is not None else iface.read_state()
-    run_log = run(iface, walker, None, params.duration_s, on_step=log.on_step)
+    course = None
+    if params.scenario == "course":
+        course = CourseWalker(walker, parse_waypoints(params.waypoints), params.command)
+    run_log = run(iface, course or walker, None, params.duration_s, on_step=log.on_step)
     values = log.values()
     if pushes is not None:
         values.update(pushes.values(bool(values["fell"])))
@@ -294,6 +308,8 @@ def _run(ctx: RunContext, params: WalkParams, robot: Robot, walker: WalkingContr
                                                            run_log.tick[[0, run_log.cycles - 1]]))
         source = "truth log"
     values.update(_displacement(q0, q1, run_log.t_s, clamp.applied), displacement_source=source)
+    if course is not None:
+        values.update(course.values(q1))
     truth_fell = report_plant(ctx, p, run_log, G1_FALL.base_min_z_m)
     if truth_fell is not None:
         values["fell"] = truth_fell
@@ -338,6 +354,8 @@ def _outcome(params: WalkParams, v: dict[str, Any], time_s: float) -> Outcome:
     checks = [v["fell"] is False, slip is None or slip <= MAX_MEDIAN_SLIP_M]
     if params.scenario == "push":
         checks.append(v["pushes_survived"] == v["pushes_planned"])
+    elif params.scenario == "course":
+        checks.append(v["waypoints_reached"] == v["waypoints_planned"])
     else:
         checks.append(fraction is not None and fraction >= MIN_FRACTION)
     fell = f"FELL ({v['fall_reason']}) at {v['fall_time_s']:.2f} s" if v["fell"] else "walked"
@@ -362,6 +380,11 @@ def _outcome(params: WalkParams, v: dict[str, Any], time_s: float) -> Outcome:
                               f"{p['recovery_steps'] if p['recovery_steps'] is not None else 'n/a'} steps"
                               for p in v["pushes"]) + ")",)
         bound = f"no fall, every push survived, median foot slip <= {MAX_MEDIAN_SLIP_M * 1e3:g} mm"
+    elif params.scenario == "course":
+        lines += (f"course: {v['waypoints_reached']} of {v['waypoints_planned']} waypoints reached (within "
+                  f"0.10 m and 10 deg), the last at {v['course_time_s'] or float('nan'):.1f} s; final error "
+                  f"{v['final_position_error_m']:.3f} m, {v['final_yaw_error_deg']:.1f} deg",)
+        bound = f"no fall, every waypoint reached, median foot slip <= {MAX_MEDIAN_SLIP_M * 1e3:g} mm"
     else:
         bound = (f"no fall, {what} >= {MIN_FRACTION:.0%} of the commanded, median foot slip <= "
                  f"{MAX_MEDIAN_SLIP_M * 1e3:g} mm")

@@ -43,8 +43,9 @@ can carry it past one), so the width is never below ``w_min`` and the feet never
 :class:`CommandClamp` reports the request, what is applied and which limits bound.
 
 **Waypoints** (:class:`WaypointFollower`): (x, y, yaw) goals, one after the other; the command
-is a proportional law in the body frame toward the current goal, clamped as above, and the goal
-counts as reached within a position and a yaw tolerance.
+is a proportional law in the body frame toward the current goal (toward an intermediate one at no
+less than a cruise speed, so the walk does not stop at each), clamped as above, and the goal counts
+as reached within a position and a yaw tolerance.
 """
 
 from __future__ import annotations
@@ -371,23 +372,26 @@ class WaypointFollower:
         position_tolerance_m: A waypoint is reached within this distance [m] ...
         yaw_tolerance_rad: ... and this heading error [rad].
         gain_1_s: Proportional gain [1/s] from the pose error to the command.
+        cruise_m_s: The least speed [m/s] toward a waypoint that is not the last (0: stop at each).
 
     Raises:
         InvalidPlanningInput: Not a finite (K, 3) array with K >= 1, or non-positive tolerances.
     """
 
     def __init__(self, waypoints: npt.ArrayLike, position_tolerance_m: float = 0.05,
-                 yaw_tolerance_rad: float = math.radians(5.0), gain_1_s: float = 1.0):
+                 yaw_tolerance_rad: float = math.radians(5.0), gain_1_s: float = 1.0,
+                 cruise_m_s: float = 0.0):
         wps = np.array(waypoints, dtype=float)
         if wps.ndim != 2 or wps.shape[1] != 3 or len(wps) < 1 or not np.all(np.isfinite(wps)):
             raise InvalidPlanningInput(f"waypoints must be a finite (K, 3) array of x [m], y [m], yaw [rad]; "
                                        f"got shape {wps.shape}")
-        if not (position_tolerance_m > 0 and yaw_tolerance_rad > 0 and gain_1_s > 0):
-            raise InvalidPlanningInput("the tolerances and the gain must be > 0; got "
-                                       f"{position_tolerance_m}, {yaw_tolerance_rad}, {gain_1_s}")
+        if not (position_tolerance_m > 0 and yaw_tolerance_rad > 0 and gain_1_s > 0 and cruise_m_s >= 0):
+            raise InvalidPlanningInput("the tolerances and the gain must be > 0 and the cruise speed >= 0; "
+                                       f"got {position_tolerance_m}, {yaw_tolerance_rad}, {gain_1_s}, "
+                                       f"{cruise_m_s}")
         self.waypoints = wps
         self.position_tolerance_m, self.yaw_tolerance_rad = position_tolerance_m, yaw_tolerance_rad
-        self.gain_1_s = gain_1_s
+        self.gain_1_s, self.cruise_m_s = gain_1_s, cruise_m_s
         self.index = 0
         #: The time each waypoint was first reached [s] (NaN until then).
         self.reached_at_s = np.full(len(wps), np.nan)
@@ -418,4 +422,8 @@ class WaypointFollower:
         c, s = math.cos(yaw), math.sin(yaw)
         ex, ey = c * (gx - x) + s * (gy - y), -s * (gx - x) + c * (gy - y)
         k = self.gain_1_s
-        return VelocityCommand(k * ex, k * ey, k * math.remainder(gyaw - yaw, 2 * math.pi))
+        vx, vy = k * ex, k * ey
+        speed = math.hypot(vx, vy)
+        if self.index < len(self.waypoints) - 1 and 0 < speed < self.cruise_m_s:
+            vx, vy = vx * self.cruise_m_s / speed, vy * self.cruise_m_s / speed
+        return VelocityCommand(vx, vy, k * math.remainder(gyaw - yaw, 2 * math.pi))
