@@ -2,6 +2,7 @@
 
 Run: MENAGERIE_ROOT=../shared/menagerie python bench/bench_dds.py [--seconds 30] [--estimator 30,60]
      python bench/bench_dds.py --wbc [stand,squat] [--wbc-seconds 10] [--runs 3]
+     python bench/bench_dds.py --stalls 20 --default 60 [--runs 3]
 
 1. Per message [us], medians, ours against Unitree's SDK path in the same run: LowCmd pack + CRC
    (numpy, zlib) vs the SDK's CRC helper (repacks in Python) + cyclonedds' serializer; LowState
@@ -12,6 +13,15 @@ Run: MENAGERIE_ROOT=../shared/menagerie python bench/bench_dds.py [--seconds 30]
 3. ``mbctl serve g1`` and ``mbctl g1-stand --interface dds`` as two processes on loopback for
    ``--seconds``: period p50/p99, deadline misses, messages lost, the truth checks, and the CoM
    (truth) against the in-process g1-stand of the same length.
+
+``--stalls SECONDS`` instead measures where the client's waits for a state come from (issue 29):
+g1-wbc stand in this process against a free-running bridge, ``--runs`` times with the quiet loop
+off (collector on, normal priority) and on (no collection in the loop, real-time priority where
+permitted): the waits between new states (p99, max: what the watchdog is compared with), the
+cycle's CPU time, the collections inside the loop and their longest pause, the estimator's update,
+the bridge's own longest period and misses. ``--default SECONDS`` runs ``mbctl g1-wbc stand
+--interface dds --duration SECONDS`` with no other flag, ``--runs`` times: does it finish, and the
+longest wait for a state.
 
 ``--wbc [stand,squat]`` instead measures issue 20's targets: for each scenario ``--wbc-seconds``
 (10 s) of ``mbctl g1-wbc SCENARIO --interface dds --truth ...`` against ``mbctl serve g1 --start
@@ -136,7 +146,7 @@ def over_dds(domain: int, folder: Path, client: list[str], *serve: str) -> subpr
     after ``--interface dds --domain D``, with ``--truth`` to its log) runs into ``folder/dds``;
     both processes end before this returns."""
     serve_dir = folder / "serve"
-    bridge = subprocess.Popen(_mbctl("serve", "g1", "--domain", str(domain), "--idle-timeout", "1",
+    bridge = subprocess.Popen(_mbctl("serve", "g1", "--domain", str(domain), "--idle-timeout", "60",
                                      "--output", str(serve_dir), "-q", *serve),
                               stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
     try:
@@ -145,8 +155,7 @@ def over_dds(domain: int, folder: Path, client: list[str], *serve: str) -> subpr
                                     "--truth", str(serve_dir / "truth.csv"), "--output",
                                     str(folder / "dds"), "-q"),
                              capture_output=True, text=True)
-        bridge.wait(timeout=30)
-    finally:
+    finally:  # the client is done: stop the bridge (its idle timeout counts from its start)
         if bridge.poll() is None:
             bridge.send_signal(signal.SIGINT)
             bridge.wait(timeout=10)
@@ -250,6 +259,138 @@ def wbc_runs(scenarios: list[str], seconds: float, runs: int, folder: Path, watc
             print(f"     {key:18s} {np.median(x):8.3f}  [{x.min():.3f}, {x.max():.3f}]")
 
 
+#: What a stall measurement gives per run (the client's, then the bridge's).
+_STALL_FIGURES = ("gap_p99_ms", "gap_max_ms", "period_max_ms", "work_cpu_p99_ms", "cpu_overruns",
+                  "gc_in_loop", "gc_max_ms", "estimator_p99_us", "estimator_max_us",
+                  "bridge_period_max_ms", "bridge_misses_pct")
+
+
+def _client_in_process(domain: int, folder: Path, seconds: float, quiet: bool) -> dict[str, float]:
+    """g1-wbc stand over DDS in this process, watchdog wide open, instrumented: gc pauses, estimator."""
+    import gc
+    import time
+    from functools import partial
+
+    from mbctl.control.estimation import LegKinematicsEstimator
+    from mbctl.hardware import DdsOptions
+    from mbctl.jobs import plant as plant_module
+    from mbctl.jobs.g1_wbc import G1_WBC, WBCParams
+    from mbctl.jobs.plant import PlantOptions
+    from mbctl.jobs.runner import run_job
+
+    pauses: list[tuple[float, float]] = []  # (when, how long) [s]
+    started: dict[str, float] = {}
+
+    def on_gc(phase: str, info: dict) -> None:
+        if phase == "start":
+            started["t"] = time.perf_counter()
+        elif "t" in started:
+            t = started.pop("t")
+            pauses.append((t, time.perf_counter() - t))
+
+    from mbctl.hardware.unitree_hg import UnitreeHG
+
+    sync = UnitreeHG.sync
+    window: list[float] = []
+
+    def timed_sync(self):  # the loop's first and last cycle ends
+        sync(self)
+        window[len(window) > 0:] = [time.perf_counter()]
+
+    update = LegKinematicsEstimator.update
+    updates: list[float] = []
+
+    def timed_update(self, reading):  # the estimator's cost, inside read_state
+        t = time.perf_counter()
+        out = update(self, reading)
+        updates.append(time.perf_counter() - t)
+        return out
+
+    gc.callbacks.append(on_gc)
+    LegKinematicsEstimator.update = timed_update
+    UnitreeHG.sync = timed_sync
+    plant_module.DdsOptions = partial(DdsOptions, quiet_loop=quiet)  # type: ignore[assignment]
+    try:
+        params = WBCParams("stand", seconds, plant=PlantOptions("dds", domain, watchdog_periods=10_000))
+        record = run_job(G1_WBC, params, folder)
+    finally:
+        gc.callbacks.remove(on_gc)
+        LegKinematicsEstimator.update = update
+        UnitreeHG.sync = sync
+        plant_module.DdsOptions = DdsOptions
+    in_loop = [d for t, d in pauses if window and window[0] <= t <= window[-1]]
+    v = record.values
+    est = np.array(updates[-int(seconds * 500):]) * 1e6
+    return {"status": record.status, "gap_p99_ms": v["state_gap_p99_ms"], "gap_max_ms": v["state_gap_max_ms"],
+            "period_max_ms": v["period_max_ms"], "work_cpu_p99_ms": v["work_cpu_p99_ms"],
+            "cpu_overruns": v["cpu_overruns"], "realtime": v["realtime"], "gc_in_loop": len(in_loop),
+            "gc_max_ms": max(in_loop, default=0.0) * 1e3, "estimator_p99_us": float(np.percentile(est, 99)),
+            "estimator_max_us": float(est.max())}
+
+
+def stall_runs(seconds: float, runs: int, folder: Path) -> None:
+    """Where the client's waits for a state come from: quiet loop off and on, a free-running bridge."""
+    print(f"5. stalls: g1-wbc stand {seconds:g} s over DDS against `mbctl serve g1` (free-running), the "
+          f"client in this process (watchdog open), {runs} runs each, quiet loop off (gc on, normal "
+          "priority) and on (no gc in the loop, real-time priority where permitted)")
+    for quiet in (False, True):
+        got = []
+        for run in range(runs):
+            load = loadavg()
+            with reserve_domain() as domain:
+                serve_dir = folder / f"serve-{quiet}-{run}"
+                serve = ("serve", "g1", "--start", "crouched", "--domain", str(domain), "--idle-timeout",
+                         "60")
+                bridge = subprocess.Popen(_mbctl(*serve, "--output", str(serve_dir), "-q"),
+                                          stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
+                try:
+                    wait_until_serving(bridge)
+                    row = _client_in_process(domain, folder / f"wbc-{quiet}-{run}", seconds, quiet)
+                finally:
+                    bridge.send_signal(signal.SIGINT)
+                    bridge.wait(timeout=30)
+                    bridge.stderr.close()
+            b = json.loads((serve_dir / "report.json").read_text())["values"]
+            row.update(bridge_period_max_ms=b["period_max_ms"],
+                       bridge_misses_pct=100 * b["deadline_misses"] / max(1, b["cycles"]))
+            got.append(row)
+            print(f"   quiet {'on ' if quiet else 'off'} run {run + 1} ({row['status']}, realtime "
+                  f"{row['realtime']}, bridge realtime {b.get('realtime')}, load {load}): "
+                  + ", ".join(f"{k} {row[k]:.3f}" for k in _STALL_FIGURES))
+        print(f"   quiet {'on' if quiet else 'off'}: median [min, max] over {runs} runs")
+        for key in _STALL_FIGURES:
+            x = np.array([r[key] for r in got], dtype=float)
+            print(f"     {key:22s} {np.median(x):9.3f}  [{x.min():.3f}, {x.max():.3f}]")
+
+
+def default_runs(seconds: float, runs: int, folder: Path) -> None:
+    """Issue 29's target: ``mbctl g1-wbc stand --interface dds --duration 60`` with no flags finishes."""
+    print(f"6. the default: `mbctl g1-wbc stand --interface dds --duration {seconds:g}` with no other flag "
+          f"against `mbctl serve g1 --start crouched`, {runs} runs")
+    gaps = []
+    for run in range(runs):
+        load = loadavg()
+        with reserve_domain() as domain:
+            out = over_dds(domain, folder / f"default-{run}", ["g1-wbc", "stand", "--duration", str(seconds)],
+                           "--start", "crouched")
+        path = folder / f"default-{run}" / "dds" / "report.json"
+        if not path.exists():
+            print(f"   run {run + 1} (load {load}): exit {out.returncode}, no report: "
+                  f"{out.stderr.strip()[-900:]}")
+            continue
+        report = json.loads(path.read_text())
+        v = report["values"]
+        gaps.append(v.get("state_gap_max_ms", float("nan")))
+        print(f"   run {run + 1} (load {load}): exit {out.returncode}, {report['status']}"
+              f"{': ' + report['message'][:160] if report['message'] else ''}; cycles {v.get('cycles')}, "
+              f"watchdog {v.get('watchdog_events')}, state gap p99 "
+              f"{v.get('state_gap_p99_ms', float('nan')):.2f} ms, max {gaps[-1]:.2f} ms, period max "
+              f"{v.get('period_max_ms', float('nan')):.2f} ms, "
+              f"realtime {v.get('realtime')}")
+    x = np.array(gaps)
+    print(f"   longest wait for a state: median {np.median(x):.2f} ms [{x.min():.2f}, {x.max():.2f}]")
+
+
 def _sim_com(run: Path) -> np.ndarray:
     """The robot's CoM [m] along an in-process run, from its trajectory.npz (Pinocchio on each q)."""
     from mbctl.robots.registry import load_robot
@@ -269,8 +410,20 @@ def main() -> None:
                         help="only issue 20's targets: g1-wbc SCENARIOS (default stand,squat) over DDS")
     parser.add_argument("--wbc-seconds", type=float, default=10.0, help="g1-wbc run length (s)")
     parser.add_argument("--runs", type=int, default=3, help="g1-wbc runs over DDS per scenario")
+    parser.add_argument("--stalls", type=float, default=None, metavar="SECONDS",
+                        help="only: where the client's stalls come from, runs this long (quiet loop off/on)")
+    parser.add_argument("--default", type=float, default=None, metavar="SECONDS",
+                        help="only: g1-wbc stand over DDS with no flags, runs of this length (issue 29: 60)")
     args = parser.parse_args()
     print(f"load average before: {loadavg()} (2 cores, shared)")
+    if args.stalls is not None or args.default is not None:
+        with tempfile.TemporaryDirectory() as tmp:
+            if args.stalls is not None:
+                stall_runs(args.stalls, args.runs, Path(tmp))
+            if args.default is not None:
+                default_runs(args.default, args.runs, Path(tmp))
+        print(f"load average after: {loadavg()}")
+        return
     if args.wbc is not None:
         with tempfile.TemporaryDirectory() as tmp:
             wbc_runs([s for s in args.wbc.split(",") if s], args.wbc_seconds, args.runs, Path(tmp),

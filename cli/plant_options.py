@@ -15,7 +15,7 @@ from mbctl.cli._run import ControllerModelOpt, PayloadOpt, PlantErrorOpt
 
 #: The DDS client's defaults, as mbctl.hardware.unitree_hg has them (the help imports no numpy;
 #: tests/hardware/test_lowstate.py checks they agree).
-WATCHDOG_PERIODS = 3
+WATCHDOG_PERIODS = 25
 CONNECT_TIMEOUT_S = 1.0
 
 InterfaceOpt = Annotated[str, typer.Option("--interface", help="sim (in-process) or dds (the G1's low-level "

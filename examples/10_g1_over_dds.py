@@ -36,7 +36,7 @@ import numpy as np
 from mbctl.control import run
 from mbctl.control.estimation import LegKinematicsEstimator
 from mbctl.control.wbc import Scheduled, Standing, foot_contact_from_model, standing_controller
-from mbctl.hardware import DdsOptions, HardwareError, UnitreeG1
+from mbctl.hardware import WATCHDOG_PERIODS, DdsOptions, HardwareError, UnitreeG1
 from mbctl.robots import ModelFileError, ModelNotFoundError, Robot, load_robot
 from mbctl.robots.edits import position_to_motor
 from mbctl.robots.g1 import FEET, G1_FALL, G1_IMU, KEYFRAME, PELVIS, TORSO, crouched_start
@@ -91,7 +91,7 @@ def start_bridge(domain: int, folder: Path, duration_s: float,
         BridgeStartError: The bridge did not start (its message).
     """
     cmd = [sys.executable, "-m", "mbctl.cli", "serve", "g1", "--start", "crouched", "--domain", str(domain),
-           "--network-interface", "lo", "--idle-timeout", "1", "--duration", str(duration_s + 60),
+           "--network-interface", "lo", "--idle-timeout", "30", "--duration", str(duration_s + 90),
            "--output", str(folder), "-q"]
     if model_dir is not None:
         cmd += ["--model-dir", model_dir]
@@ -105,16 +105,13 @@ def start_bridge(domain: int, folder: Path, duration_s: float,
 
 
 def stop(bridge: subprocess.Popen[str]) -> None:
-    """Let the bridge end (it stops 1 s after the last command); Ctrl-C it if it does not."""
+    """Ctrl-C the bridge (its truth log is complete; it would stop 30 s after the last command)."""
+    bridge.send_signal(signal.SIGINT)
     try:
         bridge.wait(timeout=10)
     except subprocess.TimeoutExpired:
-        bridge.send_signal(signal.SIGINT)
-        try:
-            bridge.wait(timeout=10)
-        except subprocess.TimeoutExpired:
-            bridge.kill()
-            bridge.wait()
+        bridge.kill()
+        bridge.wait()
     if bridge.stderr:
         bridge.stderr.close()
 
@@ -143,7 +140,7 @@ def main() -> int:
     parser.add_argument("--duration", type=float, default=4.0, help="time on each plant [s]")
     parser.add_argument("--domain", type=int, default=None,
                         help="DDS domain id (1..232); default: a free one, reserved while the script runs")
-    parser.add_argument("--watchdog-periods", type=int, default=3,
+    parser.add_argument("--watchdog-periods", type=int, default=WATCHDOG_PERIODS,
                         help="periods without a state before the link counts as lost")
     parser.add_argument("--model-dir", default=None, help="Menagerie unitree_g1 directory")
     args = parser.parse_args()

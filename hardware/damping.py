@@ -6,11 +6,13 @@ motors keep applying the last command they got, so a loop that simply stops leav
 robot on its last torques with no feedback. :class:`DampingKeeper` publishes the damping command
 (``kp = 0``, ``kd`` per motor, no torque; prepared once, CRC included) every period from a thread
 of its own until it is stopped, so what the main thread does meanwhile cannot starve it (the
-write is a few microseconds, GIL released while it waits).
+write is a few microseconds, GIL released while it waits; while it runs, the interpreter asks a
+thread holding the GIL to let go after a quarter period instead of 5 ms).
 """
 
 from __future__ import annotations
 
+import sys
 import threading
 import time
 from collections.abc import Callable
@@ -49,6 +51,9 @@ class DampingKeeper:
             return
         self._stop.clear()
         self._send()
+        # the main thread may hold the GIL in long stretches (plots): ask it back at a quarter period
+        self._switch_s = sys.getswitchinterval()
+        sys.setswitchinterval(min(self._switch_s, self.period_s / 4))
         self._thread = threading.Thread(target=self._run, name="mbctl-damping", daemon=True)
         self._thread.start()
 
@@ -78,3 +83,4 @@ class DampingKeeper:
         self._stop.set()
         self._thread.join()
         self._thread = None
+        sys.setswitchinterval(self._switch_s)

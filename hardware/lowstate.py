@@ -124,6 +124,9 @@ class LowStateStream:
         self._clock: tuple[int, float] | None = None  # (tick, time) the tick clock counts from
         self._arrivals: list[float] = []
         self._base = (0, 0)  # (tick, states before it) the losses count from
+        self._gaps = np.empty(1 << 20)  # between new states once the loop runs [s] (35 min at 500 Hz)
+        self._n_gaps = 0
+        self._loop_began, self._loop_rx = False, None  # the loop's first new state's time, then the last's
         self.q = np.zeros(n_motors)
         self.dq = np.zeros(n_motors)
         self.imu = ImuReading(np.array([1.0, 0, 0, 0]), np.zeros(3), np.zeros(3))
@@ -171,6 +174,11 @@ class LowStateStream:
             return False
         c.valid += 1
         self.time_s = self._time_of(tick, now)
+        if self._loop_rx is not None and self._n_gaps < self._gaps.size:  # the loop runs: its waits
+            self._gaps[self._n_gaps] = now - self._loop_rx
+            self._n_gaps += 1
+        if self._loop_rx is not None or self._loop_began:
+            self._loop_rx = now
         self.tick, self.last_rx = tick, now
         self.q = motors["q"].astype(float)
         self.dq = motors["dq"].astype(float)
@@ -237,6 +245,20 @@ class LowStateStream:
         self._arrivals.clear()
         if self.order == ORDER_TICK and self.tick_step:
             self._clock = (self.tick, self.time_s)
+
+    def begin_loop(self) -> None:
+        """The loop begins: the waits between new states count from its first new state on."""
+        self._loop_began = True
+
+    def gaps_ms(self) -> tuple[float, float] | tuple[None, None]:
+        """The 99th percentile and the longest [ms] of the waits between new states in the loop.
+
+        What the watchdog is compared with; None before two states.
+        """
+        if not self._n_gaps:
+            return None, None
+        gaps = self._gaps[: self._n_gaps] * 1e3
+        return float(np.percentile(gaps, 99)), float(gaps.max())
 
     @property
     def messages_lost(self) -> int:

@@ -41,11 +41,14 @@ first command, a first cycle that warms up); commands are clamped to the model's
 position limits and counted; Ctrl-C (KeyboardInterrupt) goes through ``close()`` and so damps;
 ``dry_run`` reads and never commands.
 
-Garbage collection: the loop's first ``read_state`` moves every object made before it (the
-models, the controller, the buffers) out of the collector's generations (``gc.freeze``;
-``close()`` undoes it), so a collection during the loop scans only what the loop made. Measured
-with g1-wbc over DDS (bench/bench_dds.py): without it the first generation-1 collection of each
-run took 1.0-1.6 ms of a 2 ms period, with it at most 0.16 ms.
+Stalls (``quiet_loop``, measured in bench/bench_dds.py): the loop's first ``read_state`` moves
+every object made before it (the models, the controller, the buffers) out of the collector's
+generations (``gc.freeze``; ``close()`` undoes it) and turns automatic collection off until the
+loop ends (``stop()``), so no collection runs inside the loop; and it raises the loop thread to
+real-time priority where the OS permits it (:class:`~mbctl.unitree.clock.RealtimePriority`; the
+report's ``realtime``), so other work on the machine does not hold it from a core when its state
+arrives. Waiting for a state and sleeping happen in C with the GIL released; nothing else of
+mbctl runs in the process meanwhile (no reader thread: states are taken by the loop itself).
 """
 
 from __future__ import annotations
@@ -67,7 +70,7 @@ from mbctl.robots.interface import BaseStateEstimator, Proprioception, RobotStat
 from mbctl.robots.model_pair import Robot
 from mbctl.robots.plant_report import LinkReport, PlantReport, SafetyReport, TimingReport
 from mbctl.unitree.channel import LOOPBACK, TOPIC_LOWCMD, TOPIC_LOWSTATE, Channel, message_types
-from mbctl.unitree.clock import CycleClock
+from mbctl.unitree.clock import CycleClock, RealtimePriority
 from mbctl.unitree.motors import MODE_PR, MOTOR_ENABLED, MotorMap
 from mbctl.unitree.tables import G1_29DOF, MotorTable
 from mbctl.unitree.wire import low_cmd_codec
@@ -75,7 +78,7 @@ from mbctl.unitree.wire import low_cmd_codec
 #: The longest the first cycle waits for the robot's answer [s] (the watchdog arms after it).
 FIRST_CYCLE_S = 1.0
 #: Periods without a new state after which the link counts as lost, by default.
-WATCHDOG_PERIODS = 3
+WATCHDOG_PERIODS = 25
 #: How long the interface waits for the robot's state stream by default [s].
 CONNECT_TIMEOUT_S = 1.0
 
@@ -94,8 +97,8 @@ class DdsOptions:
         limit_tolerance_rad: How far [rad] a joint may be past its limit at start (encoder slack
             at the end stops).
         dry_run: Read and report the state, never command.
-        freeze_gc: Freeze the garbage collector's view of the objects made before the loop (see
-            the module docstring).
+        quiet_loop: During the loop: no garbage collection (the objects made before it frozen) and
+            real-time priority where permitted (see the module docstring).
         check_state_crc: Refuse LowStates with CRC 0 too (the real G1 signs its states); False
             accepts those unchecked (Unitree's simulator leaves the CRC 0), never a wrong non-zero one.
         cyclone_config: A Cyclone DDS configuration file of the user's, used as written (None:
@@ -109,7 +112,7 @@ class DdsOptions:
     watchdog_periods: int = WATCHDOG_PERIODS
     limit_tolerance_rad: float = 0.01
     dry_run: bool = False
-    freeze_gc: bool = True
+    quiet_loop: bool = True
     check_state_crc: bool = True
     cyclone_config: str | None = None
 
@@ -173,6 +176,9 @@ class UnitreeHG:
         self._read_this_cycle = False
         self._commanded = False
         self._froze_gc = False
+        self._gc_was_on = False
+        self._realtime = RealtimePriority()
+        self._ran_realtime = False
         self._armed = False
         self._fresh = False
         self._state: RobotState | None = None
@@ -347,6 +353,7 @@ class UnitreeHG:
 
         Nothing happens in a dry run or before the first command (the robot was never commanded).
         """
+        self._end_loop()
         if self._keeper is None or not self._commanded or self.options.dry_run:
             return
         self._keeper.start()
@@ -387,12 +394,23 @@ class UnitreeHG:
         self._read_this_cycle = False
 
     def _start_loop(self) -> None:
-        """Cycle 0 starts now: the clock, and (``freeze_gc``) the collector leaves the objects made so far."""
-        if self.options.freeze_gc and not self._froze_gc:
+        """Cycle 0 starts now: the clock and (``quiet_loop``) no collection, real-time priority."""
+        if self.options.quiet_loop and not self._froze_gc:
             # close() unfreezes only what no one else froze before (gc.unfreeze releases all)
             self._froze_gc = gc.get_freeze_count() == 0
             gc.freeze()
+            self._gc_was_on = gc.isenabled()
+            gc.disable()
+            self._ran_realtime = self._realtime.acquire()
+        self.stream.begin_loop()
         self._clock.start()
+
+    def _end_loop(self) -> None:
+        """The loop is over: collection back on, the thread's own priority (idempotent)."""
+        self._realtime.release()
+        if self._gc_was_on:
+            gc.enable()
+            self._gc_was_on = False
 
     def _lost(self, limit_s: float) -> None:
         silent_s = time.perf_counter() - self.stream.last_rx
@@ -430,15 +448,17 @@ class UnitreeHG:
         """The plant's report: the wall-clock timing, the link's counts, clamping, watchdog, damping."""
         t = self._clock.stats()  # its cycles are those started: the one under way is not complete
         timing = TimingReport(max(0, t.cycles - 1), t.period_p50_ms, t.period_p99_ms, t.period_max_ms,
-                              t.deadline_misses,
-                              t.work_p99_ms, t.work_cpu_p99_ms, t.cpu_overruns, self.stale)
+                              t.deadline_misses, t.work_p99_ms, t.work_cpu_p99_ms, t.cpu_overruns, self.stale,
+                              realtime=self._ran_realtime)
         c, o = self.stream.counts, self.options
+        gap_p99, gap_max = self.stream.gaps_ms()
         link = LinkReport("dds", states_received=c.valid, states_lost=self.stream.messages_lost,
                           commands_lost=None, states_superseded=c.superseded, commands_superseded=None,
                           bad_crc=c.bad_crc, bad_encoding=c.bad_encoding, domain=o.domain,
                           network_interface=o.network_interface, mode_machine=self.mode_machine,
                           state_order=self.stream.order, state_rate_hz=1.0 / self._period,
-                          bad_states=c.bad_states, crc_unchecked=c.crc_unchecked)
+                          bad_states=c.bad_states, crc_unchecked=c.crc_unchecked,
+                          state_gap_p99_ms=gap_p99, state_gap_max_ms=gap_max)
         binder = self.commands.binder
         safety = SafetyReport(binder.clamped(), binder.clamped_commands, self.watchdog_events,
                               damped=None if self.options.dry_run else self._damped)
@@ -449,6 +469,7 @@ class UnitreeHG:
         if self.channel is None:
             return
         try:
+            self._end_loop()
             if self._keeper is not None:
                 self._keeper.stop()
             if self._commanded and not self.options.dry_run:

@@ -32,6 +32,8 @@ class TimingReport:
         work_cpu_p99_ms: The same in the loop thread's CPU time [ms]; None in simulation.
         cpu_overruns: Cycles whose CPU time alone exceeded the period; None in simulation.
         stale_cycles: Cycles that found no new state and reused the last one.
+        realtime: Whether the loop ran at real-time scheduling priority (DDS: where the OS permits
+            it); None in simulation.
     """
 
     cycles: int
@@ -43,6 +45,7 @@ class TimingReport:
     work_cpu_p99_ms: float | None = None
     cpu_overruns: int | None = None
     stale_cycles: int = 0
+    realtime: bool | None = None
 
 
 @dataclass(frozen=True)
@@ -73,6 +76,9 @@ class LinkReport:
         bad_states: States refused for their values (DDS: a non-finite or non-unit IMU quaternion,
             non-finite joints or IMU, a tick far ahead of the last).
         crc_unchecked: States accepted with CRC 0, unchecked (DDS, only when asked to).
+        state_gap_p99_ms: 99th percentile of the waits between new states during the loop [ms]
+            (DDS: what the watchdog is compared with).
+        state_gap_max_ms: The longest of them [ms].
     """
 
     kind: str
@@ -95,6 +101,8 @@ class LinkReport:
     state_rate_hz: float | None = None
     bad_states: int | None = None
     crc_unchecked: int | None = None
+    state_gap_p99_ms: float | None = None
+    state_gap_max_ms: float | None = None
 
 
 @dataclass(frozen=True)

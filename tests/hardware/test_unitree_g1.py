@@ -230,19 +230,32 @@ def test_state_ticks_name_the_state_each_cycle_used(g1, fake_g1, dds_domain):
         assert robot.state_ticks == sorted(robot.state_ticks)
 
 
-def test_the_loop_freezes_the_collector_until_close(g1, fake_g1, dds_domain):
-    """Objects made before the loop leave the collector's generations for the loop (gc.freeze), not after."""
+def test_the_loop_runs_quiet_no_collection_real_time_where_permitted(g1, fake_g1, dds_domain):
+    """During the loop: the objects made before it frozen, no automatic collection, real-time priority
+    (where the OS permits it: the report says); after it (stop), collection and priority are back."""
+    import os
+
     fake_g1()
-    before = gc.get_freeze_count()
+    before, policy = gc.get_freeze_count(), os.sched_getscheduler(0)
+    seen = {}
+
+    def during(k, *_):
+        seen.update(frozen=gc.get_freeze_count() > before, collecting=gc.isenabled(),
+                    policy=os.sched_getscheduler(0))
+
     with UnitreeG1(g1, StillBase(), DdsOptions(domain=dds_domain, watchdog_periods=50)) as robot:
         assert gc.get_freeze_count() == before  # connected, the loop not started
-        run(robot, ConstantTorque(g1), HOLD, 0.01)
-        assert gc.get_freeze_count() > before
+        run(robot, ConstantTorque(g1), HOLD, 0.01, on_step=during)
+        realtime = robot.report().timing.realtime
+        assert gc.isenabled() and os.sched_getscheduler(0) == policy  # the loop is over
+    assert seen["frozen"] and not seen["collecting"]
+    assert seen["policy"] == (os.SCHED_FIFO if realtime else policy)
     assert gc.get_freeze_count() == before
-    options = DdsOptions(domain=dds_domain, watchdog_periods=50, freeze_gc=False)
+    options = DdsOptions(domain=dds_domain, watchdog_periods=50, quiet_loop=False)
     with UnitreeG1(g1, StillBase(), options) as robot:
-        run(robot, ConstantTorque(g1), HOLD, 0.01)
-        assert gc.get_freeze_count() == before
+        run(robot, ConstantTorque(g1), HOLD, 0.01, on_step=during)
+        assert robot.report().timing.realtime is False
+    assert seen == {"frozen": False, "collecting": True, "policy": policy}
 
 
 def test_the_estimator_starts_from_the_first_reading_and_gives_the_base(g1, fake_g1, dds_domain):
