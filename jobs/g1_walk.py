@@ -223,11 +223,17 @@ def _signature() -> None:
 _signature()
 
 
+#: The G1's arm swing: each shoulder pitch against the other side's hip pitch.
+G1_ARM_SWING = {"left_shoulder_pitch_joint": "right_hip_pitch_joint",
+                "right_shoulder_pitch_joint": "left_hip_pitch_joint"}
+
+
 def g1_walker(robot: Robot, start_q: np.ndarray, pin_model: pin.Model | None = None,
               config: WalkingConfig | None = None) -> WalkingController:
-    """The walking controller on a torque-mode G1 (G1 frame names), from the start configuration."""
+    """The walking controller on a torque-mode G1 (G1 frame names, arm swing) from the start configuration."""
     return WalkingController(robot, FEET, PELVIS, TORSO, start_q,
-                             config or WalkingConfig(wbc=WBCConfig(on_infeasible="damp")), pin_model)
+                             config or WalkingConfig(wbc=WBCConfig(on_infeasible="damp")), pin_model,
+                             arm_swing=G1_ARM_SWING)
 
 
 def prepare(params: WalkParams, robot: Robot | None = None) -> Work:

@@ -44,7 +44,8 @@ can carry it past one), so the width is never below ``w_min`` and the feet never
 
 **Waypoints** (:class:`WaypointFollower`): (x, y, yaw) goals, one after the other; the command
 is a proportional law in the body frame toward the current goal (toward an intermediate one at no
-less than a cruise speed, so the walk does not stop at each), clamped as above, and the goal counts
+less than a cruise speed, so the walk does not stop at each; facing the way to it while it is more
+than ``FACE_WITHIN_M`` ahead, turning to its heading nearer), clamped as above, and the goal counts
 as reached within a position and a yaw tolerance.
 """
 
@@ -76,6 +77,8 @@ YAW_FRACTION = 0.25
 #: Timing bounds [s].
 MIN_SINGLE_SUPPORT_S, MAX_SINGLE_SUPPORT_S = 0.25, 1.5
 MIN_DOUBLE_SUPPORT_S, MAX_DOUBLE_SUPPORT_S = 0.02, 0.5
+#: The waypoint follower faces the way to a goal farther than this [m] (and turns to its heading nearer).
+FACE_WITHIN_M = 0.3
 #: A joint axis counts as vertical when its z component exceeds this [-].
 VERTICAL_AXIS = 0.9
 
@@ -426,4 +429,9 @@ class WaypointFollower:
         speed = math.hypot(vx, vy)
         if self.index < len(self.waypoints) - 1 and 0 < speed < self.cruise_m_s:
             vx, vy = vx * self.cruise_m_s / speed, vy * self.cruise_m_s / speed
+        # far from the goal: face the way to it (walking forward is a biped's best gait), slowing while
+        # turning; near it (within FACE_WITHIN_M): turn to its heading
+        bearing = math.atan2(ey, ex)
+        if math.hypot(ex, ey) > FACE_WITHIN_M and abs(bearing) < math.pi / 2:
+            return VelocityCommand(vx * max(math.cos(bearing), 0.0), vy * 0.5, k * bearing)
         return VelocityCommand(vx, vy, k * math.remainder(gyaw - yaw, 2 * math.pi))

@@ -40,7 +40,7 @@ parameters (the G1's come from ``mbctl.robots.g1`` in the jobs).
 from __future__ import annotations
 
 import math
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -164,6 +164,9 @@ class WalkingController:
         contact_force: ``foot -> measured normal force [N]`` (or None), for touchdown detection.
         contact_listener: Told ``{foot: in contact}`` whenever a foot's contact starts or ends (e.g.
             a base-state estimator's ``set_contacts``, so it switches its stance foot with the gait).
+        arm_swing: Arm joint -> the leg joint it swings against (e.g. each shoulder pitch against the
+            other side's hip pitch); its posture target is its start angle plus ``arm_swing_gain``
+            times the leg joint's angle from its start.
 
     Raises:
         WBCSetupError: Bad options or frames.
@@ -175,7 +178,8 @@ class WalkingController:
     def __init__(self, robot: Robot, feet: Sequence[str], base_frame: str, torso_frame: str | None,
                  reference_q: np.ndarray, config: WalkingConfig | None = None,
                  pin_model: pin.Model | None = None, contact_force: ContactForce | None = None,
-                 contact_listener: Callable[[dict[str, bool]], object] | None = None):
+                 contact_listener: Callable[[dict[str, bool]], object] | None = None,
+                 arm_swing: Mapping[str, str] | None = None):
         self.config = cfg = config or WalkingConfig()
         if len(feet) != 2:
             raise WBCSetupError(f"walking needs two feet (left, right); got {list(feet)}")
@@ -201,6 +205,13 @@ class WalkingController:
                                              cfg.swing_orientation_cost) for f in self.feet}
         self.contact_force = contact_force
         self.contact_listener = contact_listener
+        iq = {j: self.model.joints[self.model.getJointId(j)].idx_q for pair in (arm_swing or {}).items()
+              for j in pair if self.model.existJointName(j)}
+        missing = sorted({j for pair in (arm_swing or {}).items() for j in pair} - set(iq))
+        if missing:
+            raise WBCSetupError(f"arm_swing names joints the model does not have: {', '.join(missing)}")
+        self._arm_swing = [(iq[arm], iq[leg]) for arm, leg in (arm_swing or {}).items()]
+        self._posture_target = self.reference_q.copy()
         self._in_contact: dict[str, bool] = {}
         self._fids = {f: self.model.getFrameId(f) for f in self.feet}
         self._clamp = self.planner.clamp(VelocityCommand())
@@ -333,6 +344,11 @@ class WalkingController:
         self.standing.com.set_target([com[0], com[1], z_ref], [vcom[0], vcom[1], vz_ref], acc)
         self._orient(gait.heading(t))
         self._swing(gait, t)
+        if self._arm_swing and cfg.arm_swing_gain:
+            target, q0 = self._posture_target, self.reference_q
+            for arm, leg in self._arm_swing:
+                target[arm] = q0[arm] + cfg.arm_swing_gain * (state.q[leg] - q0[leg])
+            self.standing.posture.set_target(target)
         self.status = WalkingStatus(t, gait.phase, gait.stance_name, xi, ref.xi, ref.vrp,
                                     support.margin(ref.vrp), cmp, support.margin(cmp), cmp_c, acc,
                                     tuple(steps), event, self._adaptation)

@@ -38,6 +38,9 @@ class WalkingConfig:
             tilted touches down on an edge).
         com_cost: Weight of the CoM task [cost]/[m] (the standing set's is 10).
         momentum_cost: Weight of the angular-momentum damping [cost]/[N m] (the standing set's is 0.2).
+        arm_swing_gain: Each swinging arm joint's posture target moves by this times its leg joint's
+            angle from the start (the controller's ``arm_swing`` pairs; 0: arms held) [-]: the arms
+            swing against the legs, so the angular-momentum damping does not fling them.
         height_gains: PD gains of the CoM height (the CoM task's; its horizontal error is zero by
             construction: the horizontal acceleration is the DCM law's).
         touchdown_force_n: A measured normal force above this [N] is a touchdown.
@@ -74,6 +77,7 @@ class WalkingConfig:
     swing_orientation_cost: float = 3.0
     com_cost: float = 30.0
     momentum_cost: float = 0.2
+    arm_swing_gain: float = 2.0
     height_gains: AccelerationGains = AccelerationGains(10.0, 1.0)
     touchdown_force_n: float = 20.0
     touchdown_height_m: float = 0.003
@@ -97,6 +101,7 @@ class WalkingConfig:
             "ramp_s": 0 < self.ramp_s <= self.timing.double_support_s, "swing_cost": self.swing_cost > 0,
             "swing_orientation_cost": self.swing_orientation_cost > 0,
             "com_cost": self.com_cost > 0, "momentum_cost": self.momentum_cost >= 0,
+            "arm_swing_gain": self.arm_swing_gain >= 0,
             "touchdown_force_n": self.touchdown_force_n > 0,
             "touchdown_height_m": self.touchdown_height_m >= 0,
             "early_touchdown_phase": 0 <= self.early_touchdown_phase <= 1,

@@ -152,7 +152,10 @@ def test_waypoints_are_followed_in_turn_and_reported():
     assert cmd == VelocityCommand(1.0, 0.0, 0.0)  # gain 1/s times the error in the body frame
     cmd = follower.command([0.98, 0.0, 0.0], 1.5)  # within 5 cm of the first: on to the second
     assert follower.index == 1 and follower.reached_at_s[0] == 1.5
-    assert cmd == pytest.approx(VelocityCommand(0.02, 1.0, math.pi / 2))
+    bearing = math.atan2(1.0, 0.02)  # 1 m away, nearly to the left: face it, slowly, half the side step
+    assert tuple(cmd) == pytest.approx((0.02 * math.cos(bearing), 0.5, bearing))
+    near = follower.command([1.0, 0.8, math.pi / 2], 2.0)  # 0.2 m short (within 0.3 m): to its heading
+    assert tuple(near) == pytest.approx((0.2, 0.0, 0.0), abs=1e-12)
     cmd = follower.command([1.0, 1.0, math.pi / 2 - 0.01], 4.0)
     assert follower.done and cmd == VelocityCommand() and follower.reached_at_s[1] == 4.0
     assert follower.errors([1.0, 1.0, math.pi / 2 - 0.01]) == pytest.approx((0.0, 0.01))

@@ -128,6 +128,9 @@ def test_the_command_is_clamped_and_reported(tiny_biped, crouch):
         WalkingController(tiny_biped, ["l_sole"], "pelvis", "torso", crouch(tiny_biped), CONFIG)
     with pytest.raises(WBCSetupError, match="ramp_s"):
         WalkingConfig(ramp_s=0.2)
+    with pytest.raises(WBCSetupError, match="arm_swing names joints the model does not have: l_shoulder"):
+        WalkingController(tiny_biped, FEET, "pelvis", "torso", crouch(tiny_biped), CONFIG,
+                          arm_swing={"l_shoulder": "r_hip_pitch"})
 
 
 LIMITS = StepLimits(0.36, 0.2, 0.2, 0.24, 0.1, 0.6)
