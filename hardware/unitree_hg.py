@@ -36,7 +36,7 @@ job gives (:class:`~mbctl.robots.interface.BaseStateEstimator`) and ``RobotState
 
 Safety: ``watchdog_periods`` periods without a new LowState send the damping command and raise
 :class:`LinkLost` ("link lost", with what the stream saw); the watchdog arms after the first
-completed cycle (the first waits up to :data:`FIRST_CYCLE_S`: a plant that only starts on the
+completed cycle (the first waits up to ``FIRST_CYCLE_S``, 1 s: a plant that only starts on the
 first command, a first cycle that warms up); commands are clamped to the model's torque and
 position limits and counted; Ctrl-C (KeyboardInterrupt) goes through ``close()`` and so damps;
 ``dry_run`` reads and never commands.
@@ -370,7 +370,7 @@ class UnitreeHG:
 
         Raises:
             LinkLost: No new LowState for ``watchdog_periods`` periods (the damping command was
-                sent if anything was commanded), or :data:`FIRST_CYCLE_S` in the first cycle.
+                sent if anything was commanded), or ``FIRST_CYCLE_S`` (1 s) in the first cycle.
         """
         clock, period = self._clock, self._period
         if clock.cycles == 0:

@@ -9,13 +9,13 @@ generic over the robots that speak ``unitree_hg``; a robot is a :class:`MotorTab
   the packed words;
 - ``channel``: DDS on one domain and one network interface (``lo`` by default), raw-bytes readers
   and writers; ``domain_lock``: one test or bench per domain on this machine;
-- ``clock``: the wall-clock cycle pacing and its statistics.
+- ``clock``: the wall-clock cycle pacing and its statistics, and real-time priority for a loop.
 
 DDS needs the ``hardware`` extra; the rest needs numpy only.
 """
 
 from mbctl.unitree.channel import LOOPBACK, TOPIC_LOWCMD, TOPIC_LOWSTATE, Channel
-from mbctl.unitree.clock import CycleClock, PeriodStats
+from mbctl.unitree.clock import CycleClock, PeriodStats, RealtimePriority
 from mbctl.unitree.exceptions import ChannelError, MotorTableError, UnitreeError, WireFormatError
 from mbctl.unitree.motors import MOTOR_SLOTS, MotorMap
 from mbctl.unitree.tables import G1_23DOF, G1_29DOF, G1_MOTOR_JOINTS, TABLES, MotorTable
@@ -40,6 +40,7 @@ __all__ = [
     "MotorTable",
     "MotorTableError",
     "PeriodStats",
+    "RealtimePriority",
     "UnitreeError",
     "WireFormatError",
     "low_cmd_codec",

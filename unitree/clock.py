@@ -14,7 +14,7 @@ the period in wall time but not in CPU time was waiting for a core (the machine'
 computing: ``cpu_overruns`` counts the cycles whose CPU time alone overran.
 
 A loop's process can run at real-time priority (:class:`RealtimePriority`: ``SCHED_FIFO`` at
-:data:`REALTIME_PRIORITY`, where the OS permits it), so the machine's other work does not keep it
+``REALTIME_PRIORITY``, where the OS permits it), so the machine's other work does not keep it
 from a core when its state arrives; it still sleeps between cycles, so it does not starve them.
 """
 
@@ -159,7 +159,7 @@ REALTIME_PRIORITY = 20
 
 
 class RealtimePriority:
-    """Every thread of the process at ``SCHED_FIFO`` :data:`REALTIME_PRIORITY` until :meth:`release`.
+    """Every thread of the process at ``SCHED_FIFO`` ``REALTIME_PRIORITY`` (20) until :meth:`release`.
 
     Every thread of the process, not only the loop's: the loop waits on the others (DDS's receive
     threads deliver its states; a thread of the job's, a CSV flusher, may hold the GIL or a lock
