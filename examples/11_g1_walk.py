@@ -92,7 +92,9 @@ def main() -> int:
     sim.reset(KEYFRAME)
     sim.set_state(q0, np.zeros(robot.nv))
     config = WalkingConfig(wbc=WBCConfig(on_infeasible="damp"))  # no QP solution: damping, and see it fall
-    walker = WalkingController(robot, FEET, PELVIS, TORSO, q0, config)
+    arms = {"left_shoulder_pitch_joint": "right_hip_pitch_joint",  # each arm swings against the other leg
+            "right_shoulder_pitch_joint": "left_hip_pitch_joint"}
+    walker = WalkingController(robot, FEET, PELVIS, TORSO, q0, config, arm_swing=arms)
     feet = {name: contact.contact.geoms for name, contact in walker.wbc.contacts.items()}
     monitor = PlantMonitor(sim, feet, sites=FEET, fall_rule=G1_FALL.reason).attach()
     walker.contact_force = lambda foot: monitor.contacts[foot].normal_n if monitor.contacts else None

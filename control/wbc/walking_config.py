@@ -62,7 +62,7 @@ class WalkingConfig:
 
     com_height_m: float = 0.64
     timing: GaitTiming = field(default_factory=lambda: GaitTiming(0.5, 0.1))
-    start_s: float = 0.8
+    start_s: float = 0.6
     lift_height_m: float = 0.07
     landing_depth_m: float = 0.005
     step_adaptation: bool = True
@@ -88,7 +88,7 @@ class WalkingConfig:
     heading_gain_1_s: float = 1.0
     speed_gain: float = 0.3
     max_speed_correction_m_s: float = 0.15
-    max_acceleration: tuple[float, float, float] = (0.5, 0.5, 1.0)
+    max_acceleration: tuple[float, float, float] = (1.0, 0.5, 1.0)
     wbc: WBCConfig = field(default_factory=WBCConfig)
 
     def __post_init__(self) -> None:

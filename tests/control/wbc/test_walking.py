@@ -60,8 +60,9 @@ def test_the_biped_walks_forward_with_ramped_contact_switches(tiny_biped, crouch
     walker, log, rows = _walk(tiny_biped, crouch, (0.15, 0.0, 0.0), 3.2)
     assert log.cycles == 1600 and log.q[:, 2].min() > 0.5  # did not fall (pelvis starts at 0.55 m)
     assert walker.wbc.infeasible_at_s is None
-    # 0.15 m/s reached at 0.5 m/s^2 from the first step at 0.8 s: about 0.3 m forward, straight
-    assert 0.2 < log.q[-1, 0] - log.q[0, 0] < 0.45 and abs(log.q[-1, 1] - log.q[0, 1]) < 0.05
+    # 0.15 m/s from the first step at 0.6 s: about 0.35 m forward, straight (the pelvis's y averaged over
+    # the last stride, 0.6 s, which sways 5 cm to each foot)
+    assert 0.25 < log.q[-1, 0] - log.q[0, 0] < 0.5 and abs(log.q[-300:, 1].mean() - log.q[0, 1]) < 0.03
     events = [(r[2].kind, r[2].foot) for r in rows if r[2] is not None]
     assert events[:6] == [("release", "l_sole"), ("lift-off", "l_sole"), ("touchdown", "l_sole"),
                           ("release", "r_sole"), ("lift-off", "r_sole"), ("touchdown", "r_sole")]
