@@ -319,6 +319,9 @@ def _run(ctx: RunContext, params: WalkParams, robot: Robot, walker: WalkingContr
     truth_fell = report_plant(ctx, p, run_log, G1_FALL.base_min_z_m)
     if truth_fell is not None:
         values["fell"] = truth_fell
+    drift = values.get("estimator_position_error_max_m")
+    if drift is not None and values["distance_m"] > 0.1:  # the estimator's worst error per metre walked
+        values["estimator_drift_m_per_m"] = drift / values["distance_m"]
     from mbctl.jobs.g1_walk_plots import walk_plots
 
     walk_plots(ctx, log, walker, params, values)
