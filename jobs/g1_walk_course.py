@@ -95,7 +95,7 @@ class CourseWalker:
         gait = self.walker.gait
         if gait is None:
             return pose_of(state.q)
-        mid = 0.5 * sum(s.position[:2] for s in gait.placed.values())
+        mid = np.mean([s.position[:2] for s in gait.placed.values()], axis=0)
         return np.array([mid[0], mid[1], gait.heading(state.time_s)])
 
     def reset(self) -> None:
@@ -105,9 +105,11 @@ class CourseWalker:
 
     def compute(self, state: RobotState, reference: object = None) -> Command:
         """The capped command toward the current waypoint, then the walker's torques."""
-        command = self.follower.command(self.pose(state), state.time_s)
-        self.walker.set_command(tuple(float(np.clip(c, -cap, cap)) for c, cap in zip(command, self.caps,
-                                                                                      strict=True)))
+        vx, vy, wz = self.follower.command(self.pose(state), state.time_s)
+        caps = self.caps
+        self.walker.set_command(VelocityCommand(min(max(vx, -caps.vx_m_s), caps.vx_m_s),
+                                                min(max(vy, -caps.vy_m_s), caps.vy_m_s),
+                                                min(max(wz, -caps.yaw_rate_rad_s), caps.yaw_rate_rad_s)))
         return self.walker.compute(state)
 
     def values(self, q_final: np.ndarray) -> dict[str, Any]:
