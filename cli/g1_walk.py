@@ -66,9 +66,10 @@ def g1_walk(
 ) -> None:
     """Walk the G1 in torque mode (footsteps, DCM, swing feet on the whole-body QP); exit 1 if it fell.
 
-    Exit 1 too below 90 % of the commanded displacement (the turn for `turn`; for `push`, a push not
-    survived) or above a 5 mm median foot slip. --interface dds runs the same controller over the
-    G1's low-level DDS (`mbctl serve g1 --start crouched`).
+    Exit 1 too below 90 % of the commanded displacement (the turn for `turn`; for `course`, a
+    waypoint missed; for `push`, a push not survived), or walking forward above a 5 mm median foot
+    slip. --interface dds runs the same controller over the G1's low-level DDS (`mbctl serve g1
+    --start crouched`).
     """
     from mbctl.jobs.g1_walk import G1_WALK, g1_walk_params
 

@@ -25,8 +25,9 @@ truth log with ``--truth``, else the estimate: ``displacement_source``), ``comma
 the command integrated over the run (speed x duration for a constant command; the heading turned
 by the yaw rate), ``displacement_fraction`` the displacement along it over its length, and for a
 turn ``yaw_fraction`` the pelvis's turn over the commanded one. A run passes (exit 0) when the G1
-did not fall, the median foot slip is within :data:`MAX_MEDIAN_SLIP_M` and the displacement
-(yaw for ``turn``) is at least :data:`MIN_FRACTION` of the commanded one.
+did not fall and the displacement (yaw for ``turn``) is at least :data:`MIN_FRACTION` of the
+commanded one (``course``: every waypoint reached; ``push``: every push survived); ``forward`` also
+needs a median foot slip within :data:`MAX_MEDIAN_SLIP_M` (the issue's target for it).
 """
 
 from __future__ import annotations
@@ -67,7 +68,7 @@ DEFAULT_SPEED = WALK_DEFAULT_SPEED
 DEFAULT_DURATION_S = WALK_DEFAULT_DURATION_S
 #: A run passes with at least this fraction of the commanded displacement (yaw for a turn) [-].
 MIN_FRACTION = 0.9
-#: ... and a median foot slip within this [m].
+#: ... and, walking forward, a median foot slip within this [m].
 MAX_MEDIAN_SLIP_M = 0.005
 #: Default push impulse [N s].
 DEFAULT_IMPULSE_N_S = 15.0
@@ -360,7 +361,11 @@ def _outcome(params: WalkParams, v: dict[str, Any], time_s: float) -> Outcome:
     """Pass: no fall, the median slip within bound, the commanded displacement or turn (push: survived)."""
     fraction = v["yaw_fraction"] if params.scenario == "turn" else v["displacement_fraction"]
     slip = v["median_foot_slip_m"]
-    checks = [v["fell"] is False, slip is None or slip <= MAX_MEDIAN_SLIP_M]
+    checks = [v["fell"] is False]
+    forward = params.scenario == "forward"
+    slip_bound = f", median foot slip <= {MAX_MEDIAN_SLIP_M * 1e3:g} mm" if forward else ""
+    if slip_bound:
+        checks.append(slip is None or slip <= MAX_MEDIAN_SLIP_M)
     if params.scenario == "push":
         checks.append(v["pushes_survived"] == v["pushes_planned"])
     elif params.scenario == "course":
@@ -388,15 +393,14 @@ def _outcome(params: WalkParams, v: dict[str, Any], time_s: float) -> Outcome:
                               f"{'survived' if p['survived'] else 'FELL'}, recovered in "
                               f"{p['recovery_steps'] if p['recovery_steps'] is not None else 'n/a'} steps"
                               for p in v["pushes"]) + ")",)
-        bound = f"no fall, every push survived, median foot slip <= {MAX_MEDIAN_SLIP_M * 1e3:g} mm"
+        bound = "no fall, every push survived"
     elif params.scenario == "course":
         lines += (f"course: {v['waypoints_reached']} of {v['waypoints_planned']} waypoints reached (within "
                   f"0.10 m and 10 deg), the last at {v['course_time_s'] or float('nan'):.1f} s; final error "
                   f"{v['final_position_error_m']:.3f} m, {v['final_yaw_error_deg']:.1f} deg",)
-        bound = f"no fall, every waypoint reached, median foot slip <= {MAX_MEDIAN_SLIP_M * 1e3:g} mm"
+        bound = "no fall, every waypoint reached"
     else:
-        bound = (f"no fall, {what} >= {MIN_FRACTION:.0%} of the commanded, median foot slip <= "
-                 f"{MAX_MEDIAN_SLIP_M * 1e3:g} mm")
+        bound = f"no fall, {what} >= {MIN_FRACTION:.0%} of the commanded{slip_bound}"
     return Outcome(all(checks), lines, bound)
 
 
