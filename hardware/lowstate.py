@@ -23,8 +23,8 @@ reading), and its arrival time before.
 
 The rate is measured at connect (:meth:`LowStateStream.measured_period`): over the first
 :data:`RATE_STATES` valid arrivals (a held robot's repeats included: they come at its rate), the
-mean interval between arrivals :data:`RATE_SPAN` apart, its lower quartile (a stall of either
-process only lengthens intervals; a burst shortens one span, not most), snapped to the nearest of
+mean interval between arrivals :data:`RATE_SPAN` apart, its median (a stall of either process
+lengthens a few spans, a burst of queued states shortens a few), snapped to the nearest of
 :data:`ROUND_RATES_HZ` within :data:`SNAP` (a robot's timer runs at a round rate: 2.06 ms measured on
 a loaded machine is the G1's 2 ms), else rounded to two significant digits.
 """
@@ -126,7 +126,8 @@ class LowStateStream:
         self._base = (0, 0)  # (tick, states before it) the losses count from
         self._gaps = np.empty(1 << 20)  # between new states once the loop runs [s] (35 min at 500 Hz)
         self._n_gaps = 0
-        self._loop_began, self._loop_rx = False, None  # the loop's first new state's time, then the last's
+        self._loop_began = False
+        self._loop_rx: float | None = None  # the time of the loop's last new state [s]
         self.q = np.zeros(n_motors)
         self.dq = np.zeros(n_motors)
         self.imu = ImuReading(np.array([1.0, 0, 0, 0]), np.zeros(3), np.zeros(3))
@@ -230,7 +231,7 @@ class LowStateStream:
         if t.size < RATE_STATES:
             return None
         spans = (t[RATE_SPAN:] - t[:-RATE_SPAN]) / RATE_SPAN
-        period = float(np.percentile(spans, 25))
+        period = float(np.median(spans))
         if period <= 0:
             return period
         nearest = 1.0 / min(ROUND_RATES_HZ, key=lambda hz: abs(1.0 / hz - period))

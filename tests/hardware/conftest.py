@@ -96,7 +96,10 @@ class FakeG1:
                 else:
                     self.bad_commands += 1
             next_s += self.period_s  # a timer's grid, as a robot's: no drift from the work done
-            time.sleep(max(0.0, next_s - time.perf_counter()))
+            now = time.perf_counter()
+            if next_s < now:  # held up: go on from now, no burst of catch-up states (as a robot)
+                next_s = now
+            time.sleep(next_s - now)
 
     def set_q(self, q: np.ndarray, bad_crc: bool = False) -> None:
         """Publish motor positions ``q`` (29,) [rad], with a bad CRC if ``bad_crc``, from the next message on.

@@ -17,13 +17,13 @@ from mbctl.hardware import (
     LinkLost,
     NoRobotError,
     UnitreeG1,
-    default_damping,
 )
 from mbctl.hardware.unitree_hg import FIRST_CYCLE_S
 from mbctl.robots.commands import ctrl, position_target, torque, velocity_target
 from mbctl.robots.exceptions import CommandError
 from mbctl.robots.interface import BASE_LINEAR_VELOCITY, BASE_POSITION
 from mbctl.unitree import MotorMap
+from tests.hardware.wire_tap import is_damping as _is_damping
 
 
 class StillBase:
@@ -63,12 +63,6 @@ def _wait_for(predicate, timeout_s=2.0):
     while not predicate() and time.monotonic() < deadline:
         time.sleep(0.005)
     return predicate()
-
-
-def _is_damping(cmd, robot):
-    kd = default_damping(MotorMap.for_robot(robot))
-    return (np.all(cmd["kp"] == 0) and np.allclose(cmd["kd"], kd, rtol=1e-6) and np.all(cmd["tau"] == 0)
-            and np.all(cmd["mode"] == 1))
 
 
 def test_no_robot_gives_up_at_the_configured_timeout_naming_domain_and_interface(g1, dds_domain):

@@ -126,7 +126,7 @@ def _first_line(proc: subprocess.Popen[str]) -> str:
 
 
 def stop(proc: subprocess.Popen[str]) -> str:
-    """End the simulator (SIGINT, then kill) and return the rest of its stderr."""
+    """End a process of the tests' (a simulator, a bridge): Ctrl-C, then kill; the rest of its stderr."""
     if proc.poll() is None:
         proc.send_signal(signal.SIGINT)
         try:
@@ -135,8 +135,9 @@ def stop(proc: subprocess.Popen[str]) -> str:
             proc.kill()
             proc.wait()
     rest = proc.stderr.read() if proc.stderr and not proc.stderr.closed else ""
-    if proc.stderr:
-        proc.stderr.close()
+    for pipe in (proc.stdout, proc.stderr):
+        if pipe:
+            pipe.close()
     return rest
 
 

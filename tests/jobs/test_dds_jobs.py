@@ -24,6 +24,7 @@ from mbctl.sim.dds_bridge import wait_until_serving
 from mbctl.unitree import ChannelError
 from mbctl.unitree.domain_lock import reserve_domain
 from tests.conftest import mbctl_command, run_mbctl
+from tests.hardware.unitree_sim_harness import stop
 
 #: The end-to-end runs share 2 cores with other work: a stall of either process is not a lost link
 #: there (lock-step: the bridge waits for the client). The watchdog itself is tested against a fake
@@ -45,15 +46,7 @@ def bridge(domain: int, folder: Path, *extra: str):
         wait_until_serving(proc)  # the "serving" line, once DDS is up (killed after 120 s without)
         yield proc
     finally:
-        if proc.poll() is None:
-            proc.send_signal(signal.SIGINT)
-            try:
-                proc.wait(timeout=10)
-            except subprocess.TimeoutExpired:
-                proc.kill()
-                proc.wait()
-        proc.stdout.close()
-        proc.stderr.close()
+        stop(proc)  # Ctrl-C, then kill
 
 
 def test_g1_stand_over_dds_stands_and_checks_against_the_truth(g1, dds_domain, tmp_path):
