@@ -55,6 +55,7 @@ import pinocchio as pin
 sys.path.insert(0, str(Path(__file__).parent))
 from harness import interleaved  # noqa: E402
 
+from mbctl.hardware import WATCHDOG_PERIODS  # noqa: E402
 from mbctl.sim.dds_bridge import wait_until_serving  # noqa: E402
 from mbctl.unitree import TOPIC_LOWCMD, Channel, low_cmd_codec, low_state_codec  # noqa: E402
 from mbctl.unitree.channel import message_types  # noqa: E402
@@ -405,7 +406,7 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--seconds", type=float, default=30.0, help="g1-stand over DDS duration (s); 0 skips")
     parser.add_argument("--estimator", default="30,60", help="estimator run lengths (s), comma-separated")
-    parser.add_argument("--watchdog-periods", type=int, default=3, help="the DDS client's watchdog")
+    parser.add_argument("--watchdog-periods", type=int, default=WATCHDOG_PERIODS, help="the DDS client's watchdog")
     parser.add_argument("--wbc", nargs="?", const="stand,squat", default=None,
                         help="only issue 20's targets: g1-wbc SCENARIOS (default stand,squat) over DDS")
     parser.add_argument("--wbc-seconds", type=float, default=10.0, help="g1-wbc run length (s)")
