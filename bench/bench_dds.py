@@ -406,7 +406,8 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--seconds", type=float, default=30.0, help="g1-stand over DDS duration (s); 0 skips")
     parser.add_argument("--estimator", default="30,60", help="estimator run lengths (s), comma-separated")
-    parser.add_argument("--watchdog-periods", type=int, default=WATCHDOG_PERIODS, help="the DDS client's watchdog")
+    parser.add_argument("--watchdog-periods", type=int, default=WATCHDOG_PERIODS,
+                        help="the DDS client's watchdog")
     parser.add_argument("--wbc", nargs="?", const="stand,squat", default=None,
                         help="only issue 20's targets: g1-wbc SCENARIOS (default stand,squat) over DDS")
     parser.add_argument("--wbc-seconds", type=float, default=10.0, help="g1-wbc run length (s)")
