@@ -44,7 +44,7 @@ class WBCConfig:
             and ``damping``, viscous: the MJCF's ``frictionloss`` and ``damping``) to the QP's
             torques at the velocity the cycle plans, ``v + vdot dt``, then clamp to the torque
             limits. A loaded joint hardly notices; an unloaded limb (a free leg, a wrist) whose
-            torques are below its dry friction sticks without it (the Menagerie G1's 0.3 N m).
+            torques are below its dry friction sticks without it (e.g. 0.3 N m of frictionloss per joint).
         friction_speed_rad_s: Speed [rad/s] (> 0) at which the Coulomb term reaches 76 % of its
             value (``tanh(v / speed)``): a smooth sign, so a joint at rest gets none.
     """

@@ -22,6 +22,7 @@ from mbctl.jobs.g1 import (
     prepare_stand,
     prepare_track,
 )
+from mbctl.jobs.exceptions import OutputError
 from mbctl.jobs.g1_plots import limb_rows
 from mbctl.jobs.plots import coincident_groups
 from mbctl.jobs.recording import q_columns, v_columns
@@ -199,11 +200,15 @@ def test_interrupted_run_keeps_every_row_and_exits_130(g1, tmp_path, sig):
     assert not list(tmp_path.glob(".*.tmp")) and not (tmp_path / LOCK_NAME).exists()
     assert sorted(os.listdir(tmp_path)) == ["g1_stand.csv", "model.xml", "report.json", "trajectory.npz"]
 
-    # the next run into the folder leaves no file of the interrupted one beside its own
-    record = _run(prepare_track, TrackParams(duration_s=0.1), g1, tmp_path, "g1-track")
-    assert record.status == "completed"
+    # another job's run into the folder is refused, the interrupted run kept (issue 31)
+    with pytest.raises(OutputError, match="holds a run of `mbctl g1-stand`"):
+        _run(prepare_track, TrackParams(duration_s=0.1), g1, tmp_path, "g1-track")
+    assert sorted(os.listdir(tmp_path)) == ["g1_stand.csv", "model.xml", "report.json", "trajectory.npz"]
+    # the next run of the same job replaces it, leaving no file of the interrupted one beside its own
+    record = _run(prepare_stand, StandParams(duration_s=0.1), g1, tmp_path, "g1-stand")
+    assert record.status == "completed" and record.rows < n_rows
     assert sorted(os.listdir(tmp_path)) == [
-        "g1_track.csv", "g1_track.png", "model.xml", "report.json", "trajectory.npz"]
+        "g1_stand.csv", "g1_stand.png", "model.xml", "report.json", "trajectory.npz"]
 
 
 def test_run_after_a_diverged_run_leaves_none_of_its_files(g1, tmp_path):
@@ -217,10 +222,12 @@ def test_run_after_a_diverged_run_leaves_none_of_its_files(g1, tmp_path):
     assert sorted(os.listdir(tmp_path)) == ["g1_arm_pd.csv", "model.xml", "report.json", "trajectory.npz"]
     assert json.loads((tmp_path / "report.json").read_text())["rows"] == diverged.rows > 0
 
-    record = _run(prepare_stand, StandParams(duration_s=0.1), g1, tmp_path, "g1-stand")
+    with pytest.raises(OutputError, match="holds a run of `mbctl g1-arm-pd`"):
+        _run(prepare_stand, StandParams(duration_s=0.1), g1, tmp_path, "g1-stand")
+    record = _run(prepare_arm_pd, ArmPDParams(duration_s=0.1), g1, tmp_path, "g1-arm-pd")
     assert record.status == "completed"
     assert sorted(os.listdir(tmp_path)) == [
-        "g1_stand.csv", "g1_stand.png", "model.xml", "report.json", "trajectory.npz"]
+        "g1_arm_pd.csv", "g1_arm_pd.png", "model.xml", "report.json", "trajectory.npz"]
 
 
 def test_second_run_into_a_busy_folder_refuses(g1, tmp_path):
