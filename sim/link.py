@@ -61,6 +61,9 @@ class LinkSpec:
                 raise SimError(f"{name} must be finite and >= 0; got {value}")
         if not (np.isfinite(self.drop) and 0 <= self.drop < 1):
             raise SimError(f"drop must be a probability in [0, 1); got {self.drop}")
+        if isinstance(self.seed, bool) or not isinstance(self.seed, (int, np.integer)) or self.seed < 0:
+            raise SimError(f"seed must be an integer >= 0 (numpy's generators take no negative seed); "
+                           f"got {self.seed!r}")
 
     @property
     def ideal(self) -> bool:

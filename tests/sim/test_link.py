@@ -48,7 +48,8 @@ def test_drops_happen_at_the_given_rate():
     assert 0.17 < line.dropped / 5000 < 0.23
 
 
-@pytest.mark.parametrize(("field", "value"), [("latency_ms", -1.0), ("drop", 1.0), ("imu_noise", np.nan)])
+@pytest.mark.parametrize(("field", "value"), [("latency_ms", -1.0), ("drop", 1.0), ("imu_noise", np.nan),
+                                              ("seed", -1)])
 def test_bad_link_numbers_are_named(field, value):
     with pytest.raises(SimError, match=field):
         LinkSpec(**{field: value})
