@@ -14,6 +14,7 @@ from functools import partial
 import numpy as np
 import pytest
 
+from mbctl.jobs.exceptions import OutputError
 from mbctl.jobs.g1 import (
     ArmPDParams,
     StandParams,
@@ -22,7 +23,6 @@ from mbctl.jobs.g1 import (
     prepare_stand,
     prepare_track,
 )
-from mbctl.jobs.exceptions import OutputError
 from mbctl.jobs.g1_plots import limb_rows
 from mbctl.jobs.plots import coincident_groups
 from mbctl.jobs.recording import q_columns, v_columns
