@@ -34,7 +34,7 @@ Each cycle:
    (:func:`~mbctl.control.wbc.standing.standing_controller`); then the QP.
 
 Nothing here names a robot: feet, base and torso frames and the reference configuration are
-parameters (the G1's come from ``mbctl.robots.g1`` in the jobs).
+parameters (a robot's come from its facts module in robots/, given by the jobs).
 """
 
 from __future__ import annotations
@@ -147,7 +147,7 @@ class WalkingController:
 
     Example::
 
-        walker = WalkingController(robot, ("left_foot", "right_foot"), "pelvis", "torso_link", q_start)
+        walker = WalkingController(robot, (left_sole, right_sole), base_body, torso_body, q_start)
         walker.set_command((0.3, 0.0, 0.0))     # any cycle: vx [m/s], vy [m/s], yaw rate [rad/s]
         command = walker.compute(state)          # RobotState in, torque Command out
         walker.status.dcm, walker.steps
