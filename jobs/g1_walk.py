@@ -51,11 +51,11 @@ from mbctl.jobs.g1_walk_choices import (
 from mbctl.jobs.g1_walk_course import CourseWalker, parse_waypoints
 from mbctl.jobs.g1_walk_log import WalkLog
 from mbctl.jobs.g1_walk_push import FIRST_PUSH_S, PUSH_PERIOD_S, PhasePushes
+from mbctl.jobs.g1_wbc import check_scenario_and_duration
 from mbctl.jobs.model_options import ModelOptions, build_models
 from mbctl.jobs.plant import Plant, PlantOptions, dry_run, plant_lines, prepare_plant, report_plant
 from mbctl.jobs.runner import Job, Outcome, RunContext, Work
 from mbctl.jobs.truth import read_truth, truth_at_ticks
-from mbctl.limits import check_duration
 from mbctl.planners import VelocityCommand
 from mbctl.robots.edits import position_to_motor, scale_masses
 from mbctl.robots.g1 import FEET, G1_FALL, KEYFRAME, PELVIS, TORSO, crouched_start, with_palm_sites
@@ -125,11 +125,7 @@ class WalkParams:
 
     def __post_init__(self) -> None:
         self.plant.check_models(self.models)
-        if self.scenario not in SCENARIOS:
-            raise WBCSetupError(f"unknown scenario {self.scenario!r}; choose one of {', '.join(SCENARIOS)}")
-        check_duration(self.duration)
-        if self.duration is not None and not (math.isfinite(self.duration) and self.duration > 0):
-            raise WBCSetupError(f"duration must be a positive number of seconds; got {self.duration}")
+        check_scenario_and_duration(self.scenario, SCENARIOS, self.duration)
         if self.speed is not None:
             parse_speed(self.speed)
         if not (math.isfinite(self.model_error) and -50 < self.model_error < 100):

@@ -21,6 +21,7 @@ bounds (:data:`BOUNDS`); a run outside them exits 1.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -49,6 +50,20 @@ SCENARIOS = WBC_SCENARIOS
 DEFAULT_DURATION_S = WBC_DEFAULT_DURATION_S
 #: Default push impulse [N s].
 DEFAULT_IMPULSE_N_S = 10.0
+
+
+def check_scenario_and_duration(scenario: str, scenarios: tuple[str, ...], duration_s: float | None) -> None:
+    """A G1 whole-body job's scenario and duration [s] (None: the scenario's own), as bad input.
+
+    Raises:
+        WBCSetupError: An unknown scenario, or a duration that is not a positive number.
+        SizeLimitError: A duration over the run-length limit.
+    """
+    if scenario not in scenarios:
+        raise WBCSetupError(f"unknown scenario {scenario!r}; choose one of {', '.join(scenarios)}")
+    check_duration(duration_s)
+    if duration_s is not None and not (math.isfinite(duration_s) and duration_s > 0):
+        raise WBCSetupError(f"duration must be a positive number of seconds; got {duration_s}")
 
 
 @dataclass(frozen=True)
@@ -109,11 +124,7 @@ class WBCParams:
 
     def __post_init__(self) -> None:
         self.plant.check_models(self.models)
-        if self.scenario not in SCENARIOS:
-            raise WBCSetupError(f"unknown scenario {self.scenario!r}; choose one of {', '.join(SCENARIOS)}")
-        check_duration(self.duration)
-        if self.duration is not None and not (np.isfinite(self.duration) and self.duration > 0):
-            raise WBCSetupError(f"duration must be a positive number of seconds; got {self.duration}")
+        check_scenario_and_duration(self.scenario, SCENARIOS, self.duration)
         if self.scenario != "push" and (self.impulse is not None or self.direction is not None):
             given = "--impulse" if self.impulse is not None else "--direction"
             raise WBCSetupError(f"{given} applies to the push scenario only; scenario {self.scenario!r} "
