@@ -122,13 +122,27 @@ class PlantOptions:
                                        f"got {self.rate_hz}")
             if not (np.isfinite(self.wait_s) and self.wait_s > 0):
                 raise PlantOptionError(f"wait_s must be a positive number of seconds; got {self.wait_s}")
-        elif self.truth is not None or self.dry_run:
-            raise PlantOptionError("--truth and --dry-run are for --interface dds (in-process, the plant "
-                                   "is the truth and is always commanded)")
-        elif (self.state_crc, self.rate_hz, self.wait_s, self.dds_config) != ("on", None, CONNECT_TIMEOUT_S,
-                                                                               None):
-            raise PlantOptionError("--state-crc, --rate-hz, --wait-s and --dds-config are for --interface "
-                                   "dds (in-process there is no state stream)")
+        else:
+            self._refuse_dds_options()
+
+    def _refuse_dds_options(self) -> None:
+        """In-process, a DDS option would be silently ignored (a forgotten ``--interface dds``): refuse it.
+
+        An option counts as given when it differs from its default.
+        """
+        given = [name for name, default, value in (
+            ("--domain", 0, self.domain), ("--network-interface", LOOPBACK, self.network_interface),
+            ("--watchdog-periods", WATCHDOG_PERIODS, self.watchdog_periods), ("--truth", None, self.truth),
+            ("--dry-run", False, self.dry_run), ("--state-crc", "on", self.state_crc),
+            ("--rate-hz", None, self.rate_hz), ("--wait-s", CONNECT_TIMEOUT_S, self.wait_s),
+            ("--dds-config", None, self.dds_config)) if value != default]
+        if given:
+            one = len(given) == 1
+            raise PlantOptionError(
+                f"{', '.join(given)} {'is an option' if one else 'are options'} of --interface dds; this "
+                f"run is in-process (--interface sim), where {'it' if one else 'they'} would be ignored (the "
+                f"in-process plant is the truth, always commanded, with no state stream): add --interface "
+                f"dds to run on the robot or `mbctl serve g1`, or leave {'it' if one else 'them'} out")
 
     def check_models(self, models: ModelOptions) -> None:
         """Refuse a hidden plant change over DDS: there the plant is the robot (or the bridge's model).

@@ -146,11 +146,18 @@ def _running(folder: Path) -> bool:
 
 @pytest.mark.parametrize(("args", "message"), [
     (("g1-stand", "--interface", "dds", "--latency-ms", "5"), "give --latency-ms"),
-    (("g1-stand", "--truth", "x.csv"), "--truth and --dry-run are for --interface dds"),
+    (("g1-stand", "--truth", "x.csv"), "--truth is an option of --interface dds; this run is in-process "
+                                       "(--interface sim), where it would be ignored"),
+    # a forgotten --interface dds: the DDS options are refused, never ignored while the job stands in-process
+    (("g1-stand", "--domain", "7"), "--domain is an option of --interface dds"),
+    (("g1-arm-pd", "--network-interface", "enp3s0", "--watchdog-periods", "10"),
+     "--network-interface, --watchdog-periods are options of --interface dds"),
+    (("g1-wbc", "stand", "--watchdog-periods", "3"), "--watchdog-periods is an option of --interface dds"),
     (("g1-arm-pd", "--interface", "can"), "interface must be one of sim, dds"),
     (("serve", "h1"), "speaks the G1's low-level messages only"),
     (("serve", "g1", "--lockstep", "--latency-ms", "2"), "--lockstep advances one period per command"),
-    (("g1-stand", "--state-crc", "off"), "--state-crc, --rate-hz, --wait-s and --dds-config are for "),
+    (("g1-stand", "--state-crc", "off", "--wait-s", "3"),
+     "--state-crc, --wait-s are options of --interface dds"),
     (("g1-stand", "--interface", "dds", "--state-crc", "maybe"), "state_crc must be one of on, off"),
     (("g1-wbc", "push", "--interface", "dds"), "the push scenario needs the in-process plant "
                                                "(--interface sim): over DDS nothing can push the robot"),
