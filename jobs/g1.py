@@ -179,9 +179,9 @@ class StandParams:
 
     def __post_init__(self) -> None:
         self.plant.check_models(self.models)
-        check_duration(self.duration_s)
         for name in ("duration_s", "omega_rad_s", "zeta"):
             _positive(name, getattr(self, name), allow_none=False)
+        self.plant.check_duration(self.duration_s)
 
 
 @dataclass(frozen=True)
@@ -219,9 +219,9 @@ class ArmPDParams:
         self.plant.check_models(self.models)
         if self.side not in ("left", "right"):
             raise ControlError(f"side must be 'left' or 'right'; got {self.side!r}")
-        check_duration(self.duration_s)
         _positive("duration_s", self.duration_s)
         _positive("max_rms_error_rad", self.max_rms_error_rad)
+        self.plant.check_duration(self.duration_s)
 
 
 def _base_z_index(robot: Robot) -> int:
@@ -450,6 +450,7 @@ def prepare_arm_pd(params: ArmPDParams, robot: Robot | None = None) -> Work:
     controller = PositionTargetPD(robot, traj.names, gravity_feedforward=params.gravity_feedforward,
                                   pin_model=models.controller_model)
     others = tuple(a.joint for a in robot.actuators.values() if a.joint not in traj.names)
+    params.plant.check_duration(params.duration_s or traj.duration_s + 0.3)  # the whole trajectory's
     # every actuator holds the keyframe's target (DDS: the pose at start); the arm's are overwritten
     plant = prepare_plant(params.plant, robot, KEYFRAME)
 
@@ -465,7 +466,7 @@ def _arm_pd(ctx: RunContext, params: ArmPDParams, robot: Robot, traj: JointTraje
             controller: PositionTargetPD, others: tuple[str, ...], p: Plant) -> Outcome:
     sim = p.interface
     q0 = robot.keyframe_q(KEYFRAME)
-    duration = params.duration_s or traj.duration_s + 0.3
+    duration = params.duration_s or traj.duration_s + 0.3  # as checked in prepare_arm_pd
     if p.options.dry_run:
         return dry_run(ctx, p, duration)
     z0 = float(q0[_base_z_index(robot)])

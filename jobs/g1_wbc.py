@@ -38,7 +38,6 @@ from mbctl.jobs.runner import Job, Outcome, RunContext, Work
 from mbctl.jobs.truth import truth_com
 from mbctl.jobs.wbc_log import WBCLog
 from mbctl.jobs.wbc_scenarios import PUSH_PERIOD_S, scenario
-from mbctl.limits import check_duration
 from mbctl.robots.edits import position_to_motor, scale_masses
 from mbctl.robots.g1 import FEET, G1_FALL, KEYFRAME, PELVIS, TORSO, crouched_start, with_palm_sites
 from mbctl.robots.model_pair import Robot
@@ -52,18 +51,27 @@ DEFAULT_DURATION_S = WBC_DEFAULT_DURATION_S
 DEFAULT_IMPULSE_N_S = 10.0
 
 
-def check_scenario_and_duration(scenario: str, scenarios: tuple[str, ...], duration_s: float | None) -> None:
+def check_scenario_and_duration(scenario: str, scenarios: tuple[str, ...], duration_s: float | None,
+                                plant: PlantOptions | None = None) -> None:
     """A G1 whole-body job's scenario and duration [s] (None: the scenario's own), as bad input.
+
+    Args:
+        scenario: The scenario asked for.
+        scenarios: The job's scenarios.
+        duration_s: The duration asked for [s], or None.
+        plant: The plant options, checked against the duration (a latency as long as the run); None:
+            the duration checked against :data:`mbctl.jobs.plant.MAX_RUN_S` alone.
 
     Raises:
         WBCSetupError: An unknown scenario, or a duration that is not a positive number.
         SizeLimitError: A duration over the run-length limit.
+        PlantOptionError: A link latency at least the duration.
     """
     if scenario not in scenarios:
         raise WBCSetupError(f"unknown scenario {scenario!r}; choose one of {', '.join(scenarios)}")
-    check_duration(duration_s)
     if duration_s is not None and not (math.isfinite(duration_s) and duration_s > 0):
         raise WBCSetupError(f"duration must be a positive number of seconds; got {duration_s}")
+    (plant or PlantOptions()).check_duration(duration_s)
 
 
 @dataclass(frozen=True)
@@ -138,6 +146,7 @@ class WBCParams:
         if self.plant.interface == "dds" and self.scenario == "push":
             raise WBCSetupError("the push scenario needs the in-process plant (--interface sim): over DDS "
                                 "nothing can push the robot")
+        self.plant.check_duration(self.duration_s)  # the scenario's own when none is given
 
     @property
     def duration_s(self) -> float:

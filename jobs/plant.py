@@ -21,7 +21,9 @@ plant's figures even when the loop failed (:meth:`Plant.__exit__`).
 
 :func:`report_plant` adds the report values every plant gives (``interface``, ``cycles``, the
 period percentiles, ``deadline_misses``, ``messages_lost``, ``watchdog_events``) and, with the
-bridge's truth log (``--truth``), the plant checks of :mod:`mbctl.jobs.truth`.
+bridge's truth log (``--truth``), the plant checks of :mod:`mbctl.jobs.truth`; and it refuses a
+pass to a run whose commands did not reach the plant in at least :data:`MIN_COMMANDED_FRACTION`
+of its cycles (:func:`check_commanded`).
 """
 
 from __future__ import annotations
@@ -43,14 +45,27 @@ from mbctl.jobs.model_options import ModelOptions
 from mbctl.jobs.recording import q_columns
 from mbctl.jobs.runner import JobError, Outcome, RunContext
 from mbctl.jobs.truth import truth_checks
+from mbctl.limits import check_limit
 from mbctl.robots.g1 import FEET, G1_IMU
 from mbctl.robots.interface import RobotInterface
 from mbctl.robots.model_pair import Robot
+from mbctl.robots.plant_report import PlantReport
 from mbctl.sim.link import LinkedSimulator, LinkSpec
 from mbctl.sim.simulator import Simulator
 from mbctl.unitree.channel import LOOPBACK, check_domain
 
 INTERFACES = ("sim", "dds")
+#: A run is judged only if a command reached the plant in at least this fraction of its control
+#: cycles. Below it the plant ran (or was held still) mostly without its controller: a link
+#: latency longer than the run, or nearly every command dropped, says nothing of the controller,
+#: however well the robot "stood" (the run's status is then ``uncommanded``, exit 1).
+MIN_COMMANDED_FRACTION = 0.5
+#: The longest run on a plant [s] (``--duration``). The CSV streams every cycle to disk and the
+#: trajectory kept for replay is decimated to a bounded size, but the control loop's log
+#: (``control.loop.RunLog``) still keeps every cycle in memory, about 1.3 kB per G1 cycle (2.3 GB
+#: an hour at 500 Hz): two hours fit a robot's computer. (mbctl.limits.MAX_DURATION_S, 600 s,
+#: still caps the in-process-only jobs.)
+MAX_RUN_S = 2 * 3600.0
 #: ``--state-crc``: check the CRC of every state (on), or accept states with CRC 0 unchecked (off).
 STATE_CRC = ("on", "off")
 
@@ -143,6 +158,26 @@ class PlantOptions:
                 f"run is in-process (--interface sim), where {'it' if one else 'they'} would be ignored (the "
                 f"in-process plant is the truth, always commanded, with no state stream): add --interface "
                 f"dds to run on the robot or `mbctl serve g1`, or leave {'it' if one else 'them'} out")
+
+    def check_duration(self, duration_s: float | None) -> None:
+        """Refuse a run too long for memory, or one its own link would leave uncommanded throughout.
+
+        Args:
+            duration_s: The run's duration [s] (None: the job's own, checked where it is known).
+
+        Raises:
+            SizeLimitError: Over :data:`MAX_RUN_S`.
+            PlantOptionError: A link latency at least the duration (no command would reach the plant).
+        """
+        if duration_s is None:
+            return
+        check_limit("--duration", duration_s, MAX_RUN_S, " s", "the control loop keeps every cycle in "
+                    "memory (about 1.3 kB per G1 cycle); run shorter pieces")
+        if self.latency_ms * 1e-3 >= duration_s:
+            raise PlantOptionError(
+                f"--latency-ms {self.latency_ms:g} is not shorter than the run ({duration_s:g} s): no "
+                f"command would reach the plant before the run ends; give a latency below "
+                f"{duration_s * 1e3:g} ms")
 
     def check_models(self, models: ModelOptions) -> None:
         """Refuse a hidden plant change over DDS: there the plant is the robot (or the bridge's model).
@@ -255,6 +290,10 @@ def report_plant(ctx: RunContext, plant: Plant, log: RunLog,
                  fall_height_m: float | None = None) -> bool | None:
     """Add the plant's report values; with a truth log, check the run against it.
 
+    Every job on the plant comes through here, so each gets :func:`check_commanded`: a run whose
+    controller never acted on the plant (a latency longer than the run, every command dropped) is
+    ``uncommanded``, not a pass.
+
     Args:
         ctx: The run.
         plant: The plant the run used.
@@ -271,11 +310,58 @@ def report_plant(ctx: RunContext, plant: Plant, log: RunLog,
     if "base_position" in report.estimated:
         ctx.sections["estimator"] = {"kind": "leg kinematics Kalman filter", "feet": list(FEET),
                                      "imu": G1_IMU.site, "estimated": list(report.estimated)}
-    if plant.options.truth is None:
-        return None
-    checks = truth_checks(plant.options.truth, log.tick, log, fall_height_m)
-    ctx.values.update(checks)
-    return bool(checks["truth_fell"])
+    truth_fell = None
+    if plant.options.truth is not None:
+        checks = truth_checks(plant.options.truth, log.tick, log, fall_height_m)
+        ctx.values.update(checks)
+        truth_fell = bool(checks["truth_fell"])
+    check_commanded(ctx, report, log.cycles)
+    return truth_fell
+
+
+def check_commanded(ctx: RunContext, report: PlantReport, cycles: int) -> bool | None:
+    """Whether the controller acted on the plant in enough of the run's cycles to judge it.
+
+    Adds ``commanded_cycles``, ``commanded_fraction`` and ``controller_acted`` to the run's values
+    (None where the plant cannot tell: over DDS without the bridge's truth log). Below
+    :data:`MIN_COMMANDED_FRACTION` the run is not a pass (:meth:`RunContext.refuse_pass`).
+
+    Args:
+        ctx: The run.
+        report: The plant's report.
+        cycles: Control cycles the loop ran.
+
+    Returns:
+        Whether it acted enough, or None when not known.
+    """
+    link = report.link
+    commanded: int | None = link.commanded_cycles
+    if link.kind == "direct":  # the simulator applies each command when it is sent
+        commanded = cycles
+    elif commanded is None and "truth_commands_applied" in ctx.values:  # the bridge's count, over DDS
+        commanded = min(cycles, int(ctx.values["truth_commands_applied"]))
+    fraction = commanded / cycles if commanded is not None and cycles else None
+    acted = None if fraction is None else bool(fraction >= MIN_COMMANDED_FRACTION)
+    ctx.values.update({"commanded_cycles": commanded, "commanded_fraction": fraction,
+                       "controller_acted": acted})
+    if acted is False:
+        ctx.refuse_pass(_uncommanded_reason(report, commanded or 0, cycles))
+    return acted
+
+
+def _uncommanded_reason(report: PlantReport, commanded: int, cycles: int) -> str:
+    """Why a run's controller did not act (see :func:`check_commanded`), with the link's figures."""
+    link = report.link
+    why = []
+    if link.held_s:
+        why.append(f"the plant was held still {link.held_s:.3f} s waiting for its first command"
+                   + (f" (--latency-ms {link.latency_ms:g})" if link.latency_ms else ""))
+    if link.commands_lost:
+        why.append(f"{link.commands_lost} commands lost" + (f" (--drop {link.drop:g})" if link.drop else ""))
+    head = ("the controller never acted: no command reached the plant in any" if commanded == 0 else
+            f"the controller acted in too few cycles to judge it: a command reached the plant in {commanded}")
+    return (f"{head} of the run's {cycles} control cycles (at least {MIN_COMMANDED_FRACTION:.0%} are "
+            "needed)" + (f"; {'; '.join(why)}" if why else "") + ": the run's figures are the plant's alone")
 
 
 def plant_lines(v: dict[str, Any]) -> tuple[str, ...]:

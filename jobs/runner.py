@@ -18,12 +18,14 @@ The runner owns the output folder (one run per folder):
   and no other file is removed (see :func:`clear_previous_run`). A folder that holds another
   job's run is refused (:class:`OutputError`, exit 2), naming the folder and that job.
 - ``report.json`` is written when the work starts (status ``running``) and again at the end in
-  every case: ``completed``, ``interrupted`` (Ctrl-C or SIGTERM), ``diverged`` (the plant
-  diverged) or ``failed`` (with the message), with the values known so far, the row count, the
-  outputs and the plant's model and run sections.
+  every case: ``completed``, ``uncommanded`` (the work ran to its end but its controller did not
+  act on the plant, or too rarely to judge it: :meth:`RunContext.refuse_pass`, with the reason),
+  ``interrupted`` (Ctrl-C or SIGTERM), ``diverged`` (the plant diverged) or ``failed`` (with the
+  message), with the values known so far, the row count, the outputs and the plant's model and run
+  sections.
 
-Exit codes: 0 completed within bounds; 1 completed outside a bound, diverged or failed; 2 bad
-input, usage or IO; 130 interrupted.
+Exit codes: 0 completed within bounds; 1 completed outside a bound, uncommanded, diverged or
+failed; 2 bad input, usage or IO; 130 interrupted.
 """
 
 from __future__ import annotations
@@ -73,6 +75,9 @@ EXIT_BAD_INPUT = 2
 EXIT_INTERRUPTED = 130
 
 VIDEO_NAME = "video.mp4"
+#: Status of a run whose work ran to its end without its controller acting on the plant (or too
+#: rarely to judge it): whatever the job's own verdict, not a pass (exit 1).
+UNCOMMANDED = "uncommanded"
 
 
 class Interrupted(BaseException):  # noqa: N818 - an interruption, like KeyboardInterrupt
@@ -166,8 +171,17 @@ class RunContext:
     sim: Simulator | None = None
     csv: CsvStream | None = None
     video: VideoSpec | None = None
+    uncommanded: str | None = None
     _streams: list[CsvStream] = field(default_factory=list)
     _recorders: list[TrajectoryRecorder | VideoRecorder] = field(default_factory=list)
+
+    def refuse_pass(self, reason: str) -> None:
+        """The run's result says nothing of its controller (it never acted on the plant): not a pass.
+
+        The work goes on to its end (its rows, values and plots are kept); the run's status is then
+        ``uncommanded`` with ``reason`` as its message, and it exits 1 whatever its outcome.
+        """
+        self.uncommanded = reason
 
     def path(self, name: str, role: str | None = None) -> Path:
         """The path of output ``name`` in the run folder, registered under ``role`` (default name)."""
@@ -278,14 +292,14 @@ class RunRecord:
     """The result of ``run_job``.
 
     Attributes:
-        status: completed | interrupted | diverged | failed.
+        status: completed | uncommanded | interrupted | diverged | failed.
         exit_code: 0, 1, 2 (an output the work opened cannot be written safely) or 130 (see the
             module docstring).
         values: The job's values (partial unless completed).
         files: Written files by role (the report included).
         rows: Rows in the main CSV.
         last_time_s: ``time_s`` of the last row, or None.
-        message: The error message for interrupted, diverged or failed runs.
+        message: The error message for uncommanded, interrupted, diverged or failed runs.
         outcome: The work's Outcome when it completed.
     """
 
@@ -309,6 +323,9 @@ class RunRecord:
             t = f"t={self.last_time_s:.3f} s" if self.last_time_s is not None else "the start"
             where = self.files.get("csv", self.report_path)
             return f"interrupted at {t}; wrote {self.rows} rows to {where}"
+        if self.status == UNCOMMANDED:  # the job's lines describe a plant its controller did not drive
+            return (f"NOT A PASS ({UNCOMMANDED}): {self.message}\nwrote {self.rows} rows; report "
+                    f"{self.report_path}")
         if self.status != "completed":
             return f"{self.status}: {self.message}\nkept {self.rows} rows; report {self.report_path}"
         # the files first, the results (and the verdict) last, where a reader looks
@@ -391,7 +408,7 @@ def _report(ctx: RunContext, params: Any, status: str, message: str | None, outc
     report["last_time_s"] = ctx.last_time_s
     report["wall_time_s"] = wall_s
     if outcome is not None:
-        report["passed"] = outcome.passed
+        report["passed"] = outcome.passed and status != UNCOMMANDED
         report["bound"] = outcome.bound
     report["values"] = _jsonable(ctx.values)
     report.update(_jsonable(ctx.sections))
@@ -449,6 +466,8 @@ def run_job(
                 outcome = work(ctx)
             status = "completed"
             code = EXIT_OK if outcome.passed else EXIT_OUT_OF_BOUND
+            if ctx.uncommanded is not None:
+                status, message, code = UNCOMMANDED, ctx.uncommanded, EXIT_OUT_OF_BOUND
         except (KeyboardInterrupt, Interrupted):
             status, message, code = "interrupted", "interrupted by the user (Ctrl-C or SIGTERM)", 130
         except SimulationDiverged as exc:

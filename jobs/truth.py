@@ -122,7 +122,8 @@ def truth_checks(path: str | Path, ticks: np.ndarray, log: RunLog,
         Report values: ``truth_pelvis_max_deviation_m``, ``truth_pelvis_z_min_m``, ``truth_fell``,
         ``truth_max_foot_slip_m``,
         ``estimator_position_error_max_m``, ``estimator_position_error_final_m``,
-        ``estimator_orientation_error_max_deg``, ``truth_rows``.
+        ``estimator_orientation_error_max_deg``, ``truth_rows``, ``truth_commands_applied`` (commands
+        the bridge applied while the run's states were made).
     """
     truth = read_truth(path)
     at = truth_at_ticks(truth, ticks)
@@ -142,6 +143,7 @@ def truth_checks(path: str | Path, ticks: np.ndarray, log: RunLog,
     deviation = float(np.abs(dz).max())
     return {
         "truth_rows": int(window.size),
+        "truth_commands_applied": int(window["commands_applied"][-1] - window["commands_applied"][0]),
         "truth_pelvis_max_deviation_m": deviation,
         "truth_pelvis_z_min_m": float(window["base_z_m"].min()),
         "truth_fell": bool(fall_height_m is not None and window["base_z_m"].min() < fall_height_m),

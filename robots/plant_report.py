@@ -62,6 +62,10 @@ class LinkReport:
         bad_crc: States refused for a bad CRC (DDS; None elsewhere).
         bad_encoding: States refused for another encoding (DDS; None elsewhere).
         held_s: How long [s] the plant was held still before its first command arrived.
+        commands_applied: Commands that reached the plant (None where the plant cannot tell: DDS,
+            whose client does not see the robot apply them).
+        commanded_cycles: Control cycles during which at least one command reached the plant
+            (None where the plant cannot tell).
         latency_ms: The simulated link's delay each direction [ms] (None unless simulated).
         jitter_ms: Its extra uniform delay [ms] (None unless simulated).
         drop: Its probability of losing a message (None unless simulated).
@@ -90,6 +94,8 @@ class LinkReport:
     bad_crc: int | None = None
     bad_encoding: int | None = None
     held_s: float = 0.0
+    commands_applied: int | None = None
+    commanded_cycles: int | None = None
     latency_ms: float | None = None
     jitter_ms: float | None = None
     drop: float | None = None

@@ -148,6 +148,8 @@ class LinkedSimulator:
         self._imu = ImuReader(sim, imu, spec.imu_noise, spec.seed + 1) if imu is not None else None
         self.started = False  # whether a command has reached the plant (before, it is held still)
         self.cycles = 0  # completed sync() calls
+        self.commands_applied = 0  # commands the link delivered to the plant
+        self.commanded_cycles = 0  # sync() calls during which at least one command reached the plant
         self._held_steps = 0
         if estimator is not None:
             estimator.reset(self._imu.proprioception(held=True))  # type: ignore[union-attr]
@@ -206,11 +208,13 @@ class LinkedSimulator:
         Before the first command has arrived the plant is held still for the step instead.
         """
         sim = self.sim
+        applied = self.commands_applied
         for _ in range(sim.n_substeps):
             command = self._commands.receive(sim.time_s)
             if command is not None:
                 sim.send(command)
                 self.started = True
+                self.commands_applied += 1
             if self.started:
                 sim.step()
             else:
@@ -220,6 +224,7 @@ class LinkedSimulator:
         arrived = self._states.receive(sim.time_s)
         if arrived is not None:
             self._latest = arrived
+        self.commanded_cycles += self.commands_applied > applied
         self.cycles += 1
 
     # ------------------------------------------------------------------ lifecycle and report
@@ -246,7 +251,8 @@ class LinkedSimulator:
         link = LinkReport(
             "simulated", states_received=None, states_lost=self._states.dropped,
             commands_lost=self._commands.dropped, states_superseded=self._states.superseded,
-            commands_superseded=self._commands.superseded, held_s=self.held_s, latency_ms=spec.latency_ms,
-            jitter_ms=spec.jitter_ms, drop=spec.drop, imu_noise=spec.imu_noise)
+            commands_superseded=self._commands.superseded, held_s=self.held_s,
+            commands_applied=self.commands_applied, commanded_cycles=self.commanded_cycles,
+            latency_ms=spec.latency_ms, jitter_ms=spec.jitter_ms, drop=spec.drop, imu_noise=spec.imu_noise)
         estimated = self.estimator.estimated if self.estimator is not None else ()
         return PlantReport("sim", replace(plant.timing, cycles=self.cycles), link, plant.safety, estimated)

@@ -175,6 +175,18 @@ def test_in_process_link_reports_its_losses(g1, tmp_path):
     assert out.returncode == 0, out.stderr
     values = json.loads((tmp_path / "report.json").read_text())["values"]
     assert values["interface"] == "sim" and values["states_lost"] > 0 and values["commands_lost"] > 0
+    assert values["controller_acted"] is True and 0.8 < values["commanded_fraction"] < 1.0  # ~0.9
+
+
+def test_a_run_its_latency_leaves_uncommanded_exits_2_or_1(g1, tmp_path):
+    """A latency as long as the run is refused up front; commands all dropped: exit 1, not 'stood'."""
+    out = mbctl("g1-stand", "--latency-ms", "1e9", "--output", str(tmp_path / "late"))
+    assert out.returncode == 2 and "--latency-ms 1e+09 is not shorter than the run (10 s)" in out.stderr
+    assert not (tmp_path / "late").exists()
+    out = mbctl("g1-stand", "--duration", "0.2", "--drop", "0.999", "--output", str(tmp_path / "lost"), "-q")
+    assert out.returncode == 1, out.stdout + out.stderr
+    assert "NOT A PASS (uncommanded): the controller never acted" in out.stderr and "stood" not in out.stderr
+    assert json.loads((tmp_path / "lost" / "report.json").read_text())["status"] == "uncommanded"
 
 
 def test_a_reserved_domain_is_skipped_by_every_process_until_released():

@@ -24,6 +24,7 @@ from mbctl.jobs.g1 import (
     prepare_track,
 )
 from mbctl.jobs.g1_plots import limb_rows
+from mbctl.jobs.plant import PlantOptionError, PlantOptions
 from mbctl.jobs.plots import coincident_groups
 from mbctl.jobs.recording import q_columns, v_columns
 from mbctl.jobs.runner import LOCK_NAME, Job, run_job
@@ -49,6 +50,7 @@ def test_g1_stands_under_pd_gravity(g1, tmp_path):
     assert 1e-4 < v["pelvis_max_deviation_m"] < 2.0e-3
     assert v["joint_rms_error_rad"] < 5e-3
     assert v["fell"] is False and v["saturated_cycles"] == 0
+    assert (v["commanded_cycles"], v["commanded_fraction"], v["controller_acted"]) == (1500, 1.0, True)
     report = json.loads(record.report_path.read_text())
     assert (report["status"], report["passed"]) == ("completed", True)
     assert report["bound"] == "did not fall; pelvis within 20 mm of the keyframe height"
@@ -81,6 +83,46 @@ def test_g1_that_falls_exits_1(g1, tmp_path):
     assert record.values["fell"] is True and record.values["fall_reason"] == "torso_link touched the floor"
     report = json.loads(record.report_path.read_text())
     assert report["passed"] is False and "FELL (torso_link touched the floor)" in record.summary()
+
+
+def test_a_run_whose_controller_never_acted_is_not_a_pass(g1, tmp_path):
+    """Every command lost: the plant was held still, the robot "stood" 0.00 mm; exit 1, status uncommanded."""
+    record = _run(prepare_stand, StandParams(duration_s=0.3, plant=PlantOptions(drop=0.999)), g1,
+                  tmp_path / "drop", "g1-stand")
+    v = record.values
+    assert (record.status, record.exit_code) == ("uncommanded", 1)
+    assert (v["commanded_cycles"], v["commanded_fraction"], v["controller_acted"]) == (0, 0.0, False)
+    assert v["pelvis_max_deviation_m"] == 0.0 and v["held_s"] == pytest.approx(0.3)  # held still throughout
+    assert record.message == (
+        "the controller never acted: no command reached the plant in any of the run's 150 control cycles (at "
+        "least 50% are needed); the plant was held still 0.300 s waiting for its first command; 150 commands "
+        "lost (--drop 0.999): the run's figures are the plant's alone")
+    report = json.loads(record.report_path.read_text())
+    assert (report["status"], report["passed"], report["message"]) == ("uncommanded", False, record.message)
+    assert report["rows"] == 150  # the rows are kept
+    assert record.summary().startswith("NOT A PASS (uncommanded): the controller never acted")
+    assert "stood" not in record.summary()
+
+
+def test_a_run_commanded_in_under_half_its_cycles_is_not_a_pass(g1, tmp_path):
+    """A latency of 3/4 of the run: commands reach the arm in its last quarter only."""
+    record = _run(prepare_arm_pd, ArmPDParams(duration_s=0.2, plant=PlantOptions(latency_ms=150.0)), g1,
+                  tmp_path, "g1-arm-pd")
+    v = record.values
+    assert (record.status, record.exit_code) == ("uncommanded", 1)
+    assert (v["commanded_cycles"], v["cycles"], v["controller_acted"]) == (25, 100, False)
+    assert record.message.startswith("the controller acted in too few cycles to judge it: a command reached "
+                                     "the plant in 25 of the run's 100 control cycles")
+    assert "held still 0.150 s waiting for its first command (--latency-ms 150)" in record.message
+
+
+def test_a_latency_as_long_as_the_run_is_refused_up_front(g1, tmp_path):
+    with pytest.raises(PlantOptionError, match=r"--latency-ms 1e\+09 is not shorter than the run \(10 s\): "
+                                                r"no command would reach the plant"):
+        StandParams(plant=PlantOptions(latency_ms=1e9))
+    with pytest.raises(PlantOptionError, match=r"--latency-ms 10000 is not shorter than the run \(2\.\d+ "):
+        prepare_arm_pd(ArmPDParams(plant=PlantOptions(latency_ms=1e4)), robot=g1)  # the whole trajectory's
+    assert not any(tmp_path.iterdir())
 
 
 def test_g1_welded_computed_torque_tracks_ruckig(g1, tmp_path):

@@ -82,6 +82,23 @@ def test_result_outside_its_bound_exits_1(tmp_path):
     assert _report(tmp_path)["passed"] is False
 
 
+def test_a_run_refused_a_pass_is_uncommanded_whatever_its_outcome(tmp_path):
+    """The work ran to its end and "passed", but said its controller never acted: status says so, exit 1."""
+    def prepare(params: Params):
+        def work(ctx: RunContext) -> Outcome:
+            ctx.open_csv(["time_s"]).write([0.0])
+            ctx.refuse_pass("no command reached the plant")
+            return Outcome(passed=True, summary=("stood",), bound="did not fall")
+        return work
+
+    record = run_job(Job("toy", prepare), Params(), tmp_path)
+    assert (record.status, record.exit_code, record.rows) == ("uncommanded", 1, 1)
+    report = _report(tmp_path)
+    assert (report["status"], report["passed"], report["message"]) == (
+        "uncommanded", False, "no command reached the plant")
+    assert record.summary().startswith("NOT A PASS (uncommanded): no command reached the plant\nwrote 1 rows")
+
+
 @pytest.mark.parametrize(
     "error, status, code, message",
     [

@@ -126,6 +126,21 @@ def test_the_plant_holds_still_until_the_first_command_arrives(hopper):
     assert linked.started and sim.n_steps == 1 and (sim.ctrl == 5.0).all()
     assert not np.array_equal(sim.q, q0)
     assert linked.report().link.held_s == pytest.approx(0.020)
+    # what the jobs judge "the controller acted" by: commands that reached the plant, and in which cycles
+    link = linked.report().link
+    assert (link.commands_applied, link.commanded_cycles, linked.cycles) == (1, 1, 11)
+
+
+def test_the_link_counts_the_commands_that_reach_the_plant(hopper):
+    """Every command dropped but a few: the plant knows how few reached it (and in how few cycles)."""
+    linked = LinkedSimulator(Simulator(hopper), LinkSpec(drop=0.9, seed=3))
+    for _ in range(200):
+        linked.send(torque([1.0]))
+        linked.sync()
+    link = linked.report().link
+    assert link.commands_applied == link.commanded_cycles == 200 - link.commands_lost
+    assert 5 < link.commanded_cycles < 40  # ~10 % of 200
+    assert linked.report().values()["commanded_cycles"] == link.commanded_cycles
 
 
 def test_without_latency_the_plant_starts_with_the_first_command(hopper):
