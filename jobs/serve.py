@@ -8,7 +8,8 @@ stops it (status ``diverged``, exit 1, naming the acceleration and how stale the
 Its run folder holds ``truth.csv`` (base pose, CoM, feet, contact forces per physics step, with the
 LowState tick),
 ``trajectory.npz`` + ``model.xml`` for ``mbctl replay``, and ``report.json`` with its counts (commands
-received and applied, bad CRC, wrong mode, link drops) and its own period statistics.
+received and applied, bad CRC, wrong mode, commands clamped to the robot's ranges and the clamps per
+motor, link drops) and its own period statistics.
 """
 
 from __future__ import annotations
@@ -104,10 +105,16 @@ def prepare(params: ServeParams) -> Work:
         return Outcome(True, (
             f"serve g1: stopped ({reason}) after {v['cycles']} periods; {v['commands_applied']} commands "
             f"applied of {v['commands_received']} received ({v['bad_crc']} bad CRC, "
-            f"{v['wrong_mode_machine']} wrong mode_machine); period p99 {v['period_p99_ms']:.2f} ms, "
+            f"{v['wrong_mode_machine']} wrong mode_machine, {v['commands_clamped']} clamped to the robot's "
+            f"ranges{_per_motor(v['clamped_per_motor'])}); period p99 {v['period_p99_ms']:.2f} ms, "
             f"{v['deadline_misses']} deadline misses",))
 
     return work
+
+
+def _per_motor(clamped: dict[str, int]) -> str:
+    """`` (joint n, ...)`` of the motors clamped, or nothing."""
+    return f" ({', '.join(f'{j} {n}' for j, n in clamped.items())})" if clamped else ""
 
 
 #: ``mbctl serve g1``.

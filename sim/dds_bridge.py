@@ -4,7 +4,11 @@ Each physics step (the G1's 2 ms, paced to wall-clock time) the bridge
 
 1. takes the LowCmd_ messages that arrived, ignores and counts those with a bad CRC, another
    ``mode_machine``, ``mode_pr`` = 1 (the ankles' parallel-linkage mode is not modelled) or
-   non-finite values, and puts the rest on the command link (latency, jitter, drops);
+   non-finite values, clamps the rest to the robot's ranges (gains ``kp``, ``kd`` and the velocity
+   target to the table's bounds, :mod:`mbctl.unitree.tables`; the position target to the joint's
+   range and the feed-forward torque to its limit, from the model) counting each clamped command
+   and, per motor, each clamp of an enabled motor, and puts them on the command link (latency,
+   jitter, drops);
 2. applies the newest command the link delivers as the motor firmware does: each enabled motor
    exerts ``tau + kp (q* - q) + kd (dq* - dq)``, clamped to its torque limit. The law is MuJoCo's
    own actuator (force = ctrl + b1 q + b2 qdot with ctrl = tau + kp q* + kd dq*, b1 = -kp,
@@ -140,6 +144,23 @@ def motor_pd_actuators(robot: Robot) -> Robot:
     return robot.with_edits("actuators -> motor PD law (tau + kp (q* - q) + kd (dq* - dq))", mj_edit=edit)
 
 
+def command_ranges(motors: MotorMap, table: MotorTable) -> dict[str, tuple[np.ndarray, np.ndarray]]:
+    """Per motor (n,), the (low, high) a LowCmd's fields are clamped to, as the wire's float32.
+
+    Gains and velocity targets: the table's bounds (mbctl's, see :mod:`mbctl.unitree.tables`);
+    position targets: the model's joint range; feed-forward torque: the model's torque limit.
+    """
+    n = motors.n
+
+    def pair(low: npt.ArrayLike, high: npt.ArrayLike) -> tuple[np.ndarray, np.ndarray]:
+        return (np.broadcast_to(np.float32(low), (n,)).astype(np.float32),
+                np.broadcast_to(np.float32(high), (n,)).astype(np.float32))
+
+    return {"kp": pair(0.0, table.kp_max), "kd": pair(0.0, table.kd_max),
+            "dq": pair(-table.dq_max, table.dq_max), "q": pair(motors.q_low, motors.q_high),
+            "tau": pair(-motors.tau_max, motors.tau_max)}
+
+
 @dataclass(frozen=True)
 class BridgeOptions:
     """Where the bridge listens and what its link does.
@@ -220,7 +241,11 @@ class G1Bridge:
         self._qvel_motor = np.array([self.robot.joint(j).dofadr for j in self.motors.joints])
         self._forces: list[float] | None = None
         self.counts = {"commands_received": 0, "commands_applied": 0, "bad_crc": 0, "bad_encoding": 0,
-                       "wrong_mode_machine": 0, "mode_pr_ab": 0, "non_finite": 0, "states_published": 0}
+                       "wrong_mode_machine": 0, "mode_pr_ab": 0, "non_finite": 0, "commands_clamped": 0,
+                       "states_published": 0}
+        #: Clamps per motor (table order): commands in which an enabled motor's value was clamped.
+        self.clamped = np.zeros(self.motors.n, dtype=int)
+        self._ranges = command_ranges(self.motors, table)
         self.started = False
         self.peak_qacc = 0.0  # the largest |qacc| of a step so far
         self.realtime = False  # whether it served at real-time priority
@@ -255,9 +280,23 @@ class G1Bridge:
         else:
             motors = msg["motor_cmd"][: self.motors.n].copy()
             if all(np.isfinite(motors[f]).all() for f in ("q", "dq", "tau", "kp", "kd")):
+                self._clamp(motors)
                 return motors
             counts["non_finite"] += 1
         return None
+
+    def _clamp(self, motors: np.ndarray) -> None:
+        """Clamp each field of the motor records to its range in place; count the clamps of enabled motors."""
+        hit = np.zeros(self.motors.n, dtype=bool)
+        for field, (low, high) in self._ranges.items():
+            values = motors[field]
+            clipped = np.clip(values, low, high)
+            hit |= clipped != values
+            motors[field] = clipped
+        hit &= motors["mode"] == MOTOR_ENABLED
+        if hit.any():
+            self.clamped += hit
+            self.counts["commands_clamped"] += 1
 
     def _apply(self, motors: np.ndarray) -> None:
         """Set each motor's law: ctrl = tau + kp q* + kd dq*, bias = (-kp, -kd); disabled: nothing."""
@@ -423,8 +462,10 @@ class G1Bridge:
         return steps
 
     def stats(self) -> dict[str, Any]:
-        """What the bridge counted: messages, link drops, its own period statistics."""
-        return {**self.counts, "steps": self.sim.n_steps, "simulated_time_s": self.sim.time_s,
+        """What the bridge counted: messages, clamps (per motor: joint -> commands), link drops, periods."""
+        clamped = {j: int(c) for j, c in zip(self.motors.joints, self.clamped, strict=True) if c}
+        return {**self.counts, "clamped_per_motor": clamped, "steps": self.sim.n_steps,
+                "simulated_time_s": self.sim.time_s,
                 "lockstep": self.options.lockstep, "peak_qacc": self.peak_qacc, "realtime": self.realtime,
                 "commands_lost_by_link": self._commands.dropped,
                 "states_lost_by_link": self._states.dropped, **asdict(self.clock.stats())}

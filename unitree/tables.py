@@ -13,6 +13,15 @@ motors in the same order). Every ankle (and the 29-dof waist) is in pitch/roll (
 - 23-dof G1: legs 0-11 as above, waist yaw 12 ("TORSO"), left arm 13-17 (shoulder pitch/roll/yaw,
   elbow, wrist roll: Unitree's "ELBOW_ROLL"), right arm 18-22.
 
+Command ranges (``kp_max``, ``kd_max``, ``dq_max``): what the MuJoCo bridge accepts of a LowCmd's
+gains and velocity targets (it clamps beyond them and counts it; position targets and feed-forward
+torques are clamped to the model's joint ranges and torque limits). They are mbctl's bounds, not
+Unitree's: Unitree publishes no gain range for the G1's motor firmware that this project could cite.
+They are chosen wide (a motor at ``kp_max`` reaches the G1's largest torque limit, 139 N m, 0.14 rad
+from its target; at ``kd_max`` 1.4 rad/s from it) and measured safe for the simulated plant: every
+motor at both bounds with targets at its joint range's ends and full torque for 2 s stays finite
+(peak |qacc| 1.3e4, below the bridge's divergence bound 1e5), while kp = 1e30 diverged at once.
+
 The IMU in ``LowState.imu_state`` is the pelvis IMU on both (unitree_sdk2's G1 examples read the
 torso IMU from ``rt/secondary_imu``); in the Menagerie model it is the site ``imu_in_pelvis``.
 """
@@ -37,6 +46,14 @@ def _arm(side: str, wrist: tuple[str, ...]) -> tuple[str, ...]:
     return tuple(f"{side}_{j}_joint" for j in joints)
 
 
+#: The largest position gain [N m/rad] a bridge applies (see the module docstring).
+KP_MAX = 1000.0
+#: The largest damping gain [N m s/rad] a bridge applies.
+KD_MAX = 100.0
+#: The largest |velocity target| [rad/s] a bridge applies.
+DQ_MAX = 30.0
+
+
 @dataclass(frozen=True)
 class MotorTable:
     """One ``unitree_hg`` robot's motors: the joint each slot drives, in slot order, and its IMU.
@@ -45,11 +62,17 @@ class MotorTable:
         name: What the table is for (in messages), e.g. "G1 29-dof".
         joints: Joint name (the model's) of motor 0, 1, ...; the slots above ``len(joints)`` are unused.
         imu: The IMU whose sample LowState carries.
+        kp_max: Largest position gain [N m/rad] a bridge applies (mbctl's bound: module docstring).
+        kd_max: Largest damping gain [N m s/rad] a bridge applies.
+        dq_max: Largest |velocity target| [rad/s] a bridge applies.
     """
 
     name: str
     joints: tuple[str, ...]
     imu: ImuSpec
+    kp_max: float = KP_MAX
+    kd_max: float = KD_MAX
+    dq_max: float = DQ_MAX
 
     @property
     def n(self) -> int:

@@ -5,6 +5,7 @@ from __future__ import annotations
 import subprocess
 import sys
 
+import numpy as np
 import pytest
 
 from mbctl.sim.dds_bridge import SERVING, BridgeStartError, wait_until_serving
@@ -46,7 +47,6 @@ def test_a_silent_bridge_is_killed_after_the_timeout():
 
 def test_a_bridge_whose_plant_diverges_says_so(g1, dds_domain, monkeypatch):
     """An acceleration beyond MAX_QACC stops the bridge naming it and the command's age (a diverged run)."""
-    import numpy as np
 
     from mbctl.sim import dds_bridge
     from mbctl.sim.dds_bridge import BridgeDiverged, BridgeOptions, G1Bridge
@@ -76,3 +76,86 @@ def test_lockstep_refuses_a_link_model():
 
     with pytest.raises(SimError, match="latency, jitter and drops need a wall clock"):
         BridgeOptions(link=LinkSpec(latency_ms=2.0), lockstep=True)
+
+
+def _lowcmd(bridge, q_all, **fields):
+    """A valid LowCmd_ (wire bytes) for ``bridge``: every motor enabled at ``q_all`` (n,), then
+    ``fields`` {name: {motor: value}}."""
+    from mbctl.unitree.motors import MODE_PR, MOTOR_ENABLED
+    from mbctl.unitree.wire import low_cmd_codec
+
+    codec = low_cmd_codec()
+    msg = codec.message
+    msg["mode_pr"], msg["mode_machine"] = MODE_PR, bridge.options.mode_machine
+    motors = msg["motor_cmd"]
+    motors["mode"][: bridge.motors.n] = MOTOR_ENABLED
+    motors["q"][: bridge.motors.n] = q_all
+    for name, values in fields.items():
+        for i, value in values.items():
+            motors[name][i] = value
+    return codec.encode()
+
+
+def test_every_field_is_clamped_to_its_range_and_counted_per_motor(g1, dds_domain):
+    """Gains and velocity targets to the table's bounds, q to the joint range, tau to the torque limit."""
+    from mbctl.sim.dds_bridge import BridgeOptions, G1Bridge
+    from mbctl.unitree.tables import G1_29DOF
+
+    bridge = G1Bridge(g1, g1.keyframe_q("stand"), BridgeOptions(domain=dds_domain, lockstep=True))
+    try:
+        m = bridge.motors
+        q = np.clip(g1.keyframe_q("stand")[7:], m.q_low, m.q_high)
+        # motor 6 disabled: its junk is clamped too but not counted (it exerts nothing)
+        wire = _lowcmd(bridge, q, kp={0: 1e30, 1: -5.0, 6: 1e30}, kd={2: 1e6}, dq={3: -1e4}, q={4: 100.0},
+                       tau={5: -1e9}, mode={6: 0})
+        motors = bridge._valid_command(wire)
+        assert motors["kp"][0] == np.float32(G1_29DOF.kp_max) == np.float32(1000.0) and motors["kp"][1] == 0
+        assert motors["kd"][2] == np.float32(100.0) and motors["dq"][3] == np.float32(-30.0)
+        assert motors["q"][4] == np.float32(m.q_high[4]) and motors["tau"][5] == np.float32(-m.tau_max[5])
+        assert bridge.counts["commands_clamped"] == 1
+        assert bridge.stats()["clamped_per_motor"] == {j: 1 for j in m.joints[:6]}
+        assert bridge._valid_command(_lowcmd(bridge, q)) is not None  # in range: nothing clamped
+        assert bridge.counts["commands_clamped"] == 1
+    finally:
+        bridge.close()
+
+
+def test_a_kp_of_1e30_over_dds_is_clamped_and_the_lockstep_plant_stays_finite(g1, dds_domain):
+    """One valid LowCmd with kp = 1e30 (the left knee's, target 0.3 rad) made MuJoCo's ctrl overflow
+    (BADCTRL: the bridge stopped as diverged)."""
+    import threading
+
+    from mbctl.sim.dds_bridge import MAX_QACC, BridgeOptions, G1Bridge
+    from mbctl.unitree import TOPIC_LOWCMD, Channel
+    from mbctl.unitree.channel import message_types
+
+    bridge = G1Bridge(g1, g1.keyframe_q("stand"), BridgeOptions(domain=dds_domain, lockstep=True))
+    client = Channel(dds_domain)
+    try:
+        writer = client.writer(TOPIC_LOWCMD, message_types()[0])
+        q = g1.keyframe_q("stand")[7:]
+        knee = bridge.motors.joints.index("left_knee_joint")
+        outcome: dict[str, object] = {}
+
+        def serve():
+            try:
+                outcome["stopped"] = bridge.serve(idle_timeout_s=2.0)
+            except Exception as exc:  # noqa: BLE001 - the test reports it
+                outcome["error"] = exc
+
+        thread = threading.Thread(target=serve)
+        thread.start()
+        while not writer.matched() and thread.is_alive():
+            thread.join(0.005)
+        for _ in range(10):
+            writer.write(_lowcmd(bridge, q, kp={knee: 1e30}, q={knee: 0.3}))
+            thread.join(0.01)
+        thread.join()
+        assert outcome == {"stopped": "idle"}  # not diverged
+        stats = bridge.stats()
+        assert stats["commands_applied"] >= 1 and stats["commands_clamped"] == stats["commands_applied"]
+        assert stats["clamped_per_motor"] == {"left_knee_joint": stats["commands_applied"]}
+        assert np.isfinite(bridge.sim.data.qpos).all() and bridge.peak_qacc < MAX_QACC
+    finally:
+        client.close()
+        bridge.close()
