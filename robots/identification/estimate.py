@@ -55,8 +55,10 @@ class Estimate:
 
     Attributes:
         theta: Estimate (n,), physically consistent.
-        std: Standard deviation (n,) (Laplace approximation; the prior's where data are silent).
-        covariance: (n, n).
+        std: Standard deviation (n,) (Laplace approximation; the prior's where data are silent;
+            :func:`~mbctl.robots.identification.pipeline.identify` replaces it with the
+            residual-aware one of :mod:`~mbctl.robots.identification.uncertainty`).
+        covariance: (n, n), the same.
         sigma: Torque noise the fit assumed [N m] (RMS of the unconstrained fit's residual).
         iterations: Solver iterations (0: the unconstrained estimate was consistent).
         constrained: Whether the consistency constraints changed the estimate.

@@ -8,6 +8,12 @@ compare parameters of different units on the scale they are uncertain on. With `
   ``V[:, r:]`` (up to ``NULL_TOL``): no change of the others can hide a change of it.
 * otherwise it is not excited (its column is zero: no torque in the data depends on it) or it
   enters only in combination with others (the ones sharing its null-space directions).
+* excitation of a parameter (or of any combination ``d . theta``): how strongly the data determine
+  it, relative to the best-determined direction: the singular value its column would have alone
+  after the others took what they can explain, over ``s_1`` (``1 / sqrt(d_s^T (R_s^T R_s)^+ d_s)
+  / s_1`` with ``d_s = D d / |D d|``); 0 when it has a null-space component. Below
+  ``WEAK_RTOL`` it is *weakly excited*: identifiable in principle, but the log barely moves it, so
+  its value leans on small, systematic parts of the torques (and the prior).
 * base parameters: a pivoted QR of ``W D`` picks r independent columns; each base parameter is an
   independent parameter plus a combination of the dependent ones (``beta = theta_B + K theta_D``),
   the parameters the data determine (Gautier's base parameters).
@@ -32,6 +38,9 @@ RANK_RTOL = 1e-7
 NULL_TOL = 1e-4
 #: A coefficient of a base-parameter expression below this (relative, scaled) is dropped.
 COEFF_TOL = 1e-6
+#: A parameter or combination whose excitation (relative singular value) is below this is weakly
+#: excited: its effective condition number is above 1 / WEAK_RTOL.
+WEAK_RTOL = 1e-2
 
 
 @dataclass(frozen=True)
@@ -73,6 +82,8 @@ class Identifiability:
         excited: Mask (n,): some equation depends on it (its column is not zero).
         partners: Parameter -> the parameters it is confounded with (unidentifiable ones only).
         base: The base parameters.
+        scale: The column scale (n,) the analysis used (the prior standard deviations).
+        right_vectors: ``V^T`` (n, n) of the scaled equations' SVD (rows: right singular vectors).
     """
 
     names: tuple[str, ...]
@@ -83,17 +94,48 @@ class Identifiability:
     excited: np.ndarray
     partners: dict[str, list[str]]
     base: tuple[BaseParameter, ...]
+    scale: np.ndarray | None = None
+    right_vectors: np.ndarray | None = None
 
     @property
     def n(self) -> int:
         """Number of parameters."""
         return len(self.names)
 
+    def excitation(self, direction: np.ndarray) -> float:
+        """Relative excitation of the combination ``direction . theta`` (see the module docstring).
+
+        1: as well determined as the best direction; 0: not determined by the data (a component in
+        the null space, or no data at all).
+        """
+        if self.rank == 0 or self.right_vectors is None or self.scale is None:
+            return 0.0
+        d = np.asarray(direction, dtype=float) * self.scale
+        norm = float(np.linalg.norm(d))
+        if norm == 0.0:
+            return 0.0
+        w = self.right_vectors @ (d / norm)
+        if np.linalg.norm(w[self.rank:]) >= NULL_TOL:
+            return 0.0
+        S = self.singular_values[:self.rank]
+        return float(1.0 / np.sqrt(np.sum((w[:self.rank] / S) ** 2)) / S[0])
+
+    def parameter_excitation(self) -> np.ndarray:
+        """Relative excitation (n,) of each parameter alone (0: not identifiable on its own)."""
+        return np.array([self.excitation(np.eye(self.n)[i]) for i in range(self.n)])
+
+    def weakly_excited(self) -> np.ndarray:
+        """Mask (n,): identifiable on its own but excited below :data:`WEAK_RTOL`."""
+        return self.identifiable & (self.parameter_excitation() < WEAK_RTOL)
+
     def summary(self) -> dict[str, Any]:
         """Rank, condition number and counts, JSON-ready."""
+        weak = self.weakly_excited()
         return {"parameters": self.n, "rank": self.rank, "condition_number": self.condition_number,
                 "identifiable_alone": int(self.identifiable.sum()),
-                "not_excited": int((~self.excited).sum())}
+                "not_excited": int((~self.excited).sum()),
+                "weakly_excited": [self.names[i] for i in np.flatnonzero(weak)],
+                "weak_excitation_below": WEAK_RTOL}
 
 
 def analyse(system: LinearSystem, names: tuple[str, ...], scale: np.ndarray) -> Identifiability:
@@ -123,7 +165,8 @@ def analyse(system: LinearSystem, names: tuple[str, ...], scale: np.ndarray) -> 
                       if j != i and overlap[i, j] > NULL_TOL and excited[j]]
             partners[names[i]] = [names[j] for j in others[:4]]
     base = _base_parameters(Rs, rank, names, scale) if rank else ()
-    return Identifiability(tuple(names), S, rank, cond, identifiable, excited, partners, base)
+    return Identifiability(tuple(names), S, rank, cond, identifiable, excited, partners, base,
+                           np.asarray(scale, dtype=float).copy(), Vt)
 
 
 def _base_parameters(Rs: np.ndarray, rank: int, names: tuple[str, ...], scale: np.ndarray

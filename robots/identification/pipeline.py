@@ -23,6 +23,13 @@ from mbctl.robots.identification.parameters import ParameterSet
 from mbctl.robots.identification.regressor import TorquePrediction, predict, stack
 from mbctl.robots.identification.samples import RecordedLog, Samples, prepare_samples, split
 from mbctl.robots.identification.threads import single_threaded_blas
+from mbctl.robots.identification.uncertainty import (
+    Uncertainty,
+    filter_term,
+    map_estimate,
+    residual_uncertainty,
+    shift_term,
+)
 from mbctl.robots.model_pair import Robot
 
 #: A log whose data rank is below this fraction of the structural rank does not excite the robot.
@@ -70,6 +77,9 @@ class Identification:
         nominal_prediction: Validation torques predicted by the nominal model.
         identified_prediction: Validation torques predicted by the identified model.
         contact: How contacts were handled ("projected", "measured", or "none": fixed base).
+        uncertainty: The residual-aware covariance (:mod:`~mbctl.robots.identification.uncertainty`);
+            ``estimate.std`` and ``estimate.covariance`` are its reported ones, its ``laplace`` the
+            white-noise covariance.
     """
 
     params: ParameterSet
@@ -81,6 +91,7 @@ class Identification:
     nominal_prediction: TorquePrediction
     identified_prediction: TorquePrediction
     contact: str
+    uncertainty: Uncertainty | None = None
 
     @property
     def theta(self) -> np.ndarray:
@@ -195,10 +206,32 @@ def _identify(robot: Robot, logs: Sequence[RecordedLog], options: IdentifyOption
                 f"{structural.rank} any motion could reach (largest speed {moved:.3g} rad/s); record "
                 "an excitation (mbctl excite)")
     result = estimate(params, system, data.rank)
+    theta_map = map_estimate(params, system, result.sigma)
+    shifted = concatenate([replace(t, v=t.v + t.a * log.dt_s) for t, log in zip(trains, logs, strict=True)])
+    step = shift_term(theta_map, map_estimate(params, stack(params, shifted, mode), result.sigma))
+    honest = residual_uncertainty(params, training, mode, result,
+                                  _filter_covariance(robot, logs, options, params, mode, theta_map, result),
+                                  step)
+    result = replace(result, std=honest.std, covariance=honest.covariance)
     joints = tuple(j.name for j in robot.joints.values() if j.nv == 1 and _actuated(robot, j.name))
     nominal, identified = predict(params, [params.nominal, result.theta], validation, joints, mode)
     return Identification(params, result, data, structural, training, validation, nominal, identified,
-                          contact)
+                          contact, honest)
+
+
+def _filter_covariance(robot: Robot, logs: Sequence[RecordedLog], options: IdentifyOptions,
+                       params: ParameterSet, mode: str, theta_map: np.ndarray, result: Estimate
+                       ) -> np.ndarray | None:
+    """The filter's systematic term: the fit again at twice the cutoff (None: no filter, or no room)."""
+    if not options.cutoff_hz:
+        return None
+    doubled = 2.0 * options.cutoff_hz
+    if any(doubled >= 0.45 / log.dt_s for log in logs):  # no room below the Nyquist frequency
+        return None
+    trains = [split(prepare_samples(robot, log, doubled, options.rate_hz), options.validation_fraction)[0]
+              for log in logs]
+    again = stack(params, concatenate(trains), mode)
+    return filter_term(theta_map, map_estimate(params, again, result.sigma))
 
 
 def _actuated(robot: Robot, joint: str) -> bool:

@@ -134,7 +134,8 @@ class SampleEquations:
         model, data = params.model, self.data
         for k in range(len(s)):
             q, v, a = s.q[k], s.v[k], s.a[k]
-            Y = pin.computeJointTorqueRegressor(model, data, q, v, a)
+            # (nv, 10 (njoints - 1)); Pinocchio returns a vector when nv = 1
+            Y = np.reshape(pin.computeJointTorqueRegressor(model, data, q, v, a), (model.nv, -1))
             W = params.columns(Y, v, a)
             y = s.tau[k] - params.known(Y, v, a)
             on = s.contacts[k]

@@ -10,6 +10,12 @@ the parameters' errors)::
     J_c = dc/dpi = [ -h / m^2 | I_3 / m | 0_{3x6} ]   (3, 10)
     Cov(c) = J_c Sigma J_c^T                           (3, 3) [m^2]
 
+Each reported number also says how the data determined it (:func:`excitation_status`, from the
+identifiability of the training data: the relative excitation of its direction in parameter
+space, a CoM component's being ``J_c``'s row): ``"identified"``, ``"weakly excited"`` (the log
+barely moves it: its value leans on small, systematic parts of the torques; do not trust it
+beyond its std) or ``"not identified"`` (the prior decides it).
+
 which holds while the mass's relative error is small (``std(m) / m`` << 1); a Monte-Carlo check
 is in tests/robots/identification/test_summary.py.
 """
@@ -22,10 +28,35 @@ import numpy as np
 import numpy.typing as npt
 
 from mbctl.robots.identification.exceptions import IdentificationError
+from mbctl.robots.identification.identifiability import WEAK_RTOL, Identifiability
 from mbctl.robots.identification.inertial import Inertial, to_inertial
 from mbctl.robots.identification.pipeline import Identification
 
-__all__ = ["BodySummary", "ParameterSummary", "body_summary", "com_covariance", "com_std", "joint_summaries"]
+__all__ = ["BaseSummary", "BodySummary", "ParameterSummary", "base_summaries", "body_summary",
+           "com_covariance", "com_std", "excitation_status", "joint_summaries"]
+
+
+#: The statuses of :func:`excitation_status`.
+IDENTIFIED, WEAKLY_EXCITED, NOT_IDENTIFIED = "identified", "weakly excited", "not identified"
+
+
+def excitation_status(data: Identifiability, direction: npt.ArrayLike) -> str:
+    """How the data determine ``direction . theta``: identified, weakly excited or not identified.
+
+    Args:
+        data: The identifiability of the training data.
+        direction: (n,) in the parameters' units (a unit vector for one parameter).
+    """
+    e = data.excitation(np.asarray(direction, dtype=float))
+    return NOT_IDENTIFIED if e <= 0.0 else WEAKLY_EXCITED if e < WEAK_RTOL else IDENTIFIED
+
+
+def _com_jacobian(pi: np.ndarray) -> np.ndarray:
+    m = float(pi[0])
+    J = np.zeros((3, 10))
+    J[:, 0] = -pi[1:4] / m**2
+    J[:, 1:4] = np.eye(3) / m
+    return J
 
 
 def com_covariance(pi: npt.ArrayLike, covariance: npt.ArrayLike) -> np.ndarray:
@@ -46,9 +77,7 @@ def com_covariance(pi: npt.ArrayLike, covariance: npt.ArrayLike) -> np.ndarray:
     m = float(p[0])
     if not (np.isfinite(m) and m > 0.0):
         raise IdentificationError(f"the CoM c = h / m needs a positive mass; got m = {m!r} kg")
-    J = np.zeros((3, 10))
-    J[:, 0] = -p[1:4] / m**2
-    J[:, 1:4] = np.eye(3) / m
+    J = _com_jacobian(p)
     return J @ cov @ J.T
 
 
@@ -71,6 +100,8 @@ class BodySummary(NamedTuple):
         identified: The same, identified.
         mass_std_kg: Standard deviation of the identified mass [kg].
         com_std_m: Standard deviation (3,) of the identified CoM [m] in the body frame (delta method).
+        mass_status: How the data determined the mass (:func:`excitation_status`).
+        com_status: The same (3,) for each CoM coordinate.
     """
 
     name: str
@@ -78,6 +109,8 @@ class BodySummary(NamedTuple):
     identified: Inertial
     mass_std_kg: float
     com_std_m: np.ndarray
+    mass_status: str = IDENTIFIED
+    com_status: tuple[str, str, str] = (IDENTIFIED, IDENTIFIED, IDENTIFIED)
 
 
 def body_summary(ident: Identification, name: str) -> BodySummary:
@@ -91,8 +124,17 @@ def body_summary(ident: Identification, name: str) -> BodySummary:
     cols = block.columns
     est = ident.estimate
     theta = ident.theta[cols]
+    n = ident.params.n
+
+    def status(local: np.ndarray) -> str:
+        d = np.zeros(n)
+        d[cols] = local
+        return excitation_status(ident.data, d)
+
+    J = _com_jacobian(theta) if theta[0] > 0 else np.zeros((3, 10))
+    com = (status(J[0]), status(J[1]), status(J[2]))
     return BodySummary(name, to_inertial(block.nominal), to_inertial(theta), float(est.std[cols][0]),
-                       com_std(theta, est.covariance[cols, cols]))
+                       com_std(theta, est.covariance[cols, cols]), status(np.eye(10)[0]), com)
 
 
 class ParameterSummary(NamedTuple):
@@ -102,11 +144,13 @@ class ParameterSummary(NamedTuple):
         nominal: The nominal model's value.
         identified: The estimate.
         std: Its standard deviation.
+        status: How the data determined it (:func:`excitation_status`).
     """
 
     nominal: float
     identified: float
     std: float
+    status: str = IDENTIFIED
 
 
 #: The joint parameters a summary names, with their units: viscous friction [N m s/rad], Coulomb
@@ -120,8 +164,44 @@ def joint_summaries(ident: Identification) -> dict[str, dict[str, ParameterSumma
     out: dict[str, dict[str, ParameterSummary]] = {}
     for block in ident.params.joints:
         columns = (block.viscous, block.coulomb, block.armature)
-        entry = {kind: ParameterSummary(float(nominal[col]), float(theta[col]), float(std[col]))
+        entry = {kind: ParameterSummary(float(nominal[col]), float(theta[col]), float(std[col]),
+                                        excitation_status(ident.data, np.eye(ident.params.n)[col]))
                  for kind, col in zip(JOINT_PARAMETERS, columns, strict=True) if col is not None}
         if entry:
             out[block.name] = entry
+    return out
+
+
+class BaseSummary(NamedTuple):
+    """One base parameter (a combination the data determine), nominal and identified.
+
+    Attributes:
+        expression: The combination, readable (``"link2.m + 11.11 link1.Izz"``).
+        coefficients: Parameter name -> coefficient.
+        nominal: Its value for the nominal model.
+        identified: Its value for the estimate.
+        std: Its standard deviation (from the estimate's covariance).
+        status: How the data determined it (:func:`excitation_status`).
+    """
+
+    expression: str
+    coefficients: dict[str, float]
+    nominal: float
+    identified: float
+    std: float
+    status: str
+
+
+def base_summaries(ident: Identification) -> list[BaseSummary]:
+    """Each base parameter of the training data, with its value, standard deviation and status."""
+    names = ident.params.names
+    index = {n: i for i, n in enumerate(names)}
+    out = []
+    for b in ident.data.base:
+        d = np.zeros(len(names))
+        for name, c in b.coefficients.items():
+            d[index[name]] = c
+        std = float(np.sqrt(max(d @ ident.estimate.covariance @ d, 0.0)))
+        out.append(BaseSummary(b.expression(), dict(b.coefficients), float(d @ ident.params.nominal),
+                               float(d @ ident.theta), std, excitation_status(ident.data, d)))
     return out
