@@ -13,9 +13,15 @@ Every LowState taken from ``rt/lowstate`` is decoded and checked before it can b
   non-zero tick (the G1, ``mbctl serve g1``), states are ordered by tick: one whose tick is behind
   the newest's is ``superseded`` (reordered), one with the same tick is the same state again (a
   robot held still, as ``mbctl serve g1 --lockstep`` before its first command: not a new state),
-  and one whose tick is further ahead than the time since the last state can explain (a spoofed
-  2^32 - 1) is a bad state, not the new clock. The report says which order it ended in
-  (``state_order``).
+  and one whose tick is further ahead than the time since the newest state can explain (a spoofed
+  2^32 - 1) is a bad state (``far_ticks``, counted in ``bad_states``), not the new clock: at most
+  ``tick_step`` times (twice the periods elapsed + :data:`TICK_SLACK_STATES`), the periods counted
+  at the measured rate or, while connecting, at the fastest accepted one (2 kHz); while the step
+  is not known yet (the first advance, e.g. of a robot held still) at most
+  :data:`MAX_TICK_RATE_HZ` ticks per second elapsed + :data:`TICK_SLACK_STATES` (a microsecond
+  counter; a spoof within that is not told from the robot's next state). The very first state
+  cannot be judged: a spoofed one then makes every real state "behind", and the connect fails
+  saying so (no robot, exit 2). The report says which order it ended in (``state_order``).
 
 The time of a state is the robot's own once its tick advances (tick steps times the period, from
 the newest state's time then, so a run's timing does not depend on when this process got round to
@@ -59,6 +65,8 @@ QUAT_TOLERANCE = 1e-3
 #: A tick may run ahead of the last by at most this many states more than the time since the last
 #: state explains (states the reader's queue dropped while this process was descheduled).
 TICK_SLACK_STATES = 100
+#: The fastest a tick may count [ticks/s] while its step is not known yet (a microsecond counter).
+MAX_TICK_RATE_HZ = 1e6
 
 
 @dataclass
@@ -73,6 +81,7 @@ class StreamCounts:
         bad_crc_zero: Of those, with CRC 0 (unsigned: Unitree's simulator).
         crc_unchecked: Accepted with CRC 0, unchecked (only with ``check_crc=False``).
         bad_states: Refused for their values or a tick far ahead.
+        far_ticks: Of those, with a tick further ahead than the time since the newest explains.
         older: Valid but behind the newest (tick order: reordered).
         repeated: Valid with the newest's tick again (tick order: a robot held still).
     """
@@ -84,6 +93,7 @@ class StreamCounts:
     bad_crc_zero: int = 0
     crc_unchecked: int = 0
     bad_states: int = 0
+    far_ticks: int = 0
     older: int = 0
     repeated: int = 0
 
@@ -206,17 +216,24 @@ class LowStateStream:
         if step == 0:
             c.repeated += 1
             return False
-        if self.period_s is not None and self.tick_step:
-            explained = math.ceil((now - self.last_rx) / self.period_s)
-            if step > self.tick_step * (2 * explained + TICK_SLACK_STATES):
-                c.bad_states += 1
-                return False
+        if step > self._max_step(now):
+            c.bad_states += 1
+            c.far_ticks += 1
+            return False
         if not self.tick_step:
             self.tick_step = step
             if self.period_s is not None:  # the tick clock starts from the newest state
                 self._clock = (self.tick, self.time_s)
         self.tick_step = min(self.tick_step, step)
         return True
+
+    def _max_step(self, now: float) -> float:
+        """The furthest [ticks] a state arriving at ``now`` may be ahead of the newest (module docstring)."""
+        elapsed = max(0.0, now - self.last_rx)
+        if not self.tick_step:
+            return MAX_TICK_RATE_HZ * elapsed + TICK_SLACK_STATES
+        period = self.period_s if self.period_s is not None else PERIOD_RANGE_S[0]
+        return self.tick_step * (2 * math.ceil(elapsed / period) + TICK_SLACK_STATES)
 
     def _time_of(self, tick: int, now: float) -> float:
         """The state's time [s]: on the tick clock once it runs, else its arrival."""
@@ -281,9 +298,12 @@ class LowStateStream:
                 "`--state-crc off` accepts those)" if c.bad_crc_zero else ""))
         if c.bad_encoding:
             parts.append(f"{c.bad_encoding} in another encoding")
-        if c.bad_states:
-            parts.append(f"{c.bad_states} with bad values (IMU quaternion not finite and unit, non-finite "
-                         "joints or IMU, or a tick far ahead)")
+        if c.bad_states - c.far_ticks:
+            parts.append(f"{c.bad_states - c.far_ticks} with bad values (IMU quaternion not finite and unit, "
+                         "non-finite joints or IMU)")
+        if c.far_ticks:
+            parts.append(f"{c.far_ticks} with a tick further ahead of the newest ({self.tick}) than the time "
+                         "since it allows (spoofed, or another robot's: refused)")
         if c.valid:
             parts.append(f"{c.valid} valid")
         if c.older or c.repeated:

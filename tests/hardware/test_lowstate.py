@@ -11,7 +11,8 @@ import pytest
 
 from mbctl.control.loop import run
 from mbctl.hardware import DdsOptions, LinkLost, NoRobotError, UnitreeG1
-from mbctl.hardware.lowstate import ORDER_ARRIVAL, ORDER_TICK
+from mbctl.hardware.lowstate import ORDER_ARRIVAL, ORDER_TICK, LowStateStream
+from mbctl.unitree.wire import low_state_codec
 from tests.hardware.test_unitree_g1 import HOLD, ConstantTorque, StillBase, _wait_for
 
 
@@ -109,6 +110,69 @@ def test_a_spoofed_tick_is_a_bad_state_not_the_new_clock(g1, fake_g1, dds_domain
         report = robot.report()
     assert tick < 2**31 and log.tick[-1] < 2**31 and np.all(np.diff(log.tick) > 0)
     assert report.link.state_order == ORDER_TICK and report.link.bad_states == 1
+
+
+class _NoReader:
+    """A reader that never has anything: the tests below hand the stream each state themselves."""
+
+    def take(self, max_samples=16):
+        return []
+
+
+def _state(tick):
+    """A valid LowState_ (wire bytes) of a robot at rest with ``tick``."""
+    codec = low_state_codec()
+    codec.message["tick"] = tick
+    codec.message["imu_state"]["quaternion"] = (1.0, 0.0, 0.0, 0.0)
+    return codec.encode()
+
+
+def _feed(stream, ticks_at):
+    """Give ``stream`` a state of each (tick, arrival time [s]); whether each became the newest."""
+    return [stream._take(_state(tick), now) for tick, now in ticks_at]
+
+
+def test_a_spoofed_tick_while_connecting_is_refused_and_the_real_stream_goes_on():
+    """Before the rate is measured the bound counts periods at the fastest accepted rate (2 kHz)."""
+    stream = LowStateStream(_NoReader(), 29)
+    taken = _feed(stream, [(100, 0.0), (101, 0.002), (102, 0.004), (2**32 - 1, 0.005), (103, 0.006)])
+    assert taken == [True, True, True, False, True] and stream.tick == 103
+    assert stream.counts.bad_states == stream.counts.far_ticks == 1
+    assert "1 with a tick further ahead of the newest (103) than the time since it allows" in (
+        stream.diagnosis())
+
+
+def test_a_spoofed_tick_on_a_held_robot_is_refused_though_its_step_is_not_known():
+    """A robot held still (one tick repeated) has no step yet: its first advance is bounded by time."""
+    stream = LowStateStream(_NoReader(), 29)
+    held = [(7, 0.002 * k) for k in range(5)]
+    assert _feed(stream, held) == [True, False, False, False, False]
+    assert _feed(stream, [(2**32 - 1, 0.010), (8, 0.012), (9, 0.014)]) == [False, True, True]
+    assert stream.counts.far_ticks == 1 and stream.counts.repeated == 4 and stream.tick == 9
+
+
+def test_ticks_the_time_explains_are_taken():
+    """A microsecond-like first step, and a gap after a stall the elapsed time explains, are new states."""
+    stream = LowStateStream(_NoReader(), 29)
+    assert _feed(stream, [(0 + 1, 0.0), (2001, 0.002), (4001, 0.004)]) == [True, True, True]
+    stream.start_clock(0.002)
+    # 1 s without a state (a stalled process): 500 periods, 500 steps of 2000 ticks
+    assert _feed(stream, [(4001 + 500 * 2000, 1.004)]) == [True]
+    assert stream.counts.bad_states == 0
+
+
+def test_a_spoofed_tick_on_a_held_robot_does_not_become_its_clock(g1, fake_g1, dds_domain):
+    """As ``mbctl serve g1 --lockstep`` before the first command: the tick held, then it advances."""
+    fake = fake_g1(tick_step=0)
+    with _open(g1, dds_domain) as robot:
+        fake.once(tick=2**32 - 1)
+        assert _wait_for(lambda: (robot.stream.drain(), robot.stream.counts.bad_states)[1] == 1)
+        with fake._lock:  # the robot starts: its tick advances from the held one
+            fake._tick_step = 1
+        log = run(robot, ConstantTorque(g1), HOLD, 0.02)
+        report = robot.report()
+    assert log.cycles == 10 and log.tick[-1] < 2**31 and np.all(np.diff(log.tick) > 0)
+    assert report.link.bad_states == 1 and report.link.state_order == ORDER_TICK
 
 
 def test_the_cli_s_defaults_are_the_interface_s():
