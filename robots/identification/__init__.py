@@ -3,7 +3,8 @@
 Modules: ``inertial`` (one body's 10 parameters, log-Cholesky, physical consistency),
 ``parameters`` (the parameter vector of a robot), ``samples`` (from a log to samples),
 ``regressor`` (the stacked equations, contacts projected out), ``identifiability`` (rank, base
-parameters, why not), ``estimate`` (the consistent MAP estimate), ``writeback`` (the identified
+parameters, why not), ``estimate`` (the consistent MAP estimate), ``uncertainty`` (its residual-aware covariance),
+``writeback`` (the identified
 MJCF), ``pipeline`` (``identify``: all of it), ``summary`` (each body and joint with its
 uncertainty: the report's numbers).
 """
