@@ -61,7 +61,7 @@ from mbctl.jobs.run_folder import check_output_file as check_output_file
 from mbctl.sim.atomic import write_bytes_atomic, write_json_atomic
 from mbctl.sim.csv_stream import FLUSH_INTERVAL_S
 from mbctl.sim.exceptions import OutputPathError, SimulationDiverged
-from mbctl.sim.recorder import CsvStream
+from mbctl.sim.recorder import MAX_REPLAY_SAMPLES, BoundedTrajectoryRecorder, CsvStream
 from mbctl.sim.report import environment, model_section, run_section
 from mbctl.sim.simulator import Simulator
 from mbctl.sim.trajectory import MODEL_NAME, TRAJECTORY_NAME, TrajectoryRecorder
@@ -216,7 +216,9 @@ class RunContext:
         """Make ``sim`` the run's plant: report sections, trajectory for replay, video if filmed.
 
         Its model and run sections go in the report, its trajectory in ``trajectory.npz`` +
-        ``model.xml`` (for replay) and, when the run is filmed, its frames in ``video.mp4``.
+        ``model.xml`` (for replay; at most :data:`~mbctl.sim.recorder.MAX_REPLAY_SAMPLES` samples,
+        evenly spaced, so a long run's memory stays bounded; the report's ``replay`` section says
+        how many and how far apart) and, when the run is filmed, its frames in ``video.mp4``.
 
         Only the first simulator attached is recorded (``demo --compare`` runs several).
 
@@ -231,7 +233,7 @@ class RunContext:
         first = self.sim is None
         self.sim = sim
         if first:
-            traj = TrajectoryRecorder(sim, self.output_dir)
+            traj = BoundedTrajectoryRecorder(sim, self.output_dir, MAX_REPLAY_SAMPLES)
             self.files["model"], self.files["trajectory"] = traj.model_path, traj.path
             self._recorders.append(traj.attach())
             if self.video is not None:
@@ -251,11 +253,14 @@ class RunContext:
         return path
 
     def close_streams(self) -> None:
-        """Close every CSV, the trajectory and the video (idempotent)."""
+        """Close every CSV, the trajectory and the video (idempotent); the replay's sampling in the report."""
         for stream in self._streams:
             stream.close()
         for recorder in self._recorders:
             recorder.close()
+            if isinstance(recorder, BoundedTrajectoryRecorder):
+                self.sections["replay"] = {"samples": recorder.samples, "every_nth_update": recorder.stride,
+                                           "updates": recorder.observed}
 
     @property
     def rows(self) -> int:

@@ -4,6 +4,10 @@ Columns are named with units where they are ambiguous (``time_s``, ``base_z_m``,
 ``q_<joint>_rad``, ``target_<actuator>``, ``<sensor>[i]``). Every row is written whole; an
 error, a divergence or Ctrl-C leaves every completed row on disk, never a torn one (the job's
 report says whether the run completed). See :mod:`mbctl.sim.csv_stream` for the flushing.
+
+The CSV keeps every row on disk; what a run keeps in memory for replay is bounded:
+:class:`BoundedTrajectoryRecorder` keeps at most :data:`MAX_REPLAY_SAMPLES` plant samples,
+evenly spaced, however long the run.
 """
 
 from __future__ import annotations
@@ -19,6 +23,66 @@ import numpy as np
 
 from mbctl.sim.csv_stream import CsvStream
 from mbctl.sim.simulator import Simulator
+from mbctl.sim.trajectory import TrajectoryRecorder
+
+#: The most plant samples a run keeps for replay (``trajectory.npz``): 100,000 of the G1's qpos
+#: are 29 MB (200 s of it at 500 Hz, every step). A longer run keeps every 2nd, 4th, 8th ... step
+#: instead, evenly spaced, and its last state, so memory stays bounded (a one-hour G1 run keeps
+#: every 32nd step, 64 ms apart: smooth at any replay speed up to real time); the CSV keeps every
+#: control cycle.
+MAX_REPLAY_SAMPLES = 100_000
+
+
+class BoundedTrajectoryRecorder(TrajectoryRecorder):
+    """A :class:`~mbctl.sim.trajectory.TrajectoryRecorder` that keeps at most ``max_samples`` samples.
+
+    It keeps every ``stride``-th observed step, ``stride`` starting at 1; whenever the samples
+    reach ``max_samples`` it drops every other one and doubles ``stride``. The samples stay evenly
+    spaced in steps (the start and every ``stride``-th step), and ``close()`` adds the last state
+    when it fell between two kept steps.
+
+    Args:
+        sim: The plant.
+        folder: Where ``trajectory.npz`` and ``model.xml`` go.
+        max_samples: The most samples kept (>= 2).
+
+    Raises:
+        ValueError: ``max_samples`` below 2.
+    """
+
+    def __init__(self, sim: Simulator, folder: Path, max_samples: int = MAX_REPLAY_SAMPLES):
+        if max_samples < 2:
+            raise ValueError(f"max_samples must be >= 2 (the start and the end); got {max_samples}")
+        super().__init__(sim, folder)
+        self.max_samples = max_samples
+        self.stride = 1  #: observed steps per kept sample
+        self.observed = 0  #: steps observed
+        self._last_t = float(sim.data.time)
+        self._last_qpos = sim.data.qpos.copy()
+
+    @property
+    def samples(self) -> int:
+        """Samples kept so far (the start included)."""
+        return len(self._t)
+
+    def __call__(self, sim: Simulator) -> None:
+        """Observer hook: keep the state if this step is a multiple of the stride."""
+        self.observed += 1
+        if self.observed % self.stride:
+            self._last_t = float(sim.data.time)
+            np.copyto(self._last_qpos, sim.data.qpos)
+            return
+        super().__call__(sim)
+        if len(self._t) >= self.max_samples:
+            self._t, self._qpos = self._t[::2], self._qpos[::2]
+            self.stride *= 2
+
+    def close(self) -> Path:
+        """Keep the last state (if it fell between kept steps), then write ``trajectory.npz``."""
+        if not self._closed and self.observed % self.stride:
+            self._t.append(self._last_t)
+            self._qpos.append(self._last_qpos.copy())
+        return super().close()
 
 
 @dataclass(frozen=True)

@@ -9,6 +9,7 @@ import sys
 import time
 from dataclasses import dataclass
 
+import numpy as np
 import pytest
 
 from mbctl.exceptions import ToolkitError
@@ -22,7 +23,9 @@ from mbctl.jobs.runner import (
     run_job,
 )
 from mbctl.sim.exceptions import SimulationDiverged
-from mbctl.sim.recorder import read_csv
+from mbctl.sim.recorder import MAX_REPLAY_SAMPLES, BoundedTrajectoryRecorder, read_csv
+from mbctl.sim.simulator import Simulator
+from mbctl.sim.trajectory import load_trajectory
 
 
 @dataclass(frozen=True)
@@ -97,6 +100,42 @@ def test_a_run_refused_a_pass_is_uncommanded_whatever_its_outcome(tmp_path):
     assert (report["status"], report["passed"], report["message"]) == (
         "uncommanded", False, "no command reached the plant")
     assert record.summary().startswith("NOT A PASS (uncommanded): no command reached the plant\nwrote 1 rows")
+
+
+def test_a_long_run_keeps_a_bounded_replay_and_every_csv_row(tmp_path, two_link_torque):
+    """2.2x MAX_REPLAY_SAMPLES steps: the replay keeps at most the cap, evenly spaced; the CSV every row."""
+    steps = 220_000
+
+    def prepare(params: Params):
+        def work(ctx: RunContext) -> Outcome:
+            sim = ctx.attach(Simulator(two_link_torque))
+            csv = ctx.open_csv(["time_s"])
+            for _ in range(steps):
+                sim.step()
+                csv.write([sim.time_s])
+            return Outcome()
+        return work
+
+    record = run_job(Job("toy", prepare), Params(), tmp_path)
+    assert record.rows == steps
+    model, t, qpos, _ = load_trajectory(tmp_path)
+    dt = model.opt.timestep
+    assert len(t) == len(qpos) == 55_001 <= MAX_REPLAY_SAMPLES == 100_000  # every 4th step and the start
+    assert t[0] == 0.0 and t[-1] == pytest.approx(steps * dt)
+    np.testing.assert_allclose(np.diff(t), 4 * dt, rtol=1e-6)
+    assert _report(tmp_path)["replay"] == {"samples": 55_001, "every_nth_update": 4, "updates": steps}
+
+
+def test_the_replay_keeps_the_last_state_between_kept_steps(tmp_path, two_link_torque):
+    sim = Simulator(two_link_torque)
+    rec = BoundedTrajectoryRecorder(sim, tmp_path, max_samples=8).attach()
+    for _ in range(21):  # 8 samples reached at step 7 (stride 2), at step 14 (stride 4): 0, 4, 8, ... 20
+        sim.step()
+    rec.close()
+    t = load_trajectory(tmp_path)[1]
+    np.testing.assert_allclose(t / sim.model.opt.timestep, [0, 4, 8, 12, 16, 20, 21], atol=1e-9)  # 21: end
+    with pytest.raises(ValueError, match="max_samples must be >= 2"):
+        BoundedTrajectoryRecorder(sim, tmp_path, max_samples=1)
 
 
 @pytest.mark.parametrize(
