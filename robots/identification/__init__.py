@@ -3,10 +3,10 @@
 Modules: ``inertial`` (one body's 10 parameters, log-Cholesky, physical consistency),
 ``parameters`` (the parameter vector of a robot), ``samples`` (from a log to samples),
 ``regressor`` (the stacked equations, contacts projected out), ``identifiability`` (rank, base
-parameters, why not), ``estimate`` (the consistent MAP estimate), ``uncertainty`` (its residual-aware covariance),
-``writeback`` (the identified
-MJCF), ``pipeline`` (``identify``: all of it), ``summary`` (each body and joint with its
-uncertainty: the report's numbers).
+parameters, why not, how strongly excited), ``estimate`` (the consistent MAP estimate),
+``uncertainty`` (its residual-aware covariance), ``writeback`` (the identified MJCF),
+``pipeline`` (``identify``: all of it), ``summary`` (each body and joint with its uncertainty and
+how the data determined it: the report's numbers).
 """
 
 from mbctl.robots.identification.exceptions import BadLogError, IdentificationError, InconsistentParameters
