@@ -186,9 +186,11 @@ class BridgeOptions:
                            "need a wall clock; leave them out, or run without --lockstep")
 
 
-#: Columns of the truth log (world frame W, MuJoCo's quaternion order w, x, y, z).
+#: Columns of the truth log (world frame W, MuJoCo's quaternion order w, x, y, z). ``unix_s`` is the
+#: wall-clock time [s since the Unix epoch] the row was made: the log's identity (ticks restart with
+#: every bridge), which a client compares with when its own loop ran (``mbctl.jobs.truth``).
 TRUTH_COLUMNS = (
-    "tick", "time_s", "wall_s", "commands_applied",
+    "tick", "time_s", "wall_s", "unix_s", "commands_applied",
     "base_x_m", "base_y_m", "base_z_m", "base_qw", "base_qx", "base_qy", "base_qz",
     "base_vx_m_s", "base_vy_m_s", "base_vz_m_s", "com_x_m", "com_y_m", "com_z_m",
     "left_foot_x_m", "left_foot_y_m", "left_foot_z_m", "right_foot_x_m", "right_foot_y_m", "right_foot_z_m",
@@ -342,7 +344,7 @@ class G1Bridge:
             forces = measure_contacts(m, d, self._foot_geoms)
             self._forces = [forces["0"].normal_n, forces["1"].normal_n]
         feet = np.concatenate([d.site_xpos[s] for s in self._feet])
-        return [tick, self._t_start, wall_s, self.counts["commands_applied"], *self._base_start,
+        return [tick, self._t_start, wall_s, time.time(), self.counts["commands_applied"], *self._base_start,
                 *d.subtree_com[self._root], *feet, *self._forces]
 
     # ------------------------------------------------------------------ loop
