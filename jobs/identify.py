@@ -45,7 +45,7 @@ from mbctl.robots.identification import (
 )
 from mbctl.robots.identification.identifiability import reasons
 from mbctl.robots.identification.parameters import ParameterSet
-from mbctl.robots.identification.summary import body_summary, joint_summaries
+from mbctl.robots.identification.summary import base_summaries, body_summary, joint_summaries
 from mbctl.robots.model_pair import Robot
 from mbctl.robots.registry import load_robot
 from mbctl.sim.atomic import write_json_atomic, write_text_atomic
@@ -171,9 +171,10 @@ def prepare(params: IdentifyParams) -> Work:
 def _body_entry(ident: Identification, name: str) -> dict[str, Any]:
     body = body_summary(ident, name)
     nom, est = body.nominal, body.identified
-    return {"mass_kg": {"nominal": nom.mass_kg, "identified": est.mass_kg, "std": body.mass_std_kg},
+    return {"mass_kg": {"nominal": nom.mass_kg, "identified": est.mass_kg, "std": body.mass_std_kg,
+                        "status": body.mass_status},
             "com_m": {"nominal": nom.com_m.tolist(), "identified": est.com_m.tolist(),
-                      "std": body.com_std_m.tolist()},
+                      "std": body.com_std_m.tolist(), "status": list(body.com_status)},
             "inertia_kg_m2": {"nominal": nom.inertia_com.tolist(), "identified": est.inertia_com.tolist(),
                               "about": "the CoM, body axes"}}
 
@@ -190,7 +191,6 @@ def _joint_entries(ident: Identification) -> dict[str, Any]:
 def report_dict(params: IdentifyParams, robot: Robot, ident: Identification, sections: list[dict[str, Any]],
                 fingerprint: str, seconds: float) -> dict[str, Any]:
     """The content of ``identify_report.json``."""
-    names = ident.params.names
     why = reasons(ident.data, ident.structural)
     method = {
         "regressor": "pinocchio.computeJointTorqueRegressor, columns per MuJoCo body (its own frame)",
@@ -203,10 +203,12 @@ def report_dict(params: IdentifyParams, robot: Robot, ident: Identification, sec
         "noise_sigma_N_m": ident.estimate.sigma,
         "solver_iterations": ident.estimate.iterations,
         "consistency_constraints_active": ident.estimate.constrained,
+        "std": "residual-aware: Laplace + max(10-segment jackknife, Newey-West) + the filter's and the "
+               "time step's systematic terms (robots/identification/uncertainty); status per number: "
+               "identified, weakly excited (relative excitation below "
+               f"{ident.data.summary()['weak_excitation_below']:g}) or not identified (the prior's)",
     }
-    base = [{"expression": b.expression(), "coefficients": b.coefficients,
-             "nominal": b.value(ident.params.nominal, names), "identified": b.value(ident.theta, names)}
-            for b in ident.data.base]
+    base = [b._asdict() for b in base_summaries(ident)]
     return {
         "robot": robot.name,
         "model_fingerprint": fingerprint,
@@ -290,10 +292,28 @@ def _write(ctx: RunContext, params: IdentifyParams, robot: Robot, ident: Identif
     ]
     for name, entry in list(report["bodies"].items())[:4] if len(report["bodies"]) <= 4 else []:
         m = entry["mass_kg"]
-        lines.append(f"  {name}: mass {m['nominal']:.4g} -> {m['identified']:.4g} kg (std {m['std']:.2g}), "
-                     f"CoM {np.round(entry['com_m']['identified'], 4).tolist()} m")
+        lines.append(f"  {name}: mass {m['nominal']:.4g} -> {m['identified']:.4g} kg (std {m['std']:.2g}"
+                     f"{_mark(m['status'])}), CoM {np.round(entry['com_m']['identified'], 4).tolist()} m"
+                     + _com_marks(entry["com_m"]["status"]))
+    weak = report["identifiability"]["weakly_excited"]
+    if weak:
+        lines.append(f"weakly excited (the log barely moves them; trust them only within their std): "
+                     f"{', '.join(weak[:8])}{' ...' if len(weak) > 8 else ''}")
     return Outcome(bool(better and written), tuple(lines),
                    "identified validation RMSE <= nominal; identified.xml round trip and cross-check pass")
+
+
+def _mark(status: str) -> str:
+    """``""`` for an identified number, else ``"; weakly excited"`` or ``"; not identified"``."""
+    return "" if status == "identified" else f"; {status}"
+
+
+def _com_marks(statuses: list[str]) -> str:
+    """`` (z: weakly excited; y: not identified)`` for the CoM coordinates that are not identified."""
+    if len(set(statuses)) == 1:
+        return "" if statuses[0] == "identified" else f" ({statuses[0]})"
+    parts = [f"{axis}: {s}" for axis, s in zip("xyz", statuses, strict=True) if s != "identified"]
+    return f" ({'; '.join(parts)})"
 
 
 #: The ``mbctl identify`` job.
