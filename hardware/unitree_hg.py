@@ -18,7 +18,10 @@ robot's state stream has been read: :data:`~mbctl.hardware.lowstate.RATE_STATES`
 within ``connect_timeout_s`` (their arrivals measure the state rate, which paces the loop and
 scales the watchdog, unless ``rate_hz`` is given), else :class:`NoRobotError` saying what was seen
 (nothing on the domain, states with a bad CRC, states that never advance); a joint outside its
-limits raises :class:`JointOutOfLimits` naming it; nothing is commanded in either case.
+limits raises :class:`JointOutOfLimits` naming it; another ``rt/lowcmd`` writer on the domain (a
+second client: discovery is given :data:`~mbctl.unitree.channel.DISCOVERY_S` from the start)
+raises :class:`~mbctl.unitree.exceptions.AnotherWriterError`; nothing is commanded in any case
+(a dry run has no writer, and is not refused).
 ``stop()`` ends the loop's commanding: the damping command goes out every period from a thread
 (:class:`~mbctl.hardware.damping.DampingKeeper`) until ``close()``, or until a new command
 resumes (another loop). ``close()`` deactivates: it sends the damping command (``kp = 0``, ``kd``
@@ -69,7 +72,7 @@ from mbctl.robots.commands import Command
 from mbctl.robots.interface import BaseStateEstimator, Proprioception, RobotState
 from mbctl.robots.model_pair import Robot
 from mbctl.robots.plant_report import LinkReport, PlantReport, SafetyReport, TimingReport
-from mbctl.unitree.channel import LOOPBACK, TOPIC_LOWCMD, TOPIC_LOWSTATE, Channel, message_types
+from mbctl.unitree.channel import DISCOVERY_S, LOOPBACK, TOPIC_LOWCMD, TOPIC_LOWSTATE, Channel, message_types
 from mbctl.unitree.clock import CycleClock, RealtimePriority
 from mbctl.unitree.motors import MODE_PR, MOTOR_ENABLED, MotorMap
 from mbctl.unitree.tables import G1_29DOF, MotorTable
@@ -103,6 +106,8 @@ class DdsOptions:
             accepts those unchecked (Unitree's simulator leaves the CRC 0), never a wrong non-zero one.
         cyclone_config: A Cyclone DDS configuration file of the user's, used as written (None:
             the one mbctl makes for ``network_interface``).
+        discovery_s: How long [s] from the start connecting waits at least for discovery to show
+            another ``rt/lowcmd`` writer (another client): the interface then refuses to start.
     """
 
     domain: int = 0
@@ -115,6 +120,7 @@ class DdsOptions:
     quiet_loop: bool = True
     check_state_crc: bool = True
     cyclone_config: str | None = None
+    discovery_s: float = DISCOVERY_S
 
     def __post_init__(self) -> None:
         if self.rate_hz is not None and not (math.isfinite(self.rate_hz) and self.rate_hz > 0):
@@ -142,6 +148,7 @@ class UnitreeHG:
     Raises:
         ChannelError: The hardware extra is missing, a bad domain or an unknown interface.
         NoRobotError: No state stream within ``connect_timeout_s``.
+        AnotherWriterError: Another ``rt/lowcmd`` writer on the domain (not in a dry run).
         JointOutOfLimits: A joint outside its limits at start.
         MotorTableError: A robot that does not match ``table``.
     """
@@ -190,9 +197,11 @@ class UnitreeHG:
         o = self.options
         self.channel = Channel(o.domain, o.network_interface, o.cyclone_config)
         try:
-            self._writer = self.channel.writer(TOPIC_LOWCMD, lowcmd)
-            self._reader = self.channel.reader(TOPIC_LOWSTATE, lowstate)
             self._t0 = time.perf_counter()
+            self._lowcmd_writers = self.channel.writers(TOPIC_LOWCMD, lowcmd)
+            # a dry run never commands: no writer (another client beside it is no conflict)
+            self._writer = None if o.dry_run else self.channel.writer(TOPIC_LOWCMD, lowcmd)
+            self._reader = self.channel.reader(TOPIC_LOWSTATE, lowstate)
         except BaseException:
             self.channel.close()
             raise
@@ -206,6 +215,7 @@ class UnitreeHG:
         Raises:
             NoRobotError: No state stream within ``connect_timeout_s`` (the channel is closed).
             JointOutOfLimits: A joint outside its limits (the channel is closed).
+            AnotherWriterError: Another ``rt/lowcmd`` writer on the domain (the channel is closed).
         """
         if self.channel is None:
             raise HardwareError("this interface was closed; make a new one to reconnect")
@@ -240,6 +250,12 @@ class UnitreeHG:
                     "a robot that publishes and does not listen (check its low-level mode), or a discovery "
                     "that works one way only (check the network configuration)")
             time.sleep(min(remaining, 0.005))
+        if not o.dry_run:  # one controller per robot
+            self._lowcmd_writers.refuse_others(
+                1, self._t0 + o.discovery_s, "the DDS client will not command the robot: a second client (or "
+                "another program) already publishes commands there, and the robot would take both",
+                o.domain, o.network_interface)
+        self._lowcmd_writers.close()
         period = 1.0 / o.rate_hz if o.rate_hz else stream.measured_period()
         low, high = PERIOD_RANGE_S
         if period is None or not low <= period <= high:
@@ -267,7 +283,8 @@ class UnitreeHG:
         motor_cmd["mode"][: self.motors.n] = MOTOR_ENABLED
         write_damping(motor_cmd, self.damping_kd)
         self._damping_wire = self._cmd_codec.encode()  # the damping command, CRC included, made once
-        self._keeper = DampingKeeper(self._writer.write, self._damping_wire, period)
+        if self._writer is not None:
+            self._keeper = DampingKeeper(self._writer.write, self._damping_wire, period)
         # motors with gains hold where they are until a command addresses them
         hold = np.isfinite(self.gains.kp) & np.isfinite(self.gains.kd)
         motor_cmd["q"][: self.motors.n][hold] = q[hold]

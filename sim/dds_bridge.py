@@ -31,6 +31,10 @@ the held state is published every period with one tick (1: the same state again,
 does not take for a new one), so a client connects, measures the rate and starts from it; each
 step's state then advances the tick. No link model (delays need a wall clock).
 
+One bridge per domain: a bridge that finds another ``rt/lowstate`` writer on its domain when it
+starts (a second bridge, a robot; :data:`~mbctl.unitree.channel.DISCOVERY_S` of discovery) refuses
+to start (:class:`~mbctl.unitree.exceptions.AnotherWriterError`, exit 2).
+
 A bridge that diverges stops and says so (:class:`~mbctl.sim.exceptions.SimulationDiverged`,
 exit 1): MuJoCo's divergence warnings, or an acceleration beyond :data:`MAX_QACC` (a state no
 robot reaches), naming how long the last command had been applied (stale torques from a client
@@ -57,7 +61,7 @@ from mbctl.sim.exceptions import SimError, SimulationDiverged
 from mbctl.sim.imu import ImuReader
 from mbctl.sim.link import DelayLine, LinkSpec
 from mbctl.sim.simulator import Simulator
-from mbctl.unitree.channel import LOOPBACK, TOPIC_LOWCMD, TOPIC_LOWSTATE, Channel, message_types
+from mbctl.unitree.channel import DISCOVERY_S, LOOPBACK, TOPIC_LOWCMD, TOPIC_LOWSTATE, Channel, message_types
 from mbctl.unitree.clock import CycleClock, RealtimePriority
 from mbctl.unitree.exceptions import WireFormatError
 from mbctl.unitree.motors import MODE_PR, MOTOR_ENABLED, MotorMap
@@ -171,6 +175,8 @@ class BridgeOptions:
         link: Latency, jitter, drops and IMU noise (applied to both directions).
         mode_machine: The ``mode_machine`` reported and required in commands.
         lockstep: One physics period per command received (see the module docstring).
+        discovery_s: How long [s] the start waits for discovery to show another ``rt/lowstate``
+            writer on the domain (a second bridge, a robot): the bridge then refuses to start.
     """
 
     domain: int = 0
@@ -178,6 +184,7 @@ class BridgeOptions:
     link: LinkSpec = LinkSpec()
     mode_machine: int = BRIDGE_MODE_MACHINE
     lockstep: bool = False
+    discovery_s: float = DISCOVERY_S
 
     def __post_init__(self) -> None:
         link = self.link
@@ -210,6 +217,7 @@ class G1Bridge:
 
     Raises:
         ChannelError: Missing hardware extra, bad domain or unknown interface.
+        AnotherWriterError: Another ``rt/lowstate`` writer on the domain (a second bridge, a robot).
         MotorTableError: A robot that does not match ``table``.
     """
 
@@ -255,8 +263,14 @@ class G1Bridge:
         self.channel = Channel(self.options.domain, self.options.network_interface)
         try:
             lowcmd, lowstate = message_types()
+            until = time.perf_counter() + self.options.discovery_s
+            others = self.channel.writers(TOPIC_LOWSTATE, lowstate)
             self._reader = self.channel.reader(TOPIC_LOWCMD, lowcmd)
             self._writer = self.channel.writer(TOPIC_LOWSTATE, lowstate)
+            others.refuse_others(1, until, "the G1 bridge (mbctl serve g1) will not start: a second bridge "
+                                 "or a robot already publishes its state there, and a client would take both "
+                                 "plants' states", self.options.domain, self.options.network_interface)
+            others.close()
         except BaseException:
             self.channel.close()
             raise

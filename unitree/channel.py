@@ -18,19 +18,29 @@ other there. Any other interface must be named by the user (a real robot's, e.g.
 gets Cyclone's defaults on that interface only; for anything else (several interfaces, a discovery
 server, peers) the user gives a Cyclone configuration file of their own (``config``), used as
 written. Waiting (``RawReader.wait``) blocks in C through ctypes, which releases the GIL.
+
+One writer per topic: a second bridge or a second client on the domain would mix two plants'
+states or two controllers' commands. :meth:`Channel.writers` counts the writers of a topic that
+discovery has matched (the process's own included), so the bridge and the client refuse to start
+beside another writer of the topic they write (:class:`AnotherWriterError`). Discovery is not
+instantaneous: :data:`DISCOVERY_S` is how long a start waits for one to show (33-34 ms measured
+between two processes on ``lo``); a writer discovery finds later is not seen by that check.
 """
 
 from __future__ import annotations
 
 import socket
 import threading
+import time
 from typing import Any
 
-from mbctl.unitree.exceptions import ChannelError
+from mbctl.unitree.exceptions import AnotherWriterError, ChannelError
 
 TOPIC_LOWCMD = "rt/lowcmd"
 TOPIC_LOWSTATE = "rt/lowstate"
 LOOPBACK = "lo"
+#: How long [s] a start waits for discovery to show another writer of its topic.
+DISCOVERY_S = 0.3
 #: DDS domain ids Cyclone accepts (the port of domain d is 7400 + 250 d, below 65536).
 MAX_DOMAIN = 232
 
@@ -203,6 +213,50 @@ class RawReader:
         return int(self._reader.get_subscription_matched_status().current_count)
 
 
+class WriterCount:
+    """The writers of one topic that discovery has matched on the domain (this participant's included).
+
+    A reader of the topic held only to count them (it keeps one sample; nothing reads it).
+    """
+
+    def __init__(self, reader: Any, topic: str):
+        self._reader = reader
+        self.topic = topic
+
+    def count(self) -> int:
+        """How many writers of the topic are matched now."""
+        return int(self._reader.get_subscription_matched_status().current_count)
+
+    def others(self, own: int, until: float) -> int:
+        """Writers beyond ``own`` (this process's), waiting until ``until`` [s, perf_counter] for one."""
+        while True:
+            extra = self.count() - own
+            if extra > 0 or time.perf_counter() >= until:
+                return max(extra, 0)
+            time.sleep(0.005)
+
+    def refuse_others(self, own: int, until: float, what: str, domain: int, network_interface: str) -> None:
+        """Raise :class:`AnotherWriterError` if a writer beyond ``own`` shows by ``until``.
+
+        Args:
+            own: This process's writers of the topic.
+            until: When to stop waiting for discovery (``time.perf_counter``) [s].
+            what: Who is starting and what the other writer may be, for the message.
+            domain: The DDS domain (in the message).
+            network_interface: The network interface (in the message).
+        """
+        extra = self.others(own, until)
+        if extra:
+            raise AnotherWriterError(
+                f"{what}: {extra} other writer{'s' if extra > 1 else ''} of {self.topic} already on DDS "
+                f"domain {domain} (network interface {network_interface!r}); refusing to start beside it. "
+                "Stop it, or use another --domain.")
+
+    def close(self) -> None:
+        """Stop counting: delete the reader (idempotent; the channel's close deletes it too)."""
+        self._reader.__del__()
+
+
 class Channel:
     """A DDS participant on one domain and one network interface.
 
@@ -250,6 +304,14 @@ class Channel:
         raw = RawReader(self._dds, r)
         self._entities += [r, raw._condition, raw._waitset]
         return raw
+
+    def writers(self, topic: str, data_type: type) -> WriterCount:
+        """Count the writers of ``topic`` on the domain from now on (discovery matches them over time)."""
+        Policy, Qos = self._dds["Policy"], self._dds["Qos"]
+        qos = Qos(Policy.Reliability.BestEffort, Policy.History.KeepLast(1))
+        r = self._dds["DataReader"](self._participant, self._topic(topic, data_type), qos=qos)
+        self._entities.append(r)
+        return WriterCount(r, topic)
 
     def close(self) -> None:
         """Delete the participant and everything it owns (idempotent)."""

@@ -19,3 +19,7 @@ class WireFormatError(UnitreeError):
 
 class ChannelError(UnitreeError):
     """DDS cannot be set up: the extra is not installed, a bad domain id or network interface."""
+
+
+class AnotherWriterError(ChannelError):
+    """Another writer already publishes the topic this process would write on its DDS domain."""

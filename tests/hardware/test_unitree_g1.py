@@ -268,3 +268,26 @@ def test_the_estimator_starts_from_the_first_reading_and_gives_the_base(g1, fake
         state = robot.read_state()
         assert np.array_equal(state.q[:7], q_base) and np.array_equal(state.v[:6], v_base)
         np.testing.assert_allclose(state.q[7:], first.q_joints, atol=1e-6)
+
+
+def test_a_second_client_on_the_domain_refuses_to_start(g1, fake_g1, dds_domain):
+    """Two participants on the test's domain: the robot and another writer of rt/lowcmd (a client)."""
+    from mbctl.unitree import TOPIC_LOWCMD, Channel
+    from mbctl.unitree.channel import message_types
+    from mbctl.unitree.exceptions import AnotherWriterError
+
+    fake = fake_g1()
+    with Channel(dds_domain) as other:
+        other.writer(TOPIC_LOWCMD, message_types()[0])
+        expected = (r"^the DDS client will not command the robot: a second client \(or another program\) "
+                    r"already publishes commands there, and the robot would take both: 1 other writer of "
+                    rf"rt/lowcmd already on DDS domain {dds_domain} \(network interface 'lo'\)")
+        with pytest.raises(AnotherWriterError, match=expected):
+            UnitreeG1(g1, StillBase(), DdsOptions(domain=dds_domain))
+        with UnitreeG1(g1, StillBase(), DdsOptions(domain=dds_domain, dry_run=True)) as robot:  # reads only
+            assert robot.read_state().q.shape == (g1.nq,)
+    assert fake.commands == []  # the refused client commanded nothing
+    with UnitreeG1(g1, StillBase(), DdsOptions(domain=dds_domain)) as first:  # alone: it starts
+        with pytest.raises(AnotherWriterError, match="1 other writer of rt/lowcmd"):
+            UnitreeG1(g1, StillBase(), DdsOptions(domain=dds_domain))
+        run(first, ConstantTorque(g1), HOLD, 0.01)

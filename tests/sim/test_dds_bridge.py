@@ -159,3 +159,35 @@ def test_a_kp_of_1e30_over_dds_is_clamped_and_the_lockstep_plant_stays_finite(g1
     finally:
         client.close()
         bridge.close()
+
+
+def test_a_second_bridge_on_the_domain_refuses_to_start(g1, dds_domain):
+    """Two participants on the test's domain: the first bridge, then another writer of rt/lowstate."""
+    from mbctl.sim.dds_bridge import BridgeOptions, G1Bridge
+    from mbctl.unitree.exceptions import AnotherWriterError, ChannelError
+
+    first = G1Bridge(g1, g1.keyframe_q("stand"), BridgeOptions(domain=dds_domain, lockstep=True))
+    try:
+        expected = (r"^the G1 bridge \(mbctl serve g1\) will not start: a second bridge or a robot already "
+                    rf"publishes its state there, .*: 1 other writer of rt/lowstate already on DDS domain "
+                    rf"{dds_domain} \(network interface 'lo'\); refusing to start beside it")
+        with pytest.raises(AnotherWriterError, match=expected) as err:
+            G1Bridge(g1, g1.keyframe_q("stand"), BridgeOptions(domain=dds_domain, lockstep=True))
+        assert isinstance(err.value, ChannelError)  # a ToolkitError at prepare: exit 2
+    finally:
+        first.close()
+    again = G1Bridge(g1, g1.keyframe_q("stand"), BridgeOptions(domain=dds_domain, lockstep=True))
+    again.close()  # alone on the domain it starts
+
+
+def test_mbctl_serve_beside_another_state_writer_exits_2_naming_it(dds_domain, tmp_path):
+    from mbctl.unitree import TOPIC_LOWSTATE, Channel
+    from mbctl.unitree.channel import message_types
+    from tests.conftest import run_mbctl
+
+    with Channel(dds_domain) as other:
+        other.writer(TOPIC_LOWSTATE, message_types()[1])
+        out = run_mbctl("serve", "g1", "--domain", str(dds_domain), "--duration", "1", "--lockstep",
+                        "--output", str(tmp_path / "serve"))
+    assert out.returncode == 2, out.stderr
+    assert f"1 other writer of rt/lowstate already on DDS domain {dds_domain}" in out.stderr
