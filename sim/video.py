@@ -1,16 +1,21 @@
 """Headless video of the plant: MuJoCo's renderer, frames streamed into an MP4 as they are drawn.
 
-A :class:`VideoRecorder` is a simulator observer: it renders a frame whenever simulated time
-passes the next frame time (``fps`` frames per simulated second) and hands it to the encoder at
-once, so an interrupted run leaves a playable video of what ran. The MP4 is fragmented
-(``-movflags frag_keyframe+empty_moov``, a keyframe every 0.5 s, each fragment flushed to disk):
-playable up to about 0.6 s before its end even if the process and its encoder die before closing
-it. It is written at its own name from the first frame (ffmpeg writes to its stdout, a file we
-create after removing whatever was at the name: a symbolic link planted there is never
-followed), so a process killed outright (SIGKILL) leaves ``video.mp4`` where a user and ``mbctl
-replay`` look for it; the encoder, which outlives it, then reads the end of its input and
-finishes the file.
+A :class:`VideoRecorder` is a simulator observer: whenever simulated time passes the next frame
+time (``fps`` frames per simulated second) it sends the plant's pose and the frame's extra geoms
+(contact-force arrows, overlay markers) to render workers (:mod:`mbctl.sim.video_workers`), which
+draw and encode while the simulation goes on; an interrupted run leaves a playable video of what
+ran. The MP4 is fragmented (``-movflags frag_keyframe+empty_moov``, a keyframe every 0.5 s, each
+fragment flushed to disk): playable up to about 0.6 s before its end even if the processes die
+before closing it. It is written at its own name from the first frame (ffmpeg writes to its
+stdout, a file created after removing whatever was at the name: a symbolic link planted there is
+never followed), so a process killed outright (SIGKILL) leaves ``video.mp4`` where a user and
+``mbctl replay`` look for it; the workers and the encoder, which outlive it, render and encode
+every frame it had sent and finish the file.
 With no recorder the simulator pays nothing.
+
+Contact forces are drawn as MuJoCo draws them: at each contact point, the force the other side
+(the floor) exerts on the robot, so a standing robot's arrows point up (the browser view,
+:mod:`mbctl.jobs.web_view`, draws the same force).
 
 Encoder: imageio-ffmpeg, which ships its own ffmpeg binary (no system install);
 the ``mbctl[video]`` extra. OpenGL: MuJoCo picks its backend from ``MUJOCO_GL`` when it is first
@@ -19,24 +24,28 @@ imported; ``mbctl.gl.choose_gl_backend`` probes EGL, then OSMesa, in subprocesse
 
 from __future__ import annotations
 
-import contextlib
-import os
 import re
-import subprocess
-import tempfile
 from collections.abc import Callable
 from dataclasses import dataclass
-from fractions import Fraction
 from pathlib import Path
-from typing import IO
 
 import mujoco
 import numpy as np
 
-from mbctl.gl import INSTALL_HINT, VideoError
-from mbctl.sim.atomic import FILE_MODE
+from mbctl.gl import VideoError
 from mbctl.sim.simulator import Simulator
 from mbctl.sim.trajectory import base_body
+from mbctl.sim.video_workers import (
+    CameraSpec,
+    ExtraGeoms,
+    FrameState,
+    RenderPool,
+    default_workers,
+    make_renderer,
+)
+
+__all__ = ["VideoError", "VideoRecorder", "VideoSpec", "add_markers", "contact_force_geoms",
+           "default_camera", "film_trajectory", "make_renderer", "parse_size", "still"]
 
 
 @dataclass(frozen=True)
@@ -71,27 +80,6 @@ def parse_size(text: str) -> tuple[int, int]:
     if not match:
         raise VideoError(f"video size must be WIDTHxHEIGHT in pixels, e.g. 640x480; got {text!r}")
     return int(match.group(1)), int(match.group(2))
-
-
-def make_renderer(model: mujoco.MjModel, width: int, height: int) -> mujoco.Renderer:
-    """MuJoCo's offscreen renderer at width x height [px] (the offscreen buffer grown if needed).
-
-    Raises:
-        VideoError: OpenGL cannot be initialised (the message says what to install).
-    """
-    model.vis.global_.offwidth = max(int(model.vis.global_.offwidth), width)
-    model.vis.global_.offheight = max(int(model.vis.global_.offheight), height)
-    try:
-        renderer = mujoco.Renderer(model, height, width)
-        # Floor reflections cost ~60 ms of a G1 frame in software GL (bench/bench_video.py) for
-        # little information; shadows stay (they show contact with the floor).
-        renderer.scene.flags[mujoco.mjtRndFlag.mjRND_REFLECTION] = False
-        return renderer
-    except Exception as exc:  # GL errors come as several types (RuntimeError, AttributeError, ...)
-        raise VideoError(
-            f"MuJoCo's renderer cannot start with MUJOCO_GL={os.environ.get('MUJOCO_GL', '(unset)')}: "
-            f"{type(exc).__name__}: {exc}; {INSTALL_HINT}"
-        ) from exc
 
 
 def default_camera(
@@ -169,126 +157,29 @@ def add_markers(
         scene.ngeom += 1
 
 
-#: Keyframe interval and x264 lookahead [s of video]. The fragmented MP4 is written a fragment per
-#: keyframe, once the encoder has emitted the next keyframe, so the file on disk lags the frames
-#: sent by about one interval plus the lookahead. x264's defaults (a keyframe every 250 frames, 40
-#: frames of lookahead) kept a 3 s clip unplayable until it was closed; with 0.5 s and 0.33 s the
-#: file plays to within 0.6 s of the last frame sent (tests/sim/test_video.py), for 15 % more bytes.
-KEYFRAME_INTERVAL_S, LOOKAHEAD_S = 0.5, 1.0 / 3.0
+def contact_force_geoms(model: mujoco.MjModel, data: mujoco.MjData,
+                        scene: mujoco.MjvScene | None = None) -> ExtraGeoms:
+    """The contact-force arrows MuJoCo draws for ``data`` (``mjVIS_CONTACTFORCE``), one per contact.
 
-
-def _create_new(path: Path) -> int:
-    """A write descriptor on a new file at ``path`` (mode 0644).
-
-    Whatever was there (a file, a symbolic link) is removed first, never followed or written
-    through (``O_EXCL | O_NOFOLLOW``).
+    Each arrow starts at its contact point (``pos`` [m] in W) and points along its z axis (the
+    third column of ``mat``): the force the other side exerts on the body of higher id, the
+    robot for a contact with the floor (world body 0), so up for a standing robot.
     """
-    with contextlib.suppress(FileNotFoundError):
-        os.unlink(path)
-    return os.open(path, os.O_WRONLY | os.O_CREAT | os.O_EXCL | os.O_NOFOLLOW, FILE_MODE)
-
-
-class _Writer:
-    """An MP4 written at ``path`` as it is encoded.
-
-    ffmpeg reads raw frames on its stdin and writes the fragmented MP4 on its stdout, which is
-    the file (created by us, ``_create_new``).
-
-    ffmpeg never opens a file by name, so no symbolic link is ever followed; the video is at its
-    final name from the first frame, so a run killed outright (SIGKILL) leaves ``video.mp4``
-    itself, playable up to its last fragment (and whole once ffmpeg, which outlives the killed
-    process, reads the end of its input). A video without frames is never created.
-    """
-
-    def __init__(self, path: Path, fps: float):
-        try:
-            import imageio_ffmpeg
-        except ImportError:
-            raise VideoError("video needs imageio and imageio-ffmpeg: pip install 'mbctl[video]'") from None
-        try:
-            self._exe = imageio_ffmpeg.get_ffmpeg_exe()
-        except RuntimeError as exc:
-            raise VideoError(f"no ffmpeg for the video: {exc}; pip install 'mbctl[video]'") from None
-        if path.is_dir():
-            raise VideoError(f"{path} is a directory; give a file name for the video")
-        self.path, self.fps = path, fps
-        self._proc: subprocess.Popen[bytes] | None = None  # started by the first frame (its size)
-        self._log: IO[bytes] | None = None
-
-    def _command(self, width: int, height: int) -> list[str]:
-        keyframes, lookahead = (max(1, round(t * self.fps)) for t in (KEYFRAME_INTERVAL_S, LOOKAHEAD_S))
-        return [self._exe, "-y", "-f", "rawvideo", "-vcodec", "rawvideo", "-s", f"{width}x{height}",
-                "-pix_fmt", "rgb24", "-r", str(Fraction(self.fps).limit_denominator()), "-i", "-", "-an",
-                "-vcodec", "libx264", "-pix_fmt", "yuv420p", "-v", "error", "-crf", "23",
-                "-g", str(keyframes), "-x264-params", f"rc-lookahead={lookahead}",
-                # fragmented, each fragment flushed: playable up to the last fragment if the process dies
-                "-movflags", "frag_keyframe+empty_moov", "-flush_packets", "1", "-f", "mp4", "pipe:1"]
-
-    def _start(self, width: int, height: int) -> subprocess.Popen[bytes]:
-        try:
-            fd = _create_new(self.path)
-        except OSError as exc:
-            raise VideoError(f"cannot create the video {str(self.path)!r}: {exc.strerror or exc}") from None
-        self._log = tempfile.TemporaryFile()
-        try:
-            return subprocess.Popen(self._command(width, height), stdin=subprocess.PIPE, stdout=fd,
-                                    stderr=self._log, start_new_session=True)
-        except OSError as exc:
-            raise VideoError(f"cannot start the video encoder for {str(self.path)!r}: {exc}; "
-                             "pip install 'mbctl[video]'") from exc
-        finally:
-            os.close(fd)  # ffmpeg holds the file now
-
-    def append_data(self, frame: np.ndarray) -> None:
-        """Encode one frame (height, width, 3) uint8."""
-        if self._proc is None:
-            self._proc = self._start(frame.shape[1], frame.shape[0])
-        stdin = self._proc.stdin
-        try:
-            if stdin is None:
-                raise BrokenPipeError
-            stdin.write(np.ascontiguousarray(frame, dtype=np.uint8).tobytes())
-            stdin.flush()  # the whole frame reaches ffmpeg now: none is lost if this process is killed
-        except (BrokenPipeError, ValueError):
-            raise VideoError(f"the video encoder stopped writing {str(self.path)!r}: "
-                             f"{self._errors(self._proc.wait())}") from None
-
-    def _errors(self, code: int) -> str:
-        """The encoder's exit code and the end of what it printed."""
-        text = b""
-        if self._log is not None:
-            self._log.seek(0)
-            text = self._log.read()
-        tail = text.decode(errors="replace").strip()[-500:]
-        return f"ffmpeg exit {code}" + (f": {tail}" if tail else "")
-
-    def close(self) -> None:
-        """Finish the file (idempotent; a video without frames is never created)."""
-        proc, self._proc = self._proc, None
-        if proc is None:
-            return
-        try:
-            if proc.stdin is not None:
-                with contextlib.suppress(BrokenPipeError):
-                    proc.stdin.close()
-            code = proc.wait()
-            if code != 0:
-                raise VideoError(f"the video encoder failed on {str(self.path)!r}: {self._errors(code)}")
-        finally:
-            if self._log is not None:
-                self._log.close()
-                self._log = None
-
-
-def _open_writer(path: Path, fps: float) -> _Writer:
-    return _Writer(Path(path), fps)
+    options = mujoco.MjvOption()
+    options.flags[mujoco.mjtVisFlag.mjVIS_CONTACTFORCE] = True
+    scene = scene if scene is not None else mujoco.MjvScene(model, maxgeom=1000)
+    scene.ngeom = 0
+    mujoco.mjv_updateScene(model, data, options, None, mujoco.MjvCamera(), mujoco.mjtCatBit.mjCAT_DECOR,
+                           scene)
+    return ExtraGeoms.of(scene)
 
 
 class VideoRecorder:
     """Films a simulator into an MP4: a frame every ``1 / fps`` simulated seconds.
 
     Use as an observer (``sim.add_observer(recorder)``, done by :meth:`attach`) and ``close()``
-    in every case (the job runner does).
+    in every case (the job runner does). Frames are drawn and encoded by ``workers`` processes
+    (default: the cores the simulation leaves, 1 to 3) while the simulation runs.
 
     Args:
         sim: The plant to film.
@@ -298,22 +189,22 @@ class VideoRecorder:
         frame_qpos: Plant configurations (k, nq) of the motion to come, which a fixed robot's
             camera frames (see :func:`default_camera`).
         frame_points_W: Points (m, 3) [m] in W the fixed camera frames too.
+        workers: Render processes (None: :func:`~mbctl.sim.video_workers.default_workers`).
     """
 
     def __init__(self, sim: Simulator, path: Path, spec: VideoSpec = VideoSpec(),
                  overlay: Overlay | None = None, frame_qpos: np.ndarray | None = None,
-                 frame_points_W: np.ndarray | None = None):
+                 frame_points_W: np.ndarray | None = None, workers: int | None = None):
         self.sim, self.path, self.spec, self.overlay = sim, Path(path), spec, overlay
-        self.renderer = make_renderer(sim.model, spec.width, spec.height)
         data = mujoco.MjData(sim.model)
         data.qpos[:] = sim.data.qpos
         # A fixed robot is framed on the motion to come (frame_qpos: plant qpos samples) and the
         # points drawn with it (a reference path), not only on where it starts.
         self.camera = default_camera(sim.model, data, base_body(sim.robot), frame_qpos, frame_points_W)
-        self.options = mujoco.MjvOption()
-        if spec.contact_forces:
-            self.options.flags[mujoco.mjtVisFlag.mjVIS_CONTACTFORCE] = True
-        self._writer = _open_writer(self.path, spec.fps)
+        self._scene = mujoco.MjvScene(sim.model, maxgeom=1000)  # the frame's extra geoms
+        self._renderer: mujoco.Renderer | None = None  # in-process, for render() only
+        self._pool = RenderPool(sim.model, spec.width, spec.height, CameraSpec.of(self.camera), self.path,
+                                spec.fps, default_workers(simulating=True) if workers is None else workers)
         self.frames = 0
         self._next_t = float(sim.data.time) + 1.0 / spec.fps
 
@@ -323,55 +214,78 @@ class VideoRecorder:
         return self
 
     def __call__(self, sim: Simulator) -> None:
-        """Observer hook: render the frames that simulated time has reached."""
+        """Observer hook: send the frames that simulated time has reached."""
         if sim.data.time + 1e-9 < self._next_t:
             return
-        frame = self.render()
+        repeat = 0
         while sim.data.time + 1e-9 >= self._next_t:  # a long sync() may span several frames
-            self._writer.append_data(frame)
-            self.frames += 1
+            repeat += 1
             self._next_t += 1.0 / self.spec.fps
+        self._pool.submit(self.frame_state(), repeat)
+        self.frames += repeat
+
+    def extra(self) -> ExtraGeoms | None:
+        """The geoms drawn on the model in this frame (contact forces, overlay), None without any."""
+        if not self.spec.contact_forces and self.overlay is None:
+            return None
+        if self.spec.contact_forces:
+            contact_force_geoms(self.sim.model, self.sim.data, self._scene)
+        else:
+            self._scene.ngeom = 0
+        if self.overlay is not None:
+            self.overlay(self._scene)
+        return ExtraGeoms.of(self._scene)
+
+    def frame_state(self) -> FrameState:
+        """What the render workers need for the current frame (copies)."""
+        d = self.sim.data
+        return FrameState(d.qpos.copy(), d.mocap_pos.copy(), d.mocap_quat.copy(), self.extra())
 
     def render(self) -> np.ndarray:
-        """The current frame (height, width, 3) uint8."""
-        self.renderer.update_scene(self.sim.data, self.camera, self.options)
-        if self.overlay is not None:
-            self.overlay(self.renderer.scene)
-        return self.renderer.render()
+        """The current frame (height, width, 3) uint8, drawn in this process (a check, a still)."""
+        if self._renderer is None:
+            self._renderer = make_renderer(self.sim.model, self.spec.width, self.spec.height)
+        self._renderer.update_scene(self.sim.data, self.camera)
+        extra = self.extra()
+        if extra is not None:
+            extra.add_to(self._renderer.scene)
+        return self._renderer.render()
 
     def close(self) -> None:
-        """Stop filming and finish the file (idempotent)."""
+        """Stop filming, render what was sent and finish the file (idempotent)."""
         self.sim.remove_observer(self)
-        self._writer.close()
-        self.renderer.close()
+        try:
+            self._pool.close()
+        finally:
+            if self._renderer is not None:
+                self._renderer.close()
+                self._renderer = None
 
 
 def film_trajectory(model: mujoco.MjModel, t_s: np.ndarray, qpos: np.ndarray, path: Path,
-                    spec: VideoSpec = VideoSpec(), track_body: int | None = None) -> int:
+                    spec: VideoSpec = VideoSpec(), track_body: int | None = None,
+                    workers: int | None = None) -> int:
     """Render a recorded trajectory (``qpos`` (n, nq) at times ``t_s`` (n,)) into an MP4.
 
-    Frame k shows the last sample at or before ``t_s[0] + k / fps``. Returns the frame count.
+    Frame k shows the last sample at or before ``t_s[0] + k / fps``. The frames are drawn by
+    ``workers`` processes (default: one per core, 1 to 4). Returns the frame count.
     """
-    renderer = make_renderer(model, spec.width, spec.height)
     data = mujoco.MjData(model)
     if len(qpos):
         data.qpos[:] = qpos[0]
     camera = default_camera(model, data, track_body, qpos[:: max(1, len(qpos) // 100)])
-    writer = _open_writer(Path(path), spec.fps)
-    frames = 0
+    n = int(np.floor((t_s[-1] - t_s[0]) * spec.fps + 1e-9)) + 1 if len(t_s) else 0
+    if not n:
+        return 0
+    pool = RenderPool(model, spec.width, spec.height, CameraSpec.of(camera), Path(path), spec.fps,
+                      default_workers(simulating=False) if workers is None else workers)
     try:
-        n = int(np.floor((t_s[-1] - t_s[0]) * spec.fps + 1e-9)) + 1 if len(t_s) else 0
         for k in range(n):
             i = int(np.searchsorted(t_s, t_s[0] + k / spec.fps + 1e-9, side="right")) - 1
-            data.qpos[:] = qpos[max(i, 0)]
-            mujoco.mj_forward(model, data)
-            renderer.update_scene(data, camera)
-            writer.append_data(renderer.render())
-            frames += 1
+            pool.submit(FrameState(qpos[max(i, 0)], data.mocap_pos, data.mocap_quat))
     finally:
-        writer.close()
-        renderer.close()
-    return frames
+        pool.close()
+    return n
 
 
 def still(model: mujoco.MjModel, data: mujoco.MjData, spec: VideoSpec, track_body: int | None) -> np.ndarray:

@@ -23,9 +23,17 @@ from mbctl.jobs.runner import Job, Outcome, RunContext, run_job
 from mbctl.robots import load_robot, torque
 from mbctl.sim import Simulator
 from mbctl.sim.trajectory import load_trajectory
-from mbctl.sim.video import VideoError, VideoRecorder, VideoSpec, film_trajectory, parse_size
+from mbctl.sim.video import (
+    VideoError,
+    VideoRecorder,
+    VideoSpec,
+    film_trajectory,
+    make_renderer,
+    parse_size,
+)
 
-SMALL = VideoSpec(320, 240)
+SMALL_WH = (320, 240)
+SMALL = VideoSpec(*SMALL_WH)
 
 
 def _frames(path: Path) -> np.ndarray:
@@ -40,8 +48,10 @@ def test_two_link_clip_shows_the_moving_arm(tmp_path):
     first = rec.render().astype(float)
     options = mujoco.MjvOption()
     options.geomgroup[:] = 0  # the empty scene: no geoms
-    rec.renderer.update_scene(sim.data, rec.camera, options)
-    empty = rec.renderer.render().astype(float)
+    renderer = make_renderer(sim.model, *SMALL_WH)
+    renderer.update_scene(sim.data, rec.camera, options)
+    empty = renderer.render().astype(float)
+    renderer.close()
     rec.close()
     frames = _frames(tmp_path / "arm.mp4")
     assert frames.shape == (15, 240, 320, 3)  # 0.5 s x 30 fps
@@ -180,3 +190,62 @@ def test_a_run_killed_with_sigkill_leaves_its_video_at_its_name(tmp_path):
 def test_bad_sizes_are_named(text):
     with pytest.raises(VideoError, match="video"):
         VideoSpec(*parse_size(text))
+
+
+def test_frames_drawn_by_several_workers_arrive_in_order(tmp_path):
+    """Frame k of a replay drawn by 3 worker processes is frame k drawn by one (none swapped)."""
+    robot = load_robot("two_link_torque")
+    t = np.linspace(0.0, 1.0, 101)
+    qpos = np.stack([np.linspace(0.0, 3.0, 101), np.linspace(0.0, -1.5, 101)], axis=1)
+    model = robot.mj_model
+    assert film_trajectory(model, t, qpos, tmp_path / "one.mp4", SMALL, workers=1) == 31
+    assert film_trajectory(model, t, qpos, tmp_path / "three.mp4", SMALL, workers=3) == 31
+    one, three = _frames(tmp_path / "one.mp4"), _frames(tmp_path / "three.mp4")
+    assert one.shape == three.shape == (31, 240, 320, 3)
+    a, b = three[:, ::4, ::4], one[:, ::4, ::4]
+    diff = np.abs(a[:, None] - b[None]).mean(axis=(2, 3, 4))  # (31, 31) frame against frame
+    assert list(diff.argmin(axis=1)) == list(range(31))
+    steps = np.abs(np.diff(b, axis=0)).mean(axis=(1, 2, 3))  # from one frame to the next
+    assert diff.diagonal().max() < 1.0 < np.median(steps)
+
+
+def test_software_gl_draws_without_multisampling_and_shadows():
+    from mbctl.sim.video_workers import fast_renderer, is_software_gl
+
+    assert is_software_gl("llvmpipe (LLVM 15.0.6, 256 bits)") and is_software_gl("Mesa OffScreen softpipe")
+    assert is_software_gl("")  # unknown: the cheap settings
+    assert not is_software_gl("NVIDIA GeForce RTX 3060/PCIe/SSE2")
+    model = load_robot("two_link_torque").mj_model
+    model.vis.quality.offsamples = 4
+    renderer = fast_renderer(model, 64, 48, software=True)
+    assert model.vis.quality.offsamples == 0
+    assert not renderer.scene.flags[mujoco.mjtRndFlag.mjRND_SHADOW]
+    assert not renderer.scene.flags[mujoco.mjtRndFlag.mjRND_REFLECTION]
+    renderer.close()
+    model.vis.quality.offsamples = 4
+    renderer = fast_renderer(model, 64, 48, software=False)
+    assert model.vis.quality.offsamples == 4 and renderer.scene.flags[mujoco.mjtRndFlag.mjRND_SHADOW]
+    renderer.close()
+
+
+def test_a_video_into_a_directory_is_refused_naming_it(tmp_path):
+    sim = Simulator(load_robot("two_link_torque"))
+    with pytest.raises(VideoError, match=f"{tmp_path} is a directory; give a file name for the video"):
+        VideoRecorder(sim, tmp_path, SMALL)
+
+
+def test_ctrl_c_at_the_terminal_keeps_every_frame(tmp_path):
+    """SIGINT to the run's whole process group (a Ctrl-C at a terminal): the render workers, in
+    their own session, are not interrupted; the run stops and its video has all 45 frames."""
+    run = tmp_path / "run"
+    child = subprocess.Popen([sys.executable, "-c", _KILLED_RUN, str(run)], stdout=subprocess.PIPE, text=True,
+                             start_new_session=True)
+    try:
+        assert child.stdout is not None and child.stdout.readline() == "filmed\n"
+        os.killpg(child.pid, signal.SIGINT)
+        child.wait(timeout=300)
+    finally:
+        child.kill()
+        child.wait()
+    assert '"status": "interrupted"' in (run / "report.json").read_text()
+    assert _frames(run / "video.mp4").shape == (45, 240, 320, 3)
