@@ -29,6 +29,7 @@ of its cycles (:func:`check_commanded`).
 from __future__ import annotations
 
 import sys
+import time
 from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
@@ -44,7 +45,7 @@ from mbctl.hardware.unitree_hg import CONNECT_TIMEOUT_S, WATCHDOG_PERIODS
 from mbctl.jobs.model_options import ModelOptions
 from mbctl.jobs.recording import q_columns
 from mbctl.jobs.runner import JobError, Outcome, RunContext
-from mbctl.jobs.truth import truth_checks
+from mbctl.jobs.truth import check_truth_header, truth_checks
 from mbctl.limits import check_limit
 from mbctl.robots.g1 import FEET, G1_IMU
 from mbctl.robots.interface import RobotInterface
@@ -259,6 +260,8 @@ def prepare_plant(options: PlantOptions, robot: Robot, keyframe: str | None = No
         NoRobotError, JointOutOfLimits, ChannelError: Over DDS, before anything is written.
     """
     if options.interface == "dds":
+        if options.truth is not None:
+            check_truth_header(options.truth)  # a file that is no truth log: exit 2 before connecting
         if options.wait_s > CONNECT_TIMEOUT_S:
             print(f"mbctl: waiting up to {options.wait_s:g} s for the robot's state on DDS domain "
                   f"{options.domain}, network interface {options.network_interface!r} (--wait-s)",
@@ -312,7 +315,8 @@ def report_plant(ctx: RunContext, plant: Plant, log: RunLog,
                                      "imu": G1_IMU.site, "estimated": list(report.estimated)}
     truth_fell = None
     if plant.options.truth is not None:
-        checks = truth_checks(plant.options.truth, log.tick, log, fall_height_m)
+        now = time.time()  # the loop ended moments ago: its wall-clock span, for the log's identity
+        checks = truth_checks(plant.options.truth, log.tick, log, fall_height_m, (now - log.wall_time_s, now))
         ctx.values.update(checks)
         truth_fell = bool(checks["truth_fell"])
     check_commanded(ctx, report, log.cycles)

@@ -80,6 +80,13 @@ VIDEO_NAME = "video.mp4"
 UNCOMMANDED = "uncommanded"
 
 
+class InputFoundBad(JobError):  # noqa: N818 - bad input, found by the work (exit 2)
+    """Bad input that only the work can find (e.g. a log that turns out to be another run's): exit 2.
+
+    The run's report says ``failed`` with the message; the exit code is 2, as for any bad input.
+    """
+
+
 class Interrupted(BaseException):  # noqa: N818 - an interruption, like KeyboardInterrupt
     """Raised in the main thread when the process receives SIGTERM."""
 
@@ -298,8 +305,8 @@ class RunRecord:
 
     Attributes:
         status: completed | uncommanded | interrupted | diverged | failed.
-        exit_code: 0, 1, 2 (an output the work opened cannot be written safely) or 130 (see the
-            module docstring).
+        exit_code: 0, 1, 2 (an output the work opened cannot be written safely, or
+            :class:`InputFoundBad`) or 130 (see the module docstring).
         values: The job's values (partial unless completed).
         files: Written files by role (the report included).
         rows: Rows in the main CSV.
@@ -477,7 +484,7 @@ def run_job(
             status, message, code = "interrupted", "interrupted by the user (Ctrl-C or SIGTERM)", 130
         except SimulationDiverged as exc:
             status, message = "diverged", str(exc)
-        except OutputPathError as exc:  # an output the work opened cannot be written safely
+        except (OutputPathError, InputFoundBad) as exc:  # an unsafe output, or input bad after all
             status, message, code = "failed", str(exc), EXIT_BAD_INPUT
         except ToolkitError as exc:
             status, message = "failed", str(exc)

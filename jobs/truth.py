@@ -4,10 +4,16 @@
 tick of the LowState made at that step). A client records the tick of the state it used each
 cycle, so its estimate at cycle k compares with the plant at the moment that state was measured,
 whatever the link's delay.
+
+Ticks restart with every bridge, so a tick alone does not say which run a log is of: each row
+also has ``unix_s``, the wall-clock time it was made, and a log whose rows at the run's ticks were
+not made while the run's control loop ran (within :data:`CLOCK_TOLERANCE_S`) is another run's,
+refused (:class:`TruthLogError`, exit 2), as is a log without the rows.
 """
 
 from __future__ import annotations
 
+from datetime import datetime, timezone
 from pathlib import Path
 from typing import Any
 
@@ -15,16 +21,40 @@ import numpy as np
 import pinocchio as pin
 
 from mbctl.control.loop import RunLog
-from mbctl.jobs.runner import JobError
+from mbctl.jobs.runner import InputFoundBad
 from mbctl.sim.dds_bridge import TRUTH_COLUMNS
 
 #: A foot supports the robot (its slip counts) while the plant measures at least this fraction
 #: of the robot's weight on it.
 SUPPORT_FRACTION = 0.1
+#: How far [s] the times a truth log's rows were made may lie outside the run's control loop: the
+#: bridge's and the client's clocks (one machine: the same; two: NTP keeps them within
+#: milliseconds) and the client's time between its loop's end and the check (milliseconds). Two
+#: runs are further apart: a bridge starts in seconds.
+CLOCK_TOLERANCE_S = 1.0
 
 
-class TruthLogError(JobError):
-    """A truth log that is missing, malformed, or from another run."""
+class TruthLogError(InputFoundBad):
+    """A truth log that is missing, malformed, or from another run (bad input: exit 2)."""
+
+
+def check_truth_header(path: str | Path) -> None:
+    """Refuse, before a run, a file that is not a truth log of this mbctl (its columns).
+
+    Raises:
+        TruthLogError: A missing or unreadable file, or columns other than :data:`TRUTH_COLUMNS`.
+    """
+    path = Path(path)
+    try:
+        with open(path, encoding="utf-8") as f:
+            header = tuple(f.readline().strip().split(","))
+    except (OSError, ValueError) as exc:
+        raise TruthLogError(f"cannot read the truth log {path}: {exc}; give the truth.csv that "
+                            "`mbctl serve g1 --output DIR` writes") from None
+    if header != TRUTH_COLUMNS:
+        raise TruthLogError(f"{path} is not a truth log of this mbctl (columns {', '.join(header[:5])}...; "
+                            f"expected {', '.join(TRUTH_COLUMNS[:5])}...): give the truth.csv that "
+                            "`mbctl serve g1 --output DIR` writes")
 
 
 def read_truth(path: str | Path) -> np.ndarray:
@@ -41,7 +71,7 @@ def read_truth(path: str | Path) -> np.ndarray:
     except (OSError, ValueError) as exc:
         raise TruthLogError(f"cannot read the truth log {path}: {exc}; give the truth.csv that "
                             "`mbctl serve g1 --output DIR` wrote") from None
-    if tuple(header) != TRUTH_COLUMNS or data.size == 0:
+    if tuple(header) != TRUTH_COLUMNS or data.size == 0 or data.dtype.names is None:
         raise TruthLogError(f"{path} is not a bridge truth log (columns {header[:4]}..., {data.size} rows); "
                             "give the truth.csv that `mbctl serve g1 --output DIR` wrote")
     return data
@@ -58,9 +88,36 @@ def truth_at_ticks(truth: np.ndarray, ticks: np.ndarray) -> np.ndarray:
     missing = truth["tick"][rows] != ticks
     if missing.any():
         raise TruthLogError(f"the truth log has no row for LowState ticks {ticks[missing][:3].tolist()} "
-                            f"(it covers {int(truth['tick'][0])}..{int(truth['tick'][-1])}); give the log of "
-                            "the bridge this run talked to, written while it ran")
+                            f"(it covers {int(truth['tick'][0])}..{int(truth['tick'][-1])}): give the "
+                            "truth.csv of the bridge this run talked to, written while it ran")
     return truth[rows]
+
+
+def _utc(unix_s: float) -> str:
+    return datetime.fromtimestamp(unix_s, timezone.utc).strftime("%Y-%m-%d %H:%M:%S.%f")[:-3]
+
+
+def check_same_run(path: str | Path, at: np.ndarray, loop_unix_s: tuple[float, float]) -> None:
+    """Refuse a truth log whose rows at the run's ticks were not made while the run's loop ran.
+
+    Args:
+        path: The truth log (for the message).
+        at: Its rows at the run's ticks (N,) (of a repeated tick, the newest).
+        loop_unix_s: When the run's control loop started and ended [s since the Unix epoch].
+
+    Raises:
+        TruthLogError: Rows made outside the loop's time, beyond :data:`CLOCK_TOLERANCE_S`.
+    """
+    start, end = loop_unix_s
+    made = at["unix_s"]
+    first, last = float(made.min()), float(made.max())
+    if first >= start - CLOCK_TOLERANCE_S and last <= end + CLOCK_TOLERANCE_S:
+        return
+    raise TruthLogError(
+        f"{path} is another run's truth log: its rows for this run's LowState ticks {int(at['tick'][0])}.."
+        f"{int(at['tick'][-1])} were made {_utc(first)} to {_utc(last)} UTC, but this run's control loop "
+        f"ran {_utc(start)} to {_utc(end)} UTC (ticks restart with every bridge); give the truth.csv of "
+        f"the bridge this run talked to (its clock within {CLOCK_TOLERANCE_S:g} s of this machine's)")
 
 
 def to_estimator_frame(at: np.ndarray, q_est: np.ndarray) -> np.ndarray:
@@ -108,7 +165,7 @@ def _foot_slip(window: np.ndarray) -> float:
 
 
 def truth_checks(path: str | Path, ticks: np.ndarray, log: RunLog,
-                 fall_height_m: float | None) -> dict[str, Any]:
+                 fall_height_m: float | None, loop_unix_s: tuple[float, float]) -> dict[str, Any]:
     """The plant checks of a DDS run and the estimator's errors, from the bridge's truth log.
 
     Args:
@@ -117,6 +174,8 @@ def truth_checks(path: str | Path, ticks: np.ndarray, log: RunLog,
         log: The run's log (its q holds the estimated base pose).
         fall_height_m: Pelvis height [m] below which the robot has fallen (the robot's fall rule,
             e.g. ``mbctl.robots.g1.G1_FALL.base_min_z_m``; None: no verdict).
+        loop_unix_s: When the run's control loop started and ended [s since the Unix epoch]: the
+            log's rows at ``ticks`` must have been made then (:func:`check_same_run`).
 
     Returns:
         Report values: ``truth_pelvis_max_deviation_m``, ``truth_pelvis_z_min_m``, ``truth_fell``,
@@ -127,6 +186,8 @@ def truth_checks(path: str | Path, ticks: np.ndarray, log: RunLog,
     """
     truth = read_truth(path)
     at = truth_at_ticks(truth, ticks)
+    # a state held before the first command repeats its tick: its newest row is when the run read it
+    check_same_run(path, truth[np.searchsorted(truth["tick"], ticks, side="right") - 1], loop_unix_s)
     first = int(np.searchsorted(truth["tick"], ticks.min()))
     last = int(np.searchsorted(truth["tick"], ticks.max()))
     window = truth[first:last + 1]

@@ -18,9 +18,12 @@ from contextlib import contextmanager
 from functools import partial
 from pathlib import Path
 
+import numpy as np
 import pytest
 
-from mbctl.sim.dds_bridge import wait_until_serving
+from mbctl.control.loop import RunLog
+from mbctl.jobs.truth import TruthLogError, check_truth_header, truth_checks
+from mbctl.sim.dds_bridge import TRUTH_COLUMNS, wait_until_serving
 from mbctl.unitree import ChannelError
 from mbctl.unitree.domain_lock import reserve_domain
 from tests.conftest import mbctl_command, run_mbctl
@@ -66,6 +69,15 @@ def test_g1_stand_over_dds_stands_and_checks_against_the_truth(g1, dds_domain, t
     assert served["status"] == "interrupted" and served["values"]["lockstep"] is True  # stopped by the test
     assert served["values"]["commands_applied"] > 750 and served["values"]["bad_crc"] == 0
     assert "dds: 750 cycles" in out.stdout and "truth: pelvis max deviation" in out.stdout
+    assert values["controller_acted"] is True and values["truth_commands_applied"] >= 749  # bridge's count
+    # a second bridge restarts the ticks: the first one's log is another run's, refused (exit 2)
+    with bridge(dds_domain, tmp_path / "serve2"):
+        out = mbctl("g1-stand", "--interface", "dds", "--domain", str(dds_domain), "--duration", "0.2",
+                    *WATCHDOG, "--truth", str(serve_dir / "truth.csv"), "--output", str(tmp_path / "other"),
+                    "-q")
+    assert out.returncode == 2, out.stdout + out.stderr
+    assert "give the truth.csv of the bridge this run talked to" in out.stderr  # its ticks, or when it ran
+    assert json.loads((tmp_path / "other" / "report.json").read_text())["status"] == "failed"
 
 
 def test_g1_wbc_over_dds_holds_the_com_checked_against_the_truth(g1, dds_domain, tmp_path):
@@ -97,6 +109,40 @@ def test_lockstep_gives_the_same_run_twice(g1, tmp_path):
         com_rms.append(values["com_error_rms_m"])
     assert com_rms[0] > 1e-4  # a real figure (it stood with an error)
     assert com_rms[1] == pytest.approx(com_rms[0], rel=0, abs=1e-6)
+
+
+def _truth_log(path: Path, ticks: range, unix_s: float) -> Path:
+    """A truth log of a robot standing still at the origin, its rows made from ``unix_s`` on, 2 ms apart."""
+    rows = []
+    for k, tick in enumerate(ticks):
+        row = dict.fromkeys(TRUTH_COLUMNS, 0.0)
+        row.update(tick=tick, unix_s=unix_s + 0.002 * k, base_z_m=0.79, base_qw=1.0, commands_applied=k)
+        rows.append(",".join(repr(float(row[c])) for c in TRUTH_COLUMNS))
+    path.write_text(",".join(TRUTH_COLUMNS) + "\n" + "\n".join(rows) + "\n")
+    return path
+
+
+def test_a_truth_log_made_outside_the_runs_loop_is_another_runs(tmp_path):
+    """Ticks 10..19 are in both logs; only the one made while the loop ran is this run's."""
+    q = np.zeros((10, 7))
+    q[:, 2], q[:, 6] = 0.79, 1.0
+    log = RunLog(np.arange(10) * 0.002, q, np.zeros((10, 6)), np.zeros((10, 1)), np.zeros((10, 1)),
+                 np.zeros((10, 1)), 0.02, np.arange(10, 20))
+    loop = (1_800_000_000.0, 1_800_000_000.02)  # 2027-01-15 08:00:00 UTC, for 20 ms
+    ours = _truth_log(tmp_path / "ours.csv", range(100), loop[0] - 0.02)
+    values = truth_checks(ours, log.tick, log, 0.5, loop)
+    assert values["truth_pelvis_max_deviation_m"] == 0.0 and values["truth_commands_applied"] == 9
+    earlier = _truth_log(tmp_path / "earlier.csv", range(100), loop[0] - 60.0)  # a minute before
+    with pytest.raises(TruthLogError) as err:
+        truth_checks(earlier, log.tick, log, 0.5, loop)
+    assert str(err.value) == (
+        f"{earlier} is another run's truth log: its rows for this run's LowState ticks 10..19 were made "
+        "2027-01-15 07:59:00.020 to 2027-01-15 07:59:00.038 UTC, but this run's control loop ran "
+        "2027-01-15 08:00:00.000 to 2027-01-15 08:00:00.020 UTC (ticks restart with every bridge); give the "
+        "truth.csv of the bridge this run talked to (its clock within 1 s of this machine's)")
+    (tmp_path / "old.csv").write_text("tick,time_s,wall_s,commands_applied\n1,0,0,0\n")  # no unix_s
+    with pytest.raises(TruthLogError, match="is not a truth log of this mbctl"):
+        check_truth_header(tmp_path / "old.csv")
 
 
 def test_a_bridge_nobody_commands_idles_out_from_its_start(g1, dds_domain, tmp_path):
