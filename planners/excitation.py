@@ -10,6 +10,10 @@ what any motion could reach) over the coefficients of a :class:`FourierTrajector
 * the joint limits (with a margin), at every sample (and checked again on a finer grid),
 * a speed limit per joint,
 * the nominal model's inverse-dynamics torque within a fraction of each actuator's limit,
+* a clearance between the robot's own collision geoms (:data:`SELF_CLEARANCE_M`, every pair
+  ``robot:robot`` of :mod:`mbctl.robots.collision` that is not already that close at the start),
+  so the arm does not hit itself: a contact is a force the identification cannot explain, and its
+  rows are dropped,
 
 with SLSQP (``scipy.optimize.minimize``, finite-difference gradients). The start is random
 (seeded) and shrunk into the limits, so a failed optimisation still returns a feasible motion.
@@ -26,14 +30,21 @@ import pinocchio as pin
 
 from mbctl.planners.exceptions import InvalidPlanningInput
 from mbctl.planners.fourier import FourierTrajectory, rest_projection
+from mbctl.robots.collision import CollisionPair, GeomPairs, pair_distances, resolve_pairs
+from mbctl.robots.exceptions import CollisionPairError
 from mbctl.robots.identification.parameters import ParameterSet
 from mbctl.robots.identification.threads import single_threaded_blas
 from mbctl.robots.model_pair import Robot
+from mbctl.robots.plant_kinematics import PlantKinematics
 
 #: Singular values of the scaled regressor below this fraction of the largest count as zero.
 RANK_RTOL = 1e-7
 #: Torque limit [N m] assumed for a joint whose actuator and model give none.
 DEFAULT_EFFORT_N_M = 10.0
+#: Distance [m] every pair of the robot's own collision geoms keeps along an excitation.
+SELF_CLEARANCE_M = 0.01
+#: Distance [m] over which a clearance constraint is normalised (and farther pairs are not measured).
+CLEARANCE_SCALE_M = 0.1
 
 
 @dataclass(frozen=True)
@@ -45,12 +56,15 @@ class ExcitationLimits:
         q_max: Highest position (n,) [rad].
         v_max: Largest speed (n,) [rad/s].
         tau_max: Largest inverse-dynamics torque (n,) [N m] of the nominal model.
+        defaulted_effort: Joints whose torque limit is :data:`DEFAULT_EFFORT_N_M` because neither
+            the model nor the actuator gives one (say so to the user).
     """
 
     q_min: np.ndarray
     q_max: np.ndarray
     v_max: np.ndarray
     tau_max: np.ndarray
+    defaulted_effort: tuple[str, ...] = ()
 
     def __post_init__(self) -> None:
         n = len(self.q_min)
@@ -84,6 +98,7 @@ class ExcitationLimits:
         model = robot.pin_model
         q0 = np.asarray(q_start, dtype=float)
         lo, hi, v, tau = [], [], [], []
+        defaulted = []
         for j in joints:
             layout = robot.joint(j)
             i = layout.idx_q
@@ -99,7 +114,9 @@ class ExcitationLimits:
                 candidates.append(min(abs(x) for x in info.ctrl_range) * abs(info.gear))
             finite = [c for c in candidates if np.isfinite(c) and c > 0]
             tau.append(torque_fraction * (min(finite) if finite else DEFAULT_EFFORT_N_M))
-        return cls(np.array(lo), np.array(hi), np.array(v), np.array(tau))
+            if not finite:
+                defaulted.append(j)
+        return cls(np.array(lo), np.array(hi), np.array(v), np.array(tau), tuple(defaulted))
 
 
 @dataclass(frozen=True)
@@ -113,6 +130,11 @@ class ExcitationDesign:
         structural_rank: Rank any motion of these joints reaches (the cond is over it).
         iterations: SLSQP iterations.
         limit_use: Largest fraction of each limit used: q range, speed, torque (3,).
+        limits: The limits the design kept.
+        self_pairs: Labels of the robot's own geom pairs kept :data:`SELF_CLEARANCE_M` apart
+            (empty: the robot has none that can touch).
+        min_clearance_m: Smallest distance of those pairs along the design [m] (None: no pairs;
+            at most :data:`CLEARANCE_SCALE_M`, farther is not measured).
     """
 
     trajectory: FourierTrajectory
@@ -121,6 +143,9 @@ class ExcitationDesign:
     structural_rank: int
     iterations: int
     limit_use: np.ndarray
+    limits: ExcitationLimits | None = None
+    self_pairs: tuple[str, ...] = ()
+    min_clearance_m: float | None = None
 
 
 class _Evaluator:
@@ -140,6 +165,21 @@ class _Evaluator:
         self.P_a, self.P_b = rest_projection(harmonics)
         self.rank = self._structural_rank()
         self._cache: dict[bytes, tuple[float, np.ndarray]] = {}
+        self.pairs = _self_pairs(robot, q_full)
+        self._kinematics = PlantKinematics(robot=robot) if len(self.pairs) else None
+
+    def clearance(self, q: np.ndarray) -> np.ndarray:
+        """Smallest distance [m] of each self pair (P,) over the joint positions ``q`` (N, n)."""
+        if self._kinematics is None:
+            return np.zeros(0)
+        qf = self.q_full.copy()
+        out = np.full(len(self.pairs), CLEARANCE_SCALE_M)
+        m = self.robot.mj_model
+        for row in q:
+            qf[self.iq] = row
+            d = self._kinematics.at(qf)
+            out = np.minimum(out, pair_distances(m, d, self.pairs.ids, CLEARANCE_SCALE_M))
+        return out
 
     def trajectory(self, x: np.ndarray) -> FourierTrajectory:
         n, L = len(self.joints), self.L
@@ -185,7 +225,8 @@ class _Evaluator:
         tau = self._torques(q, v, a)
         span = lim.q_max - lim.q_min
         g = np.concatenate([(lim.q_max - q.max(0)) / span, (q.min(0) - lim.q_min) / span,
-                            1.0 - np.abs(v).max(0) / lim.v_max, 1.0 - np.abs(tau).max(0) / lim.tau_max])
+                            1.0 - np.abs(v).max(0) / lim.v_max, 1.0 - np.abs(tau).max(0) / lim.tau_max,
+                            (self.clearance(q) - SELF_CLEARANCE_M) / CLEARANCE_SCALE_M])
         if len(self._cache) > 4 * x.size + 16:
             self._cache.clear()
         self._cache[key] = (float(np.log(cond)), g)
@@ -207,13 +248,14 @@ class _Evaluator:
         q, v, a = self.trajectory(x).sample(t)
         lim = self.limits
         return bool(np.all(q <= lim.q_max) and np.all(q >= lim.q_min) and np.all(np.abs(v) <= lim.v_max)
-                    and np.all(np.abs(self._torques(q, v, a)) <= lim.tau_max))
+                    and np.all(np.abs(self._torques(q, v, a)) <= lim.tau_max)
+                    and np.all(self.clearance(q) >= SELF_CLEARANCE_M))
 
     def limit_use(self, x: np.ndarray) -> np.ndarray:
         _, g = self.evaluate(x)
         n = len(self.joints)
         q_use = 1.0 - np.minimum(g[:n], g[n:2 * n]).min()
-        return np.array([q_use, 1.0 - g[2 * n:3 * n].min(), 1.0 - g[3 * n:].min()])
+        return np.array([q_use, 1.0 - g[2 * n:3 * n].min(), 1.0 - g[3 * n:4 * n].min()])
 
 
 def design_excitation(robot: Robot, joints: Sequence[str], q_start: npt.ArrayLike, *,
@@ -271,8 +313,26 @@ def _design(robot: Robot, joints: tuple[str, ...], q_full: np.ndarray, limits: E
         x = 0.98 * x
     if not ev.within_limits(x) or ev.evaluate(x)[0] > ev.evaluate(x0)[0]:
         x = x0
+    clearance = None
+    if len(ev.pairs):  # on the fine grid, as the limits were checked
+        t = np.linspace(0.0, ev.period_s, 8 * len(ev.t), endpoint=False)
+        clearance = float(ev.clearance(ev.trajectory(x).sample(t)[0]).min())
     return ExcitationDesign(ev.trajectory(x), float(np.exp(ev.evaluate(x)[0])), cond0, ev.rank,
-                            int(result.nit), ev.limit_use(x))
+                            int(result.nit), ev.limit_use(x), limits, ev.pairs.labels, clearance)
+
+
+def _self_pairs(robot: Robot, q_full: np.ndarray) -> GeomPairs:
+    """The robot's own geom pairs that can touch (``robot:robot``).
+
+    Less those within :data:`SELF_CLEARANCE_M` at the start (neighbours the model keeps that close).
+    """
+    try:
+        pairs = resolve_pairs(robot, [CollisionPair(("robot",), ("robot",))])
+    except CollisionPairError:  # no two of its geoms can touch
+        return GeomPairs(np.zeros((0, 2), dtype=int), ())
+    d = PlantKinematics(robot=robot).at(q_full)
+    keep = pair_distances(robot.mj_model, d, pairs.ids, CLEARANCE_SCALE_M) > SELF_CLEARANCE_M
+    return GeomPairs(pairs.ids[keep], tuple(label for label, k in zip(pairs.labels, keep, strict=True) if k))
 
 
 def _feasible_start(ev: _Evaluator, rng: np.random.Generator) -> np.ndarray:
@@ -289,6 +349,9 @@ def _feasible_start(ev: _Evaluator, rng: np.random.Generator) -> np.ndarray:
     _, g = ev.evaluate(np.zeros_like(x))  # standing still at the start
     kinds = ("upper position", "lower position", "speed", "torque")
     worst = int(np.argmin(g))
+    if worst >= 4 * n:  # a self pair (not possible at the start: those are left out)
+        raise InvalidPlanningInput(f"no feasible excitation, even at small amplitude: the robot's geoms "
+                                   f"{ev.pairs.labels[worst - 4 * n]} come within {SELF_CLEARANCE_M} m")
     joint = ev.joints[worst % n]
     raise InvalidPlanningInput(
         f"no feasible excitation, even at small amplitude: at rest at the start, joint {joint!r} is "

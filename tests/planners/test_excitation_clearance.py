@@ -1,0 +1,75 @@
+"""The excitation design keeps the arm off itself, and says which torque limits it had to assume."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from mbctl.planners.excitation import (
+    DEFAULT_EFFORT_N_M,
+    SELF_CLEARANCE_M,
+    ExcitationLimits,
+    design_excitation,
+)
+from mbctl.robots.collision import CollisionPair, closest_pairs, resolve_pairs
+from mbctl.robots.registry import load_robot
+
+#: A planar 3-link arm whose links collide with each other (not with their neighbours), started
+#: folded so an excitation of +-1.2 rad per joint can swing the last link into the first; its
+#: motors give no torque limit.
+FOLD = """<mujoco model="fold_arm">
+  <compiler angle="radian" inertiafromgeom="false"/>
+  <option timestep="0.002" integrator="implicitfast"/>
+  <default><joint type="hinge" axis="0 0 1" armature="0.002"/>
+    <geom type="capsule" size="0.03" contype="1" conaffinity="1"/></default>
+  <worldbody>
+    <body name="l1"><joint name="j1"/><geom name="g1" fromto="0 0 0 0.3 0 0"/>
+      <inertial pos="0.15 0 0" mass="1" diaginertia="0.0003 0.008 0.008"/>
+      <body name="l2" pos="0.3 0 0"><joint name="j2"/><geom name="g2" fromto="0 0 0 0.25 0 0"/>
+        <inertial pos="0.12 0 0" mass="0.7" diaginertia="0.0002 0.004 0.004"/>
+        <body name="l3" pos="0.25 0 0"><joint name="j3"/><geom name="g3" fromto="0 0 0 0.25 0 0"/>
+          <inertial pos="0.12 0 0" mass="0.5" diaginertia="0.0001 0.003 0.003"/></body></body></body>
+  </worldbody>
+  <keyframe><key name="folded" qpos="0 2.3 1.0"/></keyframe>
+  <actuator><motor joint="j1"/><motor joint="j2"/><motor joint="j3"/></actuator>
+</mujoco>"""
+
+
+@pytest.fixture(scope="module")
+def fold(tmp_path_factory):
+    path = tmp_path_factory.mktemp("fold") / "fold.xml"
+    path.write_text(FOLD)
+    return load_robot(path)
+
+
+@pytest.fixture(scope="module")
+def design(fold):
+    q0 = fold.keyframe_q("folded")
+    return design_excitation(fold, ("j1", "j2", "j3"), q0, period_s=5.0, harmonics=5, seed=0)
+
+
+def test_the_design_keeps_every_self_pair_clear(fold, design):
+    """Measured independently (the collision layer's closest pair) on a grid 16x the design's."""
+    assert design.self_pairs == ("g1/g3",)
+    t = np.linspace(0.0, 5.0, 1280, endpoint=False)
+    q = np.tile(fold.keyframe_q("folded"), (len(t), 1))
+    q[:, :3] = design.trajectory.sample(t)[0]
+    pairs = resolve_pairs(fold, [CollisionPair(("robot",), ("robot",))])
+    distance = min(c.distance_m for c in closest_pairs(fold, q, pairs))
+    assert distance >= 0.98 * SELF_CLEARANCE_M, distance
+    assert design.min_clearance_m is not None and design.min_clearance_m >= SELF_CLEARANCE_M
+    # the joints still use their range: the clearance did not freeze the arm
+    assert design.limit_use[0] > 0.5 and design.condition_number < 100
+
+
+def test_assumed_torque_limits_are_named(fold, design):
+    assert design.limits is not None
+    assert design.limits.defaulted_effort == ("j1", "j2", "j3")
+    np.testing.assert_allclose(design.limits.tau_max, 0.5 * DEFAULT_EFFORT_N_M)
+
+
+def test_a_robot_with_torque_limits_assumes_none(two_link_torque_gravity):
+    limits = ExcitationLimits.from_robot(two_link_torque_gravity, ("shoulder", "elbow"),
+                                         two_link_torque_gravity.neutral_q())
+    assert limits.defaulted_effort == ()
+    np.testing.assert_allclose(limits.tau_max, [15.0, 10.0])  # half of the motors' ctrlrange
