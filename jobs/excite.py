@@ -3,8 +3,9 @@
 Fixed-base robots (torque motors; position actuators are turned into motors): a Fourier-series
 trajectory of every actuated joint, optimised for the condition number of the regressor within
 the joint, speed and torque limits (:func:`mbctl.planners.excitation.design_excitation`, on the
-controller's model: the nominal one, which is all a real excitation design knows), tracked by
-joint-space computed torque. The Menagerie G1: a whole-body excitation on its feet
+robot's own model: the nominal one, which is all a real excitation design knows, and the same
+trajectory whatever ``--controller-model`` the tracking uses, so tracking errors compare like for
+like), tracked by joint-space computed torque. The Menagerie G1: a whole-body excitation on its feet
 (:mod:`mbctl.jobs.excite_g1`).
 
 The plant may hide a truth (``--payload``, ``--plant-error``); the controller and the design never
@@ -30,7 +31,7 @@ from mbctl.jobs.plant import PlantOptions
 from mbctl.jobs.plots import joint_colors, new_figure
 from mbctl.jobs.recording import q_columns, v_columns
 from mbctl.jobs.runner import Job, Outcome, RunContext, Work
-from mbctl.planners.excitation import ExcitationDesign, design_excitation
+from mbctl.planners.excitation import MAX_HARMONICS, ExcitationDesign, design_excitation
 from mbctl.robots.commands import Command
 from mbctl.robots.edits import position_to_motor
 from mbctl.robots.g1 import is_menagerie_g1
@@ -47,6 +48,13 @@ DEFAULT_DURATION_S = 30.0
 #: Computed-torque gains of the fixed-base excitation: natural frequency [rad/s], damping ratio.
 TRACKING_OMEGA_RAD_S = 30.0
 TRACKING_ZETA = 1.0
+#: Highest harmonic [Hz] an excitation may ask for: the tracking's natural frequency (30 rad/s,
+#: 4.77 Hz), far below the 2-ms control rate's Nyquist (250 Hz). Above it the joints do not follow
+#: the design, and the speed limit leaves it no amplitude. Period >= harmonics / 4.77 Hz.
+MAX_EXCITATION_HZ = TRACKING_OMEGA_RAD_S / (2.0 * np.pi)
+#: What the summary says when the controller has its own model.
+SAME_TRAJECTORY = ("trajectory designed on the robot's own model, the same for any --controller-model "
+                   "(tracking errors compare like for like)")
 
 
 @dataclass(frozen=True)
@@ -57,8 +65,9 @@ class ExciteParams:
         robot: Known robot name or MJCF file.
         duration: Simulated time [s] (None: 30 s).
         seed: Seed of the excitation design's random start.
-        period: Period of the Fourier series' fundamental [s].
-        harmonics: Harmonics per joint.
+        period: Period of the Fourier series' fundamental [s]; at least harmonics /
+            :data:`MAX_EXCITATION_HZ`.
+        harmonics: Harmonics per joint, 1 to :data:`~mbctl.planners.excitation.MAX_HARMONICS`.
         gravity: Switch on the robot's gravity (the 2-link arm's, in its plane).
         scene: Scene MJCF for MuJoCo that includes the robot.
         model_dir: Explicit Menagerie folder (the G1).
@@ -83,8 +92,17 @@ class ExciteParams:
             raise ControllerSetupError(f"duration must be a positive number of seconds; got {self.duration}")
         if not (np.isfinite(self.period) and self.period > 0):
             raise ControllerSetupError(f"period must be a positive number of seconds; got {self.period}")
-        if self.harmonics < 1:
-            raise ControllerSetupError(f"harmonics must be >= 1; got {self.harmonics}")
+        if not 1 <= self.harmonics <= MAX_HARMONICS:
+            raise ControllerSetupError(
+                f"--harmonics must be 1 to {MAX_HARMONICS}; got {self.harmonics} (more harmonics only slow "
+                "the design: the condition number stops falling past about 5)")
+        highest = self.harmonics / self.period
+        if highest > MAX_EXCITATION_HZ:
+            raise ControllerSetupError(
+                f"--period {self.period:g} s with {self.harmonics} harmonics puts the highest harmonic at "
+                f"{highest:.3g} Hz; the joints follow up to {MAX_EXCITATION_HZ:.3g} Hz (the tracking's "
+                f"{TRACKING_OMEGA_RAD_S:g} rad/s): give --period >= "
+                f"{self.harmonics / MAX_EXCITATION_HZ:.3g} s or fewer harmonics")
         if self.seed < 0:
             raise ControllerSetupError(f"seed must be >= 0; got {self.seed}")
 
@@ -92,6 +110,9 @@ class ExciteParams:
 def log_section(params: ExciteParams, robot: Robot, joints: tuple[str, ...], bodies: tuple[str, ...],
                 period_s: float, excitation: dict[str, Any], measured: bool = True) -> dict[str, Any]:
     """The report's ``identification_log`` section (see :mod:`mbctl.jobs.ident_log`).
+
+    ``robot``: the robot's own model (the one the section names, whose fingerprint identify checks),
+    not a ``--controller-model``.
 
     ``measured``: the plant measured the torques and contacts (in-process); False over DDS, where
     the log holds what the controller commanded.
@@ -134,8 +155,8 @@ def prepare(params: ExciteParams, robot: Robot | None = None) -> Work:
         kinds = {a.kind for a in r.actuators.values()}
         return position_to_motor(r) if kinds & {"position", "velocity"} else r
 
-    models = build_models(to_torque(loaded), params.models, to_torque)
-    nominal = models.controller
+    nominal = to_torque(loaded)  # the design's model: the robot's own, whatever the controller uses
+    models = build_models(nominal, params.models, to_torque)
     joints = tuple(dict.fromkeys(a.joint for a in nominal.actuators.values() if a.joint))
     unactuated = [j for j, layout in nominal.joints.items() if j not in joints]
     if unactuated or not joints:
@@ -148,12 +169,12 @@ def prepare(params: ExciteParams, robot: Robot | None = None) -> Work:
 
     def work(ctx: RunContext) -> Outcome:
         with single_threaded_blas():  # small matrices: threads only cost (robots/identification/threads)
-            return _run_fixed(ctx, params, models, joints, q_start, design, duration)
+            return _run_fixed(ctx, params, nominal, models, joints, q_start, design, duration)
 
     return work
 
 
-def _run_fixed(ctx: RunContext, params: ExciteParams, models: Models, joints: tuple[str, ...],
+def _run_fixed(ctx: RunContext, params: ExciteParams, nominal: Robot, models: Models, joints: tuple[str, ...],
                q_start: np.ndarray, design: ExcitationDesign, duration: float) -> Outcome:
     plant = models.plant
     sim = ctx.attach(Simulator(plant))
@@ -173,7 +194,8 @@ def _run_fixed(ctx: RunContext, params: ExciteParams, models: Models, joints: tu
                   "initial_condition_number": design.initial_condition_number,
                   "structural_rank": design.structural_rank, "limit_use_q_v_tau": design.limit_use.tolist(),
                   "tracking": {"omega_rad_s": TRACKING_OMEGA_RAD_S, "zeta": TRACKING_ZETA}}
-    ctx.sections[SECTION] = log_section(params, models.controller, joints, (), dt, excitation)
+    excitation["designed_on"] = "the robot's own model (not --controller-model)"
+    ctx.sections[SECTION] = log_section(params, nominal, joints, (), dt, excitation)
     ctx.sections["plant"] = models.section()
     csv = ctx.open_csv(header(plant, joints, ()), CSV_NAME)
     ctx.progress.start(n, f"excite {params.robot}")
@@ -201,7 +223,8 @@ def _run_fixed(ctx: RunContext, params: ExciteParams, models: Models, joints: tu
              f"{ctx.values['joint_rms_error_rad']:.2e} rad",
              f"log: {n} rows in {CSV_NAME}; identify it with: mbctl identify {ctx.output_dir}"]
     if params.models.hidden or params.models.controller_model:
-        lines.insert(1, models_line(models.section()))
+        lines.insert(1, models_line(models.section())
+                     + (f"; {SAME_TRAJECTORY}" if params.models.controller_model else ""))
     return Outcome(True, tuple(lines))
 
 

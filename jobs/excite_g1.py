@@ -31,7 +31,7 @@ import numpy as np
 
 from mbctl.control.loop import run
 from mbctl.control.wbc import Scheduled, WBCConfig
-from mbctl.jobs.excite import DEFAULT_DURATION_S, ExciteParams, log_section
+from mbctl.jobs.excite import DEFAULT_DURATION_S, SAME_TRAJECTORY, ExciteParams, log_section
 from mbctl.jobs.excite_g1_balance import BalanceWatch, SupportPolygon
 from mbctl.jobs.excite_g1_log import ExciteLog, plot
 from mbctl.jobs.excite_g1_schedule import (
@@ -164,9 +164,10 @@ def prepare_g1(params: ExciteParams, loaded: Robot) -> Work:
     def edit(r: Robot) -> Robot:
         return position_to_motor(with_palm_sites(r))
 
-    models = build_models(edit(loaded), params.models, edit)
-    q_start = crouched_start(models.controller)
-    upper, designs, shrink = design_upper_body(models.controller, q_start, params)
+    nominal = edit(loaded)  # the design's model: the robot's own, whatever the controller uses
+    models = build_models(nominal, params.models, edit)
+    q_start = crouched_start(nominal)
+    upper, designs, shrink = design_upper_body(nominal, q_start, params)
     duration = params.duration or DEFAULT_DURATION_S
     # over DDS this connects now: no robot, or one outside its limits, is bad input (exit 2)
     plant = prepare_plant(params.plant, models.plant, KEYFRAME, start_q=q_start, contact_forces=True)
@@ -176,13 +177,13 @@ def prepare_g1(params: ExciteParams, loaded: Robot) -> Work:
             ctx.sections["plant"] = models.section()
             if p.options.dry_run:
                 return dry_run(ctx, p, duration)
-            return _run(ctx, params, models, p, upper, (designs, shrink), duration)
+            return _run(ctx, params, nominal, models, p, upper, (designs, shrink), duration)
 
     return work
 
 
-def _run(ctx: RunContext, params: ExciteParams, models: Models, p: Plant, upper: FourierTrajectory,
-         design: tuple[list[ExcitationDesign], float], duration: float) -> Outcome:
+def _run(ctx: RunContext, params: ExciteParams, nominal: Robot, models: Models, p: Plant,
+         upper: FourierTrajectory, design: tuple[list[ExcitationDesign], float], duration: float) -> Outcome:
     iface, sim = p.interface, p.sim  # sim: the in-process plant (None over DDS)
     wb = g1_whole_body(models.plant, models.controller_model, WBCConfig(friction_feedforward=True))
     state = iface.read_state()
@@ -198,7 +199,7 @@ def _run(ctx: RunContext, params: ExciteParams, models: Models, p: Plant, upper:
     soles = {f: cs.contact.points_F for f, cs in wb.controller.contacts.items()}
     polygon = SupportPolygon(models.controller_model, soles, dict(zip(FEET, bodies, strict=True)))
     dt = iface.control_period_s
-    ctx.sections[SECTION] = log_section(params, models.controller, joints, bodies, dt,
+    ctx.sections[SECTION] = log_section(params, nominal, joints, bodies, dt,
                                         _excitation(upper, design, steps), measured=monitor is not None)
     csv = ctx.open_csv(header(models.plant, joints, bodies, measured=monitor is not None), CSV_NAME)
     log = ExciteLog(csv, wb, lambda: schedule.com_ref, polygon, watch, monitor, ctx.progress.advance,
@@ -279,7 +280,8 @@ def _outcome(ctx: RunContext, models: Models, schedule: Schedule, log: ExciteLog
     if schedule.legs.solves:
         lines.insert(1, schedule.legs.line())
     if models.options.hidden or models.options.controller_model:
-        lines.insert(1, models_line(models.section()))
+        lines.insert(1, models_line(models.section())
+                     + (f"; {SAME_TRAJECTORY}" if models.options.controller_model else ""))
     lines[1:1] = plant_lines(v)
     passed = fell is None and watch.stopped_at_s is None
     return Outcome(passed, tuple(lines), "did not fall and was not stopped by the balance watch")

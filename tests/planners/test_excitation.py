@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import re
+
 import numpy as np
 import pytest
 
@@ -61,3 +63,43 @@ def test_bad_design_inputs_are_named(two_link_torque_gravity):
         ExcitationLimits(np.array([1.0]), np.array([0.0]), np.ones(1), np.ones(1))
     with pytest.raises(InvalidPlanningInput, match="at least one joint"):
         design_excitation(two_link_torque_gravity, (), np.zeros(2))
+
+
+
+NARROW = """<mujoco><compiler angle="radian"/><worldbody><body name="a">
+<joint name="j1" range="0 0.08" limited="true"/>
+<inertial pos="0 0 0.1" mass="1" diaginertia="0.01 0.01 0.01"/>
+<body name="b" pos="0 0 0.2"><joint name="j2" range="-1 1" limited="true"/>
+<inertial pos="0 0 0.1" mass="1" diaginertia="0.01 0.01 0.01"/></body></body></worldbody>
+<actuator><motor joint="j1" ctrlrange="-5 5"/><motor joint="j2" ctrlrange="-5 5"/></actuator></mujoco>"""
+
+
+def test_a_joint_range_within_the_margins_is_named_not_indexed(tmp_path):
+    from mbctl.robots.registry import load_robot
+
+    (tmp_path / "narrow.xml").write_text(NARROW)
+    robot = load_robot(tmp_path / "narrow.xml")
+    with pytest.raises(InvalidPlanningInput, match=re.escape(
+            "joint 'j1' has the range [0, 0.08] rad (0.08 rad wide); the excitation keeps 0.05 rad inside "
+            "each limit, so it needs a range wider than 0.1 rad: widen the joint's range in the model or "
+            "leave the joint out")):
+        ExcitationLimits.from_robot(robot, ("j1", "j2"), np.zeros(2))
+    with pytest.raises(InvalidPlanningInput, match=re.escape(
+            "joint 'j2' starts at 0.98 rad, outside its range [-1, 1] rad less the excitation's 0.05 rad "
+            "margins ([-0.95, 0.95] rad): start it inside")):
+        ExcitationLimits.from_robot(robot, ("j2",), np.array([0.04, 0.98]))
+    limits = ExcitationLimits.from_robot(robot, ("j1", "j2"), np.array([0.04, 0.0]), margin_rad=0.01)
+    np.testing.assert_allclose([limits.q_min, limits.q_max], [[0.01, -0.99], [0.07, 0.99]])
+
+
+def test_design_bounds_harmonics_and_its_grid(two_link_torque_gravity):
+    robot, joints = two_link_torque_gravity, ("shoulder", "elbow")
+    with pytest.raises(InvalidPlanningInput, match=re.escape(
+            "harmonics must be 1 to 10 (more only slow the design; see MAX_HARMONICS); got 500")):
+        design_excitation(robot, joints, np.zeros(2), harmonics=500)
+    with pytest.raises(InvalidPlanningInput, match=re.escape(
+            "n_samples must be >= 4 per harmonic (20 for 5); got 12")):
+        design_excitation(robot, joints, np.zeros(2), harmonics=5, n_samples=12)
+    with pytest.raises(InvalidPlanningInput, match=re.escape(
+            "period_s must be a positive number of seconds; got -1.0")):
+        design_excitation(robot, joints, np.zeros(2), period_s=-1.0)
