@@ -85,11 +85,19 @@ def identify(
         typer.Option("--encoder-noise", help="Study: add encoder noise (rad), and its difference on v."),
     ] = 0.0,
     seed: Annotated[int, typer.Option(help="Seed of the added noise and of the structural states.")] = 0,
+    allow_other_model: Annotated[
+        bool,
+        typer.Option("--allow-other-model", help="Identify from logs recorded on another model than the "
+                     "nominal one (another dynamics fingerprint, or none); refused otherwise (exit 2). "
+                     "Recorded in identify_report.json."),
+    ] = False,
     model_dir: ModelDirOpt = None,
     output: OutputOpt = None,
     quiet: QuietOpt = False,
 ) -> None:
     """Identify the robot's inertial parameters (and friction, armature) from excitation logs."""
+    from dataclasses import replace
+
     from mbctl.jobs import options
     from mbctl.jobs.identify import IDENTIFY
 
@@ -97,6 +105,7 @@ def identify(
                               contact=contact, cutoff_hz=cutoff_hz, rate_hz=rate_hz, validation=validation,
                               torque_noise=torque_noise, encoder_noise=encoder_noise, seed=seed,
                               model_dir=model_dir)
+    params = replace(params, allow_other_model=allow_other_model)
     execute(IDENTIFY, params, output, quiet)  # run_job defaults to out/identify
 
 

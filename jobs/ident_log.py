@@ -117,7 +117,10 @@ def read_run(run_dir: Path) -> tuple[RecordedLog, dict[str, Any]]:
         raise BadLogError(f"{report_path} cannot be read: {exc}") from None
     section = report.get(SECTION) if isinstance(report, dict) else None
     if not isinstance(section, dict):
-        raise BadLogError(f"{run_dir} was recorded by `mbctl {report.get('job', '?')}`, not `mbctl excite`: "
+        job = report.get("job", "?") if isinstance(report, dict) else "?"
+        if job == "excite":
+            raise BadLogError(incomplete_message(run_dir, report))
+        raise BadLogError(f"{run_dir} was recorded by `mbctl {job}`, not `mbctl excite`: "
                           f"its report has no {SECTION!r} section; record an excitation with mbctl excite")
     if not csv_path.is_file():
         raise BadLogError(f"{run_dir} has no {CSV_NAME}; the run wrote no rows")
@@ -143,6 +146,7 @@ def read_run(run_dir: Path) -> tuple[RecordedLog, dict[str, Any]]:
     if data.shape[1] != len(names):
         raise BadLogError(f"{csv_path} has {data.shape[1]} values per row and {len(names)} column names")
     col = {n: i for i, n in enumerate(names)}
+    check_time_increases(csv_path, data[:, col["time_s"]])
 
     def cols(keys: list[str]) -> np.ndarray:
         return data[:, [col[k] for k in keys]]
@@ -157,3 +161,40 @@ def read_run(run_dir: Path) -> tuple[RecordedLog, dict[str, Any]]:
     log = RecordedLog(data[:, col["time_s"]], cols(section["q_columns"]), cols(section["v_columns"]),
                       cols(tau_columns(joints)), joints, bodies, contacts, wrenches, others)
     return log, section
+
+
+def incomplete_message(run_dir: Path, report: dict[str, Any]) -> str:
+    """Why an ``mbctl excite`` run folder without the log's section cannot be identified, and what to do.
+
+    The section comes with the run's final report: a run killed before it (SIGKILL, power loss)
+    keeps the report written at the start, which still says ``running``; a run that failed before
+    its log was set up says why in its status and message.
+    """
+    status = report.get("status", "?")
+    if status == "running":
+        why = (f"its report.json still says status 'running' (pid {report.get('pid', '?')}): the run is "
+               "still going, or was killed (SIGKILL, power loss) before it wrote its report")
+    else:
+        why = (f"it ended with status {status!r} ({report.get('message') or 'no message'}) before its log "
+               "began")
+    return (f"{run_dir} holds an incomplete `mbctl excite` run: {why}, so its report has no {SECTION!r} "
+            f"section and {CSV_NAME} cannot be read; wait for a running excitation to finish, or record it "
+            "again with mbctl excite (a run stopped with Ctrl-C or SIGTERM keeps its report and can be "
+            "identified)")
+
+
+def check_time_increases(csv_path: Path, t_s: np.ndarray) -> None:
+    """Every row's ``time_s`` after the previous one's (NaN is left to the finiteness check).
+
+    Raises:
+        BadLogError: The first data row (0-based, after the header) whose time does not increase,
+            with both times: reversed, shuffled or repeated rows.
+    """
+    bad = np.flatnonzero(np.diff(t_s) <= 0)
+    if bad.size:
+        k = int(bad[0]) + 1
+        now, before = float(t_s[k]), float(t_s[k - 1])
+        raise BadLogError(f"{csv_path} has non-increasing time: data row {k} has time_s {now!r} s after "
+                          f"{before!r} s at row {k - 1} ({bad.size} such rows); a log's rows are in the "
+                          "order they were recorded, time strictly increasing (reversed, shuffled or "
+                          "repeated rows?)")

@@ -7,19 +7,24 @@ import os
 import shutil
 import subprocess
 import sys
+from dataclasses import replace
+from pathlib import Path
 
 import numpy as np
 import pytest
 from typer.testing import CliRunner
 
+import mbctl.robots
 from mbctl.cli import _register_commands, app
+from mbctl.control.exceptions import ControllerSetupError
 from mbctl.jobs import options
 from mbctl.jobs.demo import DEMO
 from mbctl.jobs.excite import EXCITE
-from mbctl.jobs.identify import IDENTIFY
+from mbctl.jobs.identify import IDENTIFY, load_nominal
 from mbctl.jobs.identify import prepare as prepare_identify
 from mbctl.jobs.runner import run_job
-from mbctl.robots.identification import BadLogError, ParameterSet
+from mbctl.planners.exceptions import InvalidPlanningInput
+from mbctl.robots.identification import BadLogError, ParameterSet, model_fingerprint
 from mbctl.robots.identification.inertial import consistency_problems, from_inertial
 from mbctl.robots.identification.pipeline import base_parameter_errors
 from mbctl.robots.registry import load_robot
@@ -161,8 +166,199 @@ def test_excite_refuses_robots_it_cannot_excite(tmp_path):
                     'diaginertia="1 1 1"/><body name="c"><joint name="j"/><inertial pos="0 0 0" mass="1" '
                     'diaginertia="1 1 1"/></body></body></worldbody><actuator><motor joint="j"/></actuator>'
                     "</mujoco>")
-    from mbctl.control.exceptions import ControllerSetupError
     from mbctl.jobs.excite import prepare
 
     with pytest.raises(ControllerSetupError, match="has a floating base; excite runs fixed-base robots"):
         prepare(options.excite(str(path)))
+
+
+# --- issue 31: bad inputs of identify and excite -------------------------------------------------
+
+ASSETS = Path(mbctl.robots.__file__).parent / "assets"
+
+
+@pytest.fixture(scope="module")
+def heavy_arm(tmp_path_factory):
+    """Another 2-link arm: the same joint names as two_link_torque, link2 3 kg instead of 0.7 kg."""
+    folder = tmp_path_factory.mktemp("heavy_arm")
+    arm = (ASSETS / "two_link_arm.xml").read_text()
+    assert arm.count('mass="0.7"') == 1
+    (folder / "two_link_arm.xml").write_text(arm.replace('mass="0.7"', 'mass="3.0"'))
+    (folder / "heavy_arm.xml").write_text((ASSETS / "two_link_torque.xml").read_text())
+    return folder / "heavy_arm.xml"
+
+
+@pytest.fixture(scope="module")
+def heavy_arm_run(heavy_arm, tmp_path_factory):
+    """An exact excitation of the heavy arm (no hidden truth)."""
+    out = tmp_path_factory.mktemp("excite_heavy") / "run"
+    record = run_job(EXCITE, options.excite(str(heavy_arm), duration=6.0, period=3.0, harmonics=3), out)
+    assert record.exit_code == 0, record.message
+    return out
+
+
+def _fingerprint(run):
+    return json.loads((run / "report.json").read_text())["identification_log"]["model_fingerprint"]
+
+
+def _escape(text):
+    return "".join("\\" + c if c in "[]().*+?{}|^$\\" else c for c in text)
+
+
+def test_a_log_of_another_arm_with_the_same_joints_is_refused_naming_both_models(two_link_run, heavy_arm_run):
+    mine, theirs = _fingerprint(two_link_run)[:12], _fingerprint(heavy_arm_run)[:12]
+    assert mine != theirs
+    params = options.identify([str(heavy_arm_run)], robot="two_link_torque")
+    section = json.loads((heavy_arm_run / "report.json").read_text())["identification_log"]
+    nominal = model_fingerprint(load_nominal(params, section))[:12]  # two_link_torque, the log's gravity
+    with pytest.raises(BadLogError, match=_escape(
+            f"the log's model is not the model being identified, 'two_link_torque' (fingerprint {nominal}): "
+            f"{heavy_arm_run} was recorded on {theirs}; another arm with the same joint names gives wrong "
+            "parameters")):
+        prepare_identify(params)
+    # two logs of two arms together: the second is not the first's model
+    with pytest.raises(BadLogError, match=_escape(
+            f"(fingerprint {mine}, as in {two_link_run}): {heavy_arm_run} was recorded on {theirs};")):
+        prepare_identify(options.identify([str(two_link_run), str(heavy_arm_run)]))
+
+
+def test_a_log_without_a_fingerprint_is_refused_unless_allowed(two_link_run, tmp_path):
+    run = _copy(two_link_run, tmp_path, "no_fingerprint")
+    report = json.loads((run / "report.json").read_text())
+    del report["identification_log"]["model_fingerprint"]
+    (run / "report.json").write_text(json.dumps(report))
+    with pytest.raises(BadLogError, match=_escape(
+            f"{run} records no model fingerprint (not an mbctl excite log of this version); ")):
+        prepare_identify(options.identify([str(run)]))
+    prepare_identify(replace(options.identify([str(run)]), allow_other_model=True))  # no raise
+
+
+def test_another_arms_log_exits_2_and_the_override_is_recorded(heavy_arm_run, tmp_path):
+    def cli(*extra):
+        return subprocess.run([sys.executable, "-m", "mbctl.cli", "identify", str(heavy_arm_run), "--robot",
+                               "two_link_torque", "--output", str(tmp_path / "id"), "-q", *extra],
+                              capture_output=True, text=True, timeout=300, env=os.environ)
+
+    refused = cli()
+    assert refused.returncode == 2, refused.stderr
+    assert "the log's model is not the model being identified" in refused.stderr
+    assert "--allow-other-model" in refused.stderr and "Traceback" not in refused.stderr
+    assert not (tmp_path / "id" / "identify_report.json").exists()
+    allowed = cli("--allow-other-model")
+    assert allowed.returncode in (0, 1), allowed.stderr
+    assert f"--allow-other-model: {heavy_arm_run} recorded on another model" in allowed.stdout
+    report = json.loads((tmp_path / "id" / "identify_report.json").read_text())
+    assert report["allow_other_model"] is True
+    assert report["logs"][0]["same_nominal_model"] is False
+    assert report["logs"][0]["recorded_with_fingerprint"] == _fingerprint(heavy_arm_run)
+
+
+def test_non_increasing_time_is_named_with_the_row_and_values(two_link_run, tmp_path):
+    reversed_run = _copy(two_link_run, tmp_path, "reversed")
+    _edit_csv(reversed_run, lambda lines: [lines[0], *lines[1:][::-1]])
+    lines = (reversed_run / "excite.csv").read_text().splitlines()
+    t0, t1 = float(lines[1].split(",")[0]), float(lines[2].split(",")[0])
+    with pytest.raises(BadLogError, match=_escape(
+            f"excite.csv has non-increasing time: data row 1 has time_s {t1!r} s after {t0!r} s at row 0 "
+            f"({len(lines) - 2} such rows)")):
+        prepare_identify(options.identify([str(reversed_run)]))
+    swapped = _copy(two_link_run, tmp_path, "swapped")
+    _edit_csv(swapped, lambda lines: [*lines[:101], lines[102], lines[101], *lines[103:]])
+    lines = (swapped / "excite.csv").read_text().splitlines()
+    t100, t101 = float(lines[101].split(",")[0]), float(lines[102].split(",")[0])
+    with pytest.raises(BadLogError, match=_escape(
+            f"data row 101 has time_s {t101!r} s after {t100!r} s at row 100 (1 such rows)")):
+        prepare_identify(options.identify([str(swapped)]))
+
+
+def test_sign_flipped_torques_are_refused_not_identified(two_link_run, tmp_path):
+    flipped = _copy(two_link_run, tmp_path, "flipped")
+    header = (two_link_run / "excite.csv").read_text().splitlines()[0].split(",")
+    tau = {i for i, name in enumerate(header) if name.startswith("tau_")}
+
+    def flip(lines):
+        return [lines[0]] + [",".join(repr(-float(x)) if i in tau else x for i, x in enumerate(ln.split(",")))
+                             for ln in lines[1:]]
+
+    _edit_csv(flipped, flip)
+    with pytest.raises(BadLogError, match=_escape(
+            "the logged torques run against the nominal model's: cosine similarity of measured and predicted "
+            "torque shoulder (-1.00), elbow (-1.00) (< -0.5;")):
+        prepare_identify(options.identify([str(flipped)]))
+
+
+def test_an_exact_log_of_the_exact_model_is_not_worse_within_the_noise_floor(tmp_path):
+    run = tmp_path / "exact"
+    assert run_job(EXCITE, options.excite("two_link_torque", duration=6.0, period=3.0, harmonics=3, seed=1),
+                   run).exit_code == 0
+    record = run_job(IDENTIFY, options.identify([str(run)]), tmp_path / "id")
+    nominal, identified = record.values["torque_rmse_nominal"], record.values["torque_rmse_identified"]
+    assert nominal < 1e-5  # both at the noise floor of an exact log
+    assert nominal < identified < 1.01 * nominal  # worse by a hair: within the tolerance
+    assert record.exit_code == 0, record.message
+    report = json.loads((tmp_path / "id" / "identify_report.json").read_text())
+    assert report["validation"]["worse_when"].startswith("identified > (1 + 0.01) x nominal")
+
+
+def test_a_killed_excitation_is_called_incomplete(two_link_run, tmp_path):
+    killed = _copy(two_link_run, tmp_path, "killed")
+    report = json.loads((killed / "report.json").read_text())
+    report.update(status="running", message=None, pid=4242)  # the report a run writes when it starts
+    del report["identification_log"]
+    (killed / "report.json").write_text(json.dumps(report))
+    with pytest.raises(BadLogError, match=_escape(
+            f"{killed} holds an incomplete `mbctl excite` run: its report.json still says status 'running' "
+            "(pid 4242): the run is still going, or was killed (SIGKILL, power loss) before it wrote its "
+            "report, so its report has no 'identification_log' section and excite.csv cannot be read; wait "
+            "for a running excitation to finish, or record it again with mbctl excite")):
+        prepare_identify(options.identify([str(killed)]))
+
+
+def test_excite_refuses_too_many_harmonics_and_too_short_a_period(tmp_path):
+    with pytest.raises(ControllerSetupError, match=_escape(
+            "--harmonics must be 1 to 10; got 500 (more harmonics only slow the design")):
+        options.excite("two_link_torque", harmonics=500)
+    with pytest.raises(ControllerSetupError, match=_escape(
+            "--period 1e-06 s with 5 harmonics puts the highest harmonic at 5e+06 Hz; the joints follow up "
+            "to 4.77 Hz (the tracking's 30 rad/s): give --period >= 1.05 s or fewer harmonics")):
+        options.excite("two_link_torque", period=1e-6)
+    out = subprocess.run([sys.executable, "-m", "mbctl.cli", "excite", "two_link_torque", "--harmonics",
+                          "500", "--output", str(tmp_path / "ex")], capture_output=True, text=True,
+                         timeout=120, env=os.environ)
+    assert out.returncode == 2 and "got 500" in out.stderr and "Traceback" not in out.stderr
+    assert not (tmp_path / "ex").exists()
+
+
+NARROW = """<mujoco><compiler angle="radian"/><worldbody><body name="a">
+<joint name="j1" range="0 0.08" limited="true"/>
+<inertial pos="0 0 0.1" mass="1" diaginertia="0.01 0.01 0.01"/></body></worldbody>
+<actuator><motor joint="j1" ctrlrange="-5 5"/></actuator></mujoco>"""
+
+
+def test_excite_names_a_joint_range_narrower_than_its_margins(tmp_path):
+    from mbctl.jobs.excite import prepare
+
+    path = tmp_path / "narrow.xml"
+    path.write_text(NARROW)
+    with pytest.raises(InvalidPlanningInput, match=_escape(
+            "joint 'j1' has the range [0, 0.08] rad (0.08 rad wide); the excitation keeps 0.05 rad inside "
+            "each limit, so it needs a range wider than 0.1 rad")):
+        prepare(options.excite(str(path)))
+
+
+def test_a_controller_model_tracks_the_same_trajectory(two_link_run, tmp_path):
+    arm = (ASSETS / "two_link_arm.xml").read_text()
+    (tmp_path / "two_link_arm.xml").write_text(arm.replace('mass="0.7"', 'mass="0.84"'))  # link2 +20 %
+    (tmp_path / "model.xml").write_text((ASSETS / "two_link_torque.xml").read_text())
+    out = tmp_path / "ctrl"
+    params = options.excite("two_link_torque", duration=1.0, period=3.0, harmonics=3, plant_error=20.0,
+                            controller_model=str(tmp_path / "model.xml"))
+    record = run_job(EXCITE, params, out)
+    assert record.exit_code == 0, record.message
+    mine = json.loads((out / "report.json").read_text())["identification_log"]
+    reference = json.loads((two_link_run / "report.json").read_text())["identification_log"]
+    assert mine["excitation"]["condition_number"] == reference["excitation"]["condition_number"]
+    assert mine["excitation"]["limit_use_q_v_tau"] == reference["excitation"]["limit_use_q_v_tau"]
+    assert mine["model_fingerprint"] == reference["model_fingerprint"]  # the robot's, not the controller's
+    assert any("trajectory designed on the robot's own model, the same for any --controller-model" in line
+               for line in record.outcome.summary)
