@@ -31,7 +31,14 @@ from mbctl.jobs.plant import PlantOptions
 from mbctl.jobs.plots import joint_colors, new_figure
 from mbctl.jobs.recording import q_columns, v_columns
 from mbctl.jobs.runner import Job, Outcome, RunContext, Work
-from mbctl.planners.excitation import MAX_HARMONICS, ExcitationDesign, design_excitation
+from mbctl.planners.excitation import (
+    DEFAULT_EFFORT_N_M,
+    MAX_HARMONICS,
+    SELF_CLEARANCE_M,
+    ExcitationDesign,
+    design_excitation,
+)
+from mbctl.robots.collision import geom_label
 from mbctl.robots.commands import Command
 from mbctl.robots.edits import position_to_motor
 from mbctl.robots.g1 import is_menagerie_g1
@@ -193,7 +200,10 @@ def _run_fixed(ctx: RunContext, params: ExciteParams, nominal: Robot, models: Mo
                   "condition_number": design.condition_number,
                   "initial_condition_number": design.initial_condition_number,
                   "structural_rank": design.structural_rank, "limit_use_q_v_tau": design.limit_use.tolist(),
-                  "tracking": {"omega_rad_s": TRACKING_OMEGA_RAD_S, "zeta": TRACKING_ZETA}}
+                  "tracking": {"omega_rad_s": TRACKING_OMEGA_RAD_S, "zeta": TRACKING_ZETA},
+                  "self_clearance": {"pairs": list(design.self_pairs), "kept_m": SELF_CLEARANCE_M,
+                                     "min_m": design.min_clearance_m},
+                  "assumed_torque_limit_N_m": _assumed_limits(design)}
     excitation["designed_on"] = "the robot's own model (not --controller-model)"
     ctx.sections[SECTION] = log_section(params, nominal, joints, (), dt, excitation)
     ctx.sections["plant"] = models.section()
@@ -201,12 +211,16 @@ def _run_fixed(ctx: RunContext, params: ExciteParams, nominal: Robot, models: Mo
     ctx.progress.start(n, f"excite {params.robot}")
     tau_log = np.empty((n, len(joints)))
     others = 0
+    touched: dict[str, int] = {}  # geom pair label -> rows it was in contact
 
     def on_step(k: int, state: RobotState, ref: object, command: Command) -> None:
         nonlocal others
         csv.write(log_row(state, monitor))
         tau_log[k] = monitor.joint_torques
-        others += monitor.contacts_elsewhere > 0
+        if monitor.contacts_elsewhere > 0:
+            others += 1
+            for label in _contact_pairs(sim):
+                touched[label] = touched.get(label, 0) + 1
         ctx.progress.advance()
 
     log = run(sim, ct, reference, n * dt, on_step)
@@ -215,17 +229,61 @@ def _run_fixed(ctx: RunContext, params: ExciteParams, nominal: Robot, models: Mo
     ctx.values.update({"duration_s": n * dt, "rows": n, "condition_number": design.condition_number,
                        "joint_rms_error_rad": float(np.sqrt(np.mean((q_ref - q_log) ** 2))),
                        "max_torque_N_m": dict(zip(joints, np.abs(tau_log).max(0).tolist(), strict=True)),
-                       "samples_with_other_contacts": int(others)})
+                       "samples_with_other_contacts": int(others),
+                       "contact_rows": {"count": int(others), "fraction": others / n, "geom_pairs": touched}})
     _plot(ctx, np.arange(n) * dt, joints, q_ref, q_log, tau_log, design)
     lines = [f"excite {params.robot}: {n * dt:g} s of a {traj.harmonics}-harmonic Fourier excitation "
              f"(period {traj.period_s:g} s), regressor condition number {design.condition_number:.3g} "
              f"(random start {design.initial_condition_number:.3g}); tracking RMS "
              f"{ctx.values['joint_rms_error_rad']:.2e} rad",
              f"log: {n} rows in {CSV_NAME}; identify it with: mbctl identify {ctx.output_dir}"]
+    lines[1:1] = _contact_lines(others, n, touched) + _limit_lines(design)
     if params.models.hidden or params.models.controller_model:
         lines.insert(1, models_line(models.section())
                      + (f"; {SAME_TRAJECTORY}" if params.models.controller_model else ""))
     return Outcome(True, tuple(lines))
+
+
+def _contact_pairs(sim: Simulator) -> set[str]:
+    """Labels ``"geom_a/geom_b"`` of the contacts touching the robot now.
+
+    Collision-layer names, the lower geom id first (as the collision layer's pairs).
+    """
+    m, d = sim.model, sim.data
+    mine = {int(b) for b in sim.robot.robot_body_ids}
+    out = set()
+    for c in d.contact[: d.ncon]:
+        g1, g2 = sorted((int(c.geom1), int(c.geom2)))
+        if int(m.geom_bodyid[g1]) in mine or int(m.geom_bodyid[g2]) in mine:
+            out.add(f"{geom_label(m, g1)}/{geom_label(m, g2)}")
+    return out
+
+
+def _contact_lines(rows: int, n: int, touched: dict[str, int]) -> list[str]:
+    """The summary's line on rows with a contact on the robot (none: no line)."""
+    if not rows:
+        return []
+    pairs = ", ".join(f"{k} {v}" for k, v in sorted(touched.items(), key=lambda kv: -kv[1])[:4])
+    return [f"contacts: the robot touched itself or its scene in {rows} of {n} rows "
+            f"({100.0 * rows / n:.1f} %; rows per geom pair: {pairs}); identify leaves those rows out, with "
+            "0.1 s around each"]
+
+
+def _assumed_limits(design: ExcitationDesign) -> dict[str, float]:
+    """Joint -> the torque limit [N m] the design assumed because the model gives none."""
+    defaulted = design.limits.defaulted_effort if design.limits is not None else ()
+    return {j: DEFAULT_EFFORT_N_M for j in defaulted}
+
+
+def _limit_lines(design: ExcitationDesign) -> list[str]:
+    """The summary's line on assumed torque limits (none assumed: no line)."""
+    assumed = _assumed_limits(design)
+    if not assumed or design.limits is None:
+        return []
+    kept = float(design.limits.tau_max[list(design.trajectory.names).index(next(iter(assumed)))])
+    return [f"torque limits: {', '.join(assumed)} have none in the model (no actuator ctrlrange or "
+            f"forcerange, no joint actuatorfrcrange): the design assumed {DEFAULT_EFFORT_N_M:g} N m "
+            f"and kept its torques within {kept:g} N m; give the actuators a ctrlrange to set them"]
 
 
 def _plot(ctx: RunContext, t: np.ndarray, joints: tuple[str, ...], q_ref: np.ndarray, q: np.ndarray,
