@@ -4,10 +4,13 @@ A run folder holds ``trajectory.npz`` + ``model.xml`` (every simulating job), ``
 the job's CSV. The replay plays the trajectory, draws the reference path a job recorded in its
 report (``reference.path_m``: the demo's square) and, when the CSV has per-foot contact columns
 (``<site>_fz_mj_N`` with ``<site>_cop_x_mj_m``, ``<site>_cop_y_mj_m``, and the QP's ``_qp``
-twins: g1-wbc), the normal force of each foot as an arrow at its centre of pressure. The arrows
-show the force each foot presses into the floor, drawn below the floor (seen through the grid:
-above it the foot and the shin would hide them); MuJoCo's thick and red, the QP's thin and blue
-inside it, so where the two disagree one shows beyond the other.
+twins: g1-wbc), the normal force of each foot as an arrow at its centre of pressure. An arrow is
+the force the floor exerts on the robot, pointing up for a standing robot, as the MP4's
+contact-force arrows do (:mod:`mbctl.sim.video`: MuJoCo's own, one per contact point, from the
+contact up). In the browser the arrow ends at the centre of pressure, its head touching the sole
+from below the floor (seen through the grid): one arrow per foot starting there would run up
+inside a straight leg, hidden. MuJoCo's thick and red, the QP's thin and blue inside it, so where
+the two disagree one shows beyond the other.
 """
 
 from __future__ import annotations
@@ -72,8 +75,9 @@ def contact_arrows(table: dict[str, np.ndarray], model: mujoco.MjModel, frame_ro
     """Per-frame normal-force arrows of the CSV's feet: (start, vector) (n, feet, 3) [m] in W.
 
     A foot is a site whose ``<site>_fz_<source>_N`` and CoP columns the CSV has (source ``mj``
-    or ``qp``). The arrow is the force the foot presses into the floor: it starts at the CoP on
-    the floor (at the site's height without a floor) and points down, 1 mm per N. Frames before
+    or ``qp``). The arrow is the force the floor exerts on the foot: it points up,
+    ``FORCE_SCALE_M_PER_N``, and ends at the CoP on the floor (at the site's height without a
+    floor), so it starts below the floor. Frames before
     the CSV's first row (``frame_rows`` -1) have none. None when the CSV has no such columns.
     """
     feet: list[str] = []
@@ -96,8 +100,8 @@ def contact_arrows(table: dict[str, np.ndarray], model: mujoco.MjModel, frame_ro
         for k, (f, s) in enumerate(zip(feet, sites, strict=True)):
             start[i, k] = (table[f"{f}_cop_x_{source}_m"][row], table[f"{f}_cop_y_{source}_m"][row],
                            data.site_xpos[s][2] if floor is None else floor)
-            vec[i, k, 2] = -FORCE_SCALE_M_PER_N * table[f"{f}_fz_{source}_N"][row]
-    return start, vec
+            vec[i, k, 2] = FORCE_SCALE_M_PER_N * table[f"{f}_fz_{source}_N"][row]
+    return start - vec, vec  # the head at the CoP
 
 
 def run_view(run_dir: Path, port: int = 0, fps: float = 30.0) -> WebView:
@@ -139,8 +143,8 @@ def run_view(run_dir: Path, port: int = 0, fps: float = 30.0) -> WebView:
                     draws.append(view.add_arrows(f"/overlay/force_{source}", *arrows, rgb, radius))
                     shown.append(what)
             if shown:
-                lines.append(f"arrows: {', '.join(shown)} normal force per foot, pressed into the floor "
-                             f"at the centre of pressure (drawn below it), "
+                lines.append(f"arrows: {', '.join(shown)} normal force the floor exerts on each foot, "
+                             f"pointing up to its centre of pressure (from below the floor), "
                              f"{FORCE_SCALE_M_PER_N * 1e3:g} mm per N")
 
     def on_frame(i: int) -> None:

@@ -146,19 +146,20 @@ def test_g1_wbc_replay_draws_the_contact_forces(g1, browser, tmp_path):
 
     record = run_job(Job("g1-wbc", partial(prepare, robot=g1)), WBCParams("stand", 0.4), tmp_path)
     assert record.status == "completed"
-    # the arrows are the CSV's forces: at the CoP on the floor, pointing down, 2 mm per N
+    # the arrows are the CSV's forces: pointing up, 2 mm per N, their heads at the CoP on the floor
     model, t, qpos, _ = load_trajectory(tmp_path)
     table = read_csv(record.files["csv"])
     rows = np.searchsorted(table["time_s"], t + 1e-9, side="right") - 1
     start, vec = contact_arrows(table, model, rows, qpos, "mj")
     i = len(t) - 1
     assert start.shape == (len(t), 2, 3) and rows[i] == len(table["time_s"]) - 1
-    np.testing.assert_allclose(start[i, 0, :2],
+    head = start + vec
+    np.testing.assert_allclose(head[i, 0, :2],
                                [table["left_foot_cop_x_mj_m"][-1], table["left_foot_cop_y_mj_m"][-1]])
-    np.testing.assert_allclose(start[i, :, 2], 0.0)  # the floor of Menagerie's scene
-    np.testing.assert_allclose(vec[i, :, 2], -FORCE_SCALE_M_PER_N * np.array(
+    np.testing.assert_allclose(head[i, :, 2], 0.0)  # the floor of Menagerie's scene
+    np.testing.assert_allclose(vec[i, :, 2], FORCE_SCALE_M_PER_N * np.array(
         [table["left_foot_fz_mj_N"][-1], table["right_foot_fz_mj_N"][-1]]))
-    assert 0.5 * 9.81 * 30 * FORCE_SCALE_M_PER_N < -vec[i, :, 2].sum()  # the G1 (~35 kg) stands on them
+    assert 0.5 * 9.81 * 30 * FORCE_SCALE_M_PER_N < vec[i, :, 2].sum()  # the G1 (~35 kg) stands on them
     with run_view(tmp_path) as view:
         assert set(view.overlays) == {"/overlay/force_mj", "/overlay/force_qp"}
         page = _open(browser, view)
@@ -171,6 +172,32 @@ def test_g1_wbc_replay_draws_the_contact_forces(g1, browser, tmp_path):
         view.set_robot_visible(False)
         assert _changed(hidden, _settled(page)) > 0.005  # and the G1 itself is drawn
         page.close()
+
+
+def test_the_video_and_the_browser_draw_the_floor_pushing_the_robot_up(g1, tmp_path):
+    """One convention in both: the force the floor exerts on the robot, up for a standing G1 (the
+    browser drew the force each foot pressed into the floor, pointing down)."""
+    import mujoco
+
+    from mbctl.jobs.g1_wbc import WBCParams, prepare
+    from mbctl.sim.video import contact_force_geoms
+
+    record = run_job(Job("g1-wbc", partial(prepare, robot=g1)), WBCParams("stand", 0.2), tmp_path)
+    model, t, qpos, _ = load_trajectory(tmp_path)
+    table = read_csv(record.files["csv"])
+    rows = np.searchsorted(table["time_s"], t + 1e-9, side="right") - 1
+    start, vec = contact_arrows(table, model, rows, qpos, "mj")
+    web = vec[-1] / np.linalg.norm(vec[-1], axis=1, keepdims=True)  # the browser: one per foot
+    np.testing.assert_allclose(web, [[0, 0, 1], [0, 0, 1]], atol=1e-12)
+    np.testing.assert_allclose((start + vec)[-1, :, 2], 0.0)  # up to the contact, on the floor
+    data = mujoco.MjData(model)
+    data.qpos[:] = qpos[-1]
+    mujoco.mj_forward(model, data)
+    mp4 = contact_force_geoms(model, data)  # the MP4: MuJoCo's arrows, one per contact point
+    assert len(mp4.type) >= 4 and set(mp4.type) == {int(mujoco.mjtGeom.mjGEOM_ARROW)}
+    up = mp4.mat.reshape(-1, 3, 3)[:, :, 2]  # an arrow points along its z axis
+    assert up[:, 2].min() > 0.9, up  # up, friction tilting it by under 26 deg (measured 10-19)
+    assert np.abs(mp4.pos[:, 2]).max() < 0.01  # from the contact, on the floor
 
 
 def _serve(*args):
