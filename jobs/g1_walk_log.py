@@ -215,6 +215,7 @@ class WalkLog:
             "fall_reason": None if mon is None else mon.fall_reason,
             "fall_time_s": None if mon is None else mon.fall_time_s,
             "controller_fallback_at_s": w.wbc.infeasible_at_s,
+            "qp_relaxed_cycles": w.wbc.relaxed_cycles,
             "controller_fallback_reason": w.wbc.infeasible_message,
             "steps": w.steps,
             "touchdowns": dict(gait.touchdowns) if gait is not None else {},

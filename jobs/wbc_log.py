@@ -235,6 +235,7 @@ class WBCLog:
             "fall_reason": mon.fall_reason if mon is not None else None,
             "fall_time_s": mon.fall_time_s if mon is not None else None,
             "controller_fallback_at_s": ctrl.infeasible_at_s,
+            "qp_relaxed_cycles": ctrl.relaxed_cycles,
             "com_error_rms_m": float(np.sqrt(np.mean(np.sum(com_err**2, axis=1)))),
             "max_foot_slip_m": float(np.max(r.slip)),
             "contact_force_rel_error": stat(rel[stance], "median"),

@@ -33,6 +33,12 @@ class WBCConfig:
         joint_limit_max_accel_rad_s2: The joint-limit bounds never demand more than this [rad/s^2]
             toward the inside of a range (> 0), so they stay feasible under the torque limits even
             for a joint found past its bound.
+        relax_joint_limits: On an infeasible QP, solve it again without the joint-limit
+            acceleration bounds before ``on_infeasible`` applies (counted as a relaxed cycle). The
+            bounds are a look-ahead that keeps joints off their stops; with torque limits, friction
+            cones and the feet's constraints they can leave no solution for a cycle (an arm swinging
+            toward its limit while the robot recovers from a push), and the plant's own joint limits
+            still hold. False: the first infeasible QP applies ``on_infeasible``.
         ramp_s: Duration [s] of a contact's force ramp (> 0).
         solver: "daqp" (the structured solve of ``control/wbc/qp.py``: an equality-constrained fast
             path, else daqp) or another qpsolvers backend on the same problem (for comparison).
@@ -57,6 +63,7 @@ class WBCConfig:
     joint_limit_horizon_s: float = 0.1
     joint_limit_margin_rad: float = 0.02
     joint_limit_max_accel_rad_s2: float = 50.0
+    relax_joint_limits: bool = True
     ramp_s: float = 0.3
     solver: str = "daqp"
     on_infeasible: str = "raise"

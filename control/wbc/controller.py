@@ -40,7 +40,9 @@ velocity the cycle plans, ``v + vdot dt`` (a smooth sign for the Coulomb part), 
 torque limits: an unloaded limb whose torques are below its dry friction follows its task instead
 of sticking.
 
-When the QP has no solution, ``WBCConfig.on_infeasible`` decides: raise
+When the QP has no solution, it is solved again without the joint-limit bounds
+(``WBCConfig.relax_joint_limits``, counted in ``relaxed_cycles``); when that has none either,
+``WBCConfig.on_infeasible`` decides: raise
 :class:`~mbctl.control.exceptions.WBCInfeasible`, or ("damp") switch for good to joint damping
 ``tau = -kd v`` and record when, so a simulation goes on and shows whether the robot falls.
 """
@@ -55,7 +57,7 @@ import pinocchio as pin
 
 from mbctl.control.controller import JointMap
 from mbctl.control.exceptions import WBCInfeasible, WBCSetupError
-from mbctl.control.qp import infeasible_error
+from mbctl.control.qp import QPResult, infeasible_error
 from mbctl.control.tasks.base import Task
 from mbctl.control.tasks.stack import TaskStack
 from mbctl.control.tasks.state import DynamicsState
@@ -161,6 +163,8 @@ class WholeBodyController:
         #: Cycles solved by the equality-constrained fast path / by daqp (see control/wbc/qp.py).
         self.fast_path_cycles = 0
         self.daqp_cycles = 0
+        #: Cycles solved only without the joint-limit bounds (``WBCConfig.relax_joint_limits``).
+        self.relaxed_cycles = 0
         self._last_time_s: float | None = None
         self.steps = 0
         self.infeasible_at_s: float | None = None
@@ -242,7 +246,7 @@ class WholeBodyController:
     def reset(self) -> None:
         """Forget the ramp clock, the fallback and the counters (the tasks and contacts stay)."""
         self._last_time_s = None
-        self.fast_path_cycles = self.daqp_cycles = 0
+        self.fast_path_cycles = self.daqp_cycles = self.relaxed_cycles = 0
         self.infeasible_at_s = None
         self.infeasible_message = None
         self.steps = 0
@@ -371,19 +375,16 @@ class WholeBodyController:
                 lb[iv] = np.minimum(lo_scaled + shift, cap)
                 ub[iv] = np.maximum(hi_scaled + shift, -cap)
         t_qp = time.perf_counter()
-        if cfg.solver == "daqp":
-            result = qp.solve(m_eq)
-            if result.fast_path:
-                self.fast_path_cycles += 1
-            else:
-                self.daqp_cycles += 1
-        else:  # another backend, through qpsolvers (for comparison)
-            result = qp.solve_with(cfg.solver, m_eq)
+        result = self._solve(m_eq)
+        if result.x is None and cfg.relax_joint_limits and self._n_limits:
+            result = self._solve_relaxed(m_eq)
         qp_time = time.perf_counter() - t_qp
         x = result.x
         if x is None:  # (the floor gives a finite x or None)
             what = (
-                f"whole-body QP infeasible at step {self.steps} (solver {cfg.solver}): contacts "
+                f"whole-body QP infeasible at step {self.steps} (solver {cfg.solver}"
+                + (", also without the joint-limit bounds" if cfg.relax_joint_limits and self._n_limits else "")
+                + "): contacts "
                 + ", ".join(f"{n} weight {cs.weight:.2f}" for n, cs in self.contacts.items())
                 + f"; normal force per point {cfg.f_min_n:g} to {cfg.f_max_n:g} N at full weight; "
                 f"torque limits [{self.tau_low.min():.1f}, {self.tau_high.max():.1f}] N m")
@@ -401,6 +402,29 @@ class WholeBodyController:
         self.last = WBCSolution(tau, x[:nv], x[nv:], self._force_slices, self._points_F, poses,
                                 time.perf_counter() - t0, qp_time)
         return Command(CommandKind.TORQUE, tau, self._command_names)
+
+    def _solve(self, m_eq: int) -> QPResult:
+        """The QP as filled, by the configured solver (counting fast-path and daqp cycles)."""
+        qp = self._qp
+        if self.config.solver != "daqp":  # another backend, through qpsolvers (for comparison)
+            return qp.solve_with(self.config.solver, m_eq)
+        result = qp.solve(m_eq)
+        if result.fast_path:
+            self.fast_path_cycles += 1
+        else:
+            self.daqp_cycles += 1
+        return result
+
+    def _solve_relaxed(self, m_eq: int) -> QPResult:
+        """The QP again without the joint-limit acceleration bounds (restored after); counted if solved."""
+        iv, lb, ub = self._limit_iv, self._qp.lb, self._qp.ub
+        saved = lb[iv].copy(), ub[iv].copy()
+        lb[iv], ub[iv] = -np.inf, np.inf
+        result = self._solve(m_eq)
+        lb[iv], ub[iv] = saved
+        if result.x is not None:
+            self.relaxed_cycles += 1
+        return result
 
     def _add_friction(self, tau: np.ndarray, vdot: np.ndarray, dt_s: float) -> None:
         """``tau += f_c tanh(v_plan / speed) + d v_plan``, ``v_plan = v + vdot dt``; clamped to the limits."""

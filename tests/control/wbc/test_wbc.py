@@ -179,7 +179,7 @@ def test_g1_static_stance(g1):
 
 def test_infeasible_qp_raises_a_named_error_with_the_problem(tiny_biped, crouch):
     # 100 N per point (800 N on the ground, 3.6 m g) needs more than the knees' 120 N m
-    wb, state = _stance(tiny_biped, crouch, f_min_n=100.0, f_max_n=400.0)
+    wb, state = _stance(tiny_biped, crouch, f_min_n=100.0, f_max_n=400.0, relax_joint_limits=False)
     with pytest.raises(WBCInfeasible, match=(r"whole-body QP infeasible at step 0 \(solver daqp\): "
                                              r"contacts l_sole weight 1.00, r_sole weight 1.00; "
                                              r"normal force per point 100 to 400 N")) as info:
@@ -192,9 +192,32 @@ def test_infeasible_qp_raises_a_named_error_with_the_problem(tiny_biped, crouch)
     wb.controller.compute(state)
 
 
+def test_an_infeasible_qp_is_solved_again_without_the_joint_limit_bounds(tiny_biped, crouch):
+    # the stance above: the knees cannot hold 100 N per point at rest, and the joint-limit bounds
+    # (the knees near their stop) forbid the acceleration that would relieve them
+    wb, state = _stance(tiny_biped, crouch, f_min_n=100.0, f_max_n=400.0)
+    ctrl = wb.controller
+    command = ctrl.compute(state)
+    assert ctrl.relaxed_cycles == 1 and not ctrl.fell_back
+    sol = ctrl.solution
+    tau = command.values
+    assert np.all(tau <= ctrl.tau_high + 1e-6) and np.all(tau >= ctrl.tau_low - 1e-6)
+    # the solution leaves the joint-limit bounds (that is what the relaxation allowed)...
+    iv = ctrl._limits[0]
+    lo = np.minimum((ctrl._limit_lo - 2.0 * (state.q[ctrl._limits[1]]) / 0.1**2), 50.0)
+    hi = np.maximum((ctrl._limit_hi - 2.0 * (state.q[ctrl._limits[1]]) / 0.1**2), -50.0)
+    assert np.any((sol.vdot[iv] < lo - 1e-6) | (sol.vdot[iv] > hi + 1e-6))
+    # ... and keeps every force bound: 100 N per point at least
+    assert np.all(np.vstack(list(sol.forces_W.values()))[:, 2] >= 100.0 - 1e-6)
+    # a feasible cycle counts nothing
+    ctrl.config = WBCConfig()
+    ctrl.compute(state)
+    assert ctrl.relaxed_cycles == 1
+
+
 def test_infeasible_qp_falls_back_to_joint_damping_when_asked(tiny_biped, crouch):
     wb, state = _stance(tiny_biped, crouch, f_min_n=100.0, f_max_n=400.0, on_infeasible="damp",
-                        fallback_kd_n_m_s_rad=3.0)
+                        fallback_kd_n_m_s_rad=3.0, relax_joint_limits=False)
     moving = RobotState(state.q, np.linspace(-0.05, 0.05, tiny_biped.nv), 0.25)
     command = wb.controller.compute(moving)
     ctrl = wb.controller
