@@ -132,6 +132,20 @@ def shift_term(theta: np.ndarray, theta_shifted: np.ndarray) -> np.ndarray:
     return np.outer(d, d)
 
 
+def bartlett_long_run(scores: np.ndarray, lags: int) -> np.ndarray:
+    """Newey-West long-run covariance ``sum_l (1 - |l| / (L + 1)) Gamma_l`` (n, n) of ``scores`` (m, n).
+
+    The Bartlett kernel is a box convolved with itself: with ``u_t`` the sum of the scores over the
+    window ``[t - L, t]`` (zero-padded ends), the sum is ``sum_t u_t u_t^T / (L + 1)``, in O(m n^2)
+    whatever the bandwidth.
+    """
+    m, n = scores.shape
+    padded = np.vstack([np.zeros((lags + 1, n)), scores, np.zeros((lags, n))])
+    c = np.cumsum(padded, axis=0)
+    u = c[lags + 1:] - c[:-lags - 1]  # window sums, m + L of them
+    return u.T @ u / (lags + 1)
+
+
 def residual_uncertainty(params: ParameterSet, samples: Samples, contact: str, est: Estimate,
                          filter_cov: np.ndarray | None = None, step_cov: np.ndarray | None = None,
                          segments: int = SEGMENTS,
@@ -177,10 +191,7 @@ def residual_uncertainty(params: ParameterSet, samples: Samples, contact: str, e
     # HAC sandwich: A^-1 S A^-1 / sigma^4, Bartlett weights over L lags
     dt = float(np.median(np.diff(samples.t_s))) if m > 1 else 1.0
     L = int(max(1, min(m - 1, round(bandwidth_s / max(dt, 1e-12)))))
-    S = scores.T @ scores
-    for lag in range(1, L + 1):
-        Gamma = scores[lag:].T @ scores[:-lag]
-        S += (1.0 - lag / (L + 1)) * (Gamma + Gamma.T)
+    S = bartlett_long_run(scores, L)
     A_inv = est.covariance  # the Laplace covariance is the inverse Hessian of the MAP objective
     hac = A_inv @ S @ A_inv / sigma**4
     hac = 0.5 * (hac + hac.T)

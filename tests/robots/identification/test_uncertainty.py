@@ -21,7 +21,7 @@ from mbctl.jobs.identify import load_nominal
 from mbctl.jobs.runner import run_job
 from mbctl.robots.identification import IdentifyOptions, ParameterSet, identify
 from mbctl.robots.identification.summary import base_summaries
-from mbctl.robots.identification.uncertainty import upper_bound
+from mbctl.robots.identification.uncertainty import bartlett_long_run, upper_bound
 from mbctl.robots.registry import load_robot
 
 ROOT = Path(__file__).resolve().parents[3]
@@ -146,3 +146,14 @@ def test_upper_bound_dominates_both_covariances():
     assert np.linalg.eigvalsh(C - C2).min() > -1e-9 * np.abs(C).max()
     assert np.trace(C) <= np.trace(C1 + C2) + 1e-9  # no looser than their sum
     np.testing.assert_allclose(upper_bound(C1, np.zeros((5, 5))), C1, atol=1e-9 * np.abs(C1).max())
+
+
+def test_bartlett_long_run_is_the_newey_west_sum():
+    """The window-sum form equals ``Gamma_0 + sum_l (1 - l / (L + 1)) (Gamma_l + Gamma_l^T)``."""
+    x = np.random.default_rng(0).standard_normal((57, 4))
+    lags = 9
+    expected = x.T @ x
+    for lag in range(1, lags + 1):
+        gamma = x[lag:].T @ x[:-lag]
+        expected += (1.0 - lag / (lags + 1)) * (gamma + gamma.T)
+    np.testing.assert_allclose(bartlett_long_run(x, lags), expected, rtol=1e-12, atol=1e-12)
