@@ -19,12 +19,12 @@ switches both off; on a GPU they stay.
 from __future__ import annotations
 
 import contextlib
+import functools
 import os
-import pickle
 import subprocess
 import sys
 import tempfile
-from dataclasses import dataclass
+from dataclasses import astuple, dataclass
 from fractions import Fraction
 from multiprocessing.connection import Connection, Pipe
 from pathlib import Path
@@ -34,7 +34,6 @@ import mujoco
 import numpy as np
 
 from mbctl.gl import INSTALL_HINT, VideoError
-from mbctl.sim.atomic import FILE_MODE
 
 #: Keyframe interval and x264 lookahead [s of video]. The fragmented MP4 is written a fragment per
 #: keyframe, once the encoder has emitted the next keyframe, so the file on disk lags the frames
@@ -42,6 +41,10 @@ from mbctl.sim.atomic import FILE_MODE
 #: frames of lookahead) kept a 3 s clip unplayable until it was closed; with 0.5 s and 0.33 s the
 #: file plays to within 0.6 s of the last frame sent (tests/sim/test_video.py), for 15 % more bytes.
 KEYFRAME_INTERVAL_S, LOOKAHEAD_S = 0.5, 1.0 / 3.0
+
+#: Mode of the MP4 (``mbctl.sim.atomic.FILE_MODE``; not imported: the workers load this module
+#: without the ``mbctl.sim`` package, whose imports cost them a second).
+FILE_MODE = 0o644
 
 #: GL_RENDERER names of software rasterisers (Mesa's llvmpipe, softpipe, swrast; OpenSWR).
 SOFTWARE_GL = ("llvmpipe", "softpipe", "swrast", "swr", "software")
@@ -68,8 +71,9 @@ def make_renderer(model: mujoco.MjModel, width: int, height: int) -> mujoco.Rend
         ) from exc
 
 
+@functools.cache
 def gl_renderer_name() -> str:
-    """The OpenGL renderer's name (GL_RENDERER), '' when it cannot be read."""
+    """The OpenGL renderer's name (GL_RENDERER), '' when it cannot be read (probed once a process)."""
     try:
         ctx = mujoco.GLContext(16, 16)
         ctx.make_current()
@@ -287,8 +291,9 @@ def default_workers(simulating: bool) -> int:
 
 
 def _render(renderer: mujoco.Renderer, model: mujoco.MjModel, data: mujoco.MjData,
-            camera: mujoco.MjvCamera, options: mujoco.MjvOption, state: FrameState) -> np.ndarray:
-    """One frame (height, width, 3) uint8 of ``state``."""
+            camera: mujoco.MjvCamera, options: mujoco.MjvOption, sent: tuple) -> np.ndarray:
+    """One frame (height, width, 3) uint8 of a frame state sent as a plain tuple."""
+    state = FrameState(*sent[:3], ExtraGeoms(*sent[3]) if sent[3] is not None else None)
     data.qpos[:] = state.qpos
     if model.nmocap:
         data.mocap_pos[:], data.mocap_quat[:] = state.mocap_pos, state.mocap_quat
@@ -308,14 +313,14 @@ def _worker_main() -> None:
     writer: Writer | None = None
     sent = 0
     try:
-        setup = pickle.loads(jobs.recv_bytes())
-        model: mujoco.MjModel = setup["model"]
-        name = gl_renderer_name()
-        renderer = fast_renderer(model, setup["width"], setup["height"], is_software_gl(name))
-        camera, options, data = setup["camera"].camera(), mujoco.MjvOption(), mujoco.MjData(model)
+        setup = jobs.recv()
+        model = mujoco.MjModel.from_binary_path(setup["model"])
+        renderer = fast_renderer(model, setup["width"], setup["height"], setup["software"])
+        camera, options = CameraSpec(*setup["camera"]).camera(), mujoco.MjvOption()
+        data = mujoco.MjData(model)
         if out is None:
             writer = Writer(Path(setup["path"]), setup["fps"])
-        status.send(("ready", name))
+        status.send(("ready", ""))
         shape = (setup["height"], setup["width"], 3)
         while True:
             try:
@@ -356,6 +361,13 @@ def _worker_main() -> None:
                 writer.close()
 
 
+#: A worker's ``python -c``: this file loaded by its path, so that the ``mbctl.sim`` package (the
+#: simulator, Pinocchio) is not imported: a worker needs mujoco, numpy and ``mbctl.gl`` only.
+_BOOTSTRAP = ("import importlib.util as u, sys; "
+              "s = u.spec_from_file_location('_mbctl_video_worker', {path!r}); "
+              "m = sys.modules[s.name] = u.module_from_spec(s); s.loader.exec_module(m); m._worker_main()")
+
+
 class RenderPool:
     """Render workers filming one MP4 (see the module doc); the parent sends frame states.
 
@@ -382,8 +394,6 @@ class RenderPool:
         frames = [Pipe(duplex=False) for _ in range(self.workers - 1)]  # (lead's end, follower's end)
         env = dict(os.environ)
         env.setdefault("LP_NUM_THREADS", "0")  # llvmpipe rasterises in the worker's own thread
-        payload = {"model": model, "width": width, "height": height, "camera": camera,
-                   "path": str(path), "fps": fps}
         try:
             for k in range(self.workers):
                 job_r, job_w = Pipe(duplex=False)
@@ -392,7 +402,7 @@ class RenderPool:
                 ins = [f[0].fileno() for f in frames] if k == 0 else []
                 fds = [job_r.fileno(), stat_w.fileno(), *([out] if k else []), *ins]
                 log = tempfile.TemporaryFile()
-                code = "from mbctl.sim.video_workers import _worker_main; _worker_main()"
+                code = _BOOTSTRAP.format(path=str(Path(__file__).resolve()))
                 argv = [sys.executable, "-c", code, str(job_r.fileno()), str(stat_w.fileno()), str(out),
                         *(str(i) for i in ins)]
                 self._procs.append(subprocess.Popen(argv, pass_fds=fds, env=env, stdin=subprocess.DEVNULL,
@@ -405,11 +415,17 @@ class RenderPool:
             for lead_end, follower_end in frames:  # each end lives in its worker only now
                 lead_end.close()
                 follower_end.close()
-            blob = pickle.dumps(payload, protocol=pickle.HIGHEST_PROTOCOL)  # the model once (G1: 80 MB)
-            for k in range(self.workers):
-                self._jobs[k].send_bytes(blob)
-            for k in range(self.workers):
-                self._expect(k, "ready")
+            # while the workers start: the model as one MJB file they all read (the G1: 80 MB, read
+            # in ~0.3 s against ~1.4 s unpickled), and the GL renderer's name, probed once here
+            with tempfile.TemporaryDirectory(dir="/dev/shm" if os.path.isdir("/dev/shm") else None) as tmp:
+                mjb = os.path.join(tmp, "model.mjb")
+                mujoco.mj_saveModel(model, mjb, None)
+                setup = {"model": mjb, "width": width, "height": height, "camera": astuple(camera),
+                         "path": str(path), "fps": fps, "software": is_software_gl(gl_renderer_name())}
+                for k in range(self.workers):
+                    self._jobs[k].send(setup)
+                for k in range(self.workers):
+                    self._expect(k, "ready")
         except BaseException:
             self._kill()
             raise
@@ -443,10 +459,13 @@ class RenderPool:
             raise VideoError("the video is closed")
         self._check()
         k = self.frames % self.workers
+        # plain tuples: the workers unpickle them without importing mbctl.sim
+        sent = (state.qpos, state.mocap_pos, state.mocap_quat,
+                None if state.extra is None else tuple(state.extra))
         try:
             if k:
-                self._jobs[k].send(state)
-            self._jobs[0].send((k, repeat, None if k else state))
+                self._jobs[k].send(sent)
+            self._jobs[0].send((k, repeat, None if k else sent))
         except (BrokenPipeError, OSError):
             self._check()
             raise VideoError(f"render worker {k} stopped: {self._log_tail(k)}") from None

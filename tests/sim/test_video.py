@@ -249,3 +249,9 @@ def test_ctrl_c_at_the_terminal_keeps_every_frame(tmp_path):
         child.wait()
     assert '"status": "interrupted"' in (run / "report.json").read_text()
     assert _frames(run / "video.mp4").shape == (45, 240, 320, 3)
+
+
+def test_the_workers_mp4_mode_is_the_runs_file_mode():
+    from mbctl.sim import atomic, video_workers
+
+    assert video_workers.FILE_MODE == atomic.FILE_MODE == 0o644
