@@ -172,11 +172,11 @@ def test_g1_params_are_checked():
         TrackParams(max_rms_error_rad=0.0)
     with pytest.raises(ToolkitError, match="side must be 'left' or 'right'; got 'up'"):
         ArmPDParams(side="up")
-    # an hour on the robot is ordinary (the CSV streams, the replay is bounded); the cap is 2 h
+    # an hour on the robot is ordinary (the CSV streams, the replay is bounded); the cap is an hour
     assert StandParams(duration_s=3600.0).duration_s == ArmPDParams(duration_s=3600.0).duration_s == 3600.0
-    with pytest.raises(ToolkitError, match="--duration 7,201 s exceeds mbctl's limit of 7,200 s; the control "
+    with pytest.raises(ToolkitError, match="--duration 3,601 s exceeds mbctl's limit of 3,600 s; the control "
                                            "loop keeps every cycle in memory"):
-        StandParams(duration_s=7201.0)
+        StandParams(duration_s=3601.0)
 
 
 def test_plot_grouping_helpers(g1):
