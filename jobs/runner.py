@@ -81,10 +81,7 @@ UNCOMMANDED = "uncommanded"
 
 
 class InputFoundBad(JobError):  # noqa: N818 - bad input, found by the work (exit 2)
-    """Bad input that only the work can find (e.g. a log that turns out to be another run's): exit 2.
-
-    The run's report says ``failed`` with the message; the exit code is 2, as for any bad input.
-    """
+    """Bad input only the work can find (a log that is another run's): status ``failed``, exit 2."""
 
 
 class Interrupted(BaseException):  # noqa: N818 - an interruption, like KeyboardInterrupt
@@ -183,10 +180,9 @@ class RunContext:
     _recorders: list[TrajectoryRecorder | VideoRecorder] = field(default_factory=list)
 
     def refuse_pass(self, reason: str) -> None:
-        """The run's result says nothing of its controller (it never acted on the plant): not a pass.
+        """Its controller did not act on the plant: whatever the outcome, status ``uncommanded`` (exit 1).
 
-        The work goes on to its end (its rows, values and plots are kept); the run's status is then
-        ``uncommanded`` with ``reason`` as its message, and it exits 1 whatever its outcome.
+        The work goes on to its end (rows, values, plots kept); ``reason`` is the run's message.
         """
         self.uncommanded = reason
 
