@@ -35,14 +35,8 @@ import numpy as np
 from mbctl.gl import VideoError
 from mbctl.sim.simulator import Simulator
 from mbctl.sim.trajectory import base_body
-from mbctl.sim.video_workers import (
-    CameraSpec,
-    ExtraGeoms,
-    FrameState,
-    RenderPool,
-    default_workers,
-    make_renderer,
-)
+from mbctl.sim.video_pool import RenderPool
+from mbctl.sim.video_workers import CameraSpec, ExtraGeoms, FrameState, default_workers, make_renderer
 
 __all__ = ["VideoError", "VideoRecorder", "VideoSpec", "add_markers", "contact_force_geoms",
            "default_camera", "film_trajectory", "make_renderer", "parse_size", "still"]

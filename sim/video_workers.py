@@ -1,19 +1,21 @@
 """Video frames rendered in worker processes while the simulation runs, and the MP4 encoder.
 
-A :class:`RenderPool` starts ``workers`` processes, each with its own OpenGL context and one
-``mujoco.Renderer`` kept for the whole video. The parent sends each frame's state (qpos, mocap
-poses and the extra geoms of the frame: contact-force arrows, overlay markers), a few hundred
-bytes, and goes on simulating; frame k goes to worker ``k % workers``. Worker 0, the lead, owns
-the encoder (ffmpeg): it renders its own frames, takes the others' from their workers, in frame
-order, and writes them. Every pipe is a bounded kernel buffer, so a parent that films faster
-than the workers render waits (memory stays bounded) and a frame sent is never lost: if the
-parent dies (SIGKILL), the workers read what is left in their pipes, the lead writes it and
-closes the MP4. Workers run in their own session: a Ctrl-C at the terminal reaches the parent
-only, which finishes the video through :meth:`RenderPool.close`.
+``mbctl.sim.video_pool.RenderPool`` starts ``workers`` processes, each with its own OpenGL context
+and one ``mujoco.Renderer`` kept for the whole video. The parent sends each frame's state (qpos,
+mocap poses and the extra geoms of the frame: contact-force arrows, overlay markers), a few
+hundred bytes, and goes on simulating; frame k goes to worker ``k % workers``. Worker 0, the lead,
+owns the encoder (ffmpeg): it renders its own frames, takes the others' from their workers, in
+frame order, and writes them. Every pipe is a bounded kernel buffer, so a parent that films faster
+than the workers render waits (memory stays bounded) and a frame sent is never lost: if the parent
+dies (SIGKILL), the workers read what is left in their pipes, the lead writes it and closes the
+MP4. Workers run in their own session: a Ctrl-C at the terminal reaches the parent only, which
+finishes the video through ``RenderPool.close``.
 
 Software OpenGL (Mesa llvmpipe, OSMesa) draws a G1 frame in ~45 ms without multisampling and
-shadows against ~310 ms with them (bench/README.md, video section), so on software GL a worker
-switches both off; on a GPU they stay.
+shadows against ~310 ms with them, and most of the 45 ms is the G1's 393k mesh triangles, many
+smaller than a pixel; so on software GL a worker switches both off and merges the meshes'
+vertices closer than a pixel at the camera's distance (:func:`simplify_meshes`: 102k triangles
+at 640x480, ~26 ms a frame; bench/README.md, video section). On a GPU all stay.
 """
 
 from __future__ import annotations
@@ -24,9 +26,9 @@ import os
 import subprocess
 import sys
 import tempfile
-from dataclasses import astuple, dataclass
+from dataclasses import dataclass
 from fractions import Fraction
-from multiprocessing.connection import Connection, Pipe
+from multiprocessing.connection import Connection
 from pathlib import Path
 from typing import IO, NamedTuple
 
@@ -90,6 +92,37 @@ def gl_renderer_name() -> str:
 def is_software_gl(name: str) -> bool:
     """True for a software rasteriser's GL_RENDERER name, or an unknown one ('')."""
     return not name or any(s in name.lower() for s in SOFTWARE_GL)
+
+
+def simplify_meshes(model: mujoco.MjModel, cell_m: float) -> tuple[int, int]:
+    """Merge each mesh's vertices that share a ``cell_m`` [m] grid cell (vertex clustering), in place.
+
+    Each vertex is replaced by the first of its cell; faces that collapse, and repeated faces,
+    are dropped (each mesh keeps the first ``mesh_facenum`` faces of its range); corners keep
+    their vertex's normal and texture coordinate. For drawing only: the collision data (convex
+    hulls) are left as they were. Returns the face count (before, after).
+    """
+    before = int(model.mesh_facenum.sum())
+    for i in range(model.nmesh):
+        va, vn = int(model.mesh_vertadr[i]), int(model.mesh_vertnum[i])
+        fa, fn = int(model.mesh_faceadr[i]), int(model.mesh_facenum[i])
+        faces = model.mesh_face[fa:fa + fn]
+        cells = np.floor(model.mesh_vert[va:va + vn] / cell_m).astype(np.int64)
+        _, first, inverse = np.unique(cells, axis=0, return_index=True, return_inverse=True)
+        merged = first[inverse.ravel()][faces]  # each corner: the first vertex of its cell
+        a, b, c = merged.T
+        merged = merged[(a != b) & (b != c) & (a != c)]
+        _, once = np.unique(np.sort(merged, axis=1), axis=0, return_index=True)
+        merged = merged[np.sort(once)]
+        textured = model.mesh_texcoordnum[i] > 0
+        for per_corner, used in ((model.mesh_facenormal, True), (model.mesh_facetexcoord, textured)):
+            if used:
+                of_vertex = np.zeros(vn, dtype=np.int64)
+                of_vertex[faces.ravel()] = per_corner[fa:fa + fn].ravel()
+                per_corner[fa:fa + len(merged)] = of_vertex[merged]
+        model.mesh_face[fa:fa + len(merged)] = merged
+        model.mesh_facenum[i] = len(merged)
+    return before, int(model.mesh_facenum.sum())
 
 
 def fast_renderer(model: mujoco.MjModel, width: int, height: int, software: bool) -> mujoco.Renderer:
@@ -315,6 +348,8 @@ def _worker_main() -> None:
     try:
         setup = jobs.recv()
         model = mujoco.MjModel.from_binary_path(setup["model"])
+        if setup["software"]:
+            simplify_meshes(model, setup["pixel_m"])
         renderer = fast_renderer(model, setup["width"], setup["height"], setup["software"])
         camera, options = CameraSpec(*setup["camera"]).camera(), mujoco.MjvOption()
         data = mujoco.MjData(model)
@@ -359,141 +394,3 @@ def _worker_main() -> None:
         with contextlib.suppress(Exception):
             if writer is not None:
                 writer.close()
-
-
-#: A worker's ``python -c``: this file loaded by its path, so that the ``mbctl.sim`` package (the
-#: simulator, Pinocchio) is not imported: a worker needs mujoco, numpy and ``mbctl.gl`` only.
-_BOOTSTRAP = ("import importlib.util as u, sys; "
-              "s = u.spec_from_file_location('_mbctl_video_worker', {path!r}); "
-              "m = sys.modules[s.name] = u.module_from_spec(s); s.loader.exec_module(m); m._worker_main()")
-
-
-class RenderPool:
-    """Render workers filming one MP4 (see the module doc); the parent sends frame states.
-
-    Args:
-        model: The model drawn (copied to each worker).
-        width: Frame width [px].
-        height: Frame height [px].
-        camera: The camera of every frame.
-        path: The MP4 file.
-        fps: Frames per second of video.
-        workers: Number of render processes (>= 1).
-
-    Raises:
-        VideoError: A worker cannot render or encode here (the message says why).
-    """
-
-    def __init__(self, model: mujoco.MjModel, width: int, height: int, camera: CameraSpec,
-                 path: Path, fps: float, workers: int = 1):
-        self.workers, self.frames, self._closed = max(1, int(workers)), 0, False
-        self._jobs: list[Connection] = []
-        self._status: list[Connection] = []
-        self._procs: list[subprocess.Popen[bytes]] = []
-        self._logs: list[IO[bytes]] = []
-        frames = [Pipe(duplex=False) for _ in range(self.workers - 1)]  # (lead's end, follower's end)
-        env = dict(os.environ)
-        env.setdefault("LP_NUM_THREADS", "0")  # llvmpipe rasterises in the worker's own thread
-        try:
-            for k in range(self.workers):
-                job_r, job_w = Pipe(duplex=False)
-                stat_r, stat_w = Pipe(duplex=False)
-                out = frames[k - 1][1].fileno() if k else -1
-                ins = [f[0].fileno() for f in frames] if k == 0 else []
-                fds = [job_r.fileno(), stat_w.fileno(), *([out] if k else []), *ins]
-                log = tempfile.TemporaryFile()
-                code = _BOOTSTRAP.format(path=str(Path(__file__).resolve()))
-                argv = [sys.executable, "-c", code, str(job_r.fileno()), str(stat_w.fileno()), str(out),
-                        *(str(i) for i in ins)]
-                self._procs.append(subprocess.Popen(argv, pass_fds=fds, env=env, stdin=subprocess.DEVNULL,
-                                                    stdout=log, stderr=log, start_new_session=True))
-                self._logs.append(log)
-                job_r.close()
-                stat_w.close()
-                self._jobs.append(job_w)
-                self._status.append(stat_r)
-            for lead_end, follower_end in frames:  # each end lives in its worker only now
-                lead_end.close()
-                follower_end.close()
-            # while the workers start: the model as one MJB file they all read (the G1: 80 MB, read
-            # in ~0.3 s against ~1.4 s unpickled), and the GL renderer's name, probed once here
-            with tempfile.TemporaryDirectory(dir="/dev/shm" if os.path.isdir("/dev/shm") else None) as tmp:
-                mjb = os.path.join(tmp, "model.mjb")
-                mujoco.mj_saveModel(model, mjb, None)
-                setup = {"model": mjb, "width": width, "height": height, "camera": astuple(camera),
-                         "path": str(path), "fps": fps, "software": is_software_gl(gl_renderer_name())}
-                for k in range(self.workers):
-                    self._jobs[k].send(setup)
-                for k in range(self.workers):
-                    self._expect(k, "ready")
-        except BaseException:
-            self._kill()
-            raise
-
-    def _expect(self, k: int, what: str) -> str:
-        """Wait for worker ``k``'s next status; VideoError unless it is ``what``."""
-        try:
-            kind, text = self._status[k].recv()
-        except (EOFError, OSError):
-            kind, text = "error", f"render worker {k} exited: {self._log_tail(k)}"
-        if kind != what:
-            raise VideoError(text if kind == "error" else f"render worker {k} said {kind!r}, not {what!r}")
-        return text
-
-    def _log_tail(self, k: int) -> str:
-        proc, log = self._procs[k], self._logs[k]
-        code = proc.wait(timeout=30)
-        log.seek(0)
-        tail = log.read().decode(errors="replace").strip()[-500:]
-        return f"exit {code}" + (f": {tail}" if tail else "")
-
-    def _check(self) -> None:
-        """Raise a worker's error as soon as it is reported (no wait)."""
-        for k, status in enumerate(self._status):
-            if status.poll():
-                self._expect(k, "running")  # any report mid-video is an error
-
-    def submit(self, state: FrameState, repeat: int = 1) -> None:
-        """Film ``state`` as the next ``repeat`` frames (the first waits until the encoder has started)."""
-        if self._closed:
-            raise VideoError("the video is closed")
-        self._check()
-        k = self.frames % self.workers
-        # plain tuples: the workers unpickle them without importing mbctl.sim
-        sent = (state.qpos, state.mocap_pos, state.mocap_quat,
-                None if state.extra is None else tuple(state.extra))
-        try:
-            if k:
-                self._jobs[k].send(sent)
-            self._jobs[0].send((k, repeat, None if k else sent))
-        except (BrokenPipeError, OSError):
-            self._check()
-            raise VideoError(f"render worker {k} stopped: {self._log_tail(k)}") from None
-        if not self.frames:
-            self._expect(0, "started")
-        self.frames += 1
-
-    def close(self) -> None:
-        """Render what was sent, finish the MP4 and stop the workers (idempotent)."""
-        if self._closed:
-            return
-        self._closed = True
-        try:
-            for job in self._jobs:
-                with contextlib.suppress(OSError):
-                    job.send(None)
-                job.close()
-            self._expect(0, "closed")
-            for proc in self._procs:
-                proc.wait(timeout=60)
-        finally:
-            self._kill()
-
-    def _kill(self) -> None:
-        for proc in self._procs:
-            if proc.poll() is None:
-                proc.kill()
-                proc.wait()
-        for conn in (*self._jobs, *self._status, *self._logs):
-            conn.close()
-

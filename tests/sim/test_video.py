@@ -27,6 +27,7 @@ from mbctl.sim.video import (
     VideoError,
     VideoRecorder,
     VideoSpec,
+    default_camera,
     film_trajectory,
     make_renderer,
     parse_size,
@@ -255,3 +256,30 @@ def test_the_workers_mp4_mode_is_the_runs_file_mode():
     from mbctl.sim import atomic, video_workers
 
     assert video_workers.FILE_MODE == atomic.FILE_MODE == 0o644
+
+
+def test_meshes_merged_below_a_pixel_draw_the_same_g1_frame(g1):
+    """Software GL: the G1's vertices closer than a pixel at the camera's distance merged (its
+    393270 triangles to about a quarter); the frame is the full-mesh frame to within 1 of 255."""
+    import copy
+
+    from mbctl.sim.video_pool import pixel_size_m
+    from mbctl.sim.video_workers import CameraSpec, fast_renderer, simplify_meshes
+
+    sim = Simulator(g1)
+    sim.step(n=50)
+    camera = default_camera(sim.model, sim.data, 1)
+    cell = pixel_size_m(sim.model, CameraSpec.of(camera), 480)
+    assert 0.002 < cell < 0.01  # a pixel of the tracking camera's 640x480 frame [m]
+    frames = []
+    model = copy.deepcopy(sim.model)
+    for simplify in (False, True):
+        if simplify:
+            before, after = simplify_meshes(model, cell)
+            assert before == 393270 and 0.15 * before < after < 0.4 * before
+        renderer = fast_renderer(model, 640, 480, software=True)
+        renderer.update_scene(sim.data, camera)
+        frames.append(renderer.render().astype(float))
+        renderer.close()
+    diff = np.abs(frames[1] - frames[0])
+    assert diff.mean() < 1.0 and (diff.max(axis=-1) > 30).mean() < 0.01
