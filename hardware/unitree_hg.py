@@ -18,20 +18,17 @@ robot's state stream has been read: :data:`~mbctl.hardware.lowstate.RATE_STATES`
 within ``connect_timeout_s`` (their arrivals measure the state rate, which paces the loop and
 scales the watchdog, unless ``rate_hz`` is given), else :class:`NoRobotError` saying what was seen
 (nothing on the domain, states with a bad CRC, states that never advance); a joint outside its
-limits raises :class:`JointOutOfLimits` naming it; another ``rt/lowcmd`` writer on the domain (a
-second client: discovery is given :data:`~mbctl.unitree.channel.DISCOVERY_S` from the start)
-raises :class:`~mbctl.unitree.exceptions.AnotherWriterError`; nothing is commanded in any case
-(a dry run has no writer, and is not refused).
+limits raises :class:`JointOutOfLimits` naming it; another ``rt/lowcmd`` writer (a second client)
+raises :class:`~mbctl.unitree.exceptions.AnotherWriterError` (:mod:`~mbctl.hardware.command_link`);
+nothing is commanded in any case.
 ``stop()`` ends the loop's commanding: the damping command goes out every period from a thread
 (:class:`~mbctl.hardware.damping.DampingKeeper`) until ``close()``, or until a new command
 resumes (another loop). ``close()`` deactivates: it sends the damping command (``kp = 0``, ``kd``
 per motor) if anything was commanded, then leaves DDS. Use it as a context manager.
 
-Messages: every LowCmd_ carries ``mode_pr`` = 0 (pitch/roll ankles, as the model has them), the
-``mode_machine`` copied from the first LowState, each motor's mode (enabled), q, dq, tau, kp, kd,
-and the CRC. The LowStates are checked, ordered and timed by
-:class:`~mbctl.hardware.lowstate.LowStateStream` (CRC, values, tick or arrival order, the
-robot's clock).
+Messages: every LowCmd_ carries ``mode_pr`` = 0 (pitch/roll ankles), the ``mode_machine`` of the
+first LowState, each motor's mode (enabled), q, dq, tau, kp, kd, and the CRC. LowStates are checked,
+ordered and timed by :class:`~mbctl.hardware.lowstate.LowStateStream`.
 
 State: joint q and dq come from the motors; the base orientation and angular velocity from the
 IMU; the base position and linear velocity are not measured, so they come from the estimator the
@@ -44,14 +41,11 @@ first command, a first cycle that warms up); commands are clamped to the model's
 position limits and counted; Ctrl-C (KeyboardInterrupt) goes through ``close()`` and so damps;
 ``dry_run`` reads and never commands.
 
-Stalls (``quiet_loop``, measured in bench/bench_dds.py): the loop's first ``read_state`` moves
-every object made before it (the models, the controller, the buffers) out of the collector's
-generations (``gc.freeze``; ``close()`` undoes it) and turns automatic collection off until the
-loop ends (``stop()``), so no collection runs inside the loop; and it raises the loop thread to
-real-time priority where the OS permits it (:class:`~mbctl.unitree.clock.RealtimePriority`; the
-report's ``realtime``), so other work on the machine does not hold it from a core when its state
-arrives. Waiting for a state and sleeping happen in C with the GIL released; nothing else of
-mbctl runs in the process meanwhile (no reader thread: states are taken by the loop itself).
+Stalls (``quiet_loop``; measured in bench/bench_dds.py, see docs/api/dds.rst): the loop's first
+``read_state`` freezes every object made before it (``gc.freeze``; ``close()`` undoes it), turns
+collection off until ``stop()`` and raises the loop to real-time priority where the OS permits
+(:class:`~mbctl.unitree.clock.RealtimePriority`; the report's ``realtime``). Waits happen in C with
+the GIL released; no reader thread (the loop takes the states).
 """
 
 from __future__ import annotations
@@ -64,6 +58,7 @@ from dataclasses import dataclass
 import numpy as np
 import numpy.typing as npt
 
+from mbctl.hardware.command_link import check_command_link
 from mbctl.hardware.damping import DampingKeeper
 from mbctl.hardware.exceptions import DryRunError, HardwareError, JointOutOfLimits, LinkLost, NoRobotError
 from mbctl.hardware.lowstate import PERIOD_RANGE_S, RATE_STATES, LowStateStream
@@ -72,7 +67,8 @@ from mbctl.robots.commands import Command
 from mbctl.robots.interface import BaseStateEstimator, Proprioception, RobotState
 from mbctl.robots.model_pair import Robot
 from mbctl.robots.plant_report import LinkReport, PlantReport, SafetyReport, TimingReport
-from mbctl.unitree.channel import DISCOVERY_S, LOOPBACK, TOPIC_LOWCMD, TOPIC_LOWSTATE, Channel, message_types
+from mbctl.unitree import LOOPBACK, TOPIC_LOWCMD, TOPIC_LOWSTATE, Channel
+from mbctl.unitree.channel import DISCOVERY_S, RawWriter, message_types
 from mbctl.unitree.clock import CycleClock, RealtimePriority
 from mbctl.unitree.motors import MODE_PR, MOTOR_ENABLED, MotorMap
 from mbctl.unitree.tables import G1_29DOF, MotorTable
@@ -240,22 +236,8 @@ class UnitreeHG:
                 raise NoRobotError(self._no_robot_message())
             if self._reader.wait(min(remaining, 0.05)):
                 stream.drain()
-        while not o.dry_run and not self._writer.matched():  # a command before that would be lost
-            remaining = deadline - time.perf_counter()
-            if remaining <= 0:
-                raise NoRobotError(
-                    f"no robot: its state arrives on {TOPIC_LOWSTATE} (DDS domain {o.domain}, network "
-                    f"interface {o.network_interface!r}) but nothing reads {TOPIC_LOWCMD} within "
-                    f"{o.connect_timeout_s:g} s: "
-                    "a robot that publishes and does not listen (check its low-level mode), or a discovery "
-                    "that works one way only (check the network configuration)")
-            time.sleep(min(remaining, 0.005))
-        if not o.dry_run:  # one controller per robot
-            self._lowcmd_writers.refuse_others(
-                1, self._t0 + o.discovery_s, "the DDS client will not command the robot: a second client (or "
-                "another program) already publishes commands there, and the robot would take both",
-                o.domain, o.network_interface)
-        self._lowcmd_writers.close()
+        check_command_link(self._writer, self._lowcmd_writers, o.domain, o.network_interface, deadline,
+                           o.connect_timeout_s, self._t0 + o.discovery_s)
         period = 1.0 / o.rate_hz if o.rate_hz else stream.measured_period()
         low, high = PERIOD_RANGE_S
         if period is None or not low <= period <= high:
@@ -352,17 +334,23 @@ class UnitreeHG:
             DryRunError: The interface was opened with ``dry_run``.
             CommandError: A ctrl command, wrong size, or targets without gains.
         """
-        if self.options.dry_run:
-            raise DryRunError("dry run: this interface reads the robot and never commands it")
+        writer = self._out
         if self._keeper is not None and self._keeper.running:
             self._keeper.stop()
         self.commands.write(command, self._cmd_codec.message["motor_cmd"])
-        self._writer.write(self._cmd_codec.encode())
+        writer.write(self._cmd_codec.encode())
         self._commanded = True
+
+    @property
+    def _out(self) -> RawWriter:
+        """The ``rt/lowcmd`` writer; DryRunError in a dry run (it has none)."""
+        if self._writer is None:
+            raise DryRunError("dry run: this interface reads the robot and never commands it")
+        return self._writer
 
     def damp(self) -> None:
         """Send the damping command once: every motor ``kp = 0`` with its damping ``kd``, no torque."""
-        self._writer.write(self._damping_wire)
+        self._out.write(self._damping_wire)
         self._damped = True
 
     def stop(self) -> None:

@@ -157,8 +157,8 @@ def command_ranges(motors: MotorMap, table: MotorTable) -> dict[str, tuple[np.nd
     n = motors.n
 
     def pair(low: npt.ArrayLike, high: npt.ArrayLike) -> tuple[np.ndarray, np.ndarray]:
-        return (np.broadcast_to(np.float32(low), (n,)).astype(np.float32),
-                np.broadcast_to(np.float32(high), (n,)).astype(np.float32))
+        return (np.broadcast_to(np.asarray(low, dtype=np.float32), (n,)).copy(),
+                np.broadcast_to(np.asarray(high, dtype=np.float32), (n,)).copy())
 
     return {"kp": pair(0.0, table.kp_max), "kd": pair(0.0, table.kd_max),
             "dq": pair(-table.dq_max, table.dq_max), "q": pair(motors.q_low, motors.q_high),

@@ -8,7 +8,8 @@ generic over the robots that speak ``unitree_hg``; a robot is a :class:`MotorTab
 - ``wire``: ``LowCmd_``/``LowState_`` as numpy records and their XCDR1 bytes; ``crc``: the CRC on
   the packed words;
 - ``channel``: DDS on one domain and one network interface (``lo`` by default), raw-bytes readers
-  and writers; ``domain_lock``: one test or bench per domain on this machine;
+  and writers, the writers of a topic counted; ``sockets``: its receive sockets listed and pinned to
+  that interface; ``domain_lock``: one test or bench per domain on this machine;
 - ``clock``: the wall-clock cycle pacing and its statistics, and real-time priority for a loop.
 
 DDS needs the ``hardware`` extra; the rest needs numpy only.
@@ -16,12 +17,19 @@ DDS needs the ``hardware`` extra; the rest needs numpy only.
 
 from mbctl.unitree.channel import LOOPBACK, TOPIC_LOWCMD, TOPIC_LOWSTATE, Channel
 from mbctl.unitree.clock import CycleClock, PeriodStats, RealtimePriority
-from mbctl.unitree.exceptions import ChannelError, MotorTableError, UnitreeError, WireFormatError
+from mbctl.unitree.exceptions import (
+    AnotherWriterError,
+    ChannelError,
+    MotorTableError,
+    UnitreeError,
+    WireFormatError,
+)
 from mbctl.unitree.motors import MOTOR_SLOTS, MotorMap
 from mbctl.unitree.tables import G1_23DOF, G1_29DOF, G1_MOTOR_JOINTS, TABLES, MotorTable
 from mbctl.unitree.wire import LOW_CMD, LOW_STATE, Codec, low_cmd_codec, low_state_codec
 
 __all__ = [
+    "AnotherWriterError",
     "G1_23DOF",
     "G1_29DOF",
     "G1_MOTOR_JOINTS",

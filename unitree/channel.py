@@ -15,7 +15,10 @@ stays on the machine) plus unicast to 127.0.0.1, so no packet leaves the machine
 SDK configures on ``lo`` (``ChannelFactoryInitialize(domain, "lo")``: Cyclone's defaults on that
 interface, multicast included), so mbctl and Unitree's simulator or SDK programs discover each
 other there. Any other interface must be named by the user (a real robot's, e.g. ``enp3s0``) and
-gets Cyclone's defaults on that interface only; for anything else (several interfaces, a discovery
+gets Cyclone's defaults on that interface only. Cyclone binds its receive sockets to 0.0.0.0
+whatever the configuration says (:mod:`mbctl.unitree.sockets`): on Linux each is pinned to the
+configured interface once the domain is made (``SO_BINDTODEVICE``), so the kernel delivers to it
+only packets that arrived there; for anything else (several interfaces, a discovery
 server, peers) the user gives a Cyclone configuration file of their own (``config``), used as
 written. Waiting (``RawReader.wait``) blocks in C through ctypes, which releases the GIL.
 
@@ -23,8 +26,9 @@ One writer per topic: a second bridge or a second client on the domain would mix
 states or two controllers' commands. :meth:`Channel.writers` counts the writers of a topic that
 discovery has matched (the process's own included), so the bridge and the client refuse to start
 beside another writer of the topic they write (:class:`AnotherWriterError`). Discovery is not
-instantaneous: :data:`DISCOVERY_S` is how long a start waits for one to show (33-34 ms measured
-between two processes on ``lo``); a writer discovery finds later is not seen by that check.
+instantaneous: :data:`DISCOVERY_S` is how long a start waits for one to show (a reader matched an
+existing writer of another process on ``lo`` after 33-34 ms on an idle machine, 42-236 ms at load
+average 6.6); a writer discovery finds later is not seen by that check.
 """
 
 from __future__ import annotations
@@ -34,13 +38,14 @@ import threading
 import time
 from typing import Any
 
+from mbctl.unitree import sockets
 from mbctl.unitree.exceptions import AnotherWriterError, ChannelError
 
 TOPIC_LOWCMD = "rt/lowcmd"
 TOPIC_LOWSTATE = "rt/lowstate"
 LOOPBACK = "lo"
 #: How long [s] a start waits for discovery to show another writer of its topic.
-DISCOVERY_S = 0.3
+DISCOVERY_S = 0.5
 #: DDS domain ids Cyclone accepts (the port of domain d is 7400 + 250 d, below 65536).
 MAX_DOMAIN = 232
 
@@ -140,11 +145,18 @@ def _acquire_domain(domain: int, network_interface: str, config_file: str | None
             return
         dds = _dds()
         config = domain_config(network_interface, config_file)
+        before = sockets.inodes()
         try:
             handle = dds["Domain"](domain, config)
         except Exception as exc:  # cyclonedds.core.DDSException: e.g. no such interface
             raise ChannelError(f"cannot create DDS domain {domain} on network interface "
                                f"{network_interface!r}: {exc}") from exc
+        if config_file is None:  # the user's configuration is used as written
+            try:
+                sockets.pin_new_sockets(before, network_interface)
+            except ChannelError:
+                del handle  # deletes the domain and its sockets
+                raise
         _domains[domain] = (handle, where, 1)
 
 

@@ -291,3 +291,17 @@ def test_a_second_client_on_the_domain_refuses_to_start(g1, fake_g1, dds_domain)
         with pytest.raises(AnotherWriterError, match="1 other writer of rt/lowcmd"):
             UnitreeG1(g1, StillBase(), DdsOptions(domain=dds_domain))
         run(first, ConstantTorque(g1), HOLD, 0.01)
+
+
+def test_a_client_on_lo_holds_no_socket_another_host_can_reach(g1, dds_domain):
+    """Its receive sockets are on 0.0.0.0 (Cyclone's constant) pinned to lo; its transmit one on 127.0.0.1."""
+    from mbctl.unitree.sockets import supported, udp_sockets
+
+    if not supported():
+        pytest.skip("needs Linux (/proc and SO_BINDTODEVICE)")
+    robot = UnitreeG1(g1, StillBase(), DdsOptions(domain=dds_domain), activate=False)
+    try:
+        held = udp_sockets()
+    finally:
+        robot.close()
+    assert len(held) == 5 and sorted(s.device or s.address for s in held) == ["127.0.0.1"] + ["lo"] * 4

@@ -191,3 +191,18 @@ def test_mbctl_serve_beside_another_state_writer_exits_2_naming_it(dds_domain, t
                         "--output", str(tmp_path / "serve"))
     assert out.returncode == 2, out.stderr
     assert f"1 other writer of rt/lowstate already on DDS domain {dds_domain}" in out.stderr
+
+
+def test_a_bridge_on_lo_holds_no_socket_another_host_can_reach(g1, dds_domain):
+    """Its receive sockets are on 0.0.0.0 (Cyclone's constant) pinned to lo; its transmit one on 127.0.0.1."""
+    from mbctl.sim.dds_bridge import BridgeOptions, G1Bridge
+    from mbctl.unitree.sockets import supported, udp_sockets
+
+    if not supported():
+        pytest.skip("needs Linux (/proc and SO_BINDTODEVICE)")
+    bridge = G1Bridge(g1, g1.keyframe_q("stand"), BridgeOptions(domain=dds_domain, lockstep=True))
+    try:
+        held = udp_sockets()
+    finally:
+        bridge.close()
+    assert len(held) == 5 and sorted(s.device or s.address for s in held) == ["127.0.0.1"] + ["lo"] * 4
