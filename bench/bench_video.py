@@ -3,9 +3,10 @@
     MENAGERIE_ROOT=... python -m bench.bench_video [--runs 3] [--duration S] [--section frame|job|all]
 
 ``frame``: per 640x480 frame of the G1 (and the 2-link arm), in this process: ``update_scene``,
-``render`` with MuJoCo's defaults (4x multisampling, shadows) and with the video's settings on
-software GL (neither), the encoder (the pipe write here, ffmpeg's own CPU from its rusage), and
-what the job's process pays per frame with render workers (the frame's state and its send).
+``render`` with MuJoCo's defaults (4x multisampling, shadows), without either, and with the
+video's settings on software GL (neither, and the meshes merged below a pixel), the encoder
+(the pipe write here, ffmpeg's own CPU from its rusage), and what the job's process pays per
+frame with render workers (the frame's state and its send).
 CPU time of the process (llvmpipe's threads included) and wall time, medians of 20 frames.
 
 ``job``: ``mbctl g1-wbc squat`` with and without ``--video`` (default size and rate), as
@@ -37,7 +38,15 @@ from mbctl.robots import load_robot  # noqa: E402
 from mbctl.sim import Simulator  # noqa: E402
 from mbctl.sim.trajectory import base_body  # noqa: E402
 from mbctl.sim.video import VideoRecorder, VideoSpec, default_camera  # noqa: E402
-from mbctl.sim.video_workers import Writer, fast_renderer, gl_renderer_name, is_software_gl  # noqa: E402
+from mbctl.sim.video_pool import pixel_size_m  # noqa: E402
+from mbctl.sim.video_workers import (  # noqa: E402
+    CameraSpec,
+    Writer,
+    fast_renderer,
+    gl_renderer_name,
+    is_software_gl,
+    simplify_meshes,
+)
 
 MBCTL = [sys.executable, "-m", "mbctl.cli"]
 
@@ -75,9 +84,13 @@ def frame_costs(robot_name: str, n: int = 20) -> None:
     options.flags[mujoco.mjtVisFlag.mjVIS_CONTACTFORCE] = True
     rows = []
     samples = int(model.vis.quality.offsamples)
-    for label, software in (("MuJoCo's defaults (4x MSAA, shadows)", False),
-                            ("video on software GL (no MSAA, no shadows)", True)):
+    cell = pixel_size_m(model, CameraSpec.of(camera), spec.height)
+    for label, software, simplify in (("MuJoCo's defaults (4x MSAA, shadows)", False, False),
+                                      ("no MSAA, no shadows", True, False),
+                                      ("+ meshes merged below a pixel (the video)", True, True)):
         model.vis.quality.offsamples = samples
+        if simplify:
+            faces = simplify_meshes(model, cell)
         renderer = fast_renderer(model, spec.width, spec.height, software)
         if not software:
             renderer.scene.flags[mujoco.mjtRndFlag.mjRND_SHADOW] = True
@@ -94,10 +107,13 @@ def frame_costs(robot_name: str, n: int = 20) -> None:
         writer.close()
         after = resource.getrusage(resource.RUSAGE_CHILDREN)
         ffmpeg_ms = 1e3 * ((after.ru_utime + after.ru_stime) - (before.ru_utime + before.ru_stime)) / (n + 1)
+        sim = Simulator(load_robot(robot_name))  # its model unmerged
+        sim.step(n=100)
         rec = VideoRecorder(sim, Path(tmp) / "w.mp4", VideoSpec(contact_forces=True), workers=1)
         state = _timed(rec.frame_state, n)
         rec.close()
-    print(f"{robot_name}, one {spec.width}x{spec.height} frame, CPU ms (wall ms), median of {n}, {load()}:")
+    print(f"{robot_name}, one {spec.width}x{spec.height} frame, CPU ms (wall ms), median of {n}, {load()}; "
+          f"mesh triangles {faces[0]} -> {faces[1]} merged at {1e3 * cell:.1f} mm:")
     for label, update, render in rows:
         print(f"  {label:44s} update_scene {update[0]:5.3f} ({update[1]:5.3f})  "
               f"render {render[0]:7.1f} ({render[1]:7.1f})")

@@ -256,8 +256,9 @@ class Writer:
         keyframes, lookahead = (max(1, round(t * self.fps)) for t in (KEYFRAME_INTERVAL_S, LOOKAHEAD_S))
         return [self._exe, "-y", "-f", "rawvideo", "-vcodec", "rawvideo", "-s", f"{width}x{height}",
                 "-pix_fmt", "rgb24", "-r", str(Fraction(self.fps).limit_denominator()), "-i", "-", "-an",
-                "-vcodec", "libx264", "-pix_fmt", "yuv420p", "-v", "error", "-crf", "23",
-                "-g", str(keyframes), "-x264-params", f"rc-lookahead={lookahead}",
+                # veryfast: half medium's CPU (6 against 12.5 ms a G1 frame), no larger a file here
+                "-vcodec", "libx264", "-preset", "veryfast", "-pix_fmt", "yuv420p", "-v", "error",
+                "-crf", "23", "-g", str(keyframes), "-x264-params", f"rc-lookahead={lookahead}",
                 # fragmented, each fragment flushed: playable up to the last fragment if the process dies
                 "-movflags", "frag_keyframe+empty_moov", "-flush_packets", "1", "-f", "mp4", "pipe:1"]
 
