@@ -299,9 +299,10 @@ def test_a_client_on_lo_holds_no_socket_another_host_can_reach(g1, dds_domain):
 
     if not supported():
         pytest.skip("needs Linux (/proc and SO_BINDTODEVICE)")
+    before = {s.inode for s in udp_sockets()}  # the test process's own (other tests')
     robot = UnitreeG1(g1, StillBase(), DdsOptions(domain=dds_domain), activate=False)
     try:
-        held = udp_sockets()
+        held = [s for s in udp_sockets() if s.inode not in before]
     finally:
         robot.close()
     assert len(held) == 5 and sorted(s.device or s.address for s in held) == ["127.0.0.1"] + ["lo"] * 4

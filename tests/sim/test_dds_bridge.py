@@ -200,9 +200,10 @@ def test_a_bridge_on_lo_holds_no_socket_another_host_can_reach(g1, dds_domain):
 
     if not supported():
         pytest.skip("needs Linux (/proc and SO_BINDTODEVICE)")
+    before = {s.inode for s in udp_sockets()}  # the test process's own (other tests')
     bridge = G1Bridge(g1, g1.keyframe_q("stand"), BridgeOptions(domain=dds_domain, lockstep=True))
     try:
-        held = udp_sockets()
+        held = [s for s in udp_sockets() if s.inode not in before]
     finally:
         bridge.close()
     assert len(held) == 5 and sorted(s.device or s.address for s in held) == ["127.0.0.1"] + ["lo"] * 4
