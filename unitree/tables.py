@@ -20,7 +20,7 @@ Unitree's: Unitree publishes no gain range for the G1's motor firmware that this
 They are chosen wide (a motor at ``kp_max`` reaches the G1's largest torque limit, 139 N m, 0.14 rad
 from its target; at ``kd_max`` 1.4 rad/s from it) and measured safe for the simulated plant: every
 motor at both bounds with targets at its joint range's ends and full torque for 2 s stays finite
-(peak |qacc| 1.3e4, below the bridge's divergence bound 1e5), while kp = 1e30 diverged at once.
+(peak acceleration 1.3e4, below the bridge's divergence bound 1e5), while kp = 1e30 diverged at once.
 
 The IMU in ``LowState.imu_state`` is the pelvis IMU on both (unitree_sdk2's G1 examples read the
 torso IMU from ``rt/secondary_imu``); in the Menagerie model it is the site ``imu_in_pelvis``.
@@ -50,7 +50,7 @@ def _arm(side: str, wrist: tuple[str, ...]) -> tuple[str, ...]:
 KP_MAX = 1000.0
 #: The largest damping gain [N m s/rad] a bridge applies.
 KD_MAX = 100.0
-#: The largest |velocity target| [rad/s] a bridge applies.
+#: The largest magnitude [rad/s] of a velocity target a bridge applies.
 DQ_MAX = 30.0
 
 
@@ -64,7 +64,7 @@ class MotorTable:
         imu: The IMU whose sample LowState carries.
         kp_max: Largest position gain [N m/rad] a bridge applies (mbctl's bound: module docstring).
         kd_max: Largest damping gain [N m s/rad] a bridge applies.
-        dq_max: Largest |velocity target| [rad/s] a bridge applies.
+        dq_max: Largest magnitude [rad/s] of a velocity target a bridge applies.
     """
 
     name: str
