@@ -371,10 +371,13 @@ def _outcome(params: WalkParams, v: dict[str, Any], time_s: float) -> Outcome:
     fell = f"FELL ({v['fall_reason']}) at {v['fall_time_s']:.2f} s" if v["fell"] else "walked"
     what = "turn" if params.scenario == "turn" else "displacement"
     force = (v.get("contact_force_error") or {}).get("single") or {}
+    # a course's command changes with each waypoint: its integral is no measure (the waypoints are)
+    of_command = "" if params.scenario == "course" else (
+        f", {what} {100 * (fraction or 0):.1f} % of the command ({v['yaw_rad']:.2f} of "
+        f"{v['commanded_yaw_rad']:.2f} rad turned)")
     lines = (
         f"g1-walk {params.scenario} {time_s:.2f} s: {fell}; {v['steps']} steps, {v['distance_m']:.3f} m at "
-        f"{v['mean_speed_m_s'] or 0:.3f} m/s, {what} {100 * (fraction or 0):.1f} % of the command "
-        f"({v['yaw_rad']:.2f} of {v['commanded_yaw_rad']:.2f} rad turned)",
+        f"{v['mean_speed_m_s'] or 0:.3f} m/s{of_command}",
         f"foot slip max {_mm(v['max_foot_slip_m'])}, median {_mm(v['median_foot_slip_m'])}; DCM RMS "
         f"{_mm(v['dcm_rms_m'])}; ZMP reference margin min {_mm(v['min_zmp_margin_m'])}; contact force QP vs "
         f"MuJoCo in single support median {_n(force.get('median_N'))}, p95 {_n(force.get('p95_N'))}, max "
@@ -391,8 +394,11 @@ def _outcome(params: WalkParams, v: dict[str, Any], time_s: float) -> Outcome:
                               for p in v["pushes"]) + ")",)
         bound = "no fall, every push survived"
     elif params.scenario == "course":
+        reached = [w["reached_at_s"] for w in v["waypoints"] if w["reached_at_s"] is not None]
+        when = (f"the course done at {v['course_time_s']:.1f} s" if v["course_time_s"] is not None
+                else f"the last at {reached[-1]:.1f} s" if reached else "none")
         lines += (f"course: {v['waypoints_reached']} of {v['waypoints_planned']} waypoints reached (within "
-                  f"0.10 m and 10 deg), the last at {v['course_time_s'] or float('nan'):.1f} s; final error "
+                  f"0.10 m and 10 deg), {when}; final error "
                   f"{v['final_position_error_m']:.3f} m, {v['final_yaw_error_deg']:.1f} deg",)
         bound = "no fall, every waypoint reached"
     else:
