@@ -385,7 +385,8 @@ def _outcome(params: WalkParams, v: dict[str, Any], time_s: float) -> Outcome:
         f"controller {v['controller_time_median_us']:.0f} us median (QP "
         f"{v['qp_solve_time_median_us'] or 0:.0f} us); steps adapted "
         f"{v['step_adaptations']['steps_adapted']} ({v['step_adaptations']['steps_limited']} held short by a "
-        f"limit); QP solved without its joint-limit bounds in {v['qp_relaxed_cycles']} cycles; touchdowns {v['touchdowns']}", *plant_lines(v))
+        f"limit); QP solved without its joint-limit bounds in {v['qp_relaxed_cycles']} cycles; touchdowns "
+        f"{v['touchdowns']}", *plant_lines(v))
     if params.scenario == "push":
         lines += (f"pushes: {v['pushes_survived']} of {v['pushes_planned']} survived ("
                   + "; ".join(f"{p['direction_deg']:g} deg at {p['time_s']:.2f} s, {p['phase']}: "

@@ -381,9 +381,10 @@ class WholeBodyController:
         qp_time = time.perf_counter() - t_qp
         x = result.x
         if x is None:  # (the floor gives a finite x or None)
+            relaxed = cfg.relax_joint_limits and self._n_limits
             what = (
                 f"whole-body QP infeasible at step {self.steps} (solver {cfg.solver}"
-                + (", also without the joint-limit bounds" if cfg.relax_joint_limits and self._n_limits else "")
+                + (", also without the joint-limit bounds" if relaxed else "")
                 + "): contacts "
                 + ", ".join(f"{n} weight {cs.weight:.2f}" for n, cs in self.contacts.items())
                 + f"; normal force per point {cfg.f_min_n:g} to {cfg.f_max_n:g} N at full weight; "
