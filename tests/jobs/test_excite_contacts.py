@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import numpy as np
 import pytest
 
@@ -10,24 +12,9 @@ from mbctl.jobs.excite import EXCITE
 from mbctl.jobs.runner import run_job
 
 #: A planar 3-link arm started folded (its last link can swing into its first), motors without a
-#: torque limit; ``{wall}`` is replaced by a scene geom or nothing.
-FOLD = """<mujoco model="fold_arm">
-  <compiler angle="radian" inertiafromgeom="false"/>
-  <option timestep="0.002" integrator="implicitfast"/>
-  <default><joint type="hinge" axis="0 0 1" armature="0.002"/>
-    <geom type="capsule" size="0.03" contype="1" conaffinity="1"/></default>
-  <worldbody>
-    {wall}
-    <body name="l1"><joint name="j1"/><geom name="g1" fromto="0 0 0 0.3 0 0"/>
-      <inertial pos="0.15 0 0" mass="1" diaginertia="0.0003 0.008 0.008"/>
-      <body name="l2" pos="0.3 0 0"><joint name="j2"/><geom name="g2" fromto="0 0 0 0.25 0 0"/>
-        <inertial pos="0.12 0 0" mass="0.7" diaginertia="0.0002 0.004 0.004"/>
-        <body name="l3" pos="0.25 0 0"><joint name="j3"/><geom name="g3" fromto="0 0 0 0.25 0 0"/>
-          <inertial pos="0.12 0 0" mass="0.5" diaginertia="0.0001 0.003 0.003"/></body></body></body>
-  </worldbody>
-  <keyframe><key name="folded" qpos="0 2.3 1.0"/></keyframe>
-  <actuator><motor joint="j1"/><motor joint="j2"/><motor joint="j3"/></actuator>
-</mujoco>"""
+#: torque limit (tests/robots/assets/fold_arm.xml); ``{wall}`` is replaced by a scene geom or nothing.
+FOLD = (Path(__file__).parents[1] / "robots" / "assets" / "fold_arm.xml").read_text().replace(
+    "<worldbody>", "<worldbody>{wall}")
 #: A post the first link sweeps through (j1 swings +-1.2 rad from 0).
 POST = '<geom name="post" type="cylinder" size="0.03 0.1" pos="0.15 0.12 0"/>'
 

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import numpy as np
 import pytest
 
@@ -17,22 +19,7 @@ from mbctl.robots.registry import load_robot
 #: A planar 3-link arm whose links collide with each other (not with their neighbours), started
 #: folded so an excitation of +-1.2 rad per joint can swing the last link into the first; its
 #: motors give no torque limit.
-FOLD = """<mujoco model="fold_arm">
-  <compiler angle="radian" inertiafromgeom="false"/>
-  <option timestep="0.002" integrator="implicitfast"/>
-  <default><joint type="hinge" axis="0 0 1" armature="0.002"/>
-    <geom type="capsule" size="0.03" contype="1" conaffinity="1"/></default>
-  <worldbody>
-    <body name="l1"><joint name="j1"/><geom name="g1" fromto="0 0 0 0.3 0 0"/>
-      <inertial pos="0.15 0 0" mass="1" diaginertia="0.0003 0.008 0.008"/>
-      <body name="l2" pos="0.3 0 0"><joint name="j2"/><geom name="g2" fromto="0 0 0 0.25 0 0"/>
-        <inertial pos="0.12 0 0" mass="0.7" diaginertia="0.0002 0.004 0.004"/>
-        <body name="l3" pos="0.25 0 0"><joint name="j3"/><geom name="g3" fromto="0 0 0 0.25 0 0"/>
-          <inertial pos="0.12 0 0" mass="0.5" diaginertia="0.0001 0.003 0.003"/></body></body></body>
-  </worldbody>
-  <keyframe><key name="folded" qpos="0 2.3 1.0"/></keyframe>
-  <actuator><motor joint="j1"/><motor joint="j2"/><motor joint="j3"/></actuator>
-</mujoco>"""
+FOLD = (Path(__file__).parents[1] / "robots" / "assets" / "fold_arm.xml").read_text()
 
 
 @pytest.fixture(scope="module")
