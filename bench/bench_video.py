@@ -123,14 +123,20 @@ def frame_costs(robot_name: str, n: int = 20) -> None:
           f"({state[1]:.3f})")
 
 
-def _run(args: list[str], cwd: Path) -> float:
-    """Wall time [s] of ``mbctl args`` (exit 0 required)."""
-    t0 = time.perf_counter()
+def _cpu_children() -> float:
+    """CPU time [s] of this process's waited-for descendants (workers and ffmpeg included)."""
+    r = resource.getrusage(resource.RUSAGE_CHILDREN)
+    return r.ru_utime + r.ru_stime
+
+
+def _run(args: list[str], cwd: Path) -> tuple[float, float]:
+    """(wall, CPU) time [s] of ``mbctl args`` (exit 0 required), CPU summed over its processes."""
+    c0, t0 = _cpu_children(), time.perf_counter()
     out = subprocess.run(MBCTL + args, cwd=cwd, capture_output=True, text=True)
-    wall = time.perf_counter() - t0
+    wall, cpu = time.perf_counter() - t0, _cpu_children() - c0
     if out.returncode != 0:
         raise SystemExit(f"mbctl {' '.join(args)} exited {out.returncode}: {out.stderr[-800:]}")
-    return wall
+    return wall, cpu
 
 
 def job_ratio(runs: int, duration: float | None) -> None:
@@ -139,17 +145,25 @@ def job_ratio(runs: int, duration: float | None) -> None:
     simulated = duration if duration is not None else 10.0
     tmp = Path(tempfile.mkdtemp(prefix="bench_video_"))
     plain, filmed, ratios, replays, loads = [], [], [], [], []
+    cpu: dict[str, list[float]] = {"plain": [], "filmed": [], "replay": []}
     for k in range(runs):
         loads.append(os.getloadavg()[0])
-        plain.append(_run(["g1-wbc", "squat", *extra, "--output", str(tmp / f"plain{k}"), "--quiet"], tmp))
-        filmed.append(_run(["g1-wbc", "squat", *extra, "--output", str(tmp / f"video{k}"), "--quiet",
-                            "--video"], tmp))
+        wall, c = _run(["g1-wbc", "squat", *extra, "--output", str(tmp / f"plain{k}"), "--quiet"], tmp)
+        plain.append(wall)
+        cpu["plain"].append(c)
+        wall, c = _run(["g1-wbc", "squat", *extra, "--output", str(tmp / f"video{k}"), "--quiet", "--video"],
+                       tmp)
+        filmed.append(wall)
+        cpu["filmed"].append(c)
         ratios.append(filmed[-1] / plain[-1])
-        replays.append(_run(["replay", str(tmp / f"video{k}"), "--video", "--output", str(tmp / f"r{k}.mp4")],
-                            tmp))
+        wall, c = _run(["replay", str(tmp / f"video{k}"), "--video", "--output", str(tmp / f"r{k}.mp4")], tmp)
+        replays.append(wall)
+        cpu["replay"].append(c)
         loads.append(os.getloadavg()[0])
-        print(f"  run {k + 1}: squat {plain[-1]:.1f} s, --video {filmed[-1]:.1f} s (x{ratios[-1]:.2f}), "
-              f"replay --video {replays[-1]:.1f} s; load {loads[-2]:.2f} -> {loads[-1]:.2f}", flush=True)
+        print(f"  run {k + 1}: squat {plain[-1]:.1f} s (CPU {cpu['plain'][-1]:.1f}), "
+              f"--video {filmed[-1]:.1f} s (CPU {cpu['filmed'][-1]:.1f}; x{ratios[-1]:.2f}), "
+              f"replay --video {replays[-1]:.1f} s (CPU {cpu['replay'][-1]:.1f}); "
+              f"load {loads[-2]:.2f} -> {loads[-1]:.2f}", flush=True)
     frames = len(np.load(tmp / "video0" / "trajectory.npz")["time_s"])
     print(f"g1-wbc squat ({simulated:g} s simulated, {frames} trajectory samples), {runs} runs, "
           f"load {min(loads):.2f}-{max(loads):.2f}, median (range):")
@@ -157,6 +171,8 @@ def job_ratio(runs: int, duration: float | None) -> None:
           f"same-run ratio x{_span(ratios)} (goal <= 2)")
     print(f"  replay --video {_span(replays, '{:.1f}')} s = x{_span([r / simulated for r in replays])} "
           f"the simulated time (goal <= 1)")
+    print(f"  CPU time summed over the processes: squat {_span(cpu['plain'], '{:.1f}')} s, --video "
+          f"{_span(cpu['filmed'], '{:.1f}')} s, replay --video {_span(cpu['replay'], '{:.1f}')} s")
 
 
 def main() -> None:
