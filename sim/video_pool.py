@@ -164,6 +164,8 @@ class RenderPool:
             if proc.poll() is None:
                 proc.kill()
                 proc.wait()
-        for conn in (*self._jobs, *self._status, *self._logs):
+        for conn in (*self._jobs, *self._status):
             conn.close()
+        for log in self._logs:
+            log.close()
 

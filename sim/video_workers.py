@@ -202,7 +202,8 @@ class CameraSpec:
     @staticmethod
     def of(cam: mujoco.MjvCamera) -> CameraSpec:
         """The fields of ``cam``."""
-        return CameraSpec(int(cam.type), int(cam.trackbodyid), tuple(float(x) for x in cam.lookat),
+        x, y, z = (float(v) for v in cam.lookat)
+        return CameraSpec(int(cam.type), int(cam.trackbodyid), (x, y, z),
                           float(cam.distance), float(cam.azimuth), float(cam.elevation))
 
     def camera(self) -> mujoco.MjvCamera:
@@ -327,7 +328,8 @@ def default_workers(simulating: bool) -> int:
 def _render(renderer: mujoco.Renderer, model: mujoco.MjModel, data: mujoco.MjData,
             camera: mujoco.MjvCamera, options: mujoco.MjvOption, sent: tuple) -> np.ndarray:
     """One frame (height, width, 3) uint8 of a frame state sent as a plain tuple."""
-    state = FrameState(*sent[:3], ExtraGeoms(*sent[3]) if sent[3] is not None else None)
+    qpos, mocap_pos, mocap_quat, extra = sent
+    state = FrameState(qpos, mocap_pos, mocap_quat, ExtraGeoms(*extra) if extra is not None else None)
     data.qpos[:] = state.qpos
     if model.nmocap:
         data.mocap_pos[:], data.mocap_quat[:] = state.mocap_pos, state.mocap_quat
