@@ -3,8 +3,8 @@
     MENAGERIE_ROOT=... python -m bench.bench_video [--runs 3] [--duration S] [--section frame|job|all]
 
 ``frame``: per 640x480 frame of the G1 (and the 2-link arm), in this process: ``update_scene``,
-``render`` with MuJoCo's defaults (4x multisampling, shadows), without either, and with the
-video's settings on software GL (neither, and the meshes merged below a pixel), the encoder
+``render`` with MuJoCo's defaults (4x multisampling, shadows, haze), without them, and with the
+video's settings on software GL (none, and the meshes merged below a pixel), the encoder
 (the pipe write here, ffmpeg's own CPU from its rusage), and what the job's process pays per
 frame with render workers (the frame's state and its send).
 CPU time of the process (llvmpipe's threads included) and wall time, medians of 20 frames.
@@ -86,7 +86,7 @@ def frame_costs(robot_name: str, n: int = 20) -> None:
     samples = int(model.vis.quality.offsamples)
     cell = pixel_size_m(model, CameraSpec.of(camera), spec.height)
     for label, software, simplify in (("MuJoCo's defaults (4x MSAA, shadows)", False, False),
-                                      ("no MSAA, no shadows", True, False),
+                                      ("no MSAA, shadows, haze", True, False),
                                       ("+ meshes merged below a pixel (the video)", True, True)):
         model.vis.quality.offsamples = samples
         if simplify:

@@ -13,9 +13,10 @@ finishes the video through ``RenderPool.close``.
 
 Software OpenGL (Mesa llvmpipe, OSMesa) draws a G1 frame in ~45 ms without multisampling and
 shadows against ~310 ms with them, and most of the 45 ms is the G1's 393k mesh triangles, many
-smaller than a pixel; so on software GL a worker switches both off and merges the meshes'
-vertices closer than a pixel at the camera's distance (:func:`simplify_meshes`: 102k triangles
-at 640x480, ~26 ms a frame; bench/README.md, video section). On a GPU all stay.
+smaller than a pixel; so on software GL a worker switches both off (and the horizon's haze) and
+merges the meshes' vertices closer than a pixel at the camera's distance (:func:`simplify_meshes`:
+102k triangles at 640x480, ~20 ms a frame with the haze off; bench/README.md, video section). On a
+GPU all stay.
 """
 
 from __future__ import annotations
@@ -126,12 +127,14 @@ def simplify_meshes(model: mujoco.MjModel, cell_m: float) -> tuple[int, int]:
 
 
 def fast_renderer(model: mujoco.MjModel, width: int, height: int, software: bool) -> mujoco.Renderer:
-    """A video renderer: on software GL without multisampling and shadows (see the module doc)."""
+    """A video renderer: on software GL without multisampling, shadows and haze (see the module doc)."""
     if software:
         model.vis.quality.offsamples = 0
     renderer = make_renderer(model, width, height)
     if software:
         renderer.scene.flags[mujoco.mjtRndFlag.mjRND_SHADOW] = False
+        # the horizon's haze: ~8 of a G1 frame's ~34 ms, for a softer line where floor meets sky
+        renderer.scene.flags[mujoco.mjtRndFlag.mjRND_HAZE] = False
     return renderer
 
 

@@ -222,10 +222,12 @@ def test_software_gl_draws_without_multisampling_and_shadows():
     assert model.vis.quality.offsamples == 0
     assert not renderer.scene.flags[mujoco.mjtRndFlag.mjRND_SHADOW]
     assert not renderer.scene.flags[mujoco.mjtRndFlag.mjRND_REFLECTION]
+    assert not renderer.scene.flags[mujoco.mjtRndFlag.mjRND_HAZE]
     renderer.close()
     model.vis.quality.offsamples = 4
     renderer = fast_renderer(model, 64, 48, software=False)
     assert model.vis.quality.offsamples == 4 and renderer.scene.flags[mujoco.mjtRndFlag.mjRND_SHADOW]
+    assert renderer.scene.flags[mujoco.mjtRndFlag.mjRND_HAZE]
     renderer.close()
 
 
