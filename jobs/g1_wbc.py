@@ -240,8 +240,19 @@ def _run(ctx: RunContext, params: WBCParams, robot: Robot, pin_model: pin.Model 
         f"(95th percentile {values['contact_force_rel_error_p95'] * 100:.2f} %, max "
         f"{values['contact_force_rel_error_max'] * 100:.2f} %), controller "
         f"{values['controller_time_median_us']:.0f} us (QP {values['qp_solve_time_median_us']:.0f} us) "
-        f"median, saturated steps {values.get('torque_saturation_steps', 'n/a')}", *plant_lines(values))
+        f"median, saturated steps {values.get('torque_saturation_steps', 'n/a')}", *_overhead_line(values),
+        *plant_lines(values))
     return Outcome(ok, summary, f"{bounds.describe()}; did not fall")
+
+
+def _overhead_line(values: dict) -> list[str]:
+    """The cycle's time beyond its controller and its physics step, in-process (no line over DDS)."""
+    us = values.get("cycle_overhead_median_us", float("nan"))
+    if not math.isfinite(us):
+        return []
+    return [f"cycle {values['cycle_time_median_us']:.0f} us median: controller, physics step "
+            f"{values['physics_step_time_median_us']:.0f} us, and {us:.0f} us beyond them (targets, state, "
+            "command, plant monitor, CSV row)"]
 
 
 G1_WBC = Job("g1-wbc", prepare)

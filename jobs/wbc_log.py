@@ -15,7 +15,7 @@ from typing import Any, NamedTuple
 
 import numpy as np
 
-from mbctl.control.wbc import Standing
+from mbctl.control.wbc import Standing, WBCSolution
 from mbctl.jobs.runner import RunContext
 from mbctl.robots.commands import Command
 from mbctl.robots.g1 import FEET
@@ -128,6 +128,11 @@ class WBCLog:
         self.com_from_truth = False  # with_truth replaced the estimated CoM by the plant's
         self._last_cycle_end: float | None = None
         self._home: dict[str, tuple[float, float]] = {}  # where each foot started to support
+        self._points_src: object = None  # the solution's contact points, as lists per foot (_qp_feet)
+        self._points: dict[str, list[list[float]]] = {}
+        if monitor is not None:  # FEET's places among the monitor's contact groups and sites
+            self._groups = [monitor.group_names.index(f) for f in FEET]
+            self._sites = [monitor.site_names.index(f) for f in FEET]
 
     def record(self) -> WBCRecord:
         """The cycles recorded so far (views of the rows, but ``stance``, a bool copy)."""
@@ -137,37 +142,74 @@ class WBCLog:
                          feet[:, :, 6:8], rows[:, x["stance"]] > 0.5, rows[:, x["slip"]], rows[:, 7],
                          rows[:, x["ctrl_us"]], rows[:, x["qp_us"]], rows[:, x["cycle_us"]])
 
+    def _qp_feet(self, sol: WBCSolution) -> list[tuple[float, float, float, float]]:
+        """Per foot (FEET order), the QP's prediction: normal, tangential force [N], CoP x, y [m] in W.
+
+        ``sol.totals_and_cops_W`` in plain floats (the sum of the points' forces turned into W, the
+        CoP of their world-z forces at their positions moved to W; 4 points a foot): about half its
+        time, and this runs every cycle.
+        """
+        if sol.points_F is not self._points_src:
+            self._points_src = sol.points_F
+            self._points = {f: sol.points_F[f].tolist() for f in FEET}
+        forces = sol.forces.tolist()
+        out = []
+        for f in FEET:
+            pose = sol.foot_poses_W[f]
+            (r00, r01, r02), (r10, r11, r12), (r20, r21, r22) = pose.rotation.tolist()
+            sl = sol.force_slices[f]
+            F = forces[sl.start:sl.stop]
+            sx = sy = sz = mx = my = mz = 0.0
+            for j, (px, py, pz) in enumerate(self._points[f]):
+                fx, fy, fz = F[3 * j], F[3 * j + 1], F[3 * j + 2]
+                sx += fx
+                sy += fy
+                sz += fz
+                w = r20 * fx + r21 * fy + r22 * fz  # the point's force along W's z
+                mx += w * px
+                my += w * py
+                mz += w * pz
+            tx = r00 * sx + r01 * sy + r02 * sz
+            ty = r10 * sx + r11 * sy + r12 * sz
+            tz = r20 * sx + r21 * sy + r22 * sz
+            if tz > 1e-6:
+                ox, oy, _ = pose.translation.tolist()
+                cx = (r00 * mx + r01 * my + r02 * mz) / tz + ox
+                cy = (r10 * mx + r11 * my + r12 * mz) / tz + oy
+            else:
+                cx = cy = math.nan
+            out.append((tz, math.hypot(tx, ty), cx, cy))
+        return out
+
     def on_step(self, k: int, state: RobotState, reference: object, command: Command) -> bool:
         """Record cycle ``k`` (the loop's ``on_step``); True once the robot has fallen (ends the run)."""
         ctrl, mon = self.wb.controller, self.monitor
         sol = ctrl.solution
-        row, feet, x = self._rows[k], self._feet[k], self._extra
+        row, x = self._rows[k], self._extra
         t = state.time_s
-        row[0] = t
-        row[1:4] = self.wb.com.target
+        # the row's first columns built as one list and stored in one assignment (a numpy store per
+        # value or slice costs more than the values' arithmetic)
         # the plant's CoM in-process; over DDS the controller's (from the estimated state), replaced
         # by the bridge's truth after the run when given (with_truth)
-        row[4:7] = mon.com_W if mon is not None else ctrl.state.com()
-        row[7] = state.q[2]
-        if self.pushes is not None:
-            row[8:10] = self.pushes.force_W[:2]
+        com = mon.com_W if mon is not None else ctrl.state.com()
+        vals = [t, *self.wb.com.target.tolist(), *com.tolist(), float(state.q[2]),
+                *(self.pushes.force_W[:2].tolist() if self.pushes is not None else (0.0, 0.0))]
         stance = True
         slip_max = 0.0
-        summary = sol.totals_and_cops_W
+        qp = self._qp_feet(sol)
+        if mon is not None:  # the monitor's groups and sites in FEET order, as plain numbers
+            sums = mon.contact_sums
+            xyz = mon.site_array_W.tolist()
         for i, f in enumerate(FEET):
-            total, cop = summary[f]
-            tx, ty, tz = total.tolist()
-            cx, cy = cop[:2].tolist()
             cs = ctrl.contacts[f]
             supporting = cs.active and cs.weight == 1.0
             stance = stance and supporting
             if mon is None:  # over DDS: the plant's forces and feet are not observed
-                feet[i] = (tz, math.hypot(tx, ty), cx, cy, *_NO_PLANT)
+                vals += (*qp[i], *_NO_PLANT)
                 continue
-            mc = mon.contacts[f]
-            fx, fy, fz = mc.force_W.tolist()
-            mx, my = mc.cop_W[:2].tolist()
-            px, py = mon.site_positions_W[f][:2].tolist()
+            fx, fy, fz, mx, my, _ = sums[self._groups[i]]
+            mx, my = (mx / fz, my / fz) if fz > 1e-9 else (math.nan, math.nan)  # the CoP, as contacts'
+            px, py, _ = xyz[self._sites[i]]
             if supporting and fz >= SUPPORT_FRACTION * self.mg:
                 hx, hy = self._home.setdefault(f, (px, py))
                 slip = math.hypot(px - hx, py - hy)
@@ -175,7 +217,8 @@ class WBCLog:
             else:  # unloaded or swinging: slip counts from when it supports again
                 slip = 0.0
                 self._home[f] = (px, py)
-            feet[i] = (tz, math.hypot(tx, ty), cx, cy, fz, math.hypot(fx, fy), mx, my, slip)
+            vals += (*qp[i], fz, math.hypot(fx, fy), mx, my, slip)
+        row[: self._tau.start] = vals
         row[self._tau] = command.values
         row[self._q] = state.q
         self.csv.write(row[: self._width])
@@ -224,6 +267,8 @@ class WBCLog:
         rel = np.abs(r.fz_qp.sum(1) - r.fz_mj.sum(1)) / self.mg
         per_foot = np.abs(r.fz_qp - r.fz_mj) / self.mg
         ctrl, mon = self.wb.controller, self.monitor
+        physics_us = self._rows[: self.k, self._extra["physics_us"]]
+        overhead = r.cycle_us - r.ctrl_us - physics_us
 
         def stat(x: np.ndarray, how: str) -> float:
             if not x.size:
@@ -246,7 +291,10 @@ class WBCLog:
             "qp_solve_time_median_us": stat(r.qp_us[r.qp_us > 0], "median"),
             "cycle_time_median_us": stat(r.cycle_us[np.isfinite(r.cycle_us)], "median"),
             # MuJoCo's step within the cycle (in-process; NaN over DDS, where the plant is the bridge)
-            "physics_step_time_median_us": stat(self._rows[: self.k, self._extra["physics_us"]], "median")
+            "physics_step_time_median_us": stat(physics_us, "median") if mon is not None else float("nan"),
+            # the cycle beyond its controller and its physics step (targets, state, command, plant
+            # monitor, this record and its CSV row, the loop), per cycle; in-process only
+            "cycle_overhead_median_us": stat(overhead[np.isfinite(overhead)], "median")
             if mon is not None else float("nan"),
             "qp_fast_path_fraction": ctrl.fast_path_cycles / max(1, ctrl.fast_path_cycles + ctrl.daqp_cycles),
             "contact_normal_rel_error_per_foot": {f: stat(per_foot[stance, i], "median")

@@ -28,6 +28,7 @@ from mbctl.sim.contacts import (
     MeasuredContact,
     contact_wrenches,
     contacts_elsewhere,
+    measured,
 )
 from mbctl.sim.exceptions import SimError
 from mbctl.sim.simulator import Simulator
@@ -59,7 +60,8 @@ class PlantMonitor:
     Attributes:
         time_s: Start time [s] of the last period sampled (the state its command saw).
         contacts: Measured contact per group over the last period (world frame).
-        com_W: Robot CoM (3,) [m] at ``time_s`` (its bodies' masses at MuJoCo's ``xipos``).
+        com_W: Robot CoM (3,) [m] at ``time_s`` (its bodies' masses at MuJoCo's ``xipos``; MuJoCo's
+            ``subtree_com`` of its root when the robot is that root's whole subtree).
         site_positions_W: Position (3,) [m] of each sampled site at ``time_s``.
         floor_bodies: Robot bodies touching the floor at ``time_s``.
         fall_reason: Why the robot fell (None while it has not), with ``fall_time_s`` [s].
@@ -69,6 +71,12 @@ class PlantMonitor:
         wrenches_W: Contact wrench on each wrench body (c, 6): force [N], then moment [N m] about
             the body's origin, world axes.
         contacts_elsewhere: The number of contacts counted by ``count_elsewhere`` (0 without it).
+        contact_sums: Per contact group, in ``contact_groups`` order, what ``contacts`` reports as
+            plain numbers: ``[fx, fy, fz, fz x, fz y, n]`` (force [N] in W, fz-weighted contact
+            positions [N m], count; :meth:`ContactSensor.sums <mbctl.sim.contacts.ContactSensor.sums>`),
+            for a loop that reads them every period without building ``contacts``.
+        site_array_W: The sampled sites' positions (s, 3) [m] in ``sites`` order (a new array each
+            period; ``site_positions_W`` is the same by name).
     """
 
     def __init__(self, sim: Simulator, contact_groups: Mapping[str, Iterable[int]] | None = None,
@@ -78,19 +86,31 @@ class PlantMonitor:
         self.sim = sim
         m, robot = sim.model, sim.robot
         self._sensor = ContactSensor(m, contact_groups) if contact_groups else None
+        #: The contact groups' names, the order of ``contact_sums``.
+        self.group_names: tuple[str, ...] = self._sensor.names if self._sensor is not None else ()
         self._roots = [b for b in robot.robot_body_ids if int(m.body_parentid[b]) == 0]
         self._com = BodiesCom(m, robot.robot_body_ids)
+        # one root whose subtree is the robot: MuJoCo's step already computed its CoM (subtree_com)
+        tree = [self._roots[0]] if len(self._roots) == 1 else []
+        self._subtree_com = bool(tree) and set(robot.robot_body_ids) == {
+            int(b) for b in np.flatnonzero(m.body_rootid == tree[0])}
         #: The robot's mass [kg] in the plant.
         self.mass_kg = self._com.mass_kg
         self._site_ids = {name: robot.site_id(name) for name in sites}
+        #: The sampled sites' names, the order of ``site_array_W``.
+        self.site_names: tuple[str, ...] = tuple(self._site_ids)
+        self._site_index = np.array(list(self._site_ids.values()), dtype=int)
         self._floor = FloorContacts(m, np.flatnonzero(m.geom_bodyid == 0), bodies=robot.robot_body_ids)
         if fall_rule is not None and not robot.has_floating_base:
             raise SimError(f"a fall rule needs a floating base; {robot.name!r} has a fixed base")
         self._fall_rule = fall_rule
+        self._period_s = sim.control_period_s
         self.time_s = float(sim.data.time)
-        self.contacts: dict[str, MeasuredContact] = {}
+        self.contact_sums: list[list[float]] = [[0.0, 0.0, 0.0, 0.0, 0.0, 0] for _ in self.group_names]
+        self._contacts: dict[str, MeasuredContact] | None = {}
         self.com_W = np.zeros(3)
-        self.site_positions_W: dict[str, np.ndarray] = {}
+        self.site_array_W = np.zeros((len(self.site_names), 3))
+        self._sites: dict[str, np.ndarray] | None = {}
         self.floor_bodies: tuple[str, ...] = ()
         self.fall_reason: str | None = None
         self.fall_time_s: float | None = None
@@ -110,6 +130,20 @@ class PlantMonitor:
         self._allowed = sorted({int(g) for g in grouped})
         self.contacts_elsewhere = 0
 
+    @property
+    def contacts(self) -> dict[str, MeasuredContact]:
+        """Measured contact per group over the last period (world frame), built when first read."""
+        if self._contacts is None:
+            self._contacts = measured(self.group_names, self.contact_sums)
+        return self._contacts
+
+    @property
+    def site_positions_W(self) -> dict[str, np.ndarray]:
+        """Position (3,) [m] of each sampled site at ``time_s``, by name, built when first read."""
+        if self._sites is None:
+            self._sites = dict(zip(self.site_names, self.site_array_W, strict=True))
+        return self._sites
+
     def attach(self) -> PlantMonitor:
         """Register as the simulator's observer; returns self."""
         self.sim.add_observer(self)
@@ -118,12 +152,17 @@ class PlantMonitor:
     def __call__(self, sim: Simulator) -> None:
         """Sample the period that just ran (the simulator calls this after every ``sync``/``step``)."""
         d = sim.data
-        self.time_s = float(d.time) - sim.control_period_s
+        self.time_s = float(d.time) - self._period_s
+        # the contacts' geom pairs read once for the groups and the floor (the per-period hot path:
+        # plain lists, no numpy temporaries, nothing built that the caller does not read)
+        geoms = d.contact.geom.tolist() if d.ncon else []
         if self._sensor is not None:
-            self.contacts = self._sensor.measure(d)
-        self.com_W = self._com(d)
-        self.site_positions_W = {name: d.site_xpos[i].copy() for name, i in self._site_ids.items()}
-        self.floor_bodies = tuple(self._floor.bodies(d))
+            self.contact_sums = self._sensor.sums(d, geoms)
+            self._contacts = None
+        self.com_W = d.subtree_com[self._roots[0]].copy() if self._subtree_com else self._com(d)
+        self.site_array_W = d.site_xpos[self._site_index]
+        self._sites = None
+        self.floor_bodies = tuple(self._floor.bodies(d, geoms))
         if self._fall_rule is not None and self.fall_reason is None:
             # the base height at the step's start: the free joint sits at the root body's origin
             self.base_z_m = float(d.xpos[self._roots[0], 2])
