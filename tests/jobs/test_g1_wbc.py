@@ -47,6 +47,10 @@ def test_squat_tracks_the_com_without_slipping(g1, tmp_path):
     assert v["torque_saturation_steps"] == 0 and v["qp_fast_path_fraction"] == 1.0
     # the cycle holds the controller and the physics step, each timed on its own
     assert 0 < v["physics_step_time_median_us"] < v["cycle_time_median_us"] - v["controller_time_median_us"]
+    # and what it spends beyond them (targets, state, command, plant monitor, CSV row), its own figure
+    overhead_us = v["cycle_overhead_median_us"]
+    assert 0 < overhead_us < v["cycle_time_median_us"]
+    assert any(f"and {overhead_us:.0f} us beyond them" in line for line in record.outcome.summary)
     report = json.loads(record.report_path.read_text())
     assert report["bound"] == "CoM RMS < 5 mm, foot slip < 1 mm; did not fall"
     assert {"csv", "plot", "g1_wbc_contacts.png"} <= set(report["outputs"])

@@ -120,3 +120,60 @@ def test_plant_kinematics_places_the_robot_like_the_simulator(stool):
     with pytest.raises(RobotError, match="PlantKinematics.at takes a robot configuration: give the robot"):
         PlantKinematics(stool.mj_model).at(q)
     assert mujoco.mj_name2id(stool.mj_model, mujoco.mjtObj.mjOBJ_BODY, "ball") == stool.mj_model.nbody - 1
+
+
+def _forces_per_contact(m: mujoco.MjModel, d: mujoco.MjData, groups: dict) -> dict:
+    """Per group, by ``mj_contactForce`` contact by contact: force (3,) [N] in W, fz-weighted x, y, count."""
+    out = {name: [np.zeros(3), np.zeros(2), 0] for name in groups}
+    f6 = np.zeros(6)
+    for i in range(d.ncon):
+        con = d.contact[i]
+        mujoco.mj_contactForce(m, d, i, f6)
+        f_W = con.frame.reshape(3, 3).T @ f6[:3]  # on geom2; the opposite on geom1
+        for geom, sign in ((con.geom2, 1.0), (con.geom1, -1.0)):
+            for name, geoms in groups.items():
+                if int(geom) in geoms:
+                    acc = out[name]
+                    acc[0] += sign * f_W
+                    acc[1] += sign * f_W[2] * np.asarray(con.pos[:2])
+                    acc[2] += 1
+    return out
+
+
+@pytest.mark.parametrize("lift_rad", [0.0, 0.5], ids=["both feet", "single support"])
+def test_the_monitors_foot_sums_are_mujocos_contact_forces_on_the_g1(g1, lift_rad):
+    from mbctl.robots.collision import body_geoms
+    from mbctl.robots.g1 import FEET as G1_FEET
+    from mbctl.robots.g1 import crouched_start
+
+    m = g1.mj_model
+    feet = {f: body_geoms(m, int(m.site_bodyid[g1.site_id(f)])) for f in G1_FEET}
+    sim = Simulator(g1)
+    sim.reset("stand")
+    q = crouched_start(g1).copy()  # the left foot lifted by bending its knee and hip
+    q[g1.joint("left_knee_joint").idx_q] += lift_rad
+    q[g1.joint("left_hip_pitch_joint").idx_q] -= lift_rad / 2
+    sim.set_state(q, np.zeros(g1.nv))
+    monitor = PlantMonitor(sim, feet, sites=G1_FEET).attach()
+    assert monitor.contacts == {} and monitor.site_positions_W == {}  # nothing sampled yet
+    sim.step()
+    ref = _forces_per_contact(m, sim.data, feet)
+    assert monitor.group_names == G1_FEET and monitor.site_names == G1_FEET
+    for name, sums in zip(monitor.group_names, monitor.contact_sums, strict=True):
+        f_ref, m_ref, n_ref = ref[name]
+        scale = max(np.linalg.norm(f_ref), 1e-300)
+        np.testing.assert_allclose(sums[:3], f_ref, rtol=1e-9, atol=1e-9 * scale)
+        np.testing.assert_allclose(sums[3:5], m_ref, rtol=1e-9, atol=1e-9 * scale)
+        assert sums[5] == n_ref
+        measured = monitor.contacts[name]  # the same numbers, as a MeasuredContact
+        np.testing.assert_array_equal(measured.force_W, sums[:3])
+        assert measured.n_contacts == n_ref
+    left, right = (ref[f][2] for f in G1_FEET)
+    assert (left, right) == ((4, 4) if lift_rad == 0 else (0, 4))  # each foot's 4 sole spheres
+    assert np.isnan(monitor.contacts["left_foot"].cop_W).all() == (lift_rad > 0)
+    assert monitor.contacts["right_foot"].normal_n > 100  # the robot's ~330 N weight and more
+    fz = ref["right_foot"][0][2]
+    np.testing.assert_allclose(monitor.contacts["right_foot"].cop_W[:2], ref["right_foot"][1] / fz, rtol=1e-9)
+    np.testing.assert_array_equal(monitor.site_array_W, sim.data.site_xpos[[g1.site_id(f) for f in G1_FEET]])
+    np.testing.assert_array_equal(monitor.site_positions_W["right_foot"], monitor.site_array_W[1])
+    np.testing.assert_allclose(monitor.com_W, bodies_com(m, sim.data, g1.robot_body_ids), rtol=1e-12)
