@@ -160,7 +160,7 @@ class PlantMonitor:
             self.contact_sums = self._sensor.sums(d, geoms)
             self._contacts = None
         self.com_W = d.subtree_com[self._roots[0]].copy() if self._subtree_com else self._com(d)
-        self.site_array_W = d.site_xpos[self._site_index]
+        self.site_array_W = d.site_xpos.take(self._site_index, 0)  # take: half a fancy index's time
         self._sites = None
         self.floor_bodies = tuple(self._floor.bodies(d, geoms))
         if self._fall_rule is not None and self.fall_reason is None:
