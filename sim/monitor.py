@@ -112,6 +112,7 @@ class PlantMonitor:
         self.site_array_W = np.zeros((len(self.site_names), 3))
         self._sites: dict[str, np.ndarray] | None = {}
         self.floor_bodies: tuple[str, ...] = ()
+        self._floor_geoms: list[list[int]] = []  # the contacts' geom pairs floor_bodies is from
         self.fall_reason: str | None = None
         self.fall_time_s: float | None = None
         self.base_z_m = float("nan")
@@ -162,7 +163,9 @@ class PlantMonitor:
         self.com_W = d.subtree_com[self._roots[0]].copy() if self._subtree_com else self._com(d)
         self.site_array_W = d.site_xpos.take(self._site_index, 0)  # take: half a fancy index's time
         self._sites = None
-        self.floor_bodies = tuple(self._floor.bodies(d, geoms))
+        if geoms != self._floor_geoms:  # the bodies on the floor follow from the geom pairs alone
+            self.floor_bodies = tuple(self._floor.bodies(d, geoms))
+            self._floor_geoms = geoms
         if self._fall_rule is not None and self.fall_reason is None:
             # the base height at the step's start: the free joint sits at the root body's origin
             self.base_z_m = float(d.xpos[self._roots[0], 2])

@@ -170,6 +170,8 @@ def test_the_monitors_foot_sums_are_mujocos_contact_forces_on_the_g1(g1, lift_ra
         assert measured.n_contacts == n_ref
     left, right = (ref[f][2] for f in G1_FEET)
     assert (left, right) == ((4, 4) if lift_rad == 0 else (0, 4))  # each foot's 4 sole spheres
+    ankles = ("left_ankle_roll_link", "right_ankle_roll_link")
+    assert monitor.floor_bodies == (ankles if lift_rad == 0 else ankles[1:])
     assert np.isnan(monitor.contacts["left_foot"].cop_W).all() == (lift_rad > 0)
     assert monitor.contacts["right_foot"].normal_n > 100  # the robot's ~330 N weight and more
     fz = ref["right_foot"][0][2]
