@@ -24,6 +24,7 @@ from __future__ import annotations
 from collections.abc import Sequence
 from dataclasses import dataclass
 
+import mujoco
 import numpy as np
 import numpy.typing as npt
 import pinocchio as pin
@@ -186,7 +187,7 @@ class _Evaluator:
         self.P_a, self.P_b = rest_projection(harmonics)
         self.rank = self._structural_rank()
         self._cache: dict[bytes, tuple[float, np.ndarray]] = {}
-        self.pairs = _self_pairs(robot, q_full)
+        self.pairs = _self_pairs(robot, q_full, joints)
         self._kinematics = PlantKinematics(robot=robot) if len(self.pairs) else None
 
     def clearance(self, q: np.ndarray) -> np.ndarray:
@@ -349,18 +350,34 @@ def _design(robot: Robot, joints: tuple[str, ...], q_full: np.ndarray, limits: E
                             int(result.nit), ev.limit_use(x), limits, ev.pairs.labels, clearance)
 
 
-def _self_pairs(robot: Robot, q_full: np.ndarray) -> GeomPairs:
-    """The robot's own geom pairs that can touch (``robot:robot``).
+def _self_pairs(robot: Robot, q_full: np.ndarray, joints: Sequence[str]) -> GeomPairs:
+    """The robot's own geom pairs that can touch (``robot:robot``) and that ``joints`` move.
 
-    Less those within :data:`SELF_CLEARANCE_M` at the start (neighbours the model keeps that close).
+    Less those within :data:`SELF_CLEARANCE_M` at the start (neighbours the model keeps that close),
+    and those whose relative pose no excited joint changes (both geoms below the same excited
+    joints, e.g. the legs while the G1's upper body is excited: 1 of 3 G1 pairs are such).
     """
     try:
         pairs = resolve_pairs(robot, [CollisionPair(("robot",), ("robot",))])
     except CollisionPairError:  # no two of its geoms can touch
         return GeomPairs(np.zeros((0, 2), dtype=int), ())
+    m = robot.mj_model
+    moved = _moved_by(m, {int(m.jnt_bodyid[mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_JOINT, j)])
+                          for j in joints})
+    body = m.geom_bodyid[pairs.ids]
+    relative = np.array([bool(moved[a] ^ moved[b]) for a, b in body], dtype=bool)
     d = PlantKinematics(robot=robot).at(q_full)
-    keep = pair_distances(robot.mj_model, d, pairs.ids, CLEARANCE_SCALE_M) > SELF_CLEARANCE_M
+    keep = relative & (pair_distances(m, d, pairs.ids, CLEARANCE_SCALE_M) > SELF_CLEARANCE_M)
     return GeomPairs(pairs.ids[keep], tuple(label for label, k in zip(pairs.labels, keep, strict=True) if k))
+
+
+def _moved_by(m: mujoco.MjModel, joint_bodies: set[int]) -> list[frozenset[int]]:
+    """For each body, the bodies among ``joint_bodies`` on its path to the world (its moving joints)."""
+    out: list[frozenset[int]] = [frozenset()] * m.nbody
+    for b in range(1, m.nbody):  # parents come before their children in MuJoCo's body order
+        parent = out[int(m.body_parentid[b])]
+        out[b] = parent | {b} if b in joint_bodies else parent
+    return out
 
 
 def _feasible_start(ev: _Evaluator, rng: np.random.Generator) -> np.ndarray:

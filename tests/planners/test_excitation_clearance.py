@@ -7,10 +7,11 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from mbctl.planners.excitation import (
+from mbctl.planners.excitation import (  # noqa: I001
     DEFAULT_EFFORT_N_M,
     SELF_CLEARANCE_M,
     ExcitationLimits,
+    _self_pairs,
     design_excitation,
 )
 from mbctl.robots.collision import CollisionPair, closest_pairs, resolve_pairs
@@ -47,6 +48,14 @@ def test_the_design_keeps_every_self_pair_clear(fold, design):
     assert design.min_clearance_m is not None and design.min_clearance_m >= SELF_CLEARANCE_M
     # the joints still use their range: the clearance did not freeze the arm
     assert design.limit_use[0] > 0.5 and design.condition_number < 100
+
+
+def test_only_pairs_the_excited_joints_move_relative_to_each_other_are_kept(fold):
+    q = fold.keyframe_q("folded")
+    assert _self_pairs(fold, q, ("j2", "j3")).labels == ("g1/g3",)  # l1 stays, l3 moves
+    assert _self_pairs(fold, q, ("j3",)).labels == ("g1/g3",)
+    # j1 turns the whole arm: no pair moves relative to the other
+    assert len(_self_pairs(fold, q, ("j1",))) == 0
 
 
 def test_assumed_torque_limits_are_named(fold, design):
