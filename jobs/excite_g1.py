@@ -132,7 +132,9 @@ def design_upper_body(nominal: Robot, q_start: np.ndarray, params: ExciteParams
         bodies = [b for b in welded.bodies if b.startswith(part) or (part == "waist" and b == TORSO)]
         designs.append(design_excitation(welded, joints, q_w, limits=_limits(welded, joints, q_w),
                                          period_s=period, harmonics=harmonics, n_samples=40, bodies=bodies,
-                                         seed=params.seed, max_iterations=20))
+                                         seed=params.seed, max_iterations=20,
+                                         # the three parts' motion together is kept clear below
+                                         self_clearance=False))
     waist, left = designs[0].trajectory, designs[1].trajectory
     right_names = tuple(n.replace("left_", "right_", 1) for n in left.names)
     right_q0 = np.array([q_w[welded.joint(n).idx_q] for n in right_names])

@@ -174,7 +174,8 @@ class _Evaluator:
     """The scaled regressor, limits and torques of a trajectory at the design samples (cached per x)."""
 
     def __init__(self, robot: Robot, joints: tuple[str, ...], q_full: np.ndarray, params: ParameterSet,
-                 limits: ExcitationLimits, period_s: float, harmonics: int, n_samples: int):
+                 limits: ExcitationLimits, period_s: float, harmonics: int, n_samples: int,
+                 self_clearance: bool = True):
         self.robot, self.joints, self.params, self.limits = robot, joints, params, limits
         self.model = robot.pin_model
         self.data = self.model.createData()
@@ -187,7 +188,8 @@ class _Evaluator:
         self.P_a, self.P_b = rest_projection(harmonics)
         self.rank = self._structural_rank()
         self._cache: dict[bytes, tuple[float, np.ndarray]] = {}
-        self.pairs = _self_pairs(robot, q_full, joints)
+        self.pairs = (_self_pairs(robot, q_full, joints) if self_clearance
+                      else GeomPairs(np.zeros((0, 2), dtype=int), ()))
         self._kinematics = PlantKinematics(robot=robot) if len(self.pairs) else None
 
     def clearance(self, q: np.ndarray) -> np.ndarray:
@@ -283,7 +285,7 @@ class _Evaluator:
 def design_excitation(robot: Robot, joints: Sequence[str], q_start: npt.ArrayLike, *,
                       limits: ExcitationLimits | None = None, period_s: float = 10.0, harmonics: int = 5,
                       n_samples: int = 80, bodies: Sequence[str] | None = None, seed: int = 0,
-                      max_iterations: int = 100) -> ExcitationDesign:
+                      max_iterations: int = 100, self_clearance: bool = True) -> ExcitationDesign:
     """Optimise a Fourier excitation of ``joints`` from ``q_start`` (see the module docstring).
 
     Args:
@@ -298,6 +300,9 @@ def design_excitation(robot: Robot, joints: Sequence[str], q_start: npt.ArrayLik
         bodies: Bodies whose parameters the regressor covers (default: every body with mass).
         seed: Seed of the random start.
         max_iterations: SLSQP iterations at most.
+        self_clearance: Keep the robot's own geom pairs :data:`SELF_CLEARANCE_M` apart (a constraint
+            per pair and sample); False when the caller checks the clearance of a motion this
+            design is only part of (e.g. the G1's waist and two arms, designed apart).
 
     Raises:
         InvalidPlanningInput: Bad joints, period, harmonics or samples.
@@ -319,17 +324,17 @@ def design_excitation(robot: Robot, joints: Sequence[str], q_start: npt.ArrayLik
     q_full = robot.converter.check_q(q_start, "q_start")
     with single_threaded_blas():
         return _design(robot, joints, q_full, limits, period_s, harmonics, n_samples, bodies, seed,
-                       max_iterations)
+                       max_iterations, self_clearance)
 
 
 def _design(robot: Robot, joints: tuple[str, ...], q_full: np.ndarray, limits: ExcitationLimits | None,
             period_s: float, harmonics: int, n_samples: int, bodies: Sequence[str] | None, seed: int,
-            max_iterations: int) -> ExcitationDesign:
+            max_iterations: int, self_clearance: bool = True) -> ExcitationDesign:
     from scipy.optimize import minimize
 
     limits = limits or ExcitationLimits.from_robot(robot, joints, q_full)
     params = ParameterSet(robot, bodies)
-    ev = _Evaluator(robot, joints, q_full, params, limits, period_s, harmonics, n_samples)
+    ev = _Evaluator(robot, joints, q_full, params, limits, period_s, harmonics, n_samples, self_clearance)
     x0 = _feasible_start(ev, np.random.default_rng(seed))
     cond0 = float(np.exp(ev.evaluate(x0)[0]))
     result = minimize(lambda x: ev.evaluate(x)[0], x0, method="SLSQP",
