@@ -66,7 +66,8 @@ def test_a_robot_over_the_dof_limit_is_refused_before_pinocchio_data(tmp_path, a
 
 @pytest.mark.parametrize(("make", "message"), [
     (lambda: DemoConfig(duration_s=1e12), "--duration 1e+12 s exceeds mbctl's limit of 600 s"),
-    (lambda: options.g1_stand(duration=3601.0), "--duration 3,601 s exceeds mbctl's limit of 3,600 s"),  # an hour
+    # the plant jobs: an hour
+    (lambda: options.g1_stand(duration=3601.0), "--duration 3,601 s exceeds mbctl's limit of 3,600 s"),
     (lambda: options.g1_wbc(duration=1e12), "--duration 1e+12 s exceeds"),
     (lambda: XcheckParams("two_link", states=100_000_000), "--states 100,000,000 exceeds mbctl's limit of "
                                                              "100,000"),
