@@ -157,9 +157,9 @@ def test_sigterm_mid_run_keeps_every_row_and_no_torn_one(tmp_path):
     )
     proc = subprocess.Popen([sys.executable, "-c", script], stdout=subprocess.PIPE, text=True)
     path = folder / "toy.csv"
-    t0 = time.monotonic()
-    while not (path.exists() and path.read_bytes().count(b"\n") > 1000):  # rows on disk mid-run
-        assert time.monotonic() - t0 < 60 and proc.poll() is None, "no rows while running"
+    # rows on disk mid-run (the child streams until it is stopped: it ends only by failing)
+    while not (path.exists() and path.read_bytes().count(b"\n") > 1000):
+        assert proc.poll() is None, "the run ended before it streamed any rows"
         time.sleep(0.01)
     proc.terminate()
     out, _ = proc.communicate(timeout=60)
