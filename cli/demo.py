@@ -15,6 +15,7 @@ from mbctl.cli._run import (
     video_spec,
 )
 from mbctl.cli.plant_options import MODEL_PARAMETERS, with_options
+from mbctl.cli.robots import ModelErrorOpt
 from mbctl.jobs.choices import CONTROLLERS
 
 
@@ -24,9 +25,7 @@ def demo(
     compare: Annotated[
         bool, typer.Option("--compare", help="Run every controller on the same reference.")
     ] = False,
-    model_error: Annotated[
-        float, typer.Option("--model-error", help="Controller model link masses off by PCT (%).")
-    ] = 0.0,
+    model_error: ModelErrorOpt = 0.0,
     duration: Annotated[
         float | None, typer.Option(help="Run length (s) (default: the whole square, ~2.8 s).")
     ] = None,

@@ -8,7 +8,7 @@ import typer
 
 from mbctl.cli._run import OutputOpt, QuietOpt, VideoOpt, VideoSizeOpt, execute, video_spec
 from mbctl.cli.plant_options import MODEL_PARAMETERS, PLANT_PARAMETERS, with_options
-from mbctl.cli.robots import ModelDirOpt
+from mbctl.cli.robots import ModelDirOpt, ModelErrorOpt
 from mbctl.jobs.g1_walk_choices import (
     WALK_DEFAULT_DURATION_S,
     WALK_DEFAULT_SPEED,
@@ -54,9 +54,7 @@ def g1_walk(
                                          "origin, heading +x) or a file of such lines (course only; default: "
                                          "12 waypoints over about 10 m); --speed caps the command."),
     ] = None,
-    model_error: Annotated[
-        float, typer.Option("--model-error", help="Controller model link masses off by PCT (%).")
-    ] = 0.0,
+    model_error: ModelErrorOpt = 0.0,
     model_dir: ModelDirOpt = None,
     output: OutputOpt = None,
     quiet: QuietOpt = False,

@@ -15,7 +15,7 @@ from mbctl.cli._run import (
     video_spec,
 )
 from mbctl.cli.plant_options import MODEL_PARAMETERS, PLANT_PARAMETERS, with_options
-from mbctl.cli.robots import ModelDirOpt
+from mbctl.cli.robots import ModelDirOpt, ModelErrorOpt
 from mbctl.jobs.choices import WBC_DEFAULT_DURATION_S, WBC_SCENARIOS
 
 
@@ -37,9 +37,7 @@ def g1_wbc(
         typer.Option("--direction", help="Push direction (deg): 0 = +x (front), 90 = +y (left); "
                                          "default: 8 directions 45 deg apart (push scenario only)."),
     ] = None,
-    model_error: Annotated[
-        float, typer.Option("--model-error", help="Controller model link masses off by PCT (%).")
-    ] = 0.0,
+    model_error: ModelErrorOpt = 0.0,
     model_dir: ModelDirOpt = None,
     output: OutputOpt = None,
     quiet: QuietOpt = False,

@@ -14,6 +14,10 @@ ModelDirOpt = Annotated[
     str | None,
     typer.Option("--model-dir", help="Explicit Menagerie model directory (e.g. .../unitree_g1)."),
 ]
+#: ``--model-error``: the controller's model with its link masses scaled.
+ModelErrorOpt = Annotated[
+    float, typer.Option("--model-error", help="Controller model link masses off by PCT (%).")
+]
 RobotArg = Annotated[str, typer.Argument(help="Known robot name (see `mbctl robots`) or MJCF path.")]
 SceneOpt = Annotated[
     str | None,
