@@ -40,7 +40,7 @@ from mbctl.control.computed_torque import ComputedTorque
 from mbctl.control.controller import ControllerBase, joint_reference
 from mbctl.control.exceptions import ControlError, ControllerSetupError
 from mbctl.control.gains import PDGains, gains_from_frequency
-from mbctl.control.loop import RunLog, run
+from mbctl.control.loop import ColumnStats, RunLog, run
 from mbctl.control.pd_gravity import PDGravity
 from mbctl.control.position_pd import PositionTargetPD
 from mbctl.jobs.g1_plots import stand_plot, tracking_plot
@@ -297,27 +297,31 @@ def _stand(ctx: RunContext, params: StandParams, robot: Robot, gains: PDGains, i
     reference = joint_reference(q0[controller.joint_map.idx_q])
     monitor = _fall_monitor(p)
     log = _loop(ctx, sim, controller, reference, params.duration_s, "N_m", "g1-stand", base_z=True)
-    z = np.append(log.q[:, _base_z_index(robot)], sim.read_state().q[_base_z_index(robot)])
-    dev = z - z0
-    joint_err = log.reference - log.q[:, controller.joint_map.idx_q]
-    reason = _fall_reason(ctx, p, log, monitor, z)
+    zi = _base_z_index(robot)
+    stats, error = log.stats, _error_stats(log)
+    z_final = float(sim.read_state().q[zi])
+    # every cycle's pelvis height (the loop's sums) and the final state's
+    z_min, z_max = min(float(stats.q.min[zi]), z_final), max(float(stats.q.max[zi]), z_final)
+    reason = _fall_reason(ctx, p, log, monitor, z_min)
     fell = reason is not None
-    off = _off_bound(ctx, float(np.abs(dev).max()))
+    max_dev = max(z_max - z0, z0 - z_min)
+    off = _off_bound(ctx, max_dev)
     ctx.values.update({
-        "pelvis_z_min_m": float(z.min()),
-        "pelvis_z_max_m": float(z.max()),
-        "pelvis_z_final_m": float(z[-1]),
-        "pelvis_max_deviation_m": float(np.abs(dev).max()),
+        "pelvis_z_min_m": z_min,
+        "pelvis_z_max_m": z_max,
+        "pelvis_z_final_m": z_final,
+        "pelvis_max_deviation_m": max_dev,
         "fell": fell,
         "fall_reason": reason,
-        "joint_rms_error_rad": float(np.sqrt(np.mean(joint_err**2))),
-        "joint_max_error_rad": float(np.abs(joint_err).max()),
+        "joint_rms_error_rad": error.rms_all(),
+        "joint_max_error_rad": float(error.max_abs().max()),
         "saturated_cycles": controller.saturation.saturated_cycles,
         "simulated_time_s": sim.time_s,
         "wall_time_s": log.wall_time_s,
     })
     ctx.sections["controller_saturation"] = controller.saturation.summary()
-    stand_plot(ctx, log, dev[:-1], -joint_err, controller.joints, params.omega_rad_s, params.zeta,
+    joint_err = log.reference - log.q[:, controller.joint_map.idx_q]  # the rows kept, for the plot
+    stand_plot(ctx, log, log.q[:, zi] - z0, -joint_err, controller.joints, params.omega_rad_s, params.zeta,
                PELVIS_BOUND_M)
     v = ctx.values
     return Outcome(not (fell or off), (
@@ -344,15 +348,25 @@ def _fall_monitor(p: Plant) -> PlantMonitor | None:
 
 
 def _fall_reason(ctx: RunContext, p: Plant, log: RunLog, monitor: PlantMonitor | None,
-                 z: np.ndarray) -> str | None:
-    """Why the G1 fell, by its one rule: the plant's monitor, the bridge's truth log, else the state."""
+                 z_min: float) -> str | None:
+    """Why the G1 fell, by its one rule: the plant's monitor, the bridge's truth log, else the state.
+
+    ``z_min`` [m]: the lowest estimated pelvis height of the run (the client's only view of it).
+    """
     truth_fell = report_plant(ctx, p, log, G1_FALL.base_min_z_m)
     if monitor is not None:
         return monitor.fall_reason
     if truth_fell is not None:
         return "pelvis below its fall height (truth log)" if truth_fell else None
-    z_min = float(np.min(z))  # the estimated pelvis height: the client's only view of it
     return G1_FALL.reason(z_min, ())
+
+
+def _error_stats(log: RunLog) -> ColumnStats:
+    """The joint tracking error's sums over every cycle (the loop sums it for a joint reference)."""
+    if log.stats is None or log.stats.error is None:
+        raise ControlError("the control loop summed no joint tracking error (a joint reference and a "
+                           "controller with a joint map are needed)")
+    return log.stats.error
 
 
 def _off_bound(ctx: RunContext, estimated_deviation_m: float) -> bool:
@@ -387,8 +401,7 @@ def prepare_track(params: TrackParams, robot: Robot | None = None) -> Work:
                        "max_jerk_rad_s3": TRACK_LIMITS[2]},
             "waypoints_rad": waypoints.tolist()}
         log = _loop(ctx, sim, controller, traj, duration, "N_m", "g1-track")
-        err = log.reference - log.q[:, controller.joint_map.idx_q]
-        return _tracking_outcome(ctx, "g1_track", log, err, controller, sim, params.max_rms_error_rad, {
+        return _tracking_outcome(ctx, "g1_track", log, controller, sim, params.max_rms_error_rad, {
             "trajectory_duration_s": traj.duration_s,
             "contacts_at_end": sim.contact_count,
         }, f"G1 welded base, computed torque (omega {params.omega_rad_s:g} rad/s, zeta {params.zeta:g})")
@@ -396,21 +409,25 @@ def prepare_track(params: TrackParams, robot: Robot | None = None) -> Work:
     return work
 
 
-def _tracking_outcome(ctx: RunContext, name: str, log: RunLog, err: np.ndarray, controller: ControllerBase,
+def _tracking_outcome(ctx: RunContext, name: str, log: RunLog, controller: ControllerBase,
                       sim: RobotInterface, bound: float | None, extra: dict[str, Any], title: str,
-                      body: tuple[np.ndarray, np.ndarray, tuple[str, ...]] | None = None,
+                      body: tuple[np.ndarray, np.ndarray, tuple[str, ...], float] | None = None,
                       fall_reason: str | None = None) -> Outcome:
     """Tracking values, the plot and the verdict: the RMS bound (if any) met and the robot standing.
 
-    With ``body`` (pelvis height change (N,) [m], the other joints' deviation (N, m) [rad], their
-    names) and ``fall_reason`` (the G1's fall rule), the robot stands on the floor: a fall, or the
-    pelvis moving more than ``PELVIS_BOUND_M``, fails the run too.
+    The figures are over every cycle (the loop's sums), the plot over the log's rows. With ``body``
+    (pelvis height change of each row (R,) [m], the other joints' deviation (R, m) [rad], their
+    names, and the largest pelvis height change over every cycle [m]) and ``fall_reason`` (the G1's
+    fall rule), the robot stands on the floor: a fall, or the pelvis moving more than
+    ``PELVIS_BOUND_M``, fails the run too.
     """
-    rms_by_joint = np.sqrt(np.mean(err**2, axis=0))
-    rms = float(np.sqrt(np.mean(err**2)))
+    error = _error_stats(log)
+    rms_by_joint = error.rms()
+    rms = error.rms_all()
+    err = log.reference - log.q[:, controller.joint_map.idx_q]  # the rows: the last is the last cycle
     ctx.values.update({
         "joint_rms_error_rad": rms,
-        "joint_max_error_rad": float(np.abs(err).max()),
+        "joint_max_error_rad": float(error.max_abs().max()),
         "final_max_error_rad": float(np.abs(err[-1]).max()),
         "worst_joint": controller.joints[int(np.argmax(rms_by_joint))],
         "worst_joint_rms_error_rad": float(rms_by_joint.max()),
@@ -428,7 +445,7 @@ def _tracking_outcome(ctx: RunContext, name: str, log: RunLog, err: np.ndarray, 
              f"({ctx.values['worst_joint_rms_error_rad']:.3e} rad RMS), "
              f"saturated cycles {ctx.values['saturated_cycles']}"]
     if body is not None:
-        dz = float(np.abs(body[0]).max())
+        dz = body[3]
         ctx.values.update({"pelvis_max_deviation_m": dz, "fell": fall_reason is not None,
                            "fall_reason": fall_reason})
         fell = fall_reason is not None or _off_bound(ctx, dz)
@@ -436,8 +453,8 @@ def _tracking_outcome(ctx: RunContext, name: str, log: RunLog, err: np.ndarray, 
         lines.append(f"pelvis max deviation {dz * 1e3:.2f} mm "
                      f"({'FELL (' + fall_reason + ')' if fall_reason is not None else 'stood'})")
     lines += _models_lines(ctx)
-    tracking_plot(ctx, name, log, controller.joints, err, f"{title}: joint RMS {rms:.3g} rad", body,
-                  bound_m=PELVIS_BOUND_M)
+    tracking_plot(ctx, name, log, controller.joints, err, f"{title}: joint RMS {rms:.3g} rad",
+                  None if body is None else body[:3], bound_m=PELVIS_BOUND_M)
     passed = (bound is None or rms <= bound) and not fell
     return Outcome(passed, tuple(lines), "; ".join(bounds) or None)
 
@@ -478,18 +495,22 @@ def _arm_pd(ctx: RunContext, params: ArmPDParams, robot: Robot, traj: JointTraje
     monitor = _fall_monitor(p)
     log = _loop(ctx, sim, controller, traj, duration, "rad", f"g1-arm-pd ({params.side} arm)",
                 base_z=True)
-    err = log.reference - log.q[:, controller.joint_map.idx_q]
-    dz = log.q[:, _base_z_index(robot)] - z0
+    zi = _base_z_index(robot)
+    stats = log.stats
     idx_others = [robot.joint(j).idx_q for j in others]
+    reason = _fall_reason(ctx, p, log, monitor, float(stats.q.min[zi]))
+    # every cycle's (the loop's sums); the rows below are for the plot
+    max_dz = float(stats.q.max_abs(z0)[zi])
+    max_deviation = float(stats.q.max_abs(q0)[idx_others].max())
+    dz = log.q[:, zi] - z0
     deviation = log.q[:, idx_others] - q0[idx_others]
-    reason = _fall_reason(ctx, p, log, monitor, log.q[:, _base_z_index(robot)])
-    return _tracking_outcome(ctx, "g1_arm_pd", log, err, controller, sim, params.max_rms_error_rad, {
+    return _tracking_outcome(ctx, "g1_arm_pd", log, controller, sim, params.max_rms_error_rad, {
         "arm": params.side,
         "trajectory_duration_s": traj.duration_s,
-        "other_joints_max_deviation_rad": float(np.abs(deviation).max()),
+        "other_joints_max_deviation_rad": max_deviation,
     }, f"G1 {params.side} arm through the position actuators"
        + (" + gravity feed-forward" if params.gravity_feedforward else ""),
-       (dz, deviation, others), reason)
+       (dz, deviation, others, max_dz), reason)
 
 
 #: The G1 jobs.

@@ -96,22 +96,23 @@ def tracking_plot(ctx: RunContext, name: str, log: RunLog, joints: tuple[str, ..
     (``bound_m`` [m]: the pelvis bound, named in its panel).
     """
     q = log.reference - err
+    t = log.row_time_s
     limbs = limb_rows(joints, log.reference)
     n_rows = len(limbs) + (body is not None)
     fig, axes = new_figure(n_rows, 2, (13.0, 2.9 * n_rows + 0.7), layout="constrained")
     for r, (limb, idx) in enumerate(limbs):
         roles = [joint_role(joints[i]) for i in idx]
         colors = joint_colors(roles)
-        tracking_panels(axes[r][0], axes[r][1], log.t_s, log.reference[:, idx], q[:, idx], roles,
+        tracking_panels(axes[r][0], axes[r][1], t, log.reference[:, idx], q[:, idx], roles,
                         [colors[x] for x in roles], limb)
     if body is not None:
         dz, deviation, others = body
-        pelvis_panel(axes[-1][0], log.t_s, dz, ctx.values["pelvis_max_deviation_m"], bound_m)
-        groups, _ = held_joints_panel(axes[-1][1], log.t_s, deviation, others)
+        pelvis_panel(axes[-1][0], t, dz, ctx.values["pelvis_max_deviation_m"], bound_m)
+        groups, _ = held_joints_panel(axes[-1][1], t, deviation, others)
         axes[-1][1].set_title(f"the {len(groups)} other joints that moved most from the keyframe",
                               fontsize=9)
         axes[-1][1].legend(fontsize=8, loc="upper left", bbox_to_anchor=(1.01, 1.0))
-    fig.suptitle(title)
+    fig.suptitle(title + rows_note(log))
     ctx.save_figure(fig, f"{name}.png")
 
 
@@ -126,11 +127,12 @@ def stand_plot(ctx: RunContext, log: RunLog, dz_m: np.ndarray, deviation: np.nda
     fig, axes = new_figure(1, 3, (17.0, 5.0), layout="constrained")
     ax_z, ax_q, ax_tau = axes[0]
     max_m = ctx.values["pelvis_max_deviation_m"]
-    pelvis_panel(ax_z, log.t_s, dz_m, max_m, bound_m)
-    groups, colors = held_joints_panel(ax_q, log.t_s, deviation, joints, (log.command,))
+    t = log.row_time_s
+    pelvis_panel(ax_z, t, dz_m, max_m, bound_m)
+    groups, colors = held_joints_panel(ax_q, t, deviation, joints, (log.command,))
     ax_q.set_title(f"the {len(groups)} joints that moved most from the keyframe", fontsize=9)
     for g, color in zip(groups, colors, strict=True):
-        ax_tau.plot(log.t_s, log.command[:, g[0]], lw=1.2, color=color)
+        ax_tau.plot(t, log.command[:, g[0]], lw=1.2, color=color)
     ax_tau.set_xlabel("time (s)")
     ax_tau.set_ylabel("joint torque (N m)")
     ax_tau.set_title("their torques (PD + gravity), same colours", fontsize=9)
@@ -138,5 +140,13 @@ def stand_plot(ctx: RunContext, log: RunLog, dz_m: np.ndarray, deviation: np.nda
     handles, labels = ax_q.get_legend_handles_labels()
     ax_tau.legend(handles, labels, fontsize=8, loc="upper left", bbox_to_anchor=(1.01, 1.0))
     fig.suptitle(f"G1 standing, PD + gravity in torque mode (omega {omega_rad_s:g} rad/s, "
-                 f"zeta {zeta:g}): max pelvis height change {max_m * 1e3:.2f} mm")
+                 f"zeta {zeta:g}): max pelvis height change {max_m * 1e3:.2f} mm" + rows_note(log))
     ctx.save_figure(fig, "g1_stand.png")
+
+
+def rows_note(log: RunLog) -> str:
+    """A title's note that the curves show every ``stride``-th cycle ("" when they show every cycle)."""
+    if log.stride == 1:
+        return ""
+    return (f"\ncurves: every {log.stride}th of {log.cycles:,} cycles (the loop's log); "
+            "figures: every cycle")

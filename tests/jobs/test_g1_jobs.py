@@ -163,6 +163,50 @@ def test_g1_arm_pd_through_position_targets(g1, tmp_path):
     assert len(header) == 1 + 7 + g1.nq + g1.nv + 7 + 1
 
 
+#: The figures each job reports over every cycle (not the wall time, the plant's timing).
+EXACT = {
+    "g1-stand": ("pelvis_z_min_m", "pelvis_z_max_m", "pelvis_z_final_m", "pelvis_max_deviation_m",
+                 "joint_rms_error_rad", "joint_max_error_rad", "fell", "saturated_cycles", "cycles"),
+    "g1-track": ("joint_rms_error_rad", "joint_max_error_rad", "final_max_error_rad", "worst_joint",
+                 "worst_joint_rms_error_rad", "rms_error_by_joint_rad", "saturated_cycles"),
+    "g1-arm-pd": ("joint_rms_error_rad", "joint_max_error_rad", "final_max_error_rad", "worst_joint",
+                  "rms_error_by_joint_rad", "other_joints_max_deviation_rad", "pelvis_max_deviation_m",
+                  "fell", "cycles"),
+}
+
+
+@pytest.mark.parametrize("name, prepare, params", [
+    ("g1-stand", prepare_stand, StandParams(duration_s=0.4)),
+    ("g1-track", prepare_track, TrackParams(duration_s=0.4)),
+    ("g1-arm-pd", prepare_arm_pd, ArmPDParams(duration_s=0.4)),
+])
+def test_a_capped_loop_log_reports_the_figures_of_every_cycle(g1, tmp_path, monkeypatch, name, prepare,
+                                                               params):
+    """The loop's log capped at 20 rows (every 11th of 200 cycles): every figure as with every row."""
+    from mbctl.control import loop
+
+    full = _run(prepare, params, g1, tmp_path / "full", name)
+    monkeypatch.setattr(loop, "MAX_LOG_ROWS", 20)
+    capped = _run(prepare, params, g1, tmp_path / "capped", name)
+    assert capped.exit_code == full.exit_code and capped.rows == full.rows == 200  # the CSV: every cycle
+    for key in EXACT[name]:
+        a, b = capped.values[key], full.values[key]
+        if isinstance(a, dict):
+            assert a.keys() == b.keys()
+            np.testing.assert_allclose(list(a.values()), list(b.values()), rtol=1e-12, atol=0)
+        elif isinstance(a, float):
+            assert a == pytest.approx(b, rel=1e-12, abs=0), key
+        else:
+            assert a == b, key
+    assert capped.values["joint_rms_error_rad"] > 0 and capped.files["plot"].exists()
+    # the figures are those of the CSV's rows, every cycle (the capped log kept 20 of them)
+    table = read_csv(capped.files["csv"])
+    q_ref = np.column_stack([table[c] for c in table if c.startswith("q_ref_")])
+    joints = [c[len("q_ref_"):-len("_rad")] for c in table if c.startswith("q_ref_")]
+    q = np.column_stack([table[f"q_{j}_rad"] for j in joints])
+    assert capped.values["joint_rms_error_rad"] == pytest.approx(np.sqrt(np.mean((q_ref - q) ** 2)), rel=1e-9)
+
+
 def test_g1_params_are_checked():
     from mbctl.exceptions import ToolkitError
 
