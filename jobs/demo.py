@@ -141,15 +141,15 @@ class Tracking:
 
     Attributes:
         controller: Controller name.
-        rms_error_m: RMS of the Cartesian error norm |p_ref - p| [m].
-        max_error_m: Largest Cartesian error norm [m].
+        rms_error_m: RMS of the Cartesian error norm |p_ref - p| [m] over every cycle.
+        max_error_m: Largest Cartesian error norm [m] over every cycle.
         joint_rms_error_rad: RMS of the joint error over all joints and cycles [rad].
         saturated_cycles: Cycles in which the controller clipped a torque.
         saturations: Clipped cycles per joint.
         model_error_pct: The controller model's mass error [%].
-        t_s: Cycle times (N,) [s].
-        p_ref: Reference positions (N, 2) [m].
-        p: Measured positions (N, 2) [m].
+        t_s: Times (R,) [s] of the loop log's rows (every cycle, or every ``log.stride``-th and the last).
+        p_ref: Reference positions (R, 2) [m] at those rows.
+        p: Measured positions (R, 2) [m] at those rows.
         log: The control loop's log.
     """
 
@@ -262,19 +262,22 @@ def track_square(
     idx = np.minimum(np.rint(t_rel / cart.dt_s).astype(int), len(cart.t_s) - 1)
     at_end = t_rel >= cart.t_s[-1]
     p_ref = cart.p[idx, :2]
-    on_step = None
+    q_ref_task = presample(q_traj, t_rel, controller.joints)[0] if name == "task_ct" else None
+    errors = _SquareErrors(PlantSite(robot, SITE), p_ref, q_ref_task, controller.joint_map.idx_q,
+                           sim.control_period_s, sim.time_s)
+
+    def on_step(k: int, state: RobotState, ref: Any, command: object) -> None:
+        errors(state)
+
     if ctx is not None:
         points = path_points(reference)  # the reference square, drawn in the video
         planned = np.array([robot.plant_qpos(q) for q in q_traj.q[:: max(1, len(q_traj.q) // 100)]])
         ctx.attach(sim, overlay=lambda scene: add_markers(scene, points, 0.004, (0.1, 0.8, 0.2, 1.0)),
                    frame_qpos=planned, frame_points_W=points)
-        site = PlantSite(robot, SITE)
-        t_start = sim.time_s
 
         def extra(state: RobotState) -> list[float]:
-            k = min(int(round((state.time_s - t_start) / sim.control_period_s)), n - 1)
-            p = site(state.q)
-            return [*p_ref[k], p[0], p[1], float(np.hypot(*(p_ref[k] - p[:2])))]
+            k, p, e = errors(state)
+            return [*p_ref[k], p[0], p[1], e]
 
         width = 2 if name == "task_ct" else len(controller.joints)
         ref_names = ([f"p_ref_{a}_m" for a in "xy"] if name == "task_ct" else
@@ -285,7 +288,7 @@ def track_square(
             header = header[:1] + header[3:]
             width = 0
         ctx.progress.start(n, f"demo ({LABELS[name]})")
-        on_step = LoopRows(ctx.open_csv(header), width, extra, ctx.progress.advance)
+        on_step = LoopRows(ctx.open_csv(header), width, extra, ctx.progress.advance)  # type: ignore[assignment]
     if name == "task_ct":
         v_ref = np.where(at_end[:, None], 0.0, cart.v[idx, :2])
         a_ref = np.where(at_end[:, None], 0.0, cart.a[idx, :2])
@@ -296,27 +299,66 @@ def track_square(
             return refs[min(int(round(t_s / period)), n - 1)]
 
         log = run(sim, controller, reference_fn, duration, on_step)
-        q_ref, _, _ = presample(q_traj, t_rel, controller.joints)
+        joint_rms = errors.joint_rms()
     else:
         log = run(sim, controller, q_traj, duration, on_step)
-        q_ref = log.reference
+        joint_rms = log.stats.error.rms_all()  # type: ignore[union-attr]  # a joint trajectory's
+    # the figures: every cycle's errors; the curves: the log's rows
     p = PlantSite(robot, SITE).many(log.q)[:, :2]
-    err = np.linalg.norm(p_ref - p, axis=1)
-    joint_err = q_ref - log.q[:, controller.joint_map.idx_q]
     result = Tracking(
         name,
-        float(np.sqrt(np.mean(err**2))),
-        float(np.max(err)),
-        float(np.sqrt(np.mean(joint_err**2))),
+        errors.rms(),
+        errors.max,
+        joint_rms,
         int(controller.saturation.saturated_cycles),
         controller.saturation.by_joint(),
         float(pct),
-        log.t_s,
-        p_ref,
+        log.row_time_s,
+        p_ref[log.cycle],
         p,
         log,
     )
     return result, sim
+
+
+class _SquareErrors:
+    """Every cycle's Cartesian error (and a task-space controller's joint error), summed as the loop runs.
+
+    Args:
+        site: The end effector on the plant.
+        p_ref: Reference positions (N, 2) [m] of each cycle.
+        q_ref: Joint references (N, n) [rad] of each cycle for the joint error, or None.
+        idx_q: The controller's joints' indices in q (n,).
+        period_s: The control period [s].
+        t_start_s: The plant's time at the first cycle [s].
+    """
+
+    def __init__(self, site: PlantSite, p_ref: np.ndarray, q_ref: np.ndarray | None, idx_q: np.ndarray,
+                 period_s: float, t_start_s: float):
+        self.site, self.p_ref, self.q_ref, self.idx_q = site, p_ref, q_ref, idx_q
+        self.period_s, self.t_start_s = period_s, t_start_s
+        self.count, self.sum_sq, self.max, self.joint_sum_sq = 0, 0.0, 0.0, 0.0
+
+    def __call__(self, state: RobotState) -> tuple[int, np.ndarray, float]:
+        """Add the cycle of ``state``; its index, end-effector position (3,) [m] and error [m]."""
+        k = min(int(round((state.time_s - self.t_start_s) / self.period_s)), len(self.p_ref) - 1)
+        p = self.site(state.q)
+        e = float(np.hypot(*(self.p_ref[k] - p[:2])))
+        self.count += 1
+        self.sum_sq += e * e
+        self.max = max(self.max, e)
+        if self.q_ref is not None:
+            d = self.q_ref[k] - state.q[self.idx_q]
+            self.joint_sum_sq += float(d @ d)
+        return k, p, e
+
+    def rms(self) -> float:
+        """RMS Cartesian error [m] over every cycle."""
+        return float(np.sqrt(self.sum_sq / self.count))
+
+    def joint_rms(self) -> float:
+        """RMS joint error [rad] over every cycle and joint (with ``q_ref``)."""
+        return float(np.sqrt(self.joint_sum_sq / (self.count * len(self.idx_q))))
 
 
 def pd_gain_note(robot: Robot, config: DemoConfig, q0: np.ndarray) -> tuple[list[str], dict[str, Any]]:

@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 from mbctl.control.exceptions import ControllerSetupError
-from mbctl.jobs.demo import DEMO, DemoConfig, square_reference, track_square
+from mbctl.jobs.demo import DEMO, SITE, DemoConfig, square_reference, track_square
 from mbctl.jobs.runner import run_job
 from mbctl.robots.edits import scale_masses
 from mbctl.sim.recorder import read_csv
@@ -106,3 +106,25 @@ def test_pd_improves_with_model_error_because_its_gains_grow(two_link_torque_gra
     assert stiffer.rms_error_m == pytest.approx(values["rms_error_m"], rel=0.02)  # ... as a stiffer PD is
     assert any(line.startswith("why: joint PD uses the model only for its gains") and "35." in line
                for line in record.outcome.summary)
+
+
+@pytest.mark.parametrize("name", ["ct", "task_ct"])
+def test_a_capped_loop_log_keeps_the_demo_figures_of_every_cycle(two_link_torque_gravity, square, monkeypatch,
+                                                                  name):
+    """The loop's log capped at 50 rows: the errors are still every cycle's, the curves the rows'."""
+    from mbctl.control import loop
+    from mbctl.jobs.recording import PlantSite
+
+    config = DemoConfig(controller=name, duration_s=1.0)  # 500 cycles
+    full, _ = track_square(two_link_torque_gravity, square, config)
+    assert full.log.stride == 1
+    p = PlantSite(two_link_torque_gravity, SITE).many(full.log.q)[:, :2]
+    err = np.linalg.norm(full.p_ref - p, axis=1)  # every cycle, from the full-rate log
+    assert full.rms_error_m == pytest.approx(np.sqrt(np.mean(err**2)), rel=1e-12)
+    assert full.max_error_m == err.max()
+    monkeypatch.setattr(loop, "MAX_LOG_ROWS", 50)
+    capped, _ = track_square(two_link_torque_gravity, square, config)
+    assert capped.log.stride == 11 and len(capped.t_s) == len(capped.p) == 47
+    for key in ("rms_error_m", "max_error_m", "joint_rms_error_rad"):
+        assert getattr(capped, key) == pytest.approx(getattr(full, key), rel=1e-12, abs=0), key
+    np.testing.assert_array_equal(capped.p_ref, full.p_ref[capped.log.cycle])

@@ -362,3 +362,18 @@ def test_a_controller_model_tracks_the_same_trajectory(two_link_run, tmp_path):
     assert mine["model_fingerprint"] == reference["model_fingerprint"]  # the robot's, not the controller's
     assert any("trajectory designed on the robot's own model, the same for any --controller-model" in line
                for line in record.outcome.summary)
+
+
+def test_excite_with_a_capped_loop_log_reports_every_cycles_tracking_error(two_link_run, tmp_path,
+                                                                           monkeypatch):
+    """The loop's log capped at 100 rows of 3000 cycles: the tracking RMS is the uncapped run's."""
+    from mbctl.control import loop
+
+    params = options.excite("two_link_torque", duration=6.0, period=3.0, harmonics=3, plant_error=20.0)
+    monkeypatch.setattr(loop, "MAX_LOG_ROWS", 100)
+    record = run_job(EXCITE, params, tmp_path / "capped")
+    full = json.loads((two_link_run / "report.json").read_text())["values"]
+    assert record.values["rows"] == full["rows"] == 3000 and record.exit_code == 0
+    rms = record.values["joint_rms_error_rad"]
+    assert rms > 0 and rms == pytest.approx(full["joint_rms_error_rad"], rel=1e-12, abs=0)
+    assert record.values["max_torque_N_m"] == full["max_torque_N_m"]
