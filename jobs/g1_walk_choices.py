@@ -10,7 +10,7 @@ WALK_PUSH_PHASES = ("early", "late", "double")
 
 #: Each scenario's default command: (vx [m/s], vy [m/s], yaw rate [rad/s]).
 WALK_DEFAULT_SPEED = {"forward": (0.3, 0.0, 0.0), "backward": (0.3, 0.0, 0.0), "side": (0.0, 0.2, 0.0),
-                      "turn": (0.0, 0.0, 0.5), "course": (0.3, 0.2, 0.5), "push": (0.3, 0.0, 0.0)}
+                      "turn": (0.0, 0.0, 0.5), "course": (0.3, 0.15, 0.3), "push": (0.3, 0.0, 0.0)}
 
 #: Default simulated time [s] per scenario.
 WALK_DEFAULT_DURATION_S = {"forward": 20.0, "backward": 20.0, "side": 20.0, "turn": 20.0, "course": 60.0,

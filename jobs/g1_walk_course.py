@@ -66,6 +66,18 @@ def pose_of(q: np.ndarray) -> np.ndarray:
     return np.array([q[0], q[1], math.atan2(2.0 * (w * z + x * y), 1.0 - 2.0 * (y * y + z * z))])
 
 
+def capped(command: np.ndarray, caps: VelocityCommand) -> np.ndarray:
+    """``command`` (vx, vy, yaw rate) scaled onto the caps' ellipsoid where it is outside.
+
+    The caps bound the axes together, ``(vx / cap_x)^2 + (vy / cap_y)^2 + (wz / cap_w)^2 <= 1``,
+    not each alone: a full turn is not combined with full forward and sideways speeds (on the
+    default course the G1 fell turning at 0.5 rad/s while stepping at 0.27 m/s forward and 0.18 m/s
+    sideways, each within its own cap).
+    """
+    scale = float(np.linalg.norm(command / np.asarray(caps, dtype=float)))
+    return command / scale if scale > 1.0 else command
+
+
 class CourseWalker:
     """The walker after a course: each cycle the follower's command (capped) from the state's base pose.
 
@@ -105,11 +117,8 @@ class CourseWalker:
 
     def compute(self, state: RobotState, reference: object = None) -> Command:
         """The capped command toward the current waypoint, then the walker's torques."""
-        vx, vy, wz = self.follower.command(self.pose(state), state.time_s)
-        caps = self.caps
-        self.walker.set_command(VelocityCommand(min(max(vx, -caps.vx_m_s), caps.vx_m_s),
-                                                min(max(vy, -caps.vy_m_s), caps.vy_m_s),
-                                                min(max(wz, -caps.yaw_rate_rad_s), caps.yaw_rate_rad_s)))
+        command = np.array(self.follower.command(self.pose(state), state.time_s))
+        self.walker.set_command(VelocityCommand(*capped(command, self.caps)))
         return self.walker.compute(state)
 
     def values(self, q_final: np.ndarray) -> dict[str, Any]:

@@ -59,6 +59,7 @@ import numpy as np
 import numpy.typing as npt
 import pinocchio as pin
 
+from mbctl.planners.dcm import convex_hull
 from mbctl.planners.exceptions import InvalidLimits, InvalidPlanningInput
 from mbctl.robots.model_pair import Robot
 
@@ -175,6 +176,11 @@ class StepLimits:
         nominal_width_m: Distance between the feet's frames, sideways [m].
         min_width_m: The narrowest stance [m] (the soles' inner edges a clearance apart).
         max_yaw_rad: Largest rotation of a footstep relative to the previous one [rad].
+        sole_xy_m: The sole's outline points (x, y) [m] in the foot frame (empty: the width bound is
+            ``min_width_m`` whatever the rotation). With them, a footstep turned relative to the
+            stance keeps its whole sole ``min_width_m - sole width`` (the clearance) beyond the
+            stance sole's inner edge (:meth:`min_width_for`): a turned toe or heel would otherwise
+            reach across at the narrowest stance.
     """
 
     max_forward_m: float
@@ -183,6 +189,7 @@ class StepLimits:
     nominal_width_m: float
     min_width_m: float
     max_yaw_rad: float
+    sole_xy_m: tuple[tuple[float, float], ...] = ()
 
     def __post_init__(self) -> None:
         for name in ("max_forward_m", "max_backward_m", "max_outward_m", "nominal_width_m", "max_yaw_rad"):
@@ -192,6 +199,28 @@ class StepLimits:
         if not (math.isfinite(self.min_width_m) and 0 < self.min_width_m <= self.nominal_width_m):
             raise InvalidLimits(f"StepLimits.min_width_m = {self.min_width_m!r} m must be in "
                                 f"(0, nominal_width_m = {self.nominal_width_m}] m")
+        pts = np.asarray(self.sole_xy_m, dtype=float)
+        if self.sole_xy_m and (pts.ndim != 2 or pts.shape[1] != 2 or len(pts) < 3
+                               or not np.all(np.isfinite(pts))):
+            raise InvalidLimits(f"StepLimits.sole_xy_m must be 3 or more finite (x, y) points [m]; got shape "
+                                f"{pts.shape}")
+
+    def min_width_for(self, dyaw_rad: float, side: int) -> float:
+        """The narrowest width [m] for a footstep turned by ``dyaw_rad`` from the stance, on ``side``.
+
+        ``side`` is the footstep's side of the stance (+1 left, -1 right). In the stance heading
+        frame, the turned sole's points are at ``lat + sin(dyaw) x + cos(dyaw) y``; each stays the
+        clearance (``min_width_m`` less the sole's width) past the stance sole's inner edge, so a
+        line along the stance heading separates the soles. Never below ``min_width_m`` nor above
+        the widest step; ``min_width_m`` without ``sole_xy_m``.
+        """
+        if not self.sole_xy_m:
+            return self.min_width_m
+        p = np.asarray(self.sole_xy_m, dtype=float)
+        clearance = self.min_width_m - float(p[:, 1].max() - p[:, 1].min())
+        turned_y = math.sin(dyaw_rad) * p[:, 0] + math.cos(dyaw_rad) * p[:, 1]
+        width = clearance + float((side * p[:, 1]).max() - (side * turned_y).min())
+        return min(max(width, self.min_width_m), self.nominal_width_m + self.max_outward_m)
 
 
 def leg_chain(robot: Robot, foot_frame: str) -> list[int]:
@@ -274,7 +303,7 @@ def step_limits_from_model(robot: Robot, feet: tuple[str, str], sole_points_F: n
     if geometric > 0:
         max_yaw = min(max_yaw, geometric)
     return StepLimits(forward, BACKWARD_FRACTION * forward, LATERAL_FRACTION * reach, width, min_width,
-                      max_yaw)
+                      max_yaw, tuple((float(x), float(y)) for x, y in convex_hull(pts[:, :2])))
 
 
 class FootstepPlanner:
@@ -337,8 +366,9 @@ class FootstepPlanner:
         """``step`` moved into the limits relative to ``stance`` (in the stance heading frame).
 
         The nearest footstep (the exact projection onto the box of the limits) with the forward
-        step in [-max_backward, max_forward], the width (toward the step's side) in
-        [min_width, nominal_width + max_outward] and the rotation within +-max_yaw.
+        step in [-max_backward, max_forward], the rotation within +-max_yaw and the width (toward
+        the step's side) in [min_width, nominal_width + max_outward], min_width that of the
+        rotation (:meth:`StepLimits.min_width_for`: the soles never overlap).
 
         Returns:
             The footstep within the limits, and whether it moved.
@@ -350,8 +380,9 @@ class FootstepPlanner:
         width = step.side * lat
         dyaw = math.remainder(step.yaw_rad - stance.yaw_rad, 2.0 * math.pi)
         fwd_c = min(max(fwd, -lim.max_backward_m), lim.max_forward_m)
-        width_c = min(max(width, lim.min_width_m), lim.nominal_width_m + lim.max_outward_m)
         dyaw_c = min(max(dyaw, -lim.max_yaw_rad), lim.max_yaw_rad)
+        widest = lim.nominal_width_m + lim.max_outward_m
+        width_c = min(max(width, lim.min_width_for(dyaw_c, step.side)), widest)
         if (fwd_c, width_c, dyaw_c) == (fwd, width, dyaw):
             return step, False
         lat_c = step.side * width_c

@@ -17,13 +17,15 @@ heading frame S)::
 
     min_x  |x - x_des|^2 + w |x - x_nom|^2        x_des = x_nom + R_SW d,   w: nominal_weight
     s.t.   -max_backward <= x_fwd <= max_forward
-           min_width <= s x_side <= nominal_width + max_outward           (s: +1 left, -1 right)
+           min_width(yaw) <= s x_side <= nominal_width + max_outward      (s: +1 left, -1 right)
            x inside the reach polygon: an 8-gon inscribed in the half-ellipses with semi-axes
            (max_forward or max_backward, max_outward) about the nominal stance (0, s w)
 
 solved by the control layer's QP floor (:mod:`mbctl.control.qp`, daqp). The footstep's yaw is the
-nominal one. The result says whether the DCM left its tube and whether a limit stopped the step from
-going all the way (``limited``: the robot then relies on the next step as well).
+nominal one, and min_width(yaw) the narrowest stance at which its sole clears the stance sole
+(:meth:`~mbctl.planners.StepLimits.min_width_for`). The result says whether the DCM left its tube
+and whether a limit stopped the step from going all the way (``limited``: the robot then relies on
+the next step as well).
 """
 
 from __future__ import annotations
@@ -147,7 +149,8 @@ class StepAdapter:
         x_nom = np.array([c * d_nom[0] + s * d_nom[1], -s * d_nom[0] + c * d_nom[1]])
         x_des = x_nom + math.exp(self.omega * max(time_to_switch_s, 0.0)) * out
         lim, side = self.planner.limits, nominal.side
-        widths = np.array([lim.min_width_m, lim.nominal_width_m + lim.max_outward_m]) * side
+        dyaw = math.remainder(nominal.yaw_rad - stance.yaw_rad, 2.0 * math.pi)
+        widths = np.array([lim.min_width_for(dyaw, side), lim.nominal_width_m + lim.max_outward_m]) * side
         lb = np.array([-lim.max_backward_m, widths.min()])
         ub = np.array([lim.max_forward_m, widths.max()])
         G, h = self._reach_rows(side)

@@ -7,6 +7,8 @@ import math
 import numpy as np
 import pinocchio as pin
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from mbctl.planners import InvalidLimits, InvalidPlanningInput
 from mbctl.planners.footsteps import (
@@ -56,6 +58,7 @@ def test_g1_limits_from_its_model(g1, crouched):
     assert lim.nominal_width_m == pytest.approx(0.2370, abs=1e-4)  # the feet's y at the keyframe: +-0.1185
     assert lim.min_width_m == pytest.approx(0.06 + 0.04, abs=1e-12)  # the sole's width + the clearance
     assert lim.max_yaw_rad == pytest.approx(0.25 * 2.7576, abs=1e-9)  # a quarter of the hip-yaw range
+    assert sorted(lim.sole_xy_m) == sorted(map(tuple, SOLE_F[:, :2]))  # the sole's outline
     # a lower CoM reaches further; one the legs cannot reach is refused
     assert step_limits_from_model(g1, FEET, SOLE_F, crouched, 0.60).max_forward_m > lim.max_forward_m
     with pytest.raises(InvalidPlanningInput, match="lower the CoM"):
@@ -132,6 +135,47 @@ def test_feet_never_cross_under_random_commands():
         assert width <= LIMITS.nominal_width_m + LIMITS.max_outward_m + 1e-12
         assert abs(math.remainder(step.yaw_rad - stance.yaw_rad, 2 * math.pi)) <= LIMITS.max_yaw_rad + 1e-12
         stance = step
+
+
+SOLE_LIMITS = StepLimits(max_forward_m=0.36, max_backward_m=0.2, max_outward_m=0.2, nominal_width_m=0.24,
+                         min_width_m=0.1, max_yaw_rad=0.6, sole_xy_m=tuple(map(tuple, SOLE_F[:, :2])))
+
+
+def _sole_gap(stance: Footstep, step: Footstep) -> float:
+    """How far [m] the step's sole is beyond the stance sole's inner edge, across the stance heading."""
+    c, s = math.cos(stance.yaw_rad), math.sin(stance.yaw_rad)
+    lateral = [(-s * p[0] + c * p[1]) * step.side
+               for p in (step.point_W(x) - stance.position for x in SOLE_F)]
+    return min(lateral) - max(step.side * SOLE_F[:, 1])
+
+
+@given(st.floats(-0.6, 0.6), st.floats(-0.5, 0.5), st.floats(-0.3, 0.5), st.floats(-math.pi, math.pi),
+       st.sampled_from([1, -1]))
+@settings(max_examples=300, deadline=None)
+def test_a_turned_footstep_keeps_its_sole_clear_of_the_stance_sole(dyaw, lat, fwd, heading, side):
+    planner = FootstepPlanner(SOLE_LIMITS, TIMING, FEET)
+    stance = Footstep(FEET[side > 0], -side, np.array([0.3, -0.2, 0.0]), heading)
+    c, s = math.cos(heading), math.sin(heading)
+    step = Footstep(FEET[side < 0], side, stance.position + [c * fwd - s * lat, s * fwd + c * lat, 0.0],
+                    heading + dyaw)
+    limited, _ = planner.limit_step(stance, step)
+    # the clearance (min width - the sole's 6 cm) holds between the soles, whatever the turn
+    assert _sole_gap(stance, limited) >= 0.1 - 0.06 - 1e-9
+
+
+def test_the_width_bound_grows_with_a_turn_toward_the_stance_foot():
+    # a right footstep turned 0.3 rad to the left: its toe (0.12 m ahead) swings 36 mm toward the left sole
+    width = SOLE_LIMITS.min_width_for(0.3, -1)
+    assert width == pytest.approx(0.04 + 0.03 + math.sin(0.3) * 0.12 + math.cos(0.3) * 0.03, abs=1e-12)
+    assert SOLE_LIMITS.min_width_for(0.0, -1) == pytest.approx(0.1, abs=1e-12)  # unturned: the plain bound
+    assert LIMITS.min_width_for(0.3, -1) == 0.1  # no sole outline: the plain bound
+    planner = FootstepPlanner(SOLE_LIMITS, TIMING, FEET)
+    stance = Footstep("left_foot", 1, np.zeros(3), 0.0)
+    step, moved = planner.limit_step(stance, Footstep("right_foot", -1, np.array([0.1, -0.1, 0.0]), 0.3))
+    assert moved and step.position[1] == pytest.approx(-width, abs=1e-12)
+    assert _sole_gap(stance, step) == pytest.approx(0.04, abs=1e-12)  # the clearance, exactly
+    with pytest.raises(InvalidLimits, match="sole_xy_m"):
+        StepLimits(0.3, 0.2, 0.2, 0.2, 0.1, 0.5, ((0.0, 0.0), (1.0, 0.0)))
 
 
 def test_limit_step_projects_a_footstep_into_the_box():

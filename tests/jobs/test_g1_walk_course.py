@@ -1,0 +1,45 @@
+"""``mbctl g1-walk course``: the waypoints' parsing and the caps on the follower's command."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from mbctl.control.exceptions import WBCSetupError
+from mbctl.jobs.g1_walk_choices import WALK_DEFAULT_SPEED
+from mbctl.jobs.g1_walk_course import DEFAULT_COURSE, capped, parse_waypoints, pose_of
+from mbctl.planners import VelocityCommand
+
+CAPS = VelocityCommand(0.3, 0.15, 0.3)
+
+
+def test_the_caps_bound_the_command_together_on_their_ellipsoid():
+    inside = np.array([0.1, 0.05, 0.1])
+    np.testing.assert_array_equal(capped(inside, CAPS), inside)
+    # the command that fell on the default course (0.27 m/s forward, 0.18 sideways, 0.5 rad/s turning) is
+    # scaled as a whole, its direction kept, onto the ellipsoid
+    out = capped(np.array([0.27, 0.18, 0.5]), CAPS)
+    assert np.linalg.norm(out / np.array(CAPS)) == pytest.approx(1.0, abs=1e-12)
+    direction = np.array([0.27, 0.18, 0.5]) / np.linalg.norm([0.27, 0.18, 0.5])
+    np.testing.assert_allclose(out / np.linalg.norm(out), direction)
+    # one axis alone reaches its cap
+    np.testing.assert_allclose(capped(np.array([0.0, 0.0, -2.0]), CAPS), [0.0, 0.0, -0.3], atol=1e-15)
+    assert WALK_DEFAULT_SPEED["course"] == tuple(CAPS)
+
+
+def test_waypoints_parse_from_text_and_files_and_bad_ones_are_named(tmp_path):
+    np.testing.assert_allclose(parse_waypoints("1,0,0;2,1,90"), [[1, 0, 0], [2, 1, math.pi / 2]])
+    course = parse_waypoints(None)
+    assert len(course) == len(DEFAULT_COURSE) == 12
+    path = tmp_path / "course.txt"
+    path.write_text("# x y yaw\n1 0 0\n2,1,90  # the turn\n")
+    np.testing.assert_allclose(parse_waypoints(str(path)), [[1, 0, 0], [2, 1, math.pi / 2]])
+    with pytest.raises(WBCSetupError, match=r"got the waypoint '1,2'"):
+        parse_waypoints("1,2;3,4,5")
+    with pytest.raises(WBCSetupError, match=r"got the waypoint '1,nan,0'"):
+        parse_waypoints("1,nan,0")
+    q = np.zeros(7)
+    q[3:7] = [0, 0, math.sin(0.4), math.cos(0.4)]  # (x, y, z, w): 0.8 rad about z
+    assert pose_of(q)[2] == pytest.approx(0.8, abs=1e-12)
