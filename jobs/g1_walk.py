@@ -312,7 +312,8 @@ def _run(ctx: RunContext, params: WalkParams, robot: Robot, walker: WalkingContr
         source = "truth log"
     values.update(_displacement(q0, q1, run_log.t_s, clamp.applied), displacement_source=source)
     if course is not None:
-        values.update(course.values(q1))
+        cycle_s = 2 * walker.config.timing.step_s
+        values.update(course.values(q1), path_m=path_length(run_log.t_s, run_log.q, cycle_s))
     truth_fell = report_plant(ctx, p, run_log, G1_FALL.base_min_z_m)
     if truth_fell is not None:
         values["fell"] = truth_fell
@@ -323,6 +324,19 @@ def _run(ctx: RunContext, params: WalkParams, robot: Robot, walker: WalkingContr
 
     walk_plots(ctx, log, walker, params, values)
     return _outcome(params, values, iface.time_s)
+
+
+def path_length(t_s: np.ndarray, q: np.ndarray, period_s: float) -> float:
+    """The base's path length [m] in the floor plane, sampled once per ``period_s`` (a gait cycle).
+
+    Sampled at the same phase of each gait cycle (two steps), the sway from foot to foot cancels;
+    the run's last state closes the path.
+    """
+    if len(t_s) < 2:
+        return 0.0
+    at = np.arange(t_s[0], t_s[-1], period_s)
+    rows = np.unique(np.append(np.searchsorted(t_s, at), len(t_s) - 1))
+    return float(np.linalg.norm(np.diff(q[rows, :2], axis=0), axis=1).sum())
 
 
 def _truth_q(row: np.void) -> np.ndarray:
@@ -375,9 +389,10 @@ def _outcome(params: WalkParams, v: dict[str, Any], time_s: float) -> Outcome:
     of_command = "" if params.scenario == "course" else (
         f", {what} {100 * (fraction or 0):.1f} % of the command ({v['yaw_rad']:.2f} of "
         f"{v['commanded_yaw_rad']:.2f} rad turned)")
+    moved = (f"{v['path_m']:.2f} m walked ({v['distance_m']:.3f} m from the start)" if "path_m" in v
+             else f"{v['distance_m']:.3f} m at {v['mean_speed_m_s'] or 0:.3f} m/s")
     lines = (
-        f"g1-walk {params.scenario} {time_s:.2f} s: {fell}; {v['steps']} steps, {v['distance_m']:.3f} m at "
-        f"{v['mean_speed_m_s'] or 0:.3f} m/s{of_command}",
+        f"g1-walk {params.scenario} {time_s:.2f} s: {fell}; {v['steps']} steps, {moved}{of_command}",
         f"foot slip max {_mm(v['max_foot_slip_m'])}, median {_mm(v['median_foot_slip_m'])}; DCM RMS "
         f"{_mm(v['dcm_rms_m'])}; ZMP reference margin min {_mm(v['min_zmp_margin_m'])}; contact force QP vs "
         f"MuJoCo in single support median {_n(force.get('median_N'))}, p95 {_n(force.get('p95_N'))}, max "

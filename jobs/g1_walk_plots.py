@@ -56,8 +56,9 @@ def _top_view(ctx: RunContext, log: WalkLog, walker: WalkingController, params: 
     ax.legend(fontsize=8, loc="upper left", bbox_to_anchor=(1.01, 1.0))
     verdict = "FELL" if values["fell"] else "walked"
     command = ", ".join(f"{v:g}" for v in params.command)
+    moved = (f"{values['path_m']:.2f} m walked" if "path_m" in values else f"{values['distance_m']:.2f} m")
     fig.suptitle(f"G1 walking, {params.scenario} at ({command}): {verdict}, {values['steps']} steps, "
-                 f"{values['distance_m']:.2f} m; DCM RMS {values['dcm_rms_m'] * 1e3:.1f} mm")
+                 f"{moved}; DCM RMS {values['dcm_rms_m'] * 1e3:.1f} mm")
     ctx.save_figure(fig, "g1_walk.png")
 
 

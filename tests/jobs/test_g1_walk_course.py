@@ -8,6 +8,7 @@ import numpy as np
 import pytest
 
 from mbctl.control.exceptions import WBCSetupError
+from mbctl.jobs.g1_walk import path_length
 from mbctl.jobs.g1_walk_choices import WALK_DEFAULT_SPEED
 from mbctl.jobs.g1_walk_course import DEFAULT_COURSE, capped, parse_waypoints, pose_of
 from mbctl.planners import VelocityCommand
@@ -43,3 +44,14 @@ def test_waypoints_parse_from_text_and_files_and_bad_ones_are_named(tmp_path):
     q = np.zeros(7)
     q[3:7] = [0, 0, math.sin(0.4), math.cos(0.4)]  # (x, y, z, w): 0.8 rad about z
     assert pose_of(q)[2] == pytest.approx(0.8, abs=1e-12)
+
+
+def test_the_path_length_samples_once_a_gait_cycle_so_the_sway_cancels():
+    t = np.arange(0, 10.0 + 1e-9, 0.002)
+    q = np.zeros((len(t), 7))
+    q[:, 0], q[:, 1] = 0.3 * t, 0.05 * np.sin(2 * math.pi * t / 1.0)  # 0.3 m/s, 5 cm sway each gait cycle
+    assert path_length(t, q, 1.0) == pytest.approx(3.0, abs=1e-9)
+    sway = np.linalg.norm(np.diff(q[:, :2], axis=0), axis=1).sum()
+    assert sway > 3.6  # every cycle's path counts the sway (the figure the course reports is not this)
+    q[:, 0] = np.where(t < 5, 0.3 * t, 1.5 - 0.3 * (t - 5))  # out and back: 3 m walked, 0 m from the start
+    assert path_length(t, q, 1.0) == pytest.approx(3.0, abs=1e-9) and path_length(t[:1], q[:1], 1.0) == 0.0
