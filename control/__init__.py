@@ -30,13 +30,14 @@ from mbctl.control.exceptions import (
     WBCSetupError,
 )
 from mbctl.control.gains import PDGains, gains_from_frequency
-from mbctl.control.loop import RunLog, presample, run
+from mbctl.control.loop import ColumnStats, RunLog, RunStats, presample, run
 from mbctl.control.pd import JointPD
 from mbctl.control.pd_gravity import PDGravity
 from mbctl.control.position_pd import PositionTargetPD
 from mbctl.control.task_space import TaskSpaceComputedTorque
 
 __all__ = [
+    "ColumnStats",
     "ComputedTorque",
     "ControlError",
     "Controller",
@@ -53,6 +54,7 @@ __all__ = [
     "PositionTargetPD",
     "ReferenceMismatch",
     "RunLog",
+    "RunStats",
     "SingularJacobian",
     "TaskReference",
     "TaskSetupError",

@@ -216,7 +216,7 @@ def _run(ctx: RunContext, params: ExciteParams, nominal: Robot, models: Models, 
         fell = fell or "the bridge's truth log: the pelvis went below the fall height"
     com, com_from = np.asarray(log.com), "the plant" if monitor is not None else "the estimated state"
     if p.options.truth is not None and len(log.t):
-        com, com_from = truth_com(p.options.truth, run_log.tick[:len(log.t)], run_log.q[:len(log.t)]), "truth"
+        com, com_from = truth_com(p.options.truth, run_log.tick[:len(log.t)], run_log.q[:1]), "truth"
     com_err = com - np.asarray(log.com_ref)
     checked = monitor is not None or truth_fell is not None  # over DDS without a truth log: unchecked
     ctx.values.update({"duration_s": log.t[-1] - log.t[0] + dt if log.t else 0.0, "rows": len(log.t),

@@ -218,7 +218,7 @@ def _run(ctx: RunContext, params: WBCParams, robot: Robot, pin_model: pin.Model 
     values = log.values(sim)
     truth_fell = report_plant(ctx, p, run_log, G1_FALL.base_min_z_m)
     if p.options.truth is not None:
-        com_W = truth_com(p.options.truth, run_log.tick, run_log.q[:run_log.cycles])
+        com_W = truth_com(p.options.truth, run_log.tick, run_log.q[:1])  # every tick; the first estimate
         values = log.with_truth(com_W, bool(truth_fell))
     from mbctl.jobs.wbc_plots import wbc_plots
 

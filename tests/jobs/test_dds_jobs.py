@@ -251,3 +251,22 @@ def test_a_reserved_domain_is_skipped_by_every_process_until_released():
     with pytest.raises(ChannelError, match="0 is DDS's default domain"):
         with reserve_domain(0):
             pass
+
+
+def test_truth_checks_of_a_decimated_log_leave_the_largest_estimator_errors_unchecked(tmp_path):
+    """A log that kept every 4th of 10 cycles (and the last): the truth window is every cycle's."""
+    q = np.zeros((4, 7))
+    q[:, 2], q[:, 6] = 0.79, 1.0
+    q[-1, 2] = 0.80  # the last cycle's estimate 10 mm high
+    log = RunLog(np.arange(10) * 0.002, q, np.zeros((4, 6)), np.zeros((4, 1)), np.zeros((4, 1)),
+                 np.zeros((4, 1)), 0.02, np.arange(10, 20), np.array([0, 4, 8, 9]), 4)
+    loop = (1_800_000_000.0, 1_800_000_000.02)
+    truth = _truth_log(tmp_path / "ours.csv", range(100), loop[0] - 0.02)
+    values = truth_checks(truth, log.tick, log, 0.5, loop)
+    assert values["truth_commands_applied"] == 9 and values["truth_rows"] == 10  # ticks 10..19: every cycle
+    assert values["estimator_position_error_final_m"] == pytest.approx(0.01, abs=1e-12)
+    assert values["estimator_position_error_max_m"] is None
+    assert values["estimator_orientation_error_max_deg"] is None
+    assert values["estimator_errors_over"] == (
+        "not checked: the loop's log kept every 4th of 10 cycles (control.loop.MAX_LOG_ROWS); run shorter "
+        "pieces to check them")
