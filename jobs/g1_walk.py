@@ -313,7 +313,7 @@ def _run(ctx: RunContext, params: WalkParams, robot: Robot, walker: WalkingContr
     values.update(_displacement(q0, q1, run_log.t_s, clamp.applied), displacement_source=source)
     if course is not None:
         cycle_s = 2 * walker.config.timing.step_s
-        values.update(course.values(q1), path_m=path_length(run_log.t_s, run_log.q, cycle_s))
+        values.update(course.values(q1), path_m=path_length(run_log.row_time_s, run_log.q, cycle_s))
     truth_fell = report_plant(ctx, p, run_log, G1_FALL.base_min_z_m)
     if truth_fell is not None:
         values["fell"] = truth_fell
