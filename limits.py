@@ -4,7 +4,8 @@ Each limit is a module constant with the reason it was chosen; :class:`SizeLimit
 value, the limit and what to do instead. The figures were measured on this project's machine
 (2 cores): Pinocchio's ``Data`` grows as about 66 bytes x nv^3 (0.23 GB at nv=150, 1.7 GB at 300),
 MuJoCo's MJCF parser takes about 30 s for 20,000 bodies, a control-loop run keeps every cycle in
-its CSV and (for replay) in memory.
+its CSV and at most 100,000 rows in memory and for replay (every Nth cycle of a longer run:
+``mbctl.control.loop.MAX_LOG_ROWS``, ``mbctl.sim.recorder.MAX_REPLAY_SAMPLES``).
 """
 
 from __future__ import annotations
