@@ -5,7 +5,7 @@
 samples, the figures' sums) is allocated before the first cycle; a cycle allocates only what the
 controller and the interface allocate themselves.
 
-Memory is bounded: the log keeps at most :data:`MAX_LOG_ROWS` rows of q, v, command and reference
+Memory is bounded: the log keeps at most ``MAX_LOG_ROWS`` rows of q, v, command and reference
 (every ``stride``-th cycle and the last of a longer run), its times and ticks every cycle (16 bytes
 a cycle), and :class:`RunStats` sums every cycle, so a figure over the whole run (an RMS, a largest
 deviation) stays exact however long the run. A JointTrajectory reference is sampled
@@ -98,7 +98,7 @@ class RunLog:
     """What one run measured (the state before each cycle's command).
 
     The times and ticks cover every cycle. The rows (q, v, command, reference) are every cycle of
-    a run of at most :data:`MAX_LOG_ROWS` cycles (``stride`` 1); a longer one keeps every
+    a run of at most ``MAX_LOG_ROWS`` cycles (``stride`` 1); a longer one keeps every
     ``stride``-th cycle and the last, ``cycle`` naming each row's cycle. Figures over the whole run
     come from ``stats``, which sums every cycle.
 
@@ -152,6 +152,29 @@ class RunLog:
     def row_tick(self) -> np.ndarray:
         """Each row's tick (R,)."""
         return self.tick[self.cycle]
+
+    def sums(self) -> RunStats:
+        """The sums over every cycle.
+
+        Raises:
+            ControlError: A log made by hand (no sums).
+        """
+        if self.stats is None:
+            raise ControlError("this RunLog has no sums over its cycles (a log made by hand, not by run())")
+        return self.stats
+
+    def error_sums(self) -> ColumnStats:
+        """The joint tracking error's sums over every cycle.
+
+        Raises:
+            ControlError: No error summed (the loop sums it for a joint reference and a controller
+                with a joint map).
+        """
+        error = self.sums().error
+        if error is None:
+            raise ControlError("the control loop summed no joint tracking error (a joint reference and a "
+                               "controller with a joint map are needed)")
+        return error
 
 
 def log_stride(n_cycles: int, max_rows: int) -> int:
@@ -326,7 +349,7 @@ def run(
             (n,) [rad] the others hold.
 
     Returns:
-        The RunLog: at most :data:`MAX_LOG_ROWS` rows, times, ticks and stats of every cycle.
+        The RunLog: at most ``MAX_LOG_ROWS`` rows, times, ticks and stats of every cycle.
 
     Raises:
         ControlError: A non-positive or non-finite duration.

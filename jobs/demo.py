@@ -42,6 +42,7 @@ from mbctl.control.pd import JointPD
 from mbctl.control.pd_gravity import PDGravity
 from mbctl.control.task_space import TaskSpaceComputedTorque
 from mbctl.jobs.choices import CONTROLLERS
+from mbctl.jobs.demo_errors import SquareErrors
 from mbctl.jobs.model_options import ModelOptions, build_models, models_line
 from mbctl.jobs.plots import new_figure
 from mbctl.jobs.recording import LoopRows, PlantSite, command_columns
@@ -263,7 +264,7 @@ def track_square(
     at_end = t_rel >= cart.t_s[-1]
     p_ref = cart.p[idx, :2]
     q_ref_task = presample(q_traj, t_rel, controller.joints)[0] if name == "task_ct" else None
-    errors = _SquareErrors(PlantSite(robot, SITE), p_ref, q_ref_task, controller.joint_map.idx_q,
+    errors = SquareErrors(PlantSite(robot, SITE), p_ref, q_ref_task, controller.joint_map.idx_q,
                            sim.control_period_s, sim.time_s)
 
     def on_step(k: int, state: RobotState, ref: Any, command: object) -> None:
@@ -302,7 +303,7 @@ def track_square(
         joint_rms = errors.joint_rms()
     else:
         log = run(sim, controller, q_traj, duration, on_step)
-        joint_rms = log.stats.error.rms_all()  # type: ignore[union-attr]  # a joint trajectory's
+        joint_rms = log.error_sums().rms_all()  # a joint trajectory's
     # the figures: every cycle's errors; the curves: the log's rows
     p = PlantSite(robot, SITE).many(log.q)[:, :2]
     result = Tracking(
@@ -319,46 +320,6 @@ def track_square(
         log,
     )
     return result, sim
-
-
-class _SquareErrors:
-    """Every cycle's Cartesian error (and a task-space controller's joint error), summed as the loop runs.
-
-    Args:
-        site: The end effector on the plant.
-        p_ref: Reference positions (N, 2) [m] of each cycle.
-        q_ref: Joint references (N, n) [rad] of each cycle for the joint error, or None.
-        idx_q: The controller's joints' indices in q (n,).
-        period_s: The control period [s].
-        t_start_s: The plant's time at the first cycle [s].
-    """
-
-    def __init__(self, site: PlantSite, p_ref: np.ndarray, q_ref: np.ndarray | None, idx_q: np.ndarray,
-                 period_s: float, t_start_s: float):
-        self.site, self.p_ref, self.q_ref, self.idx_q = site, p_ref, q_ref, idx_q
-        self.period_s, self.t_start_s = period_s, t_start_s
-        self.count, self.sum_sq, self.max, self.joint_sum_sq = 0, 0.0, 0.0, 0.0
-
-    def __call__(self, state: RobotState) -> tuple[int, np.ndarray, float]:
-        """Add the cycle of ``state``; its index, end-effector position (3,) [m] and error [m]."""
-        k = min(int(round((state.time_s - self.t_start_s) / self.period_s)), len(self.p_ref) - 1)
-        p = self.site(state.q)
-        e = float(np.hypot(*(self.p_ref[k] - p[:2])))
-        self.count += 1
-        self.sum_sq += e * e
-        self.max = max(self.max, e)
-        if self.q_ref is not None:
-            d = self.q_ref[k] - state.q[self.idx_q]
-            self.joint_sum_sq += float(d @ d)
-        return k, p, e
-
-    def rms(self) -> float:
-        """RMS Cartesian error [m] over every cycle."""
-        return float(np.sqrt(self.sum_sq / self.count))
-
-    def joint_rms(self) -> float:
-        """RMS joint error [rad] over every cycle and joint (with ``q_ref``)."""
-        return float(np.sqrt(self.joint_sum_sq / (self.count * len(self.idx_q))))
 
 
 def pd_gain_note(robot: Robot, config: DemoConfig, q0: np.ndarray) -> tuple[list[str], dict[str, Any]]:

@@ -227,7 +227,7 @@ def _run_fixed(ctx: RunContext, params: ExciteParams, nominal: Robot, models: Mo
     idx_q = [plant.joint(j).idx_q for j in joints]
     q_ref, q_log = log.reference, log.q[:, idx_q]  # the loop log's rows, for the plot
     ctx.values.update({"duration_s": n * dt, "rows": n, "condition_number": design.condition_number,
-                       "joint_rms_error_rad": log.stats.error.rms_all(),  # type: ignore[union-attr]  # every cycle
+                       "joint_rms_error_rad": log.error_sums().rms_all(),  # every cycle
                        "max_torque_N_m": dict(zip(joints, np.abs(tau_log).max(0).tolist(), strict=True)),
                        "samples_with_other_contacts": int(others),
                        "contact_rows": {"count": int(others), "fraction": others / n, "geom_pairs": touched}})

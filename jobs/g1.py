@@ -40,16 +40,17 @@ from mbctl.control.computed_torque import ComputedTorque
 from mbctl.control.controller import ControllerBase, joint_reference
 from mbctl.control.exceptions import ControlError, ControllerSetupError
 from mbctl.control.gains import PDGains, gains_from_frequency
-from mbctl.control.loop import ColumnStats, RunLog, run
+from mbctl.control.loop import RunLog, run
 from mbctl.control.pd_gravity import PDGravity
 from mbctl.control.position_pd import PositionTargetPD
 from mbctl.jobs.g1_plots import stand_plot, tracking_plot
+from mbctl.jobs.g1_references import ARM_LIMITS, arm_trajectory, track_waypoints
 from mbctl.jobs.model_options import ModelOptions, build_models, models_line
 from mbctl.jobs.plant import Plant, PlantOptions, dry_run, plant_lines, prepare_plant, report_plant
 from mbctl.jobs.recording import LoopRows, command_columns
 from mbctl.jobs.runner import Job, Outcome, RunContext, Work
 from mbctl.limits import check_duration
-from mbctl.planners.ruckig_planner import JointLimits, plan_ruckig, plan_waypoints
+from mbctl.planners.ruckig_planner import JointLimits, plan_waypoints
 from mbctl.planners.trajectory import JointTrajectory
 from mbctl.robots.edits import position_to_motor, weld_base
 from mbctl.robots.g1 import G1_FALL, KEYFRAME, LEG_WORDS
@@ -62,7 +63,6 @@ from mbctl.sim.simulator import Simulator
 #: Joint limits of the tracking trajectories: velocity [rad/s], acceleration [rad/s^2],
 #: jerk [rad/s^3] (well inside the G1's actuator capabilities).
 TRACK_LIMITS = (2.0, 10.0, 80.0)
-ARM_LIMITS = (1.5, 6.0, 40.0)
 
 
 def stance_inertia(robot: Robot, q: np.ndarray, joints: tuple[str, ...]) -> np.ndarray:
@@ -106,52 +106,6 @@ def damping_with_margin(gains: PDGains, robot: Robot, q: np.ndarray, joints: tup
     M = pin.crba(robot.pin_model, robot.pin_model.createData(), q)
     own = np.array([M[robot.joint(j).idx_v, robot.joint(j).idx_v] for j in joints])
     return PDGains(gains.kp, np.minimum(gains.kd, own / MARGIN_DELAY_S))
-
-
-def _set(q: np.ndarray, names: list[str], values: dict[str, float]) -> np.ndarray:
-    out = q.copy()
-    for k, v in values.items():
-        out[names.index(k)] = v
-    return out
-
-
-def track_waypoints(robot: Robot) -> np.ndarray:
-    """Waypoints (4, nq) [rad] for the welded G1: start (legs bent, feet clear), A, B, start."""
-    names = list(robot.joints)
-    q0 = robot.keyframe_q(KEYFRAME)
-    legs_bent = {f"{s}_{j}_joint": v for s in ("left", "right")
-                 for j, v in (("hip_pitch", -0.3), ("knee", 0.6), ("ankle_pitch", -0.3))}
-    start = _set(q0, names, legs_bent)
-    a = _set(start, names, {
-        "left_hip_pitch_joint": -0.6, "left_knee_joint": 1.0, "left_ankle_pitch_joint": -0.3,
-        "right_hip_pitch_joint": -0.3, "right_knee_joint": 0.8, "right_ankle_pitch_joint": -0.4,
-        "left_shoulder_pitch_joint": -0.8, "left_shoulder_roll_joint": 0.5, "left_elbow_joint": 0.3,
-        "right_shoulder_pitch_joint": 0.4, "right_shoulder_roll_joint": -0.4,
-        "right_elbow_joint": 1.2, "left_wrist_roll_joint": 0.5, "right_wrist_pitch_joint": -0.4,
-        "waist_yaw_joint": 0.3})
-    b = _set(start, names, {
-        "left_hip_pitch_joint": -0.5, "left_knee_joint": 0.9, "left_hip_roll_joint": 0.25,
-        "right_hip_pitch_joint": -0.2, "right_knee_joint": 0.6, "right_hip_roll_joint": -0.25,
-        "left_shoulder_pitch_joint": 0.3, "left_shoulder_yaw_joint": 0.4, "left_elbow_joint": 1.0,
-        "right_shoulder_pitch_joint": -0.6, "right_shoulder_yaw_joint": -0.3,
-        "right_elbow_joint": 0.5, "left_wrist_yaw_joint": -0.5, "right_wrist_roll_joint": 0.4,
-        "waist_yaw_joint": -0.2})
-    return np.vstack([start, a, b, start])
-
-
-def arm_trajectory(robot: Robot, side: str, dt_s: float) -> JointTrajectory:
-    """A ruckig trajectory of one arm: keyframe -> raised and bent -> keyframe (7 joints)."""
-    names = tuple(f"{side}_{j}_joint" for j in ("shoulder_pitch", "shoulder_roll", "shoulder_yaw",
-                                                  "elbow", "wrist_roll", "wrist_pitch", "wrist_yaw"))
-    q0 = robot.keyframe_q(KEYFRAME)
-    start = np.array([q0[robot.joint(n).idx_q] for n in names])
-    s = 1.0 if side == "left" else -1.0
-    goal = start + np.array([-0.9, 0.4 * s, 0.3 * s, 0.6, 0.4 * s, -0.3, 0.3 * s])
-    limits = JointLimits.uniform(len(names), *ARM_LIMITS)
-    there = plan_ruckig(start, goal, limits, dt_s, names)
-    back = plan_ruckig(goal, start, limits, dt_s, names)
-    return there.then(back)
-
 
 
 #: Pelvis height change [m] a standing job must stay within (a bound on standing quality; whether
@@ -298,7 +252,7 @@ def _stand(ctx: RunContext, params: StandParams, robot: Robot, gains: PDGains, i
     monitor = _fall_monitor(p)
     log = _loop(ctx, sim, controller, reference, params.duration_s, "N_m", "g1-stand", base_z=True)
     zi = _base_z_index(robot)
-    stats, error = log.stats, _error_stats(log)
+    stats, error = log.sums(), log.error_sums()
     z_final = float(sim.read_state().q[zi])
     # every cycle's pelvis height (the loop's sums) and the final state's
     z_min, z_max = min(float(stats.q.min[zi]), z_final), max(float(stats.q.max[zi]), z_final)
@@ -361,14 +315,6 @@ def _fall_reason(ctx: RunContext, p: Plant, log: RunLog, monitor: PlantMonitor |
     return G1_FALL.reason(z_min, ())
 
 
-def _error_stats(log: RunLog) -> ColumnStats:
-    """The joint tracking error's sums over every cycle (the loop sums it for a joint reference)."""
-    if log.stats is None or log.stats.error is None:
-        raise ControlError("the control loop summed no joint tracking error (a joint reference and a "
-                           "controller with a joint map are needed)")
-    return log.stats.error
-
-
 def _off_bound(ctx: RunContext, estimated_deviation_m: float) -> bool:
     """The pelvis moved more than PELVIS_BOUND_M (the truth log's word over the estimate's)."""
     deviation = ctx.values.get("truth_pelvis_max_deviation_m", estimated_deviation_m)
@@ -421,7 +367,7 @@ def _tracking_outcome(ctx: RunContext, name: str, log: RunLog, controller: Contr
     fall rule), the robot stands on the floor: a fall, or the pelvis moving more than
     ``PELVIS_BOUND_M``, fails the run too.
     """
-    error = _error_stats(log)
+    error = log.error_sums()
     rms_by_joint = error.rms()
     rms = error.rms_all()
     err = log.reference - log.q[:, controller.joint_map.idx_q]  # the rows: the last is the last cycle
@@ -496,7 +442,7 @@ def _arm_pd(ctx: RunContext, params: ArmPDParams, robot: Robot, traj: JointTraje
     log = _loop(ctx, sim, controller, traj, duration, "rad", f"g1-arm-pd ({params.side} arm)",
                 base_z=True)
     zi = _base_z_index(robot)
-    stats = log.stats
+    stats = log.sums()
     idx_others = [robot.joint(j).idx_q for j in others]
     reason = _fall_reason(ctx, p, log, monitor, float(stats.q.min[zi]))
     # every cycle's (the loop's sums); the rows below are for the plot

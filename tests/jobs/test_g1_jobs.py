@@ -217,9 +217,10 @@ def test_g1_params_are_checked():
     with pytest.raises(ToolkitError, match="side must be 'left' or 'right'; got 'up'"):
         ArmPDParams(side="up")
     # an hour on the robot is ordinary (the CSV streams, the replay is bounded); the cap is an hour
-    assert StandParams(duration_s=3600.0).duration_s == ArmPDParams(duration_s=3600.0).duration_s == 3600.0
-    with pytest.raises(ToolkitError, match="--duration 3,601 s exceeds mbctl's limit of 3,600 s; a run over an "
-                                           "hour is a CSV of over 1.8 million rows"):
+    assert StandParams(duration_s=3600.0).duration_s == 3600.0
+    assert ArmPDParams(duration_s=3600.0).duration_s == 3600.0
+    with pytest.raises(ToolkitError, match="--duration 3,601 s exceeds mbctl's limit of 3,600 s; a run over "
+                                           "an hour is a CSV of over 1.8 million rows"):
         StandParams(duration_s=3601.0)
 
 
