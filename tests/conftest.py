@@ -214,9 +214,50 @@ class _FileProgress:
             self._close_line()
 
 
-@pytest.hookimpl(trylast=True)  # after the terminal reporter is registered
+class _WorkersFileProgress:
+    """Under pytest-xdist (``-n 2``): a line per test file once its last test reported.
+
+    The workers' reports reach the controller interleaved, so a file's line is written when its
+    count of tests is done, with the summed durations of its tests (setup, call, teardown) on
+    its worker: ``tests/jobs/test_g1_jobs.py: 17 tests (34.7 s)``.
+    """
+
+    def __init__(self, reporter: pytest.TerminalReporter):
+        self.reporter = reporter
+        self.left: dict[str, int] | None = None
+        self.total: dict[str, int] = {}
+        self.seconds: dict[str, float] = {}
+        self.dots = False  # the reporter wrote a test's letter since this plugin's last line
+
+    def pytest_xdist_node_collection_finished(self, node: object, ids: list[str]) -> None:
+        if self.left is None:  # every worker collects the same tests
+            self.total = {}
+            for nodeid in ids:
+                path = nodeid.split("::", 1)[0]
+                self.total[path] = self.total.get(path, 0) + 1
+            self.left = dict(self.total)
+
+    def pytest_runtest_logreport(self, report: pytest.TestReport) -> None:
+        path = report.nodeid.split("::", 1)[0]
+        self.seconds[path] = self.seconds.get(path, 0.0) + report.duration
+        self.dots = self.dots or report.when == "call" or not report.passed
+        if report.when != "teardown" or self.left is None or path not in self.left:
+            return
+        self.left[path] -= 1
+        if self.left[path] == 0:
+            if self.dots:
+                self.reporter.write("\n")
+            self.reporter.write_line(f"{path}: {self.total[path]} tests ({self.seconds[path]:.1f} s)")
+            self.dots = False
+
+
+@pytest.hookimpl(trylast=True)  # after the terminal reporter (and pytest-xdist's session) are registered
 def pytest_configure(config: pytest.Config) -> None:
     reporter = config.pluginmanager.get_plugin("terminalreporter")
-    if reporter is not None and config.get_verbosity() <= 0:
+    if reporter is None or config.get_verbosity() > 0 or hasattr(config, "workerinput"):
+        return  # verbose runs name every test; a worker's terminal is not shown
+    if config.pluginmanager.hasplugin("dsession"):  # the controller of pytest -n N
+        config.pluginmanager.register(_WorkersFileProgress(reporter), "mbctl-file-progress")
+    else:
         reporter.showfspath = True
         config.pluginmanager.register(_FileProgress(reporter), "mbctl-file-progress")

@@ -56,7 +56,8 @@ def test_quickstart_has_exactly_the_two_commands():
     commands = [ln for ln in block[0].splitlines() if ln.strip()]
     assert commands == [
         "python3 -m venv .venv && .venv/bin/pip install -e . && .venv/bin/mbctl demo",
-        "python3 -m venv .venv && .venv/bin/pip install -e '.[test]' && .venv/bin/python -m pytest -q",
+        "python3 -m venv .venv && .venv/bin/pip install -e '.[test]' && .venv/bin/python -m pytest -q -n 2 "
+        "--dist loadfile",
     ]
     assert block[1].strip() == "source .venv/bin/activate"
 
