@@ -216,10 +216,12 @@ class StepLimits:
         """
         if not self.sole_xy_m:
             return self.min_width_m
-        p = np.asarray(self.sole_xy_m, dtype=float)
-        clearance = self.min_width_m - float(p[:, 1].max() - p[:, 1].min())
-        turned_y = math.sin(dyaw_rad) * p[:, 0] + math.cos(dyaw_rad) * p[:, 1]
-        width = clearance + float((side * p[:, 1]).max() - (side * turned_y).min())
+        # plain floats over the outline's few points: numpy's per-call cost is larger (called for
+        # every previewed footstep, every cycle)
+        c, s = math.cos(dyaw_rad), math.sin(dyaw_rad)
+        ys = [y for _, y in self.sole_xy_m]
+        clearance = self.min_width_m - (max(ys) - min(ys))
+        width = clearance + max(side * y for y in ys) - min(side * (s * x + c * y) for x, y in self.sole_xy_m)
         return min(max(width, self.min_width_m), self.nominal_width_m + self.max_outward_m)
 
 
