@@ -3,8 +3,15 @@
 Each cycle (the control loop's ``on_step``, after the plant ran the command) puts side by side
 what the QP predicted and what MuJoCo did (:class:`~mbctl.sim.monitor.PlantMonitor`): per foot the
 normal and tangential force and the centre of pressure, the CoM against its reference, and the
-slip of each supporting foot. Logs are preallocated arrays; the report's values are refreshed
-every 50 cycles so an interrupted run keeps them.
+slip of each supporting foot. The report's values are refreshed every :data:`VALUES_EVERY` cycles
+so an interrupted run keeps them.
+
+Memory is bounded and every figure is over every cycle. The CSV streams every cycle's row. The
+plots' rows (:meth:`WBCLog.record`) are every ``stride``-th cycle and the last, at most
+``MAX_LOG_ROWS`` (the control loop's cap, :func:`mbctl.control.loop.log_stride`). The RMS, the
+largest and smallest values are summed cycle by cycle (:class:`CoMErrorSums`, ``_Extremes``); the
+medians and 95th percentiles need every cycle's value, kept as float32 (32 bytes a cycle
+in-process, 36 over DDS: see ``_QUANTILES``), so a run of an hour keeps about 60 MB.
 """
 
 from __future__ import annotations
@@ -15,7 +22,9 @@ from typing import Any, NamedTuple
 
 import numpy as np
 
+from mbctl.control.loop import MAX_LOG_ROWS, log_rows, log_stride
 from mbctl.control.wbc import Standing, WBCSolution
+from mbctl.jobs.log_sums import CoMErrorSums, nan_max, nan_min, quantile
 from mbctl.jobs.runner import RunContext
 from mbctl.robots.commands import Command
 from mbctl.robots.g1 import FEET
@@ -42,8 +51,18 @@ SETTLE_S = 0.05
 _PER_FOOT = 9
 #: A foot's MuJoCo columns and slip when the plant is not observed (over DDS).
 _NO_PLANT = (float("nan"),) * 5
-#: What each cycle's row keeps after the CSV's columns (the record's other fields).
-_EXTRA = ("t_plant", "stance", "ctrl_us", "qp_us", "slip", "cycle_us", "physics_us")
+#: What each kept row holds after the CSV's columns (the record's other fields, and the CoM error
+#: of the last plant sample compared: its plant time [s] and norm [m]).
+_EXTRA = ("t_plant", "stance", "ctrl_us", "qp_us", "slip", "cycle_us", "physics_us", "com_err_t", "com_err_m")
+#: The per-cycle values kept for the medians and 95th percentiles, float32 each (4 bytes a cycle;
+#: a float32 keeps 7 significant digits: 0.03 ns of a 500 us cycle, 1e-7 of a force error). In-process
+#: (32 bytes a cycle): the cycle counts in the contact-force statistics (stance, settled, QP not in
+#: fallback: 1, else 0), |sum f_z QP - MuJoCo| / m g, each foot's |f_z QP - MuJoCo| / m g, the
+#: controller's, QP's, whole cycle's and physics step's times [us]. Over DDS the plant's forces and
+#: physics step are not observed: the three times alone (12 bytes, and the CoM reference's 24 bytes
+#: a cycle for :meth:`WBCLog.with_truth`).
+_QUANTILES = ("stance", "rel", *(f"{f}_rel" for f in FEET), "ctrl_us", "qp_us", "cycle_us", "physics_us")
+_QUANTILES_DDS = ("ctrl_us", "qp_us", "cycle_us")
 
 
 class WBCRecord(NamedTuple):
@@ -100,7 +119,17 @@ def com_tracking_error(r: WBCRecord) -> np.ndarray:
 
 
 class WBCLog:
-    """Records a g1-wbc run cycle by cycle into preallocated arrays of ``n`` cycles."""
+    """Records a g1-wbc run cycle by cycle: the CSV, kept rows, every cycle's sums and quantile inputs.
+
+    Args:
+        ctx: The run.
+        wb: The standing controller.
+        monitor: The plant's measurements (None over DDS).
+        pushes: The pushes on the plant, or None.
+        n: Cycles of the run (the arrays are preallocated for them).
+        mg_n: The plant's weight m g [N].
+        q_names: The CSV's columns of q.
+    """
 
     def __init__(self, ctx: RunContext, wb: Standing, monitor: PlantMonitor | None,
                  pushes: PushSchedule | None, n: int, mg_n: float, q_names: list[str]):
@@ -113,19 +142,36 @@ class WBCLog:
                        f"{f}_fz_mj_N", f"{f}_ft_mj_N", f"{f}_cop_x_mj_m", f"{f}_cop_y_mj_m", f"{f}_slip_m"]
         header += [f"tau_{a}_N_m" for a in ctrl.joints.actuators] + q_names
         self.csv = ctx.open_csv(header)
-        # One preallocated row per cycle: the CSV's columns up to the torques, then what only the
-        # record keeps; the record's fields are views. The torques and q go to the CSV only (a
-        # scratch row): they are 65 of the G1's 100 columns, 0.9 GB of an hour's run kept for nothing.
+        # The kept rows (every stride-th cycle and the last, for the plots): the CSV's columns up to
+        # the torques, then what only the record keeps; the record's fields are views. The torques and
+        # q go to the CSV only (a scratch row). A cycle not kept is written to the next kept row's
+        # place and overwritten, as the control loop's log does: the run's last cycle is always kept.
         w, nf, nt = len(header), len(FEET), len(ctrl.joints.actuators)
         feet_at = header.index(f"{FEET[0]}_fz_qp_N")
         self._tau = slice(feet_at + _PER_FOOT * nf, feet_at + _PER_FOOT * nf + nt)
         self._q = slice(self._tau.stop, w)
         self._csv_row = np.zeros(w)
         kept = self._tau.start
-        self._rows = np.zeros((n, kept + len(_EXTRA)))
-        self._rows[:, kept + _EXTRA.index("cycle_us")] = np.nan  # the first cycle has no start
-        self._feet = self._rows[:, feet_at:feet_at + _PER_FOOT * nf].reshape(n, nf, _PER_FOOT)
+        self.n, self.stride = n, log_stride(n, MAX_LOG_ROWS)
+        rows = log_rows(n, self.stride)
+        self._rows = np.zeros((rows, kept + len(_EXTRA)))
         self._extra = {name: kept + i for i, name in enumerate(_EXTRA)}
+        self._rows[:, self._extra["cycle_us"]] = np.nan  # the first cycle has no start
+        self._feet = self._rows[:, feet_at:feet_at + _PER_FOOT * nf].reshape(rows, nf, _PER_FOOT)
+        self._row = 0  # the kept row this cycle goes to
+        # every cycle's values for the medians and 95th percentiles (_QUANTILES), one store a cycle
+        names = _QUANTILES if monitor is not None else _QUANTILES_DDS
+        self._qcol = {name: i for i, name in enumerate(names)}
+        self._quantiles = np.zeros((n, len(names)), dtype=np.float32)
+        # over DDS, every cycle's CoM reference (n, 3) [m] (24 bytes a cycle): with_truth compares the
+        # truth log's CoM with it after the run (in-process the error is summed as the run goes)
+        self._com_ref = np.zeros((n, 3)) if monitor is None else np.zeros((0, 3))
+        self.com_sums = CoMErrorSums()
+        # every cycle's extremes: largest slip, rel. force error in and out of the settling period,
+        # lowest pelvis [m]; the first cycle's time [s] (the settling period's start)
+        self._slip_max, self._rel_max, self._settling_max = 0.0, -math.inf, -math.inf
+        self._z_min = math.inf
+        self._t0 = math.nan
         self.k = 0
         self.com_from_truth = False  # with_truth replaced the estimated CoM by the plant's
         self._last_cycle_end: float | None = None
@@ -136,13 +182,31 @@ class WBCLog:
             self._groups = [monitor.group_names.index(f) for f in FEET]
             self._sites = [monitor.site_names.index(f) for f in FEET]
 
+    @property
+    def rows(self) -> int:
+        """Rows kept so far (every ``stride``-th cycle and the last)."""
+        return self._row + (1 if self.k and (self.k - 1) % self.stride else 0)
+
+    def row_cycles(self) -> np.ndarray:
+        """The cycle of each kept row (R,)."""
+        cycles = np.arange(0, self.k, self.stride)
+        return np.append(cycles, self.k - 1) if self.k and (self.k - 1) % self.stride else cycles
+
     def record(self) -> WBCRecord:
-        """The cycles recorded so far (views of the rows, but ``stance``, a bool copy)."""
-        rows, feet, x = self._rows[: self.k], self._feet[: self.k], self._extra
+        """The kept rows so far (views, but ``stance``, a bool copy): every cycle when ``stride`` is 1."""
+        rows, feet, x = self._rows[: self.rows], self._feet[: self.rows], self._extra
         return WBCRecord(rows[:, 0], rows[:, x["t_plant"]], rows[:, 1:4], rows[:, 4:7],
                          feet[:, :, 0], feet[:, :, 4], feet[:, :, 1], feet[:, :, 5], feet[:, :, 2:4],
                          feet[:, :, 6:8], rows[:, x["stance"]] > 0.5, rows[:, x["slip"]], rows[:, 7],
                          rows[:, x["ctrl_us"]], rows[:, x["qp_us"]], rows[:, x["cycle_us"]])
+
+    def com_error_rows(self) -> tuple[np.ndarray, np.ndarray]:
+        """For each kept row, the last plant sample compared with the reference: its time [s], |error| [m].
+
+        NaN where none was yet (the first cycles behind a link's latency).
+        """
+        rows, x = self._rows[: self.rows], self._extra
+        return rows[:, x["com_err_t"]], rows[:, x["com_err_m"]]
 
     def _qp_feet(self, sol: WBCSolution) -> list[tuple[float, float, float, float]]:
         """Per foot (FEET order), the QP's prediction: normal, tangential force [N], CoP x, y [m] in W.
@@ -187,18 +251,23 @@ class WBCLog:
         """Record cycle ``k`` (the loop's ``on_step``); True once the robot has fallen (ends the run)."""
         ctrl, mon = self.wb.controller, self.monitor
         sol = ctrl.solution
-        row, x = self._rows[k], self._extra
+        row, x = self._rows[self._row], self._extra
         t = state.time_s
+        if not k:
+            self._t0 = t
         # the row's first columns built as one list and stored in one assignment (a numpy store per
         # value or slice costs more than the values' arithmetic)
         # the plant's CoM in-process; over DDS the controller's (from the estimated state), replaced
         # by the bridge's truth after the run when given (with_truth)
-        com = mon.com_W if mon is not None else ctrl.state.com()
-        vals = [t, *self.wb.com.target.tolist(), *com.tolist(), float(state.q[2]),
+        com = (mon.com_W if mon is not None else ctrl.state.com()).tolist()
+        ref = self.wb.com.target.tolist()
+        z = float(state.q[2])
+        vals = [t, *ref, *com, z,
                 *(self.pushes.force_W[:2].tolist() if self.pushes is not None else (0.0, 0.0))]
         stance = True
         slip_max = 0.0
         qp = self._qp_feet(sol)
+        fz_mj: list[float] = []
         if mon is not None:  # the monitor's groups and sites in FEET order, as plain numbers
             sums = mon.contact_sums
             xyz = mon.site_array_W.tolist()
@@ -219,6 +288,7 @@ class WBCLog:
             else:  # unloaded or swinging: slip counts from when it supports again
                 slip = 0.0
                 self._home[f] = (px, py)
+            fz_mj.append(fz)
             vals += (*qp[i], fz, math.hypot(fx, fy), mx, my, slip)
         csv_row, kept = self._csv_row, self._tau.start
         csv_row[:kept] = vals
@@ -226,18 +296,47 @@ class WBCLog:
         csv_row[self._q] = state.q
         self.csv.write(csv_row)
         row[:kept] = csv_row[:kept]
-        row[x["t_plant"]] = mon.time_s if mon is not None else t
-        row[x["stance"]] = stance and not sol.fallback
-        row[x["ctrl_us"]] = sol.controller_time_s * 1e6
-        row[x["qp_us"]] = sol.qp_time_s * 1e6
+        t_plant = mon.time_s if mon is not None else t
+        stance = stance and not sol.fallback
+        ctrl_us, qp_us = sol.controller_time_s * 1e6, sol.qp_time_s * 1e6
+        row[x["t_plant"]] = t_plant
+        row[x["stance"]] = stance
+        row[x["ctrl_us"]] = ctrl_us
+        row[x["qp_us"]] = qp_us
         row[x["slip"]] = slip_max
-        if mon is not None:
-            row[x["physics_us"]] = mon.sim.physics_time_s * 1e6
+        # every cycle's sums and extremes (plain floats)
+        self._slip_max = nan_max(self._slip_max, slip_max)
+        self._z_min = nan_min(self._z_min, z)
+        if mon is None:
+            self._com_ref[k] = ref
+        sums_ = self.com_sums
+        sums_.add(t, ref, t_plant, com)  # type: ignore[arg-type]  # 3 floats each
+        row[x["com_err_t"]], row[x["com_err_m"]] = sums_.last
         self.k = k + 1
         now = time.perf_counter()
+        cycle_us = math.nan
         if self._last_cycle_end is not None:
-            row[x["cycle_us"]] = (now - self._last_cycle_end) * 1e6
+            cycle_us = (now - self._last_cycle_end) * 1e6
+            row[x["cycle_us"]] = cycle_us
         self._last_cycle_end = now
+        if mon is None:
+            self._quantiles[k] = (ctrl_us, qp_us, cycle_us)
+        else:
+            physics_us = mon.sim.physics_time_s * 1e6
+            row[x["physics_us"]] = physics_us
+            mg = self.mg
+            rel = abs((qp[0][0] + qp[1][0]) - (fz_mj[0] + fz_mj[1])) / mg
+            if t >= self._t0 + SETTLE_S:
+                counted = stance
+                if counted:
+                    self._rel_max = nan_max(self._rel_max, rel)
+            else:
+                counted = False
+                self._settling_max = nan_max(self._settling_max, rel)
+            self._quantiles[k] = (counted, rel, abs(qp[0][0] - fz_mj[0]) / mg, abs(qp[1][0] - fz_mj[1]) / mg,
+                                  ctrl_us, qp_us, cycle_us, physics_us)
+        if k % self.stride == 0:
+            self._row += 1
         self.ctx.progress.advance()
         if k % VALUES_EVERY == 0:
             self.values()
@@ -249,62 +348,73 @@ class WBCLog:
         Args:
             com_W: The true CoM (k, 3) [m] at each recorded cycle's state.
             fell: Whether the truth log shows the robot fell.
+
+        Raises:
+            ValueError: An in-process run (its CoM is the plant's already; no reference kept per cycle).
         """
-        r = self.record()
-        r.com[:] = com_W[: len(r.t)]  # the plant at each state's time: t_plant == t
+        if self.monitor is not None:
+            raise ValueError("with_truth is for a run over DDS: in-process the CoM is the plant's already")
+        k = self.k
+        err = com_W[:k] - self._com_ref[:k]  # the plant at each state's time: t_plant == t
         self.com_from_truth = True
-        err = com_tracking_error(r)
+        r, cycles = self.record(), self.row_cycles()
+        r.com[:] = com_W[cycles]  # the plots' rows
+        t_err, err_m = self.com_error_rows()
+        t_err[:] = r.t
+        err_m[:] = np.linalg.norm(err[cycles], axis=1)
         self.ctx.values.update({"com_error_rms_m": float(np.sqrt(np.mean(np.sum(err**2, axis=1)))),
                                 "com_error_source": "truth log", "fell": fell,
                                 "fall_reason": "pelvis below its fall height (truth log)" if fell else None})
         return self.ctx.values
 
     def values(self, sim: Simulator | None = None) -> dict[str, Any]:
-        """Fill ``ctx.values`` from the cycles so far (an interrupted run keeps them) and return them."""
+        """Fill ``ctx.values`` from every cycle so far (an interrupted run keeps them) and return them."""
         ctx = self.ctx
         if not self.k:
             return ctx.values
-        r = self.record()
-        com_err = com_tracking_error(r)
-        settled = r.t >= r.t[0] + SETTLE_S
-        stance = r.stance & settled
-        rel = np.abs(r.fz_qp.sum(1) - r.fz_mj.sum(1)) / self.mg
-        per_foot = np.abs(r.fz_qp - r.fz_mj) / self.mg
-        ctrl, mon = self.wb.controller, self.monitor
-        physics_us = self._rows[: self.k, self._extra["physics_us"]]
-        overhead = r.cycle_us - r.ctrl_us - physics_us
-
-        def stat(x: np.ndarray, how: str) -> float:
-            if not x.size:
-                return float("nan")
-            return float(np.percentile(x, {"median": 50, "p95": 95, "max": 100}[how]))
-
+        ctrl, mon, c = self.wb.controller, self.monitor, self._qcol
+        q = self._quantiles[: self.k]
+        ctrl_us, qp_us, cycle_us = q[:, c["ctrl_us"]], q[:, c["qp_us"]], q[:, c["cycle_us"]]
+        nan = float("nan")
+        if mon is not None:
+            counted = q[:, c["stance"]] > 0.5
+            rel = q[counted, c["rel"]]
+            physics_us = q[:, c["physics_us"]]
+            overhead = cycle_us.astype(float) - ctrl_us - physics_us
+            per_foot = {f: quantile(q[counted, c[f"{f}_rel"]]) for f in FEET}
+        else:
+            rel = np.full(0, nan, dtype=np.float32)
+            per_foot = dict.fromkeys(FEET, nan)
+        com = self.com_sums
         ctx.values.update({
             "fell": mon is not None and mon.fall_reason is not None,
             "fall_reason": mon.fall_reason if mon is not None else None,
             "fall_time_s": mon.fall_time_s if mon is not None else None,
             "controller_fallback_at_s": ctrl.infeasible_at_s,
             "qp_relaxed_cycles": ctrl.relaxed_cycles,
-            "com_error_rms_m": float(np.sqrt(np.mean(np.sum(com_err**2, axis=1)))),
-            "max_foot_slip_m": float(np.max(r.slip)),
-            "contact_force_rel_error": stat(rel[stance], "median"),
-            "contact_force_rel_error_p95": stat(rel[stance], "p95"),
-            "contact_force_rel_error_max": stat(rel[stance], "max"),
-            "contact_force_rel_error_settling_max": stat(rel[~settled], "max"),
-            "controller_time_median_us": float(np.median(r.ctrl_us)),
-            "qp_solve_time_median_us": stat(r.qp_us[r.qp_us > 0], "median"),
-            "cycle_time_median_us": stat(r.cycle_us[np.isfinite(r.cycle_us)], "median"),
+            # over DDS the estimated CoM's (with_truth replaces it by the truth log's)
+            "com_error_rms_m": com.rms(),
+            "max_foot_slip_m": self._slip_max,
+            "contact_force_rel_error": quantile(rel) if mon is not None else nan,
+            "contact_force_rel_error_p95": quantile(rel, "p95") if mon is not None else nan,
+            "contact_force_rel_error_max": self._rel_max if mon is not None and rel.size else nan,
+            "contact_force_rel_error_settling_max": self._settling_max
+            if mon is not None and self._settling_max > -math.inf else nan,
+            "controller_time_median_us": float(np.median(ctrl_us)),
+            "qp_solve_time_median_us": quantile(qp_us[qp_us > 0]),
+            "cycle_time_median_us": quantile(cycle_us[np.isfinite(cycle_us)]),
             # MuJoCo's step within the cycle (in-process; NaN over DDS, where the plant is the bridge)
-            "physics_step_time_median_us": stat(physics_us, "median") if mon is not None else float("nan"),
+            "physics_step_time_median_us": quantile(physics_us) if mon is not None else nan,
             # the cycle beyond its controller and its physics step (targets, state, command, plant
             # monitor, this record and its CSV row, the loop), per cycle; in-process only
-            "cycle_overhead_median_us": stat(overhead[np.isfinite(overhead)], "median")
-            if mon is not None else float("nan"),
+            "cycle_overhead_median_us": quantile(overhead[np.isfinite(overhead)]) if mon is not None else nan,
             "qp_fast_path_fraction": ctrl.fast_path_cycles / max(1, ctrl.fast_path_cycles + ctrl.daqp_cycles),
-            "contact_normal_rel_error_per_foot": {f: stat(per_foot[stance, i], "median")
-                                                  for i, f in enumerate(FEET)},
-            "pelvis_z_min_m": float(np.min(r.z)),
+            "contact_normal_rel_error_per_foot": per_foot,
+            "pelvis_z_min_m": self._z_min,
         })
+        if com.unordered:
+            ctx.values["com_error_note"] = ("a plant sample came before a reference time already passed: the "
+                                            "CoM error is not computed (NaN)")
         if sim is not None:
             ctx.values["torque_saturation_steps"] = int(sim.saturated_commands)
         if ctrl.infeasible_message is not None:

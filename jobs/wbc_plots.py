@@ -4,11 +4,10 @@ from __future__ import annotations
 
 from typing import Any
 
-import numpy as np
-
+from mbctl.jobs.log_sums import rows_note
 from mbctl.jobs.plots import new_figure
 from mbctl.jobs.runner import RunContext
-from mbctl.jobs.wbc_log import WBCLog, com_tracking_error
+from mbctl.jobs.wbc_log import WBCLog
 from mbctl.robots.g1 import FEET
 
 
@@ -16,12 +15,14 @@ def wbc_plots(ctx: RunContext, log: WBCLog, params: Any, values: dict[str, Any])
     """Save ``g1_wbc.png`` and ``g1_wbc_contacts.png``.
 
     The first: CoM reference and plant, the CoM error, the total normal force. The second, per
-    foot: normal force, tangential force, CoP x and y, QP dashed over MuJoCo solid.
+    foot: normal force, tangential force, CoP x and y, QP dashed over MuJoCo solid. The curves are
+    the log's kept rows (every ``stride``-th cycle of a long run, said in the titles).
     """
     r = log.record()
     if not len(r.t):
         return
     t, com, ref, fz_qp, fz_mj = r.t, r.com, r.com_ref, r.fz_qp, r.fz_mj
+    note = rows_note(log.stride, log.k)
     source = "MuJoCo" if log.monitor is not None else "truth log" if log.com_from_truth else "estimated"
     fig, axes = new_figure(2, 2, (13.0, 7.5), layout="constrained")
     for i, (axis, color) in enumerate(zip("xyz", ("C0", "C1", "C2"), strict=True)):
@@ -30,8 +31,8 @@ def wbc_plots(ctx: RunContext, log: WBCLog, params: Any, values: dict[str, Any])
         ax.plot(t, ref[:, i] * 1e3, color=color, lw=1.0, ls="--", label=f"CoM {axis} reference")
     axes[0][0].set_ylabel("CoM x, y (mm)")
     axes[0][1].set_ylabel("CoM z (mm)")
-    err = np.linalg.norm(com_tracking_error(r), axis=1)
-    axes[1][0].plot(r.t_plant[: len(err)], err * 1e3, color="k", lw=1.0)
+    t_err, err = log.com_error_rows()
+    axes[1][0].plot(t_err, err * 1e3, color="k", lw=1.0)
     axes[1][0].set_ylabel("|CoM - reference| (mm)")
     axes[1][0].set_title(f"CoM error, RMS {values['com_error_rms_m'] * 1e3:.2f} mm", fontsize=9)
     axes[1][1].plot(t, fz_mj.sum(1), color="C3", lw=1.3, label="sum f_z MuJoCo")
@@ -47,7 +48,7 @@ def wbc_plots(ctx: RunContext, log: WBCLog, params: Any, values: dict[str, Any])
             ax.set_xlabel("time (s)")
     verdict = "FELL" if values["fell"] else "stood"
     fig.suptitle(f"G1 whole-body inverse dynamics, {params.scenario}: {verdict}, controller "
-                 f"{values['controller_time_median_us']:.0f} us median")
+                 f"{values['controller_time_median_us']:.0f} us median" + note)
     ctx.save_figure(fig, "g1_wbc.png")
 
     ft_qp, ft_mj, cop_qp, cop_mj = r.ft_qp, r.ft_mj, r.cop_qp, r.cop_mj
@@ -71,5 +72,5 @@ def wbc_plots(ctx: RunContext, log: WBCLog, params: Any, values: dict[str, Any])
         a_t.legend(fontsize=8, loc="upper right")
         a_c.legend(fontsize=8, loc="upper left", bbox_to_anchor=(1.01, 1.0))
     fig.suptitle("contact forces predicted by the QP (dashed) and measured in MuJoCo (solid, "
-                 "mj_contactForce on the foot geoms)")
+                 "mj_contactForce on the foot geoms)" + note)
     ctx.save_figure(fig, "g1_wbc_contacts.png")

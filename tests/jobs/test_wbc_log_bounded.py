@@ -1,0 +1,146 @@
+"""g1-wbc's log of a long run: its plots' rows capped, every reported figure still over every cycle.
+
+The cap (``MAX_LOG_ROWS``, 100,000 rows) is patched down to 20 rows so a 0.5 s run (250 cycles)
+is a long one. The medians and 95th percentiles are of float32 inputs (7 significant digits).
+"""
+
+from __future__ import annotations
+
+import math
+from functools import partial
+
+import numpy as np
+import pytest
+
+from mbctl.control.loop import log_rows, log_stride
+from mbctl.jobs import wbc_log
+from mbctl.jobs.g1_wbc import WBCParams, prepare
+from mbctl.jobs.log_sums import CoMErrorSums
+from mbctl.jobs.plant import PlantOptions
+from mbctl.jobs.runner import Job, RunContext, run_job
+from mbctl.jobs.wbc_log import SETTLE_S, WBCLog, WBCRecord, com_tracking_error
+
+#: Figures that do not depend on the wall clock: the same in two runs of the deterministic plant.
+PLANT_FIGURES = ("com_error_rms_m", "max_foot_slip_m", "contact_force_rel_error",
+                 "contact_force_rel_error_p95", "contact_force_rel_error_max",
+                 "contact_force_rel_error_settling_max", "pelvis_z_min_m", "qp_fast_path_fraction", "fell")
+
+
+def _run(g1, folder, monkeypatch, cap=None, **kw):
+    """Run g1-wbc; return the record, its log and every cycle's times [us] read from their sources."""
+    if cap is not None:
+        monkeypatch.setattr(wbc_log, "MAX_LOG_ROWS", cap)
+    logs, times = [], []
+    on_step = WBCLog.on_step
+
+    def spied(self, k, state, reference, command):
+        done = on_step(self, k, state, reference, command)
+        sol = self.wb.controller.solution
+        physics_us = self.monitor.sim.physics_time_s * 1e6
+        times.append((sol.controller_time_s * 1e6, sol.qp_time_s * 1e6, physics_us))
+        if not logs:
+            self.titles = []  # the plots' titles, as saved
+            logs.append(self)
+        return done
+
+    save_figure = RunContext.save_figure
+
+    def saved(ctx, fig, name):
+        logs[0].titles.append(fig.get_suptitle())
+        return save_figure(ctx, fig, name)
+
+    with monkeypatch.context() as m:
+        m.setattr(WBCLog, "on_step", spied)
+        m.setattr(RunContext, "save_figure", saved)
+        record = run_job(Job("g1-wbc", partial(prepare, robot=g1)), WBCParams(**kw), folder)
+    return record, logs[0], np.array(times, dtype=np.float32)
+
+
+def _csv(path):
+    names = path.read_text().splitlines()[0].split(",")
+    rows = np.loadtxt(path, delimiter=",", skiprows=1)
+    return {name: rows[:, i] for i, name in enumerate(names)}
+
+
+def test_a_capped_log_keeps_20_rows_and_reports_every_cycles_figures(g1, tmp_path, monkeypatch):
+    full, full_log, _ = _run(g1, tmp_path / "full", monkeypatch, scenario="stand", duration=0.5)
+    capped, log, times = _run(g1, tmp_path / "capped", monkeypatch, cap=20, scenario="stand", duration=0.5)
+    assert capped.exit_code == full.exit_code == 0
+    # the plots' rows: every 14th cycle and the last (19 rows), the uncapped log every cycle
+    assert (full_log.stride, full_log.rows) == (1, 250)
+    assert (log.stride, log.rows) == (14, 19) == (log_stride(250, 20), log_rows(250, 14))
+    assert log._rows.shape[0] == 19  # preallocated for the cap, not for the run
+    c = _csv(capped.files["csv"])
+    assert len(c["time_s"]) == 250 == capped.rows  # the CSV keeps every cycle
+    r = log.record()
+    cycles = [*range(0, 250, 14), 249]
+    assert np.array_equal(log.row_cycles(), cycles)
+    assert np.array_equal(r.t, c["time_s"][cycles]) and np.array_equal(r.com[:, 2], c["com_z_m"][cycles])
+    assert np.array_equal(r.fz_mj[:, 1], c["right_foot_fz_mj_N"][cycles])
+    assert all("\ncurves: every 14th of 250 cycles (the job's log); figures: every cycle" in title
+               for title in log.titles) and len(log.titles) == 2
+    assert not any("curves" in title for title in full_log.titles)
+    v, vf = capped.values, full.values
+    # the plant's figures equal the uncapped run's (the plant is deterministic)
+    for key in PLANT_FIGURES:
+        assert v[key] == pytest.approx(vf[key], rel=1e-9, abs=0), key
+    for foot, median in vf["contact_normal_rel_error_per_foot"].items():
+        assert v["contact_normal_rel_error_per_foot"][foot] == pytest.approx(median, rel=1e-9)
+    # and the CSV's every cycle: RMS and extremes exactly, the quantiles of the float32 values
+    err = np.column_stack([c[f"com_{a}_m"] - c[f"com_ref_{a}_m"] for a in "xyz"])
+    assert v["com_error_rms_m"] == pytest.approx(np.sqrt(np.mean(np.sum(err**2, axis=1))), rel=1e-12)
+    assert v["max_foot_slip_m"] == np.maximum(c["left_foot_slip_m"], c["right_foot_slip_m"]).max() > 0
+    assert v["pelvis_z_min_m"] == c["base_z_m"].min()
+    rel = np.abs((c["left_foot_fz_qp_N"] + c["right_foot_fz_qp_N"])
+                 - (c["left_foot_fz_mj_N"] + c["right_foot_fz_mj_N"])) / log.mg
+    settled = c["time_s"] >= c["time_s"][0] + SETTLE_S  # standing: every settled cycle in stance
+    assert v["contact_force_rel_error_max"] == rel[settled].max()  # float64, not rounded
+    assert v["contact_force_rel_error_settling_max"] == rel[~settled].max()
+    rel32 = rel[settled].astype(np.float32)
+    assert v["contact_force_rel_error"] == float(np.median(rel32))
+    assert v["contact_force_rel_error_p95"] == float(np.percentile(rel32, 95))
+    right = (np.abs(c["right_foot_fz_qp_N"] - c["right_foot_fz_mj_N"]) / log.mg)[settled]
+    assert v["contact_normal_rel_error_per_foot"]["right_foot"] == float(np.median(right.astype(np.float32)))
+    # the timings: medians of every cycle's, as read from the controller and the simulator
+    ctrl_us, qp_us, physics_us = times.T
+    assert len(times) == 250
+    assert v["controller_time_median_us"] == float(np.median(ctrl_us))
+    assert v["qp_solve_time_median_us"] == float(np.median(qp_us[qp_us > 0]))
+    assert v["physics_step_time_median_us"] == float(np.median(physics_us))
+    assert 0 < v["cycle_overhead_median_us"] < v["cycle_time_median_us"]
+
+
+def test_the_com_error_behind_latency_is_the_interpolated_ones_over_every_cycle(g1, tmp_path, monkeypatch):
+    """10 ms each way: the plant's CoM compared with the reference interpolated at the plant's time."""
+    full, full_log, _ = _run(g1, tmp_path / "full", monkeypatch, scenario="squat", duration=0.6,
+                             plant=PlantOptions(latency_ms=10.0))
+    capped, log, _ = _run(g1, tmp_path / "capped", monkeypatch, cap=20, scenario="squat", duration=0.6,
+                          plant=PlantOptions(latency_ms=10.0))
+    err = com_tracking_error(full_log.record())  # the whole run's rows, interpolated at once
+    assert len(err) < full_log.k  # the last plant samples, after the last reference, are left out
+    rms = math.sqrt(np.mean(np.sum(err**2, axis=1)))
+    assert full.values["com_error_rms_m"] == pytest.approx(rms, rel=1e-12)
+    assert capped.values["com_error_rms_m"] == pytest.approx(rms, rel=1e-9) and rms > 1e-5
+    assert log.rows == 20 and log.com_sums.count == len(err)
+
+
+def test_com_error_sums_equal_the_interpolated_error_with_latency_a_held_start_and_repeated_states():
+    rng = np.random.default_rng(3)
+    n = 400
+    t = np.arange(n) * 0.002
+    t[100:103] = t[99]  # the link delivered no new state for three cycles (the state repeats)
+    t[103:] -= 0.006
+    ref = np.column_stack([np.sin(3 * t), np.cos(2 * t), 0.7 + 0.01 * t])
+    t_plant = np.arange(n) * 0.002 + 0.005 + 0.01  # later than the state, by more than a cycle
+    t_plant[:5] = t[0] - 0.001 * np.arange(5, 0, -1)  # samples before the first reference: held at it
+    com = ref + rng.normal(0, 1e-3, (n, 3))
+    sums = CoMErrorSums()
+    for k in range(n):
+        sums.add(float(t[k]), tuple(ref[k].tolist()), float(t_plant[k]), tuple(com[k].tolist()))
+    empty = np.zeros((n, 2))
+    r = WBCRecord(t, t_plant, ref, com, *([empty] * 4), np.zeros((n, 2, 2)), np.zeros((n, 2, 2)),
+                  *([np.zeros(n)] * 6))
+    err = com_tracking_error(r)
+    assert sums.count == len(err) < n and not sums.unordered
+    assert sums.rms() == pytest.approx(math.sqrt(np.mean(np.sum(err**2, axis=1))), rel=1e-12)
+    assert sums.last[1] == pytest.approx(np.linalg.norm(err[-1]), rel=1e-12)
