@@ -8,6 +8,7 @@ import numpy as np
 
 from mbctl.control.wbc import WalkingController
 from mbctl.jobs.g1_walk_log import PHASES, WalkLog
+from mbctl.jobs.log_sums import rows_note
 from mbctl.jobs.plots import new_figure
 from mbctl.jobs.runner import RunContext
 from mbctl.planners import convex_hull
@@ -20,16 +21,20 @@ DOUBLE_COLOR = "0.75"
 
 def walk_plots(ctx: RunContext, log: WalkLog, walker: WalkingController, params: Any,
                values: dict[str, Any]) -> None:
-    """Save ``g1_walk.png`` (from above) and ``g1_walk_forces.png`` (normal forces, phases shaded)."""
+    """Save ``g1_walk.png`` (from above) and ``g1_walk_forces.png`` (normal forces, phases shaded).
+
+    The curves are the log's kept rows (every ``stride``-th cycle of a long run, said in the titles).
+    """
     r = log.record()
     if not log.k:
         return
-    _top_view(ctx, log, walker, params, values)
-    _forces(ctx, r.columns, r.foot, params, values)
+    note = rows_note(log.stride, log.k)
+    _top_view(ctx, log, walker, params, values, note)
+    _forces(ctx, r.columns, r.foot, params, values, note)
 
 
 def _top_view(ctx: RunContext, log: WalkLog, walker: WalkingController, params: Any,
-              values: dict[str, Any]) -> None:
+              values: dict[str, Any], note: str) -> None:
     """Footprints (each sole where it stood or landed), CoM, DCM and ZMP reference paths, from above."""
     c = log.record().columns
     sole = convex_hull(walker.wbc.contacts[FEET[0]].contact.points_F[:, :2])
@@ -58,7 +63,7 @@ def _top_view(ctx: RunContext, log: WalkLog, walker: WalkingController, params: 
     command = ", ".join(f"{v:g}" for v in params.command)
     moved = (f"{values['path_m']:.2f} m walked" if "path_m" in values else f"{values['distance_m']:.2f} m")
     fig.suptitle(f"G1 walking, {params.scenario} at ({command}): {verdict}, {values['steps']} steps, "
-                 f"{moved}; DCM RMS {values['dcm_rms_m'] * 1e3:.1f} mm")
+                 f"{moved}; DCM RMS {values['dcm_rms_m'] * 1e3:.1f} mm" + note)
     ctx.save_figure(fig, "g1_walk.png")
 
 
@@ -75,7 +80,7 @@ def _shade_phases(ax: Any, t: np.ndarray, phase: np.ndarray, stance: np.ndarray)
 
 
 def _forces(ctx: RunContext, c: dict[str, np.ndarray], feet: dict[str, dict[str, np.ndarray]], params: Any,
-            values: dict[str, Any]) -> None:
+            values: dict[str, Any], note: str) -> None:
     """Per foot: the normal force, QP dashed over MuJoCo solid, single support shaded by foot, double grey."""
     t = c["time_s"]
     fig, axes = new_figure(len(FEET), 1, (13.0, 3.2 * len(FEET) + 0.8), layout="constrained")
@@ -92,5 +97,5 @@ def _forces(ctx: RunContext, c: dict[str, np.ndarray], feet: dict[str, dict[str,
     median = force.get("median_N")
     fig.suptitle(f"{params.scenario}: normal force per foot, QP (dashed) and MuJoCo (solid); shaded: single "
                  f"support (the stance foot's colour), double support (grey); |QP - MuJoCo| in single "
-                 f"support median {'n/a' if median is None else f'{median:.1f} N'}", fontsize=10)
+                 f"support median {'n/a' if median is None else f'{median:.1f} N'}" + note, fontsize=10)
     ctx.save_figure(fig, "g1_walk_forces.png")
