@@ -154,7 +154,7 @@ class WalkLog:
         ctrl_us, qp_us = sol.controller_time_s * 1e6, sol.qp_time_s * 1e6
         row[c["controller_us"]] = ctrl_us
         row[c["qp_us"]] = qp_us
-        force_err = 0  # sum over the feet of f_z QP - MuJoCo [N]
+        force_err = 0.0  # sum over the feet of f_z QP - MuJoCo [N]
         for f in FEET:
             cs = w.wbc.contacts[f]
             fz_qp = float(sol.forces_W[f][:, 2].sum())
