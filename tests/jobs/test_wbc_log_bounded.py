@@ -108,6 +108,8 @@ def test_a_capped_log_keeps_20_rows_and_reports_every_cycles_figures(g1, tmp_pat
     assert v["qp_solve_time_median_us"] == float(np.median(qp_us[qp_us > 0]))
     assert v["physics_step_time_median_us"] == float(np.median(physics_us))
     assert 0 < v["cycle_overhead_median_us"] < v["cycle_time_median_us"]
+    with pytest.raises(ValueError, match="with_truth is for a run over DDS: in-process the CoM is the plant"):
+        log.with_truth(np.zeros((250, 3)), fell=False)
 
 
 def test_the_com_error_behind_latency_is_the_interpolated_ones_over_every_cycle(g1, tmp_path, monkeypatch):
@@ -144,3 +146,33 @@ def test_com_error_sums_equal_the_interpolated_error_with_latency_a_held_start_a
     assert sums.count == len(err) < n and not sums.unordered
     assert sums.rms() == pytest.approx(math.sqrt(np.mean(np.sum(err**2, axis=1))), rel=1e-12)
     assert sums.last[1] == pytest.approx(np.linalg.norm(err[-1]), rel=1e-12)
+
+
+def test_with_truth_compares_every_cycles_truth_with_its_reference_in_a_capped_log(g1, tmp_path, monkeypatch):
+    """The log as over DDS (no plant monitor): the truth's CoM against every cycle's kept reference."""
+    monkeypatch.setattr(wbc_log, "MAX_LOG_ROWS", 20)
+    logs = []
+    init = WBCLog.__init__
+
+    def unobserved(self, ctx, wb, monitor, pushes, n, mg_n, q_names):
+        init(self, ctx, wb, None, pushes, n, mg_n, q_names)
+        logs.append(self)
+
+    monkeypatch.setattr(WBCLog, "__init__", unobserved)
+    record = run_job(Job("g1-wbc", partial(prepare, robot=g1)), WBCParams(scenario="squat", duration=0.5),
+                     tmp_path)
+    log = logs[0]
+    c = _csv(record.files["csv"])
+    ref = np.column_stack([c[f"com_ref_{a}_m"] for a in "xyz"])
+    estimated = np.column_stack([c[f"com_{a}_m"] for a in "xyz"])  # the controller's model CoM
+    assert log.rows == 19 and len(ref) == 250 and log._com_ref.shape == (250, 3)
+    assert np.isnan(record.values["contact_force_rel_error"]) and log._quantiles.shape == (250, 3)
+    rms = np.sqrt(np.mean(np.sum((estimated - ref) ** 2, axis=1)))
+    assert record.values["com_error_rms_m"] == pytest.approx(rms, rel=1e-12)
+    truth = ref + np.column_stack([np.sin(np.arange(250.0)), np.zeros(250), np.full(250, 1e-3)]) * 1e-3
+    values = log.with_truth(truth, fell=False)
+    assert values["com_error_source"] == "truth log" and values["fell"] is False
+    assert values["com_error_rms_m"] == pytest.approx(np.sqrt(np.mean(np.sum((truth - ref) ** 2, axis=1))),
+                                                      rel=1e-12)
+    assert np.array_equal(log.record().com, truth[log.row_cycles()])  # the plots' rows
+    assert np.allclose(log.com_error_rows()[1], np.linalg.norm(truth - ref, axis=1)[log.row_cycles()])
