@@ -56,7 +56,7 @@ _QUANTILES_DDS = ("controller_us", "qp_us")
 
 
 class WalkRecord(NamedTuple):
-    """The cycles recorded so far (k), as columns; feet in :data:`~mbctl.robots.g1.FEET` order.
+    """The rows kept so far (k: every ``stride``-th cycle and the last), as columns; feet in FEET order.
 
     Attributes:
         columns: Column name -> (k,) values (the CSV's).

@@ -66,7 +66,9 @@ _QUANTILES_DDS = ("ctrl_us", "qp_us", "cycle_us")
 
 
 class WBCRecord(NamedTuple):
-    """The cycles of a g1-wbc run recorded so far (k of them), feet in :data:`~mbctl.robots.g1.FEET` order.
+    """Rows of a g1-wbc run (k of them), feet in :data:`~mbctl.robots.g1.FEET` order.
+
+    From :meth:`WBCLog.record`: the kept rows (every ``stride``-th cycle and the last).
 
     Attributes:
         t: Cycle times (k,) [s]: the time of the state the controller was given.
