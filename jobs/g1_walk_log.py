@@ -7,8 +7,8 @@ force and site, the fall). Foot slip is the horizontal drift of a supporting foo
 it started to support: a stance runs from the first cycle at full contact weight with at least 10 % of
 m g measured on the foot to the cycle its contact is released (a brief drop of the measured force in
 between does not split it); each stance's largest drift is one slip sample (``max_foot_slip_m`` and
-``median_foot_slip_m`` over the stances). The report's values are refreshed every
-:data:`VALUES_EVERY` cycles.
+``median_foot_slip_m`` over the stances). The report's values are computed after the loop, also
+when the run was interrupted or failed (:meth:`~mbctl.jobs.runner.RunContext.values_at_end`).
 
 Memory is bounded and every figure is over every cycle. The CSV streams every cycle's row; the
 plots' rows (:meth:`WalkLog.record`) are every ``stride``-th cycle and the last, at most
@@ -36,8 +36,6 @@ from mbctl.sim.monitor import PlantMonitor
 
 #: A foot supports (its slip counts) when MuJoCo measures at least this fraction of m g on it.
 SUPPORT_FRACTION = 0.1
-#: Cycles between refreshes of the report's values (1 s at 500 Hz).
-VALUES_EVERY = 500
 #: Gait phases as numbers in the CSV.
 PHASES = {"start": 0, "single": 1, "double": 2}
 #: The CSV's columns before the feet's (each foot adds :data:`FOOT_COLUMNS`).
@@ -94,6 +92,7 @@ class WalkLog:
     def __init__(self, ctx: RunContext, walker: WalkingController, monitor: PlantMonitor | None,
                  pushes: Any, n: int, mg_n: float):
         self.ctx, self.walker, self.monitor, self.pushes, self.mg = ctx, walker, monitor, pushes, mg_n
+        ctx.values_at_end(self.values)  # an interrupted or failed run's figures, after the loop
         header = [*COLUMNS, *(f"{f}_{c}" for f in FEET for c in FOOT_COLUMNS)]
         self.csv = ctx.open_csv(header)
         self._col = {name: i for i, name in enumerate(header)}
@@ -185,8 +184,6 @@ class WalkLog:
         if self.pushes is not None and mon is not None:
             self.pushes.on_cycle(state.time_s, mon.sim.time_s, fallen)
         self.ctx.progress.advance()
-        if k % VALUES_EVERY == 0:
-            self.values()
         return fallen
 
     def _sums(self, k: int, t: float, phase: int, dcm_err: float, zmp_margin: float,

@@ -46,6 +46,7 @@ import numpy as np
 from mbctl.exceptions import ToolkitError
 from mbctl.jobs.exceptions import JobError as JobError
 from mbctl.jobs.exceptions import OutputError as OutputError
+from mbctl.jobs.progress import Progress as Progress
 from mbctl.jobs.run_folder import LOCK_NAME as LOCK_NAME
 from mbctl.jobs.run_folder import (
     REPORT_NAME,
@@ -104,57 +105,6 @@ class Outcome:
 
 
 @dataclass
-class Progress:
-    """A progress bar over a known amount of work; silent unless enabled (a terminal, not quiet).
-
-    ``advance()`` is cheap enough for a control loop: the bar is redrawn at most every 1 % of the
-    total.
-    """
-
-    enabled: bool = False
-    _bar: Any = None
-    _task: Any = None
-    _done: int = 0
-    _next: int = 0
-    _step: int = 1
-
-    def start(self, total: int, description: str) -> None:
-        """Show a bar of ``total`` units labelled ``description`` (no-op when disabled)."""
-        self.stop()
-        self._done, self._step = 0, max(1, total // 100)
-        self._next = self._step
-        if not self.enabled or total <= 0:
-            return
-        from rich.progress import BarColumn, TimeRemainingColumn
-        from rich.progress import Progress as RichProgress
-
-        self._bar = RichProgress("[progress.description]{task.description}", BarColumn(),
-                                 "{task.completed}/{task.total}", TimeRemainingColumn(),
-                                 transient=True)
-        self._bar.start()
-        self._task = self._bar.add_task(description, total=total)
-
-    def advance(self, n: int = 1) -> None:
-        """Count ``n`` units done."""
-        self._done += n
-        if self._bar is not None and self._done >= self._next:
-            self._bar.update(self._task, completed=self._done)
-            self._next = self._done + self._step
-
-    def set(self, done: int, total: int | None = None) -> None:
-        """Set the count to ``done`` of ``total`` (callbacks that report absolute progress)."""
-        if total is not None and self._bar is not None:
-            self._bar.update(self._task, total=total)
-        self.advance(done - self._done)
-
-    def stop(self) -> None:
-        """Remove the bar."""
-        if self._bar is not None:
-            self._bar.stop()
-            self._bar = None
-
-
-@dataclass
 class RunContext:
     """What a job's work writes through: the folder, the CSV, figures, values, report sections.
 
@@ -178,6 +128,24 @@ class RunContext:
     uncommanded: str | None = None
     _streams: list[CsvStream] = field(default_factory=list)
     _recorders: list[TrajectoryRecorder | VideoRecorder] = field(default_factory=list)
+    _values_at_end: list[Callable[[], object]] = field(default_factory=list)
+
+    def values_at_end(self, fill: Callable[[], object]) -> None:
+        """Have ``fill`` (which updates :attr:`values`) called once more if the work does not complete.
+
+        For a job's per-cycle log: an interrupted, diverged or failed run's report gets the figures of
+        every cycle it ran, computed once after the loop (the plant keeps the robot safe meanwhile)
+        instead of refreshed during it, where a refresh over a long run's cycles would stall the loop.
+        """
+        self._values_at_end.append(fill)
+
+    def fill_values_at_end(self) -> None:
+        """Call the :meth:`values_at_end` functions; one that fails is named in ``values``, not raised."""
+        for fill in self._values_at_end:
+            try:
+                fill()
+            except Exception as exc:  # noqa: BLE001 - the report must still be written
+                self.values.setdefault("values_at_end_error", f"{type(exc).__name__}: {exc}")
 
     def refuse_pass(self, reason: str) -> None:
         """Its controller did not act on the plant: whatever the outcome, status ``uncommanded`` (exit 1).
@@ -489,6 +457,8 @@ def run_job(
         finally:
             with _signals_held():  # a second Ctrl-C must not cut the report short
                 progress.stop()
+                if status != "completed":
+                    ctx.fill_values_at_end()
                 ctx.close_streams()
                 ctx.files["report"] = write_json_atomic(
                     report_path, _report(ctx, params, status, message, outcome, time.perf_counter() - wall0))

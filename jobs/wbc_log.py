@@ -3,8 +3,9 @@
 Each cycle (the control loop's ``on_step``, after the plant ran the command) puts side by side
 what the QP predicted and what MuJoCo did (:class:`~mbctl.sim.monitor.PlantMonitor`): per foot the
 normal and tangential force and the centre of pressure, the CoM against its reference, and the
-slip of each supporting foot. The report's values are refreshed every :data:`VALUES_EVERY` cycles
-so an interrupted run keeps them.
+slip of each supporting foot. The report's values are computed after the loop, also when the run
+was interrupted or failed (:meth:`~mbctl.jobs.runner.RunContext.values_at_end`), never during it:
+a refresh over a long run's cycles (about 25 ms a median at an hour's 1.8 million) would stall it.
 
 Memory is bounded and every figure is over every cycle. The CSV streams every cycle's row. The
 plots' rows (:meth:`WBCLog.record`) are every ``stride``-th cycle and the last, at most
@@ -36,11 +37,6 @@ from mbctl.sim.simulator import Simulator
 #: A foot supports the robot (its slip counts) when MuJoCo measures at least this fraction of
 #: m g on it at full contact weight.
 SUPPORT_FRACTION = 0.1
-
-#: Cycles between refreshes of the report's values (an interrupted run keeps the last ones): 1 s
-#: at 500 Hz. A refresh computes the statistics over the whole run so far (~0.75 ms late in a
-#: 10 s run): every 50 cycles it was the largest cause of missed 2 ms deadlines over DDS.
-VALUES_EVERY = 500
 
 #: The first period [s] of a run, while MuJoCo's soft contacts settle from the set start pose
 #: (about 80 N more than m g on the first step, decaying over ~20 ms): left out of the force-error
@@ -136,6 +132,7 @@ class WBCLog:
     def __init__(self, ctx: RunContext, wb: Standing, monitor: PlantMonitor | None,
                  pushes: PushSchedule | None, n: int, mg_n: float, q_names: list[str]):
         self.ctx, self.wb, self.monitor, self.pushes, self.mg = ctx, wb, monitor, pushes, mg_n
+        ctx.values_at_end(self.values)  # an interrupted or failed run's figures, after the loop
         ctrl = wb.controller
         header = ["time_s", "com_ref_x_m", "com_ref_y_m", "com_ref_z_m", "com_x_m", "com_y_m", "com_z_m",
                   "base_z_m", "push_fx_N", "push_fy_N"]
@@ -340,8 +337,6 @@ class WBCLog:
         if k % self.stride == 0:
             self._row += 1
         self.ctx.progress.advance()
-        if k % VALUES_EVERY == 0:
-            self.values()
         return mon is not None and mon.fall_reason is not None
 
     def with_truth(self, com_W: np.ndarray, fell: bool) -> dict[str, Any]:

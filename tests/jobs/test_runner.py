@@ -159,6 +159,46 @@ def test_a_run_that_stops_keeps_every_row_and_says_why(tmp_path, error, status, 
         assert record.summary() == f"interrupted at t=0.004 s; wrote 3 rows to {tmp_path / 'toy.csv'}"
 
 
+@dataclass(frozen=True)
+class SumParams:
+    rows: int = 6
+    fail_at: int | None = None
+    fill_fails: bool = False
+
+
+def _summing(params: SumParams):
+    """A job whose figure (the sum of every cycle's x) is computed from its log, not during the loop."""
+    def work(ctx: RunContext) -> Outcome:
+        xs: list[float] = []
+
+        def fill() -> None:
+            if params.fill_fails:
+                raise ValueError("no cycles to sum")
+            ctx.values["x_sum"] = sum(xs)
+            ctx.values["fills"] = ctx.values.get("fills", 0) + 1
+
+        ctx.values_at_end(fill)
+        for k in range(params.rows):
+            if k == params.fail_at:
+                raise KeyboardInterrupt
+            xs.append(float(k))
+        fill()
+        return Outcome(passed=True, summary=("summed",), bound="")
+
+    return work
+
+
+def test_an_interrupted_run_reports_the_figures_of_every_cycle_it_ran(tmp_path):
+    record = run_job(Job("sums", _summing), SumParams(fail_at=4), tmp_path / "stopped")
+    assert record.status == "interrupted" and record.values == {"x_sum": 0 + 1 + 2 + 3, "fills": 1}
+    assert _report(tmp_path / "stopped")["values"] == {"x_sum": 6.0, "fills": 1}
+    done = run_job(Job("sums", _summing), SumParams(), tmp_path / "done")
+    assert done.values == {"x_sum": 15.0, "fills": 1}  # completed: the job's own fill, not once more
+    failing = run_job(Job("sums", _summing), SumParams(fail_at=2, fill_fails=True), tmp_path / "bad")
+    assert failing.status == "interrupted"
+    assert failing.values == {"values_at_end_error": "ValueError: no cycles to sum"}  # named, report written
+
+
 def test_a_bug_is_reported_then_raised(tmp_path):
     with pytest.raises(ZeroDivisionError):
         run_job(TOY, Params(rows=10, fail_at=2, error="bug"), tmp_path)
