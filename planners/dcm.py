@@ -263,8 +263,10 @@ class ConvexPolygon:
 
         The shrunk polygon is the set of points at least ``margin_m`` inside every edge line; if the
         margin leaves nothing (a polygon narrower than twice the margin) the margin is reduced to what
-        fits. Solved as a projection onto the half-planes by rounds of Dykstra's algorithm (the exact
-        projection onto an intersection of half-planes).
+        fits. The projection is exact, in one pass: a point outside projects onto an edge line or a
+        vertex of the shrunk polygon, so the nearest of the feasible candidates (each edge line's
+        foot of the perpendicular, each pair of lines' intersection) is it. (Dykstra's alternating
+        projections, used before, took up to 100 rounds, 3 ms, for a point far outside near a vertex.)
         """
         p = np.asarray(point, dtype=float)[:2].copy()
         if len(self.hull) < 3:
@@ -273,20 +275,18 @@ class ConvexPolygon:
         c = self._offsets - min(max(margin_m, 0.0), 0.999 * self.depth)  # n_i . x <= c_i
         if (n @ p - c).max() <= 1e-12:
             return p
-        x = p
-        corrections = np.zeros((len(n), 2))
-        for _ in range(100):
-            moved = 0.0
-            for i in range(len(n)):
-                y = x + corrections[i]
-                excess = n[i] @ y - c[i]
-                x_new = y - max(excess, 0.0) * n[i]
-                corrections[i] = y - x_new
-                moved = max(moved, float(np.abs(x_new - x).max()))
-                x = x_new
-            if moved < 1e-10:
-                break
-        return x
+        feet = p - (n @ p - c)[:, None] * n  # the foot on each line (n_i unit)
+        i, j = np.triu_indices(len(n), 1)
+        det = n[i, 0] * n[j, 1] - n[i, 1] * n[j, 0]
+        ok = np.abs(det) > 1e-12  # parallel lines do not meet
+        i, j, det = i[ok], j[ok], det[ok]
+        corners = np.column_stack([(c[i] * n[j, 1] - c[j] * n[i, 1]) / det,
+                                   (n[i, 0] * c[j] - n[j, 0] * c[i]) / det])
+        candidates = np.vstack([feet, corners])
+        slack = 1e-9 * (1.0 + np.abs(c).max())
+        feasible = candidates[(candidates @ n.T - c).max(axis=1) <= slack]
+        d2 = ((feasible - p) ** 2).sum(axis=1)
+        return feasible[int(np.argmin(d2))].copy()
 
 
 def polygon_margin(point: npt.ArrayLike, hull: np.ndarray) -> float:

@@ -6,9 +6,13 @@ import math
 
 import numpy as np
 import pytest
+import qpsolvers
+from hypothesis import assume, given, settings
+from hypothesis import strategies as st
 
 from mbctl.planners import InvalidPlanningInput
 from mbctl.planners.dcm import (
+    ConvexPolygon,
     DcmPlan,
     clamp_to_polygon,
     convex_hull,
@@ -161,6 +165,28 @@ def test_hull_margin_and_clamp_on_a_square():
     np.testing.assert_allclose(clamp_to_polygon([0.3, 0.4], hull, 0.1), [0.3, 0.4], atol=0)  # inside: kept
     # a margin wider than the polygon shrinks to what fits: the centre
     np.testing.assert_allclose(clamp_to_polygon([5.0, 0.5], hull, 0.7), [0.5005, 0.5], atol=1e-6)
+
+
+@given(st.lists(st.tuples(st.floats(-0.2, 0.2), st.floats(-0.2, 0.2)), min_size=3, max_size=10),
+       st.floats(-3.0, 3.0), st.floats(-3.0, 3.0), st.floats(0.0, 0.05))
+@settings(max_examples=300, deadline=None)
+def test_clamp_is_the_exact_projection_onto_the_shrunk_polygon(points, px, py, margin):
+    hull = convex_hull(np.array(points))
+    assume(len(hull) >= 3)
+    polygon = ConvexPolygon(hull)
+    assume(polygon.depth > 1e-4)  # not a sliver
+    p = np.array([px, py])
+    # the projection as a QP: min |x - p|^2 subject to the shrunk polygon's half-planes
+    c = polygon._offsets - min(margin, 0.999 * polygon.depth)
+    x = qpsolvers.solve_qp(2.0 * np.eye(2), -2.0 * p, polygon._normals, c, solver="daqp")
+    np.testing.assert_allclose(polygon.clamp(p, margin), x, atol=1e-7)
+
+
+def test_a_point_far_outside_near_a_vertex_projects_onto_the_vertex():
+    hull = convex_hull(np.array([[0, 0], [1, 0], [1, 1], [0, 1]], dtype=float))
+    # beyond a corner the projection is the shrunk polygon's corner (the old alternating projections
+    # were off by more than 1e-7 m in 50 of 300 random cases of the property above)
+    np.testing.assert_allclose(clamp_to_polygon([50.0, 60.0], hull, 0.1), [0.9, 0.9], atol=1e-12)
 
 
 def test_plan_input_errors():
