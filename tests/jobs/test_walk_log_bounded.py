@@ -14,7 +14,8 @@ import pytest
 from mbctl.jobs import g1_walk_log
 from mbctl.jobs.g1_walk import WalkParams, prepare
 from mbctl.jobs.g1_walk_log import WalkLog
-from mbctl.jobs.runner import Job, RunContext, run_job
+from mbctl.jobs.runner import Job, run_job
+from tests.jobs.log_spy import spy_on_log
 
 #: Figures that do not depend on the wall clock: the same in two runs of the deterministic plant.
 PLANT_FIGURES = ("fell", "steps", "max_foot_slip_m", "median_foot_slip_m", "min_zmp_margin_m",
@@ -26,28 +27,13 @@ def _run(g1, folder, monkeypatch, cap=None):
     """A 2 s forward walk: the record, its log, every cycle's controller and QP times [us] from the source."""
     if cap is not None:
         monkeypatch.setattr(g1_walk_log, "MAX_LOG_ROWS", cap)
-    logs, times = [], []
-    on_step, save_figure = WalkLog.on_step, RunContext.save_figure
 
-    def spied(self, k, state, reference, command):
-        done = on_step(self, k, state, reference, command)
-        sol = self.walker.wbc.solution
-        times.append((sol.controller_time_s * 1e6, sol.qp_time_s * 1e6))
-        if not logs:
-            self.titles = []  # the plots' titles, as saved
-            logs.append(self)
-        return done
+    def times(log: WalkLog) -> tuple[float, float]:
+        sol = log.walker.wbc.solution
+        return sol.controller_time_s * 1e6, sol.qp_time_s * 1e6
 
-    def saved(ctx, fig, name):
-        logs[0].titles.append(fig.get_suptitle())
-        return save_figure(ctx, fig, name)
-
-    with monkeypatch.context() as m:
-        m.setattr(WalkLog, "on_step", spied)
-        m.setattr(RunContext, "save_figure", saved)
-        record = run_job(Job("g1-walk", partial(prepare, robot=g1)),
-                         WalkParams("forward", speed="0.3", duration=2.0), folder)
-    return record, logs[0], np.array(times, dtype=np.float32)
+    return spy_on_log(monkeypatch, WalkLog, lambda: run_job(Job("g1-walk", partial(prepare, robot=g1)),
+                      WalkParams("forward", speed="0.3", duration=2.0), folder), times)
 
 
 def test_a_capped_walk_log_keeps_20_rows_and_reports_every_cycles_figures(g1, tmp_path, monkeypatch):

@@ -17,8 +17,9 @@ from mbctl.jobs import wbc_log
 from mbctl.jobs.g1_wbc import WBCParams, prepare
 from mbctl.jobs.log_sums import CoMErrorSums
 from mbctl.jobs.plant import PlantOptions
-from mbctl.jobs.runner import Job, RunContext, run_job
+from mbctl.jobs.runner import Job, run_job
 from mbctl.jobs.wbc_log import SETTLE_S, WBCLog, WBCRecord, com_tracking_error
+from tests.jobs.log_spy import spy_on_log
 
 #: Figures that do not depend on the wall clock: the same in two runs of the deterministic plant.
 PLANT_FIGURES = ("com_error_rms_m", "max_foot_slip_m", "contact_force_rel_error",
@@ -30,30 +31,13 @@ def _run(g1, folder, monkeypatch, cap=None, **kw):
     """Run g1-wbc; return the record, its log and every cycle's times [us] read from their sources."""
     if cap is not None:
         monkeypatch.setattr(wbc_log, "MAX_LOG_ROWS", cap)
-    logs, times = [], []
-    on_step = WBCLog.on_step
 
-    def spied(self, k, state, reference, command):
-        done = on_step(self, k, state, reference, command)
-        sol = self.wb.controller.solution
-        physics_us = self.monitor.sim.physics_time_s * 1e6
-        times.append((sol.controller_time_s * 1e6, sol.qp_time_s * 1e6, physics_us))
-        if not logs:
-            self.titles = []  # the plots' titles, as saved
-            logs.append(self)
-        return done
+    def times(log: WBCLog) -> tuple[float, float, float]:
+        sol = log.wb.controller.solution
+        return sol.controller_time_s * 1e6, sol.qp_time_s * 1e6, log.monitor.sim.physics_time_s * 1e6
 
-    save_figure = RunContext.save_figure
-
-    def saved(ctx, fig, name):
-        logs[0].titles.append(fig.get_suptitle())
-        return save_figure(ctx, fig, name)
-
-    with monkeypatch.context() as m:
-        m.setattr(WBCLog, "on_step", spied)
-        m.setattr(RunContext, "save_figure", saved)
-        record = run_job(Job("g1-wbc", partial(prepare, robot=g1)), WBCParams(**kw), folder)
-    return record, logs[0], np.array(times, dtype=np.float32)
+    return spy_on_log(monkeypatch, WBCLog, lambda: run_job(Job("g1-wbc", partial(prepare, robot=g1)),
+                      WBCParams(**kw), folder), times)
 
 
 def _csv(path):
