@@ -397,7 +397,7 @@ def _outcome(params: WalkParams, v: dict[str, Any], time_s: float) -> Outcome:
         f"{_mm(v['dcm_rms_m'])}; ZMP reference margin min {_mm(v['min_zmp_margin_m'])}; contact force QP vs "
         f"MuJoCo in single support median {_n(force.get('median_N'))}, p95 {_n(force.get('p95_N'))}, max "
         f"{_n(force.get('max_N'))}",
-        f"controller {v['controller_time_median_us']:.0f} us median (QP "
+        f"controller {v['controller_time_median_us']:.0f} us median (planning and whole-body QP; the QP "
         f"{v['qp_solve_time_median_us'] or 0:.0f} us); steps adapted "
         f"{v['step_adaptations']['steps_adapted']} ({v['step_adaptations']['steps_limited']} held short by a "
         f"limit); QP solved without its joint-limit bounds in {v['qp_relaxed_cycles']} cycles; touchdowns "

@@ -150,7 +150,9 @@ class WalkLog:
                                  rx, ry, *s.zmp_ref, *s.cmp_clamped, s.zmp_ref_margin_m, s.cmp_margin_m)
         if self.pushes is not None:
             row[c["push_fx_N"]:c["push_fx_N"] + 2] = self.pushes.force_W[:2]
-        ctrl_us, qp_us = sol.controller_time_s * 1e6, sol.qp_time_s * 1e6
+        # the walking controller's whole cycle (footsteps, DCM plan, tasks and the whole-body QP
+        # layer), not the QP layer's alone (sol.controller_time_s: about half of it)
+        ctrl_us, qp_us = w.compute_time_s * 1e6, sol.qp_time_s * 1e6
         row[c["controller_us"]] = ctrl_us
         row[c["qp_us"]] = qp_us
         force_err = 0.0  # sum over the feet of f_z QP - MuJoCo [N]

@@ -40,6 +40,7 @@ parameters (a robot's come from its facts module in robots/, given by the jobs).
 from __future__ import annotations
 
 import math
+import time
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 
@@ -216,6 +217,8 @@ class WalkingController:
         self._fids = {f: self.model.getFrameId(f) for f in self.feet}
         self._clamp = self.planner.clamp(VelocityCommand())
         self.status = WalkingStatus()
+        #: The last cycle's time [s] in :meth:`compute`: planning and the whole-body QP layer.
+        self.compute_time_s = 0.0
         self.gait: Gait | None = None
         self.reset()
 
@@ -262,6 +265,7 @@ class WalkingController:
         self._last_mid: tuple[float, np.ndarray] | None = None
         self._adaptation: StepAdaptation | None = None
         self._in_contact = {}
+        self._plan_memo: tuple[tuple, tuple[DcmPlan, list[Footstep]]] | None = None
 
     def _follow_command(self, t: float, gait: Gait) -> None:
         """The walk's command toward the applied one at ``max_acceleration``; the footsteps' command.
@@ -319,6 +323,14 @@ class WalkingController:
         Raises:
             WBCInfeasible: The QP has no solution and the QP's ``on_infeasible`` is "raise".
         """
+        t0 = time.perf_counter()
+        try:
+            return self._compute(state)
+        finally:
+            self.compute_time_s = time.perf_counter() - t0
+
+    def _compute(self, state: RobotState) -> Command:
+        """:meth:`compute`'s work."""
         cfg = self.config
         t = state.time_s
         com, vcom, poses = self._kinematics(state)
@@ -401,13 +413,23 @@ class WalkingController:
         first, vrps, t1, stance, initial = gait.plan_start(t, DS_ALPHA, self._steer)
         if swing_step is not None:
             first = stance = swing_step
+        # a cycle that moves the swing footstep plans twice, through the nominal footstep and then
+        # through the one it swings to: the same plan when the adaptation kept the nominal one (the
+        # swing path keeps its yaw unwrapped and rounds: equal to 1e-12 m and rad counts as the same)
+        key = (t, self._steer, None if first is None else (
+            round(float(first.position[0]), 12), round(float(first.position[1]), 12),
+            round(math.remainder(first.yaw_rad, 2.0 * math.pi), 12)))
+        if self._plan_memo is not None and self._plan_memo[0] == key:
+            return self._plan_memo[1]
         steps = [first] if first is not None else []
         steps += self.planner.plan(stance, self._steer, cfg.preview_steps)
         vrps += [gait.vrp(s) for s in steps]
         before_last = steps[-2] if len(steps) > 1 else stance
         vrps.append(0.5 * (gait.vrp(steps[-1]) + gait.vrp(before_last)))  # the stop: between the last two
         switches = t1 + cfg.timing.step_s * np.arange(len(vrps) - 1)
-        return DcmPlan(self.omega, vrps, switches, cfg.timing.double_support_s, DS_ALPHA, initial), steps
+        plan = DcmPlan(self.omega, vrps, switches, cfg.timing.double_support_s, DS_ALPHA, initial), steps
+        self._plan_memo = (key, plan)
+        return plan
 
     def _orient(self, yaw: float) -> None:
         """Pelvis and torso upright, heading ``yaw`` [rad]."""
