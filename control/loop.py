@@ -191,8 +191,13 @@ def log_stride(n_cycles: int, max_rows: int) -> int:
 
 def log_rows(n_cycles: int, stride: int) -> int:
     """Rows a log of ``n_cycles`` keeps at ``stride``: cycles 0, stride, 2 stride, ... and the last."""
-    multiples = (n_cycles - 1) // stride + 1
-    return multiples + (1 if (n_cycles - 1) % stride else 0)
+    return len(kept_cycles(n_cycles, stride)) if n_cycles > 0 else 0
+
+
+def kept_cycles(n_cycles: int, stride: int) -> np.ndarray:
+    """The cycles a log of ``n_cycles`` keeps at ``stride`` (0, stride, 2 stride, ... and the last)."""
+    cycles = np.arange(0, n_cycles, stride)
+    return np.append(cycles, n_cycles - 1) if n_cycles and (n_cycles - 1) % stride else cycles
 
 
 def presample(
@@ -470,7 +475,7 @@ def run(
     finally:  # however the loop ends, the plant keeps the robot safe from now on (the contract)
         interface.stop()
     wall = time.perf_counter() - wall0
-    kept = row + (1 if (n_run - 1) % stride else 0)  # the last cycle run, when not a stride's
+    kept = log_rows(n_run, stride)  # the last cycle run is kept too, when not a stride's
     return RunLog(log_t[:n_run], log_q[:kept], log_v[:kept], log_cmd[:kept], log_ref[:kept],
                   log_ref_v[:kept], wall, log_tick[:n_run], log_cycle[:kept], stride,
                   sums.stats() if sums is not None else None)

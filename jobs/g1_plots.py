@@ -13,6 +13,7 @@ from typing import Any
 import numpy as np
 
 from mbctl.control.loop import RunLog
+from mbctl.jobs.log_sums import rows_note
 from mbctl.jobs.plots import coincident_groups, joint_colors, most_moved, new_figure, tracking_panels
 from mbctl.jobs.runner import RunContext
 from mbctl.robots.g1 import joint_role, limb_of
@@ -112,7 +113,7 @@ def tracking_plot(ctx: RunContext, name: str, log: RunLog, joints: tuple[str, ..
         axes[-1][1].set_title(f"the {len(groups)} other joints that moved most from the keyframe",
                               fontsize=9)
         axes[-1][1].legend(fontsize=8, loc="upper left", bbox_to_anchor=(1.01, 1.0))
-    fig.suptitle(title + rows_note(log))
+    fig.suptitle(title + _rows_note(log))
     ctx.save_figure(fig, f"{name}.png")
 
 
@@ -140,13 +141,10 @@ def stand_plot(ctx: RunContext, log: RunLog, dz_m: np.ndarray, deviation: np.nda
     handles, labels = ax_q.get_legend_handles_labels()
     ax_tau.legend(handles, labels, fontsize=8, loc="upper left", bbox_to_anchor=(1.01, 1.0))
     fig.suptitle(f"G1 standing, PD + gravity in torque mode (omega {omega_rad_s:g} rad/s, "
-                 f"zeta {zeta:g}): max pelvis height change {max_m * 1e3:.2f} mm" + rows_note(log))
+                 f"zeta {zeta:g}): max pelvis height change {max_m * 1e3:.2f} mm" + _rows_note(log))
     ctx.save_figure(fig, "g1_stand.png")
 
 
-def rows_note(log: RunLog) -> str:
-    """A title's note that the curves show every ``stride``-th cycle ("" when they show every cycle)."""
-    if log.stride == 1:
-        return ""
-    return (f"\ncurves: every {log.stride}th of {log.cycles:,} cycles (the loop's log); "
-            "figures: every cycle")
+def _rows_note(log: RunLog) -> str:
+    """The title's note on the loop log's kept rows (:func:`mbctl.jobs.log_sums.rows_note`)."""
+    return rows_note(log.stride, log.cycles)

@@ -126,7 +126,7 @@ class WalkLog:
     @property
     def rows(self) -> int:
         """Rows kept so far (every ``stride``-th cycle and the last)."""
-        return self._row + (1 if self.k and (self.k - 1) % self.stride else 0)
+        return log_rows(self.k, self.stride)
 
     def record(self) -> WalkRecord:
         """The kept rows so far, by column (views): every cycle when ``stride`` is 1."""

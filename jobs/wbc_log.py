@@ -23,7 +23,7 @@ from typing import Any, NamedTuple
 
 import numpy as np
 
-from mbctl.control.loop import MAX_LOG_ROWS, log_rows, log_stride
+from mbctl.control.loop import MAX_LOG_ROWS, kept_cycles, log_rows, log_stride
 from mbctl.control.wbc import Standing, WBCSolution
 from mbctl.jobs.log_sums import CoMErrorSums, nan_max, nan_min, quantile
 from mbctl.jobs.runner import RunContext
@@ -184,12 +184,11 @@ class WBCLog:
     @property
     def rows(self) -> int:
         """Rows kept so far (every ``stride``-th cycle and the last)."""
-        return self._row + (1 if self.k and (self.k - 1) % self.stride else 0)
+        return log_rows(self.k, self.stride)
 
     def row_cycles(self) -> np.ndarray:
         """The cycle of each kept row (R,)."""
-        cycles = np.arange(0, self.k, self.stride)
-        return np.append(cycles, self.k - 1) if self.k and (self.k - 1) % self.stride else cycles
+        return kept_cycles(self.k, self.stride)
 
     def record(self) -> WBCRecord:
         """The kept rows so far (views, but ``stance``, a bool copy): every cycle when ``stride`` is 1."""
