@@ -149,6 +149,8 @@ class QPResult(NamedTuple):
         solve_time_s: Time spent in the backend [s].
         fast_path: Whether a closed form gave x without a solver (the WBC's equality-constrained path).
         dependent_rows: Equality rows dropped as linearly dependent on the others.
+        duals: daqp's Lagrange multipliers (box, inequality rows, equality rows; > 0 where an
+            upper bound is active, < 0 at a lower one), or None.
     """
 
     x: np.ndarray | None
@@ -157,6 +159,7 @@ class QPResult(NamedTuple):
     solve_time_s: float
     fast_path: bool = False
     dependent_rows: int = 0
+    duals: np.ndarray | None = None
 
 
 class QPSolver:
@@ -200,7 +203,7 @@ class QPSolver:
         x, fval, flag, info = daqp.solve(qp.H, qp.c, A, upper, lower, sense, **self.options)
         elapsed = time.perf_counter() - t0
         if flag > 0 and math.isfinite(fval):
-            return QPResult(x, flag, info["iterations"], elapsed)
+            return QPResult(x, flag, info["iterations"], elapsed, duals=info["lam"])
         # no solution, or a non-finite one (from non-finite data): say why
         status = CONTRADICTORY if _contradictions(qp) else (NOT_FOUND if flag > 0 else flag)
         return QPResult(None, status, info["iterations"], elapsed)

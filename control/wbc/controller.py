@@ -316,6 +316,8 @@ class WholeBodyController:
             if self._bound_weight[name] != cs.weight:  # changes only while a force ramps
                 lb[cs.fz] = cs.weight * cfg.f_min_n
                 ub[cs.fz] = cs.weight * cfg.f_max_n
+                # a foot at weight 0: its forces are pinned at zero (bounds [0, 0], the pyramid)
+                qp.force_free[cs.cols.start - nv:cs.cols.stop - nv] = cs.weight * cfg.f_max_n != 0.0
                 self._bound_weight[name] = cs.weight
             if cs.active:
                 err[rows] = pin.log6(X_WF.actInv(cs.X_WF0)).vector

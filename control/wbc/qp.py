@@ -17,7 +17,12 @@ Solved in two ways, the first tried first:
   convex and no inequality is active). This is the first iteration of any active-set method,
   written here because daqp's setup with 18 equality rows costs ~60 us (e.g. on the G1; measured,
   ``bench/bench_wbc.py``) while this costs a Cholesky of the 35 x 35 block and an 18 x 18 solve.
-  Standing and squatting never leave it (no inequality is active there).
+  Standing and squatting never leave it (no inequality is active there). Force variables pinned
+  at zero (:attr:`WholeBodyQP.force_free` False: a foot whose force ramp is at 0, so its normal
+  force's bounds are [0, 0] and its friction pyramid pins the tangential forces too) are left out
+  of the Schur complement and set to zero: fixing them is the QP's own constraint, so the point is
+  still the optimum when it satisfies every other inequality, and single support (one foot
+  released) stays on this path too.
 * **daqp** (the dual active-set solver) on the whole problem, through the control layer's QP
   floor (:mod:`mbctl.control.qp`: daqp called directly, its buffers reused, two-sided torque rows
   instead of qpsolvers' two one-sided rows each), whenever an inequality would be violated or E is
@@ -88,6 +93,10 @@ class WholeBodyQP:
         self.lb, self.g_lo = self._lo[:self.n_x], self._lo[self.n_x:]
         self.ub, self.g_up = self._up[:self.n_x], self._up[self.n_x:]
         self._xg = np.zeros(self.n_x + m_in)  # [x; G x]
+        #: (n_f,) False for a force variable the caller has pinned at zero (its bounds [0, 0], or a
+        #: tangential force whose pyramid's normal force is pinned): the fast path leaves it out
+        self.force_free = np.ones(n_f, dtype=bool)
+        self._free_f = np.ones(n_f)  # force_free as 0/1, read by the fast path
         self.force_weight = force_weight
         # the whole Hessian and linear term for daqp (its packing buffers are the floor's)
         self._H = np.zeros((self.n_x, self.n_x))
@@ -95,6 +104,9 @@ class WholeBodyQP:
         self._daqp_solver = QPSolver(self.n_x, "daqp")
         self._rows = np.arange(m_eq_max)
         self._rhs = np.zeros((nv, m_eq_max + 1), order="F")  # LAPACK's layout: solved in place
+        self._pinned = False
+        self._skip_fast = False  # the last solve was daqp's with an inequality active
+        self._pinned_memo: tuple[np.ndarray, np.ndarray] | None = None
 
     @property
     def force_weight(self) -> float:
@@ -116,6 +128,12 @@ class WholeBodyQP:
         ``E H^-1 E^T``), and the result says how many were dropped: the dropped rows hold only as
         far as they agree with the kept ones.
 
+        The fast path is tried first unless the last solve was daqp's with an inequality or bound
+        active (other than on pinned forces) and no dependent row: then the fast point would most
+        likely violate it again (as in most of a walk's cycles, where the CMP sits on the support
+        polygon's edge), and the try (~70 us on the G1, half a daqp solve) is skipped. Should daqp
+        then find no solution, the solve is repeated the full way, so the result is the same.
+
         Returns:
             The floor's result: ``x`` (n_x,) finite or None, ``fast_path`` True when no
             inequality is active (``iterations`` 0), ``dependent_rows`` the rows dropped.
@@ -123,18 +141,56 @@ class WholeBodyQP:
         t0 = time.perf_counter()
         if (self._lo > self._up).any():
             return QPResult(None, CONTRADICTORY, 0, 0.0)
-        x, rows = self._equality_optimum(m_eq)
+        free = self._free_f
+        np.copyto(free, self.force_free)
+        self._pinned = bool(free.min() == 0.0)
+        if self._skip_fast:
+            result = self._daqp(self._rows[:m_eq], 0)
+            self._skip_fast = self._inequality_active(result)
+            if result.x is not None:
+                return result
+        x, rows = self._kkt(m_eq)
         dropped = m_eq - len(rows)
         if x is not None and self._feasible(x):
+            self._skip_fast = False
             return QPResult(x, OPTIMAL, 0, time.perf_counter() - t0, True, dropped)
-        return self._daqp(rows, dropped)
+        result = self._daqp(rows, dropped)
+        self._skip_fast = dropped == 0 and self._inequality_active(result)
+        return result
 
-    def _equality_optimum(self, m_eq: int) -> tuple[np.ndarray | None, np.ndarray]:
-        """The minimiser under the equalities only (KKT by Schur complement) and the independent rows.
+    def _inequality_active(self, result: QPResult) -> bool:
+        """Whether daqp's solution has an inequality or bound active, other than one on pinned forces only."""
+        if result.x is None or result.duals is None:
+            return False
+        lam = result.duals[:self.n_x + self.m_in]
+        if not self._pinned:
+            return bool(lam.any())
+        return bool(np.any((lam != 0.0) & ~self._pinned_rows()))
+
+    def _pinned_rows(self) -> np.ndarray:
+        """(n_x + m_in,) whether a bound or row involves pinned forces only.
+
+        Kept while the pins stay (G's pattern of non-zeros taken as fixed meanwhile): it only
+        decides whether the next solve tries the fast path first, never what the solution is.
+        """
+        pinned_f = self._free_f == 0.0
+        if self._pinned_memo is not None and np.array_equal(self._pinned_memo[0], pinned_f):
+            return self._pinned_memo[1]
+        out = np.zeros(self.n_x + self.m_in, dtype=bool)
+        out[self.nv:self.n_x] = pinned_f
+        G_v_zero = ~self.G[:, :self.nv].any(axis=1)
+        touches_free = (self.G[:, self.nv:] != 0.0) @ ~pinned_f
+        out[self.n_x:] = G_v_zero & ~touches_free
+        self._pinned_memo = (pinned_f, out)
+        return out
+
+    def _kkt(self, m_eq: int) -> tuple[np.ndarray | None, np.ndarray]:
+        """The minimiser under the first ``m_eq`` equalities only (KKT by Schur complement).
 
         Returns:
             ``(x, rows)``: x (n_x,) or None if H_vv is not positive definite; ``rows`` the indices
-            of a maximal independent subset of the equality rows (x satisfies those).
+            of a maximal independent subset of the equality rows (x satisfies those). Pinned forces
+            (``force_free`` False, as read by :meth:`solve`) are left out and zero.
         """
         nv = self.nv
         E, e = self.E[:m_eq], self.e[:m_eq]
@@ -150,6 +206,8 @@ class WholeBodyQP:
         P = E_v @ X  # [E_v H^-1 E_v^T, E_v H^-1 c_v]
         S = P[:, :m_eq]  # S = E H^-1 E^T (c_f = 0, H_ff = w_f^2 I)
         F = E_f[:self.m_force]  # the rows with force columns (the others are zero there)
+        if self._pinned:
+            F = F * self._free_f  # the pinned forces' columns left out (they stay at zero)
         S[:len(F), :len(F)] += (F @ F.T) * self._inv_wf2
         rhs = P[:, m_eq]
         rhs += e  # e + E H^-1 c
@@ -159,18 +217,18 @@ class WholeBodyQP:
         Ls, y, info = dposv(S, rhs, lower=1)  # y = -lambda
         if info == 0 and float(Ls.diagonal().min()) ** 2 > RANK_RTOL * scale:
             rows = all_rows
-            X_rows, E_f_rows = X[:, :m_eq], E_f
+            X_rows, F_rows = X[:, :m_eq], F
         else:
             _, piv, rank, _ = dpstrf(S, tol=RANK_RTOL * scale, lower=1)
             rows = np.sort(piv[:rank] - 1)
             Ls, _ = dpotrf(S[np.ix_(rows, rows)], lower=1)
             y, _ = dpotrs(Ls, rhs[rows], lower=1)
-            X_rows, E_f_rows = X[:, rows], E_f[rows]
+            X_rows, F_rows = X[:, rows], F[rows[rows < len(F)]]
         # x = -H^-1 (c + E^T lambda)
         x = np.empty(self.n_x)
         np.matmul(X_rows, y, out=x[:nv])
         x[:nv] -= X[:, m_eq]
-        np.matmul(E_f_rows.T, y, out=x[nv:])
+        np.matmul(F_rows.T, y[:len(F_rows)], out=x[nv:])
         x[nv:] *= self._inv_wf2
         return x, rows
 

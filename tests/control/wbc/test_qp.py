@@ -148,3 +148,71 @@ def test_problem_export_round_trips_the_two_sided_rows():
     x = qp.solve(1).x
     reference = qpsolvers.solve_problem(qp.problem(1), solver="daqp").x
     np.testing.assert_allclose(x, reference, atol=1e-9)
+
+
+@settings(max_examples=25, deadline=None)
+@given(st.integers(0, 10_000))
+def test_pinned_forces_stay_on_the_fast_path_at_the_optimum(seed):
+    """A released foot's forces pinned at zero (bounds [0, 0]) are left out of the fast path's
+    Schur complement: it still gives the whole QP's optimum, where before it always handed over
+    to daqp (its point put force on the pinned variables)."""
+    qp = _problem(seed, 0.0)
+    pinned = slice(NV + 3, NV + NF)  # the second "foot": three force variables
+    qp.lb[pinned] = qp.ub[pinned] = 0.0
+    qp.force_free[pinned.start - NV:] = False
+    # room around the new optimum: the rows' and the other bounds' ranges widened
+    qp.g_lo[:] -= 1e3
+    qp.g_up[:] += 1e3
+    qp.lb[:NV] -= 1e3
+    qp.ub[NV:pinned.start] += 1e3
+    result = qp.solve(M_EQ)
+    reference = _reference(qp, M_EQ)
+    assert result.fast_path
+    np.testing.assert_array_equal(result.x[pinned], 0.0)
+    np.testing.assert_allclose(result.x, reference, atol=1e-6 * max(1.0, np.abs(reference).max()))
+
+
+def _count_fast_tries(qp: WholeBodyQP, monkeypatch) -> list[int]:
+    tries = [0]
+    kkt = qp._kkt
+
+    def counted(m_eq):
+        tries[0] += 1
+        return kkt(m_eq)
+
+    monkeypatch.setattr(qp, "_kkt", counted)
+    return tries
+
+
+def test_the_fast_path_is_skipped_while_an_inequality_stays_active(monkeypatch):
+    qp = _problem(11, 0.2)
+    tries = _count_fast_tries(qp, monkeypatch)
+    first = qp.solve(M_EQ)
+    assert not first.fast_path and first.x is not None and tries[0] == 1
+    second = qp.solve(M_EQ)  # the same problem: daqp directly, the same optimum
+    assert tries[0] == 1
+    np.testing.assert_allclose(second.x, first.x, atol=1e-9)
+    # the cut removed: daqp (skipping the fast path once more) finds no inequality active, so
+    # the next solve takes the fast path again
+    loose = _problem(11, 0.0)
+    qp.g_up[:], qp.ub[:] = loose.g_up, loose.ub
+    third = qp.solve(M_EQ)
+    assert tries[0] == 1 and not third.fast_path
+    np.testing.assert_allclose(third.x, loose.solve(M_EQ).x, atol=1e-6)
+    fourth = qp.solve(M_EQ)
+    assert fourth.fast_path and tries[0] == 2
+
+
+def test_a_skipped_fast_path_is_retried_when_daqp_finds_no_solution(monkeypatch):
+    """Dependent equality rows after a skip: the solve is repeated the full way (rows dropped)."""
+    qp = _problem(7, 0.2)
+    tries = _count_fast_tries(qp, monkeypatch)
+    assert qp.solve(M_EQ).x is not None and tries[0] == 1
+    qp.E[1] = 2.0 * qp.E[0]
+    qp.e[1] = 2.0 * qp.e[0] + 0.3  # inconsistent: daqp alone finds no solution
+    fresh = _problem(7, 0.2)
+    fresh.E[:M_EQ], fresh.e[:M_EQ] = qp.E[:M_EQ], qp.e[:M_EQ]
+    expected = fresh.solve(M_EQ)
+    result = qp.solve(M_EQ)
+    assert tries[0] == 2 and result.dependent_rows == 1 == expected.dependent_rows
+    np.testing.assert_allclose(result.x, expected.x, atol=1e-9)

@@ -269,6 +269,29 @@ def test_a_released_foot_leaves_no_row_and_no_stale_target(tiny_biped, crouch):
     assert np.isfinite(ctrl.solution.tau).all()
 
 
+def test_a_released_foots_forces_are_pinned_and_the_solution_is_the_qps_optimum(tiny_biped, crouch):
+    """At weight 0 a foot's force variables are pinned (the fast path leaves them out); the
+    controller's solution is still the optimum of the whole QP it built (qpsolvers' daqp on it)."""
+    import qpsolvers
+
+    wb, state = _stance(tiny_biped, crouch)
+    ctrl = wb.controller
+    ctrl.compute(RobotState(state.q, state.v, 0.0))
+    assert ctrl._qp.force_free.all()
+    ctrl.release("r_sole")
+    for k in range(1, 400):
+        ctrl.compute(RobotState(state.q, state.v, 0.002 * k))
+    assert ctrl.contact_released("r_sole")
+    right = ctrl.solution.force_slices["r_sole"]
+    left = ctrl.solution.force_slices["l_sole"]
+    assert not ctrl._qp.force_free[right].any() and ctrl._qp.force_free[left].all()
+    m_eq = ctrl._n_unact + 6  # the base rows and the left foot's
+    reference = qpsolvers.solve_problem(ctrl._qp.problem(m_eq), solver="daqp").x
+    x = np.concatenate([ctrl.solution.vdot, ctrl.solution.forces])
+    np.testing.assert_allclose(x, reference, atol=1e-6 * np.abs(reference).max())
+    np.testing.assert_allclose(ctrl.solution.forces[right], 0.0, atol=1e-6)
+
+
 def test_the_biped_squats_in_mujoco(tiny_biped, crouch):
     """Closed loop on the plant: the CoM follows a 6 cm squat, measured with MuJoCo's CoM."""
     sim = Simulator(tiny_biped)
