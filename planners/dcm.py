@@ -201,12 +201,20 @@ def convex_hull(points: npt.ArrayLike) -> np.ndarray:
     pts = np.asarray(points, dtype=float)
     if pts.ndim != 2 or pts.shape[1] != 2 or len(pts) < 1 or not np.all(np.isfinite(pts)):
         raise InvalidPlanningInput(f"points must be a finite (n, 2) array [m]; got shape {pts.shape}")
-    ordered = sorted(set(map(tuple, pts.tolist())))
-    if len(ordered) <= 2:
-        return np.array(ordered)
+    return np.array(_hull(pts.tolist()))
 
-    def chain(seq: Sequence[tuple[float, float]]) -> list[tuple[float, float]]:
-        out: list[tuple[float, float]] = []
+
+def _hull(points: list[list[float]]) -> list[list[float]]:
+    """:func:`convex_hull` on a list of finite (x, y) pairs (plain floats: a few points per call)."""
+    ordered: list[list[float]] = []
+    for p in sorted(points):  # sorted, repeats dropped
+        if not ordered or p != ordered[-1]:
+            ordered.append(p)
+    if len(ordered) <= 2:
+        return ordered
+
+    def chain(seq: Sequence[list[float]]) -> list[list[float]]:
+        out: list[list[float]] = []
         for p in seq:
             while len(out) >= 2 and _cross(out[-2], out[-1], p) <= 0:
                 out.pop()
@@ -214,10 +222,10 @@ def convex_hull(points: npt.ArrayLike) -> np.ndarray:
         return out
 
     lower, upper = chain(ordered), chain(ordered[::-1])
-    return np.array(lower[:-1] + upper[:-1])
+    return lower[:-1] + upper[:-1]
 
 
-def _cross(o: tuple[float, float], a: tuple[float, float], b: tuple[float, float]) -> float:
+def _cross(o: Sequence[float], a: Sequence[float], b: Sequence[float]) -> float:
     return (a[0] - o[0]) * (b[1] - o[1]) - (a[1] - o[1]) * (b[0] - o[0])
 
 
@@ -231,10 +239,18 @@ class ConvexPolygon:
     def __init__(self, hull: npt.ArrayLike):
         self.hull = np.asarray(hull, dtype=float)
         if len(self.hull) >= 3:
-            a, b = self.hull, np.roll(self.hull, -1, axis=0)
-            e = b - a
-            self._normals = np.column_stack([e[:, 1], -e[:, 0]]) / np.linalg.norm(e, axis=1)[:, None]
-            self._offsets = (a * self._normals).sum(axis=1)  # n_i . x <= offset_i inside
+            # per edge, in plain floats (a support polygon has a few vertices; rebuilt every cycle)
+            pts = self.hull.tolist()
+            normals, offsets = [], []
+            for (ax, ay), (bx, by) in zip(pts, pts[1:] + pts[:1], strict=True):
+                ex, ey = bx - ax, by - ay
+                norm = math.sqrt(ex * ex + ey * ey)
+                nx, ny = (ey / norm, -ex / norm) if norm > 0 else (math.nan, math.nan)
+                normals.append((nx, ny))
+                offsets.append(ax * nx + ay * ny)  # n_i . x <= offset_i inside
+            self._normals = np.array(normals)
+            self._offsets = np.array(offsets)
+            self._offset_list = offsets
             #: The largest margin anything can have inside [m] (the centroid's: at most the inradius).
             self.depth = float((self._offsets - self._normals @ self.hull.mean(axis=0)).min())
 
@@ -253,10 +269,17 @@ class ConvexPolygon:
         p = np.asarray(point, dtype=float)[:2]
         if len(self.hull) < 3:
             return -_distance_to_chain(p, self.hull)
-        s = self._normals @ p - self._offsets
-        if s.max() <= 0:
-            return float(-s.max())
+        worst = self._excess(p, 0.0)
+        if worst <= 0:
+            return -worst
         return -_distance_to_chain(p, np.vstack([self.hull, self.hull[:1]]))
+
+    def _excess(self, p: np.ndarray, shrink: float) -> float:
+        """``max_i n_i . p - (offset_i - shrink)`` (NaN if any is: a NaN point is nowhere inside)."""
+        values = [a - (b - shrink)
+                  for a, b in zip((self._normals @ p).tolist(), self._offset_list, strict=True)]
+        worst = max(values)
+        return math.nan if any(v != v for v in values) else worst
 
     def clamp(self, point: npt.ArrayLike, margin_m: float = 0.0) -> np.ndarray:
         """The point of the polygon shrunk by ``margin_m`` nearest to ``point`` (2,) [m].
@@ -272,9 +295,10 @@ class ConvexPolygon:
         if len(self.hull) < 3:
             return _nearest_on_chain(p, self.hull)
         n = self._normals
-        c = self._offsets - min(max(margin_m, 0.0), 0.999 * self.depth)  # n_i . x <= c_i
-        if (n @ p - c).max() <= 1e-12:
+        shrink = min(max(margin_m, 0.0), 0.999 * self.depth)
+        if self._excess(p, shrink) <= 1e-12:
             return p
+        c = self._offsets - shrink  # n_i . x <= c_i
         feet = p - (n @ p - c)[:, None] * n  # the foot on each line (n_i unit)
         i, j = np.triu_indices(len(n), 1)
         det = n[i, 0] * n[j, 1] - n[i, 1] * n[j, 0]

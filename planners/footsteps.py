@@ -53,6 +53,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from functools import cached_property
 from typing import NamedTuple
 
 import numpy as np
@@ -136,8 +137,9 @@ class Footstep(NamedTuple):
     def point_W(self, p_F: npt.ArrayLike) -> np.ndarray:
         """A point given in the foot frame (3,) [m], in W (the footstep level)."""
         c, s = math.cos(self.yaw_rad), math.sin(self.yaw_rad)
-        p = np.asarray(p_F, dtype=float)
-        return self.position + np.array([c * p[0] - s * p[1], s * p[0] + c * p[1], p[2]])
+        x, y, z = (p_F.tolist() if isinstance(p_F, np.ndarray) else np.asarray(p_F, dtype=float).tolist())
+        o = self.position.tolist()  # plain floats: the same sums, without numpy's per-call cost
+        return np.array([o[0] + (c * x - s * y), o[1] + (s * x + c * y), o[2] + z])
 
 
 @dataclass(frozen=True)
@@ -219,10 +221,19 @@ class StepLimits:
         # plain floats over the outline's few points: numpy's per-call cost is larger (called for
         # every previewed footstep, every cycle)
         c, s = math.cos(dyaw_rad), math.sin(dyaw_rad)
-        ys = [y for _, y in self.sole_xy_m]
-        clearance = self.min_width_m - (max(ys) - min(ys))
-        width = clearance + max(side * y for y in ys) - min(side * (s * x + c * y) for x, y in self.sole_xy_m)
+        reaches = self._sole_reach
+        clearance, reach = reaches[side] if side in reaches else self._reach_toward(side)
+        width = clearance + reach - min(side * (s * x + c * y) for x, y in self.sole_xy_m)
         return min(max(width, self.min_width_m), self.nominal_width_m + self.max_outward_m)
+
+    @cached_property
+    def _sole_reach(self) -> dict[int, tuple[float, float]]:
+        """Per side (+1, -1): the clearance [m] and the sole's farthest point toward that side [m]."""
+        return {side: self._reach_toward(side) for side in (1, -1)}
+
+    def _reach_toward(self, side: float) -> tuple[float, float]:
+        ys = [y for _, y in self.sole_xy_m]
+        return self.min_width_m - (max(ys) - min(ys)), max(side * y for y in ys)
 
 
 def leg_chain(robot: Robot, foot_frame: str) -> list[int]:
@@ -360,9 +371,11 @@ class FootstepPlanner:
         mid = stance.yaw_rad + 0.5 * dyaw
         dx, dy = vx * T, s * w + s * max(0.0, s * vy) * 2.0 * T
         c, sn = math.cos(mid), math.sin(mid)
-        p = stance.position + np.array([c * dx - sn * dy, sn * dx + c * dy, 0.0])
-        step = Footstep(self.feet[0] if s > 0 else self.feet[1], s, p, stance.yaw_rad + dyaw)
-        return self.limit_step(stance, step)[0]  # turning while stepping can carry it past a limit
+        o = stance.position.tolist()
+        p = [o[0] + (c * dx - sn * dy), o[1] + (sn * dx + c * dy), o[2] + 0.0]
+        foot = self.feet[0] if s > 0 else self.feet[1]
+        # turning while stepping can carry it past a limit
+        return self._limited(stance, o, foot, s, p, stance.yaw_rad + dyaw)[0]
 
     def limit_step(self, stance: Footstep, step: Footstep) -> tuple[Footstep, bool]:
         """``step`` moved into the limits relative to ``stance`` (in the stance heading frame).
@@ -375,21 +388,27 @@ class FootstepPlanner:
         Returns:
             The footstep within the limits, and whether it moved.
         """
+        return self._limited(stance, stance.position.tolist(), step.foot, step.side, step.position.tolist(),
+                             step.yaw_rad, step)
+
+    def _limited(self, stance: Footstep, o: list[float], foot: str, side: int, position: list[float],
+                 yaw_rad: float, step: Footstep | None = None) -> tuple[Footstep, bool]:
+        """:meth:`limit_step` on plain floats (``o``: the stance position; ``step``: the footstep if made)."""
         lim = self.limits
         c, sn = math.cos(stance.yaw_rad), math.sin(stance.yaw_rad)
-        d = step.position - stance.position
+        d = (position[0] - o[0], position[1] - o[1], position[2] - o[2])
         fwd, lat = c * d[0] + sn * d[1], -sn * d[0] + c * d[1]
-        width = step.side * lat
-        dyaw = math.remainder(step.yaw_rad - stance.yaw_rad, 2.0 * math.pi)
+        width = side * lat
+        dyaw = math.remainder(yaw_rad - stance.yaw_rad, 2.0 * math.pi)
         fwd_c = min(max(fwd, -lim.max_backward_m), lim.max_forward_m)
         dyaw_c = min(max(dyaw, -lim.max_yaw_rad), lim.max_yaw_rad)
         widest = lim.nominal_width_m + lim.max_outward_m
-        width_c = min(max(width, lim.min_width_for(dyaw_c, step.side)), widest)
+        width_c = min(max(width, lim.min_width_for(dyaw_c, side)), widest)
         if (fwd_c, width_c, dyaw_c) == (fwd, width, dyaw):
-            return step, False
-        lat_c = step.side * width_c
-        p = stance.position + np.array([c * fwd_c - sn * lat_c, sn * fwd_c + c * lat_c, d[2]])
-        return Footstep(step.foot, step.side, p, stance.yaw_rad + dyaw_c), True
+            return (step or Footstep(foot, side, np.array(position), yaw_rad)), False
+        lat_c = side * width_c
+        p = np.array([o[0] + (c * fwd_c - sn * lat_c), o[1] + (sn * fwd_c + c * lat_c), o[2] + d[2]])
+        return Footstep(foot, side, p, stance.yaw_rad + dyaw_c), True
 
     def plan(self, stance: Footstep, command: VelocityCommand, n: int) -> list[Footstep]:
         """The next ``n`` footsteps from ``stance`` (alternating feet) under a clamped command."""

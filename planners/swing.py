@@ -191,6 +191,13 @@ class SwingTrajectory:
                                             acceleration=sample.acceleration.copy()))
         return sample
 
+    def yaw_at(self, t_s: float) -> float:
+        """The yaw reference [rad] at time ``t_s`` [s] (``at(t_s).yaw_rad``, without copying the sample)."""
+        cached = self._cache
+        if cached is not None and cached[0] == t_s:
+            return cached[1].yaw_rad
+        return self.at(t_s).yaw_rad
+
     def _at(self, t_s: float) -> SwingSample:
         tau = min(max(t_s - self.t0_s, 0.0), self.duration_s)
         p, v, a = polynomial_at(self._plane, max(0.0, min(t_s, self.horizontal_end_s) - self._plane_t0))

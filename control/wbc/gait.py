@@ -262,6 +262,6 @@ class Gait:
     def heading(self, t: float) -> float:
         """The base's heading [rad]: midway between the feet (the swing foot's reference while it swings)."""
         if self.swing is not None:
-            return mean_angle(self.placed[self.swing.stance].yaw_rad, self.swing.path.at(t).yaw_rad)
+            return mean_angle(self.placed[self.swing.stance].yaw_rad, self.swing.path.yaw_at(t))
         left, right = (self.placed[f].yaw_rad for f in self.feet)
         return mean_angle(left, right)

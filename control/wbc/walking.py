@@ -75,6 +75,14 @@ ContactForce = Callable[[str], "float | None"]
 #: Where each double support's DCM switch sits in it [-] (0.5: centred).
 DS_ALPHA = 0.5
 
+#: DCM plans kept for reuse, by their inputs (the last few cycles' distinct plans).
+PLANS_KEPT = 4
+
+
+def _step_key(step: Footstep | None) -> tuple | None:
+    """A footstep's values, as a key (exact: equal keys plan equal footsteps)."""
+    return None if step is None else (step.foot, step.side, *step.position.tolist(), step.yaw_rad)
+
 
 class SwingFootTask(FramePoseTask):
     """The swing foot's pose with its turning fed forward: a frame pose task plus a yaw rate and acceleration.
@@ -266,6 +274,7 @@ class WalkingController:
         self._adaptation: StepAdaptation | None = None
         self._in_contact = {}
         self._plan_memo: tuple[tuple, tuple[DcmPlan, list[Footstep]]] | None = None
+        self._plans: dict[tuple, tuple[DcmPlan, list[Footstep]]] = {}
 
     def _follow_command(self, t: float, gait: Gait) -> None:
         """The walk's command toward the applied one at ``max_acceleration``; the footsteps' command.
@@ -275,14 +284,16 @@ class WalkingController:
         """
         dt = 0.0 if self._t_last is None else max(0.0, t - self._t_last)
         self._t_last = t
-        limits = self.config.max_acceleration
-        self._command = VelocityCommand(*(c + min(max(g - c, -a * dt), a * dt) for c, g, a in
-                                          zip(self._command, self._clamp.applied, limits, strict=True)))
-        self.heading_ref_rad += self._command.yaw_rate_rad_s * dt
-        error = math.remainder(self.heading_ref_rad - gait.heading(t), 2.0 * math.pi)
+        (ax, ay, aw), (gx, gy, gw) = self.config.max_acceleration, self._clamp.applied
         vx, vy, wz = self._command
-        self._steer = VelocityCommand(vx + self.speed_correction[0], vy + self.speed_correction[1],
-                                      wz + self.config.heading_gain_1_s * error)
+        vx = vx + min(max(gx - vx, -ax * dt), ax * dt)
+        vy = vy + min(max(gy - vy, -ay * dt), ay * dt)
+        wz = wz + min(max(gw - wz, -aw * dt), aw * dt)
+        self._command = VelocityCommand(vx, vy, wz)
+        self.heading_ref_rad += wz * dt
+        error = math.remainder(self.heading_ref_rad - gait.heading(t), 2.0 * math.pi)
+        cx, cy = self.speed_correction.tolist()
+        self._steer = VelocityCommand(vx + cx, vy + cy, wz + self.config.heading_gain_1_s * error)
 
     def _correct_speed(self, t: float, gait: Gait) -> None:
         """After a touchdown: the speed loop on the feet's mean speed over the last step.
@@ -345,9 +356,7 @@ class WalkingController:
             gait.retarget(t, self._swing_footstep(gait, t, xi))
         plan, steps = self._plan(gait, t)
         ref = plan.at(t)
-        support = ConvexPolygon.of_points(np.vstack([
-            (poses[f].rotation @ self.wbc.contacts[f].contact.points_F.T).T[:, :2] + poses[f].translation[:2]
-            for f in self.feet if self.wbc.contacts[f].active]))
+        support = ConvexPolygon.of_points(self._support_points(poses))
         cmp = dcm_feedback(xi, ref, self.omega, cfg.dcm_gain_1_s)
         cmp_c = support.clamp(cmp, cfg.cmp_margin_m)
         z_ref, vz_ref, az_ref = gait.height(t)
@@ -365,6 +374,17 @@ class WalkingController:
                                     support.margin(ref.vrp), cmp, support.margin(cmp), cmp_c, acc,
                                     tuple(steps), event, self._adaptation)
         return self.wbc.compute(state)
+
+    def _support_points(self, poses: dict[str, pin.SE3]) -> list[list[float]]:
+        """The active feet's contact points (x, y) [m] in W (plain floats: a few points per foot)."""
+        points = []
+        for f in self.feet:
+            contact = self.wbc.contacts[f]
+            if contact.active:
+                xs, ys, _ = (poses[f].rotation @ contact.contact.points_F.T).tolist()
+                ox, oy, _ = poses[f].translation.tolist()
+                points += [[x + ox, y + oy] for x, y in zip(xs, ys, strict=True)]
+        return points
 
     def _tell_contacts(self) -> None:
         """Tell the contact listener which feet are on the ground (their contact in force), on a change."""
@@ -421,13 +441,23 @@ class WalkingController:
             round(math.remainder(first.yaw_rad, 2.0 * math.pi), 12)))
         if self._plan_memo is not None and self._plan_memo[0] == key:
             return self._plan_memo[1]
-        steps = [first] if first is not None else []
-        steps += self.planner.plan(stance, self._steer, cfg.preview_steps)
-        vrps += [gait.vrp(s) for s in steps]
-        before_last = steps[-2] if len(steps) > 1 else stance
-        vrps.append(0.5 * (gait.vrp(steps[-1]) + gait.vrp(before_last)))  # the stop: between the last two
-        switches = t1 + cfg.timing.step_s * np.arange(len(vrps) - 1)
-        plan = DcmPlan(self.omega, vrps, switches, cfg.timing.double_support_s, DS_ALPHA, initial), steps
+        # the plan depends on these only (on t through t1): a cycle planning through the same footsteps
+        # at the same command as an earlier one (double support, a swing footstep no longer moving) reuses it
+        inputs = (_step_key(first), _step_key(stance), tuple(tuple(v.tolist()) for v in vrps), t1,
+                  None if initial is None else (initial[0], *initial[1].tolist(), *initial[2].tolist()),
+                  self._steer)
+        plan = self._plans.get(inputs)
+        if plan is None:
+            steps = [first] if first is not None else []
+            steps += self.planner.plan(stance, self._steer, cfg.preview_steps)
+            vrps += [gait.vrp(s) for s in steps]
+            before_last = steps[-2] if len(steps) > 1 else stance
+            vrps.append(0.5 * (gait.vrp(steps[-1]) + gait.vrp(before_last)))  # the stop: between the last two
+            switches = t1 + cfg.timing.step_s * np.arange(len(vrps) - 1)
+            plan = DcmPlan(self.omega, vrps, switches, cfg.timing.double_support_s, DS_ALPHA, initial), steps
+            if len(self._plans) >= PLANS_KEPT:
+                del self._plans[next(iter(self._plans))]  # the oldest
+            self._plans[inputs] = plan
         self._plan_memo = (key, plan)
         return plan
 
