@@ -35,6 +35,7 @@ not expose the capture point.
 
 from __future__ import annotations
 
+import bisect
 import math
 from collections.abc import Sequence
 from typing import NamedTuple
@@ -98,38 +99,43 @@ class DcmPlan:
                  initial: tuple[float, npt.ArrayLike, npt.ArrayLike] | None = None):
         r = np.array(vrps, dtype=float)
         t = np.atleast_1d(np.array(switch_times_s, dtype=float))
+        # plain floats below (a few VRPs; the plan is rebuilt whenever a footstep or the command changes)
+        rl, tl = r.tolist(), t.tolist()
         if not (math.isfinite(omega_rad_s) and omega_rad_s > 0):
             raise InvalidPlanningInput(f"omega_rad_s must be finite and > 0; got {omega_rad_s!r}")
-        if r.ndim != 2 or r.shape[1] != 2 or len(r) < 1 or not np.all(np.isfinite(r)):
+        if r.ndim != 2 or r.shape[1] != 2 or len(r) < 1 or not all(map(math.isfinite, r.ravel().tolist())):
             raise InvalidPlanningInput(f"vrps must be a finite (N + 1, 2) array [m]; got shape {r.shape}")
-        if t.shape != (len(r) - 1,) or not np.all(np.isfinite(t)):
+        if t.shape != (len(r) - 1,) or not all(map(math.isfinite, tl)):
             raise InvalidPlanningInput(f"switch_times_s must be finite, one per VRP after the first: "
                                        f"shape ({len(r) - 1},); got {t.shape}")
         if not (math.isfinite(double_support_s) and double_support_s >= 0 and 0.0 <= alpha <= 1.0):
             raise InvalidPlanningInput(f"double_support_s must be >= 0 [s] and alpha in [0, 1]; got "
                                        f"{double_support_s!r}, {alpha!r}")
-        if len(t) > 1 and np.any(np.diff(t) < double_support_s + 1e-9):
+        if any(b - a < double_support_s + 1e-9 for a, b in zip(tl[:-1], tl[1:], strict=True)):
             raise InvalidPlanningInput(f"switch times must increase by more than T_ds = {double_support_s} "
-                                       f"s; got {t.tolist()}")
+                                       f"s; got {tl}")
         self.omega = float(omega_rad_s)
         self.vrps, self.switch_times_s = r, t
+        self._vrps, self._switches = rl, tl
         self.double_support_s, self.alpha = float(double_support_s), float(alpha)
         # backward recursion: xi at each switch (xi_eos)
-        xi_switch = np.empty((len(t), 2))
-        nxt = r[-1]
-        for k in range(len(t) - 1, -1, -1):
-            if k < len(t) - 1:
-                nxt = r[k + 1] + math.exp(-self.omega * (t[k + 1] - t[k])) * (nxt - r[k + 1])
+        xi_switch: list[list[float]] = [[]] * len(tl)
+        nxt = rl[-1]
+        for k in range(len(tl) - 1, -1, -1):
+            if k < len(tl) - 1:
+                e, rk = math.exp(-self.omega * (tl[k + 1] - tl[k])), rl[k + 1]
+                nxt = [rk[0] + e * (nxt[0] - rk[0]), rk[1] + e * (nxt[1] - rk[1])]
             xi_switch[k] = nxt
-        self.xi_switch = xi_switch
+        self._xi_switch = xi_switch
+        self.xi_switch = np.array(xi_switch).reshape(len(tl), 2)
         #: The double-support windows (start, end) [s] around the switches (the first from the initial
         #: time when given); each window's quintic is computed when first evaluated.
         self.windows: list[tuple[float, float]] = []
         self._window_switch: list[int] = []
         self._coefficients: dict[int, np.ndarray] = {}
-        for k in range(len(t)):
-            a = t[k] - self.alpha * self.double_support_s
-            b = t[k] + (1.0 - self.alpha) * self.double_support_s
+        for k, tk in enumerate(tl):
+            a = tk - self.alpha * self.double_support_s
+            b = tk + (1.0 - self.alpha) * self.double_support_s
             if k == 0 and initial is not None:
                 if initial[0] > b:
                     raise InvalidPlanningInput(f"initial time {initial[0]} s is after the first window's end "
@@ -147,7 +153,7 @@ class DcmPlan:
             (a, b), k = self.windows[i], self._window_switch[i]
             if k == 0 and self._initial is not None:
                 _, xi0, xid0 = self._initial
-                start = (np.asarray(xi0, dtype=float), np.asarray(xid0, dtype=float), np.zeros(2))
+                start = (np.asarray(xi0, dtype=float), np.asarray(xid0, dtype=float), 0.0)
             else:
                 start = self._exponential(k, a)
             coeffs = self._coefficients[i] = quintic_coefficients(*start, *self._exponential(k + 1, b), b - a)
@@ -155,15 +161,16 @@ class DcmPlan:
 
     def _segment(self, t_s: float) -> int:
         """The VRP index in force at ``t_s`` (ignoring the windows)."""
-        return int(np.searchsorted(self.switch_times_s, t_s, side="right"))
+        return bisect.bisect_right(self._switches, t_s)
 
-    def _exponential(self, k: int, t_s: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """(xi, xi_dot, xi_ddot) on segment k's exponential at ``t_s``."""
-        r = self.vrps[k]
-        if k >= len(self.switch_times_s):  # after the last switch: at rest on r_N
-            return r.copy(), np.zeros(2), np.zeros(2)
-        d = math.exp(self.omega * (t_s - self.switch_times_s[k])) * (self.xi_switch[k] - r)
-        return r + d, self.omega * d, self.omega**2 * d
+    def _exponential(self, k: int, t_s: float) -> tuple[list[float], list[float], list[float]]:
+        """(xi, xi_dot, xi_ddot) on segment k's exponential at ``t_s`` (2 floats each)."""
+        r = self._vrps[k]
+        if k >= len(self._switches):  # after the last switch: at rest on r_N
+            return list(r), [0.0, 0.0], [0.0, 0.0]
+        e, xs, w = math.exp(self.omega * (t_s - self._switches[k])), self._xi_switch[k], self.omega
+        d = [e * (xs[0] - r[0]), e * (xs[1] - r[1])]
+        return [r[0] + d[0], r[1] + d[1]], [w * d[0], w * d[1]], [w**2 * d[0], w**2 * d[1]]
 
     def at(self, t_s: float) -> DcmReference:
         """The plan at time ``t_s`` [s]."""
@@ -175,8 +182,9 @@ class DcmPlan:
             _, xi0, xid0 = self._initial
             xi = np.asarray(xi0, dtype=float).copy()
             return DcmReference(xi, np.zeros(2), xi.copy())
-        xi, xid, _ = self._exponential(self._segment(t_s), t_s)
-        return DcmReference(xi, xid, xi - xid / self.omega)
+        x, xd, _ = self._exponential(self._segment(t_s), t_s)
+        w = self.omega
+        return DcmReference(np.array(x), np.array(xd), np.array([x[0] - xd[0] / w, x[1] - xd[1] / w]))
 
 
 def dcm_feedback(xi_W: npt.ArrayLike, reference: DcmReference, omega_rad_s: float,
@@ -199,9 +207,11 @@ def convex_hull(points: npt.ArrayLike) -> np.ndarray:
         InvalidPlanningInput: Not a finite (n, 2) array with n >= 1.
     """
     pts = np.asarray(points, dtype=float)
-    if pts.ndim != 2 or pts.shape[1] != 2 or len(pts) < 1 or not np.all(np.isfinite(pts)):
+    listed = pts.tolist()
+    if pts.ndim != 2 or pts.shape[1] != 2 or len(pts) < 1 or not all(
+            math.isfinite(x) and math.isfinite(y) for x, y in listed):
         raise InvalidPlanningInput(f"points must be a finite (n, 2) array [m]; got shape {pts.shape}")
-    return np.array(_hull(pts.tolist()))
+    return np.array(_hull(listed))
 
 
 def _hull(points: list[list[float]]) -> list[list[float]]:

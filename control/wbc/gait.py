@@ -119,6 +119,7 @@ class Gait:
         self.t0_s = t0_s
         self._com0 = np.array(com, dtype=float)
         self._z_walk = self.ground_z + config.com_height_m
+        self._height_after: tuple[float, float, float] | None = None
         self.phase = START
         self.t_phase = t0_s
         self.phase_end = t0_s + config.start_s
@@ -256,8 +257,15 @@ class Gait:
 
     def height(self, t: float) -> tuple[float, float, float]:
         """CoM height reference [m], its rate [m/s] and acceleration [m/s^2] at ``t``."""
-        p, v, a = minimum_jerk_at([self._com0[2]], [self._z_walk], t, self.t0_s, self.config.start_s)
-        return float(p[0]), float(v[0]), float(a[0])
+        T = self.config.start_s
+        after = t > self.t0_s + T and (t - self.t0_s) / T >= 1.0  # the blend's end: the same at any such t
+        if after and self._height_after is not None:
+            return self._height_after
+        p, v, a = minimum_jerk_at([self._com0[2]], [self._z_walk], t, self.t0_s, T)
+        height = float(p[0]), float(v[0]), float(a[0])
+        if after:
+            self._height_after = height
+        return height
 
     def heading(self, t: float) -> float:
         """The base's heading [rad]: midway between the feet (the swing foot's reference while it swings)."""
