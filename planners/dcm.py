@@ -151,6 +151,7 @@ class DcmPlan:
         coeffs = self._coefficients.get(i)
         if coeffs is None:
             (a, b), k = self.windows[i], self._window_switch[i]
+            start: tuple[npt.ArrayLike, npt.ArrayLike, npt.ArrayLike]
             if k == 0 and self._initial is not None:
                 _, xi0, xid0 = self._initial
                 start = (np.asarray(xi0, dtype=float), np.asarray(xid0, dtype=float), 0.0)
