@@ -199,14 +199,13 @@ class QPSolver:
             A, upper, lower, sense = self._no_rows, qp.ub, qp.lb, self._box_sense  # a box only: no copy
         else:
             A, upper, lower, sense = self._pack(qp)
-        t0 = time.perf_counter()
-        x, fval, flag, info = daqp.solve(qp.H, qp.c, A, upper, lower, sense, **self.options)
-        elapsed = time.perf_counter() - t0
-        if flag > 0 and math.isfinite(fval):
-            return QPResult(x, flag, info["iterations"], elapsed, duals=info["lam"])
+        result = solve_packed(qp.H, qp.c, A, upper, lower, sense, self.options)
+        if result.x is not None:
+            return result
         # no solution, or a non-finite one (from non-finite data): say why
+        flag = result.status
         status = CONTRADICTORY if _contradictions(qp) else (NOT_FOUND if flag > 0 else flag)
-        return QPResult(None, status, info["iterations"], elapsed)
+        return result._replace(status=status)
 
     def _pack(self, qp: QPData) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         """The rows, upper and lower bounds and senses for daqp: the box, then ``G``, then ``A``."""
@@ -255,6 +254,21 @@ class QPSolver:
             self._sense[n_box + m_in:m] = DAQP_EQUALITY
             self._layout = (n_box, m_in, m_eq)
         return self._sense[:m]
+
+
+def solve_packed(H: np.ndarray, c: np.ndarray, A: np.ndarray, upper: np.ndarray, lower: np.ndarray,
+                 sense: np.ndarray, options: dict[str, Any] | None = None) -> QPResult:
+    """Solve with daqp on its packing: the first ``len(upper) - len(A)`` entries bound x, the rest ``A x``.
+
+    Returns:
+        The result, ``x`` None (and ``status`` daqp's flag) when daqp finds no finite solution.
+    """
+    t0 = time.perf_counter()
+    x, fval, flag, info = daqp.solve(H, c, A, upper, lower, sense, **(options or {}))
+    elapsed = time.perf_counter() - t0
+    if flag > 0 and math.isfinite(fval):
+        return QPResult(x, flag, info["iterations"], elapsed, duals=info["lam"])
+    return QPResult(None, flag, info["iterations"], elapsed)
 
 
 def solve_qpsolvers(qp: QPData, solver: str, options: dict[str, Any] | None = None) -> QPResult:

@@ -145,6 +145,7 @@ class WholeBodyController:
                         qp.g_up[row] = 0.0
                         row += 1
         self._T = qp.G[self._n_fric:]  # torque rows: tau = T x + b_a (a view, written each cycle)
+        qp.deferred_rows = slice(self._n_fric, self._n_fric + n_a)  # the torque limits: rarely active
         self._Jc = np.zeros((n_f, nv))  # the points' Jacobians, in their foot frames
         n_feet = len(self.contacts)
         self._JF = np.zeros((6 * n_feet, nv))  # every foot's LOCAL Jacobian, stacked

@@ -216,3 +216,36 @@ def test_a_skipped_fast_path_is_retried_when_daqp_finds_no_solution(monkeypatch)
     result = qp.solve(M_EQ)
     assert tries[0] == 2 and result.dependent_rows == 1 == expected.dependent_rows
     np.testing.assert_allclose(result.x, expected.x, atol=1e-9)
+
+
+@settings(max_examples=25, deadline=None)
+@given(st.integers(0, 10_000), st.sampled_from([slice(0, 3), slice(5, 10)]), st.booleans())
+def test_the_reduced_qp_gives_the_whole_qps_optimum(seed, deferred, pin):
+    """daqp first solves without the deferred rows (and the pinned forces); its point is kept only
+    when it satisfies the deferred rows, else the whole QP is solved: the optimum either way."""
+    qp = _problem(seed, 0.2)  # rows 0-2 and a bound cut: active at the optimum
+    if pin:
+        qp.lb[NV + 3:] = qp.ub[NV + 3:] = 0.0
+        qp.force_free[3:] = False
+    qp.deferred_rows = deferred
+    whole = []
+    solve = qp._daqp_solver.solve
+    qp._daqp_solver.solve = lambda data: whole.append(1) or solve(data)
+    result = qp.solve(M_EQ)
+    reference = _reference(qp, M_EQ)
+    if reference is None:
+        assert result.x is None
+        return
+    np.testing.assert_allclose(result.x, reference, atol=1e-6 * max(1.0, np.abs(reference).max()))
+    g = qp.G[deferred] @ result.x
+    assert (g <= qp.g_up[deferred] + 1e-6).all() and (g >= qp.g_lo[deferred] - 1e-6).all()
+    # the whole QP is solved exactly when the optimum without the deferred rows violates them
+    # (always when they are the cut rows)
+    lo, up = qp.g_lo.copy(), qp.g_up.copy()
+    qp.g_lo[deferred], qp.g_up[deferred] = -np.inf, np.inf
+    relaxed = _reference(qp, M_EQ)
+    qp.g_lo[:], qp.g_up[:] = lo, up
+    g = qp.G[deferred] @ relaxed
+    violated = bool((g > up[deferred] + 1e-5).any() or (g < lo[deferred] - 1e-5).any())
+    assert whole == ([1] if violated else [])
+    assert violated or deferred.start != 0
