@@ -250,25 +250,44 @@ class ConvexPolygon:
     def __init__(self, hull: npt.ArrayLike):
         self.hull = np.asarray(hull, dtype=float)
         if len(self.hull) >= 3:
-            # per edge, in plain floats (a support polygon has a few vertices; rebuilt every cycle)
-            pts = self.hull.tolist()
-            normals, offsets = [], []
-            for (ax, ay), (bx, by) in zip(pts, pts[1:] + pts[:1], strict=True):
-                ex, ey = bx - ax, by - ay
-                norm = math.sqrt(ex * ex + ey * ey)
-                nx, ny = (ey / norm, -ex / norm) if norm > 0 else (math.nan, math.nan)
-                normals.append((nx, ny))
-                offsets.append(ax * nx + ay * ny)  # n_i . x <= offset_i inside
-            self._normals = np.array(normals)
-            self._offsets = np.array(offsets)
-            self._offset_list = offsets
-            #: The largest margin anything can have inside [m] (the centroid's: at most the inradius).
-            self.depth = float((self._offsets - self._normals @ self.hull.mean(axis=0)).min())
+            self._edges(self.hull.tolist())
+
+    def _edges(self, pts: list[list[float]]) -> None:
+        """The edges' outward normals and offsets from the vertices ``pts`` (plain floats: a few of them)."""
+        normals, offsets = [], []
+        for (ax, ay), (bx, by) in zip(pts, pts[1:] + pts[:1], strict=True):
+            ex, ey = bx - ax, by - ay
+            norm = math.sqrt(ex * ex + ey * ey)
+            nx, ny = (ey / norm, -ex / norm) if norm > 0 else (math.nan, math.nan)
+            normals.append((nx, ny))
+            offsets.append(ax * nx + ay * ny)  # n_i . x <= offset_i inside
+        self._normals = np.array(normals)
+        self._offsets = np.array(offsets)
+        self._offset_list = offsets
+        sx, sy = pts[0]
+        for x, y in pts[1:]:  # the centroid, summed in order (as hull.mean(axis=0))
+            sx, sy = sx + x, sy + y
+        centroid = np.array([sx / len(pts), sy / len(pts)])
+        #: The largest margin anything can have inside [m] (the centroid's: at most the inradius).
+        self.depth = float((self._offsets - self._normals @ centroid).min())
 
     @classmethod
     def of_points(cls, points: npt.ArrayLike) -> ConvexPolygon:
-        """The convex hull of 2-D points (n, 2) [m]."""
-        return cls(convex_hull(points))
+        """The convex hull of 2-D points (n, 2) [m] (a list of (x, y) pairs: on plain floats, no array).
+
+        Raises:
+            InvalidPlanningInput: Not a finite (n, 2) array with n >= 1.
+        """
+        if not (isinstance(points, list) and points and all(
+                isinstance(p, list | tuple) and len(p) == 2 and math.isfinite(p[0]) and math.isfinite(p[1])
+                for p in points)):
+            return cls(convex_hull(points))
+        vertices = _hull([[float(x), float(y)] for x, y in points])
+        polygon = cls.__new__(cls)
+        polygon.hull = np.array(vertices)
+        if len(vertices) >= 3:
+            polygon._edges(vertices)
+        return polygon
 
     def margin(self, point: npt.ArrayLike) -> float:
         """Signed distance [m] from ``point`` (2,) to the edges: > 0 inside.

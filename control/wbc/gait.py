@@ -114,6 +114,7 @@ class Gait:
         self.wbc, self.planner, self.config = wbc, planner, config
         self.feet = planner.feet
         self.sole_centre_F = sole_centre_F
+        self._sole_xy = (float(sole_centre_F[0]), float(sole_centre_F[1]))
         self.placed = {f: self.footstep(f, X) for f, X in poses.items()}
         self.ground_z = float(np.mean([s.point_W(sole_centre_F)[2] for s in self.placed.values()]))
         self.t0_s = t0_s
@@ -136,7 +137,10 @@ class Gait:
 
     def vrp(self, step: Footstep) -> np.ndarray:
         """A footstep's VRP: its sole centre (2,) [m] in W."""
-        return step.point_W(self.sole_centre_F)[:2]
+        x, y = self._sole_xy  # step.point_W(sole_centre_F)[:2], on plain floats
+        c, s = math.cos(step.yaw_rad), math.sin(step.yaw_rad)
+        o = step.position.tolist()
+        return np.array([o[0] + (c * x - s * y), o[1] + (s * x + c * y)])
 
     @property
     def stance_name(self) -> str:

@@ -275,6 +275,7 @@ class WalkingController:
         self._in_contact = {}
         self._plan_memo: tuple[tuple, tuple[DcmPlan, list[Footstep]]] | None = None
         self._plans: dict[tuple, tuple[DcmPlan, list[Footstep]]] = {}
+        self._oriented: tuple[float, list[pin.SE3]] | None = None
 
     def _follow_command(self, t: float, gait: Gait) -> None:
         """The walk's command toward the applied one at ``max_acceleration``; the footsteps' command.
@@ -451,8 +452,8 @@ class WalkingController:
             steps = [first] if first is not None else []
             steps += self.planner.plan(stance, self._steer, cfg.preview_steps)
             vrps += [gait.vrp(s) for s in steps]
-            before_last = steps[-2] if len(steps) > 1 else stance
-            vrps.append(0.5 * (gait.vrp(steps[-1]) + gait.vrp(before_last)))  # the stop: between the last two
+            before_last = vrps[-2] if len(steps) > 1 else gait.vrp(stance)
+            vrps.append(0.5 * (vrps[-1] + before_last))  # the stop: between the last two footsteps
             switches = t1 + cfg.timing.step_s * np.arange(len(vrps) - 1)
             plan = DcmPlan(self.omega, vrps, switches, cfg.timing.double_support_s, DS_ALPHA, initial), steps
             if len(self._plans) >= PLANS_KEPT:
@@ -463,10 +464,15 @@ class WalkingController:
 
     def _orient(self, yaw: float) -> None:
         """Pelvis and torso upright, heading ``yaw`` [rad]."""
+        tasks = [t for t in (self.standing.base, self.standing.torso) if t is not None]
+        last = self._oriented
+        if last is not None and last[0] == yaw and all(
+                task.transform_target_to_world is X for task, X in zip(tasks, last[1], strict=True)):
+            return  # the targets this set last, unchanged since
         X = pin.SE3(pin.rpy.rpyToMatrix(0.0, 0.0, yaw), np.zeros(3))
-        self.standing.base.set_target(X)
-        if self.standing.torso is not None:
-            self.standing.torso.set_target(X)
+        for task in tasks:
+            task.set_target(X)
+        self._oriented = (yaw, [task.transform_target_to_world for task in tasks])
 
     def _swing(self, gait: Gait, t: float) -> None:
         """The swing foot's task on its path; the other foot's task off."""
