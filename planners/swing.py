@@ -162,6 +162,7 @@ class SwingTrajectory:
         half = 0.5 * self.duration_s
         apex = max(p0[2], p1[2]) + self.lift_height_m
         self._cache: tuple[float, SwingSample] | None = None  # the last sample (a cycle asks for it again)
+        self._plane_end_cache: np.ndarray | None = None  # x, y, yaw at the horizontal motion's end
         self._up = quintic_coefficients(p0[2], 0.0, 0.0, apex, 0.0, 0.0, half)
         self._down = quintic_coefficients(apex, 0.0, 0.0, p1[2], 0.0, 0.0, half)
 
@@ -197,7 +198,7 @@ class SwingTrajectory:
         goal = self._goal(float(p[2]), p1, target_yaw_rad)
         self._plane = quintic_coefficients(p, v, a, goal, 0.0, 0.0, left)
         self._plane_t0 = float(t_s)
-        self._cache = None
+        self._cache = self._plane_end_cache = None
         self.target_position = np.array([p1[0], p1[1], self.target_position[2]])
         self.target_yaw_rad = float(goal[2])
         return True
@@ -223,9 +224,13 @@ class SwingTrajectory:
 
     def _at(self, t_s: float) -> SwingSample:
         tau = min(max(t_s - self.t0_s, 0.0), self.duration_s)
-        p, v, a = polynomial_at(self._plane, max(0.0, min(t_s, self.horizontal_end_s) - self._plane_t0))
-        if t_s >= self.horizontal_end_s:
-            v, a = np.zeros(3), np.zeros(3)
+        if t_s >= self.horizontal_end_s:  # at the footstep (x, y, yaw): the same until a retarget
+            if self._plane_end_cache is None:
+                end = max(0.0, self.horizontal_end_s - self._plane_t0)
+                self._plane_end_cache = polynomial_at(self._plane, end)[0]
+            p, v, a = self._plane_end_cache, np.zeros(3), np.zeros(3)
+        else:
+            p, v, a = polynomial_at(self._plane, max(0.0, t_s - self._plane_t0))
         half = 0.5 * self.duration_s
         if tau <= half:
             z, vz, az = polynomial_at(self._up, tau)

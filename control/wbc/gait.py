@@ -121,6 +121,7 @@ class Gait:
         self._com0 = np.array(com, dtype=float)
         self._z_walk = self.ground_z + config.com_height_m
         self._height_after: tuple[float, float, float] | None = None
+        self._placed_vrps: dict[str, tuple[Footstep, np.ndarray]] = {}
         self.phase = START
         self.t_phase = t0_s
         self.phase_end = t0_s + config.start_s
@@ -134,6 +135,14 @@ class Gait:
     def footstep(self, foot: str, X_WF: pin.SE3) -> Footstep:
         """The footstep a foot at pose ``X_WF`` makes."""
         return Footstep(foot, 1 if foot == self.feet[0] else -1, X_WF.translation.copy(), foot_yaw(X_WF))
+
+    def _placed_vrp(self, foot: str) -> np.ndarray:
+        """The VRP of ``foot``'s placed footstep (computed once per footstep placed)."""
+        step = self.placed[foot]
+        cached = self._placed_vrps.get(foot)
+        if cached is None or cached[0] is not step:
+            cached = self._placed_vrps[foot] = (step, self.vrp(step))
+        return cached[1].copy()
 
     def vrp(self, step: Footstep) -> np.ndarray:
         """A footstep's VRP: its sole centre (2,) [m] in W."""
@@ -248,16 +257,17 @@ class Gait:
         if self.swing is not None:
             first = self.swing.footstep(1 if self.swing.foot == self.feet[0] else -1)
             t1 = max(self.phase_end, t) + alpha * T_ds
-            return first, [self.vrp(self.placed[self.swing.stance])], t1, first, None
+            return first, [self._placed_vrp(self.swing.stance)], t1, first, None
         if self.leading is not None:
             lead = self.placed[self.leading]
-            trail = self.placed[self._other(self.leading)]
-            return None, [self.vrp(trail), self.vrp(lead)], self.t_phase + alpha * T_ds, lead, None
-        stance = self.placed[self._other(self.releasing or self._first_swing(command))]
+            vrps = [self._placed_vrp(self._other(self.leading)), self._placed_vrp(self.leading)]
+            return None, vrps, self.t_phase + alpha * T_ds, lead, None
+        foot = self._other(self.releasing or self._first_swing(command))
+        stance = self.placed[foot]
         first = self.planner.next_footstep(stance, command)
         xi0 = self._com0[:2].copy()
         t1 = self.phase_end - (1.0 - alpha) * T_ds
-        return first, [xi0, self.vrp(stance)], t1, first, (self.t0_s, xi0, np.zeros(2))
+        return first, [xi0, self._placed_vrp(foot)], t1, first, (self.t0_s, xi0, np.zeros(2))
 
     def height(self, t: float) -> tuple[float, float, float]:
         """CoM height reference [m], its rate [m/s] and acceleration [m/s^2] at ``t``."""

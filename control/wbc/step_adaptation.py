@@ -141,7 +141,12 @@ class StepAdapter:
         """
         c, s = math.cos(stance.yaw_rad), math.sin(stance.yaw_rad)
         e = np.asarray(dcm_error_W, dtype=float)
-        e_S = np.array([c * e[0] + s * e[1], -s * e[0] + c * e[1]])
+        ex, ey = e[:2].tolist()
+        fwd, side = c * ex + s * ey, -s * ex + c * ey
+        tube_fwd, tube_side = self.tube_m.tolist()
+        if abs(fwd) - tube_fwd <= 0.0 and abs(side) - tube_side <= 0.0:  # in the tube (most cycles)
+            return StepAdaptation(nominal, np.zeros(2), False, False, 0.0)
+        e_S = np.array([fwd, side])
         out = np.sign(e_S) * np.maximum(np.abs(e_S) - self.tube_m, 0.0)
         if not out.any():
             return StepAdaptation(nominal, np.zeros(2), False, False, 0.0)

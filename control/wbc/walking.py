@@ -437,14 +437,16 @@ class WalkingController:
         # a cycle that moves the swing footstep plans twice, through the nominal footstep and then
         # through the one it swings to: the same plan when the adaptation kept the nominal one (the
         # swing path keeps its yaw unwrapped and rounds: equal to 1e-12 m and rad counts as the same)
-        key = (t, self._steer, None if first is None else (
-            round(float(first.position[0]), 12), round(float(first.position[1]), 12),
-            round(math.remainder(first.yaw_rad, 2.0 * math.pi), 12)))
+        first_key = _step_key(first)
+        key = (t, self._steer, None if first_key is None else (  # (foot, side, x, y, z, yaw)
+            round(first_key[2], 12), round(first_key[3], 12),
+            round(math.remainder(first_key[5], 2.0 * math.pi), 12)))
         if self._plan_memo is not None and self._plan_memo[0] == key:
             return self._plan_memo[1]
         # the plan depends on these only (on t through t1): a cycle planning through the same footsteps
         # at the same command as an earlier one (double support, a swing footstep no longer moving) reuses it
-        inputs = (_step_key(first), _step_key(stance), tuple(tuple(v.tolist()) for v in vrps), t1,
+        inputs = (first_key, first_key if stance is first else _step_key(stance),
+                  tuple(tuple(v.tolist()) for v in vrps), t1,
                   None if initial is None else (initial[0], *initial[1].tolist(), *initial[2].tolist()),
                   self._steer)
         plan = self._plans.get(inputs)
