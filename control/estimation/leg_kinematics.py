@@ -33,6 +33,7 @@ from dataclasses import dataclass
 import numpy as np
 import numpy.typing as npt
 import pinocchio as pin
+from scipy.linalg.lapack import dposv
 
 from mbctl.control.estimation.exceptions import EstimatorError
 from mbctl.robots.fastmath import cross3, quat_xyzw_to_matrix
@@ -127,6 +128,7 @@ class LegKinematicsEstimator:
         self.P = np.eye(self._n)
         self._t: float | None = None
         self._H = self._measurement_matrix()
+        self._patterns: dict[bytes, tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]] = {}
         nz = self.noise
         self._r_diag = np.concatenate([np.full(3 * n, nz.kinematics_m**2),
                                        np.full(3 * n, nz.leg_velocity_m_s**2)])
@@ -173,10 +175,21 @@ class LegKinematicsEstimator:
             v_B[i] = -(v_BP + cross3(w_B, p_BP[i].tolist()))
         return p_BP, v_B
 
-    @property
-    def _rows(self) -> np.ndarray:
-        """The measurement rows of the feet in contact (positions, then velocities)."""
-        return np.concatenate([np.repeat(self._contact, 3), np.repeat(self._contact, 3)])
+    def _pattern(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """The terms of the feet in contact now, made once per contact pattern.
+
+        Returns:
+            The measurement rows (positions, then velocities), their measurement matrix and noise
+            variances, and every foot's random-walk variance rate (per coordinate).
+        """
+        key = self._contact.tobytes()
+        terms = self._patterns.get(key)
+        if terms is None:
+            rows = np.flatnonzero(np.concatenate([np.repeat(self._contact, 3), np.repeat(self._contact, 3)]))
+            nz = self.noise
+            walk = np.where(self._contact, nz.foot_slip_m_s, nz.foot_swing_m_s) ** 2
+            terms = self._patterns[key] = (rows, self._H[rows], self._r_diag[rows], np.repeat(walk, 3))
+        return terms
 
     def _measurement_matrix(self) -> np.ndarray:
         n = len(self.feet)
@@ -223,20 +236,24 @@ class LegKinematicsEstimator:
             q_diag = np.empty(self._n)
             q_diag[0:3] = (0.5 * nz.accel_m_s2 * dt * dt) ** 2
             q_diag[3:6] = nz.accel_m_s2**2 * dt
-            walk = np.where(self._contact, nz.foot_slip_m_s, nz.foot_swing_m_s) ** 2 * dt
-            q_diag[6:] = np.repeat(walk, 3)
-            P[np.diag_indices(self._n)] += q_diag
+            rows, H, r_diag, walk_var = self._pattern()
+            np.multiply(walk_var, dt, out=q_diag[6:])
+            P.flat[::self._n + 1] += q_diag
+        else:
+            rows, H, r_diag, _ = self._pattern()
         p_BP, v_B_legs = self._legs(reading, w_B.tolist())
-        if self._contact.any():
-            rows = self._rows
-            H = self._H[rows]
+        if len(rows):
             z = np.concatenate([(p_BP @ R_WB.T).ravel(), (v_B_legs @ R_WB.T).ravel()])[rows]
             PHt = P @ H.T
             S = H @ PHt
-            S[np.diag_indices(len(S))] += self._r_diag[rows]
-            K = np.linalg.solve(S, PHt.T).T  # S is symmetric
-            x += K @ (z - H @ x)
-            P -= K @ PHt.T
+            S[np.diag_indices(len(S))] += r_diag
+            # K^T = S^-1 (P H^T)^T by Cholesky (S is symmetric positive definite); LAPACK directly:
+            # numpy.linalg.solve's wrapper costs ~20 us of Python per call at this size
+            _, Kt, info = dposv(S, PHt.T, lower=1)
+            if info != 0:  # (not positive definite: from non-finite readings)
+                x[:] = np.nan
+            x += Kt.T @ (z - H @ x)
+            P -= Kt.T @ PHt.T
             P[:] = 0.5 * (P + P.T)
         if not np.all(np.isfinite(x)):
             raise EstimatorError(f"the estimate diverged at t={reading.time_s:.3f} s (non-finite "
