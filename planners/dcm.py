@@ -258,9 +258,9 @@ class ConvexPolygon:
         for (ax, ay), (bx, by) in zip(pts, pts[1:] + pts[:1], strict=True):
             ex, ey = bx - ax, by - ay
             norm = math.sqrt(ex * ex + ey * ey)
-            nx, ny = (ey / norm, -ex / norm) if norm > 0 else (math.nan, math.nan)
+            nx, ny = (ey / norm, -ex / norm) if norm > 0 else (_over_zero(ey), _over_zero(-ex))
             normals.append((nx, ny))
-            offsets.append(ax * nx + ay * ny)  # n_i . x <= offset_i inside
+            offsets.append(ax * nx + (0.0 + ay * ny))  # n_i . x <= offset_i inside (summed as numpy does)
         self._normals = np.array(normals)
         self._offsets = np.array(offsets)
         self._offset_list = offsets
@@ -341,6 +341,11 @@ class ConvexPolygon:
         feasible = candidates[(candidates @ n.T - c).max(axis=1) <= slack]
         d2 = ((feasible - p) ** 2).sum(axis=1)
         return feasible[int(np.argmin(d2))].copy()
+
+
+def _over_zero(x: float) -> float:
+    """``x / +0.0`` as IEEE (numpy) divides: +-inf, NaN for 0 or NaN."""
+    return math.nan if x == 0 or x != x else math.copysign(math.inf, x)
 
 
 def polygon_margin(point: npt.ArrayLike, hull: np.ndarray) -> float:

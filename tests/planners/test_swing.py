@@ -114,3 +114,18 @@ def test_yaw_goes_the_short_way():
 def test_bad_input_names_the_argument(kw, word):
     with pytest.raises(InvalidPlanningInput, match=word):
         _swing(**kw)
+
+
+def test_yaw_at_is_the_samples_yaw_and_a_retarget_moves_the_held_footstep():
+    swing = _swing()
+    for t in (1.9, 2.0, 2.1, 2.25, 2.399, 2.45, 2.6):
+        assert swing.yaw_at(t) == swing.at(t).yaw_rad
+    # after the horizontal motion (0.5 s: the default fraction 1 ends it with the swing) the sample holds
+    # the footstep; a retarget (at an earlier time) moves what is held there
+    end = swing.at(2.5)
+    np.testing.assert_allclose(end.position[:2], TARGET[:2], atol=1e-12)
+    assert end.yaw_rad == pytest.approx(0.4, abs=1e-12)
+    swing.retarget(2.2, [0.3, 0.05, 0.0], 0.2)
+    held = swing.at(2.6)
+    np.testing.assert_allclose(held.position[:2], [0.3, 0.05], atol=1e-12)
+    assert held.yaw_rad == pytest.approx(0.2, abs=1e-12) and swing.yaw_at(2.6) == held.yaw_rad

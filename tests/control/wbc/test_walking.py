@@ -184,3 +184,27 @@ def test_the_swing_task_feeds_the_yaw_rate_and_acceleration_forward(tiny_biped, 
     R_FW = X.rotation.T
     np.testing.assert_allclose(a[3:], R_FW[:, 2] * (2.0 + 30.0 * 0.8), atol=1e-9)
     np.testing.assert_allclose(a[:3], 0.0, atol=1e-9)
+
+
+def test_a_plan_is_reused_while_its_footsteps_and_command_stay(tiny_biped, crouch, monkeypatch):
+    # standing before the first swing: the command ramps to 0.15 m/s at 1 m/s^2 (0.15 s, 75 cycles of
+    # 2 ms), then the footsteps, the VRPs and the command stay and so does the plan (one per cycle before)
+    import mbctl.control.wbc.walking as walking
+
+    built = []
+
+    class Counting(walking.DcmPlan):
+        def __init__(self, *args, **kwargs):
+            built.append(args[2][0])  # the first switch [s]
+            super().__init__(*args, **kwargs)
+
+    monkeypatch.setattr(walking, "DcmPlan", Counting)
+    walker, log, rows = _walk(tiny_biped, crouch, (0.15, 0.0, 0.0), 0.5)
+    assert log.cycles == 250 and all(r[1] == "start" for r in rows)
+    assert len(built) == 76 and walker.velocity.vx_m_s == 0.15
+    # the plan kept is the one a fresh build gives: the same reference at the last cycle
+    plan, _ = walker._plan(walker.gait, rows[-1][0])
+    again = walking.DcmPlan.__mro__[1](plan.omega, plan.vrps, plan.switch_times_s, plan.double_support_s,
+                                       plan.alpha, plan._initial)
+    for t in (rows[-1][0], 0.55, 0.7, 1.2):
+        np.testing.assert_array_equal(plan.at(t).xi, again.at(t).xi)
