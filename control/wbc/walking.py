@@ -456,7 +456,7 @@ class WalkingController:
             vrps += [gait.vrp(s) for s in steps]
             before_last = vrps[-2] if len(steps) > 1 else gait.vrp(stance)
             vrps.append(0.5 * (vrps[-1] + before_last))  # the stop: between the last two footsteps
-            switches = t1 + cfg.timing.step_s * np.arange(len(vrps) - 1)
+            switches = [t1 + cfg.timing.step_s * k for k in range(len(vrps) - 1)]  # (as t1 + T arange(n))
             plan = DcmPlan(self.omega, vrps, switches, cfg.timing.double_support_s, DS_ALPHA, initial), steps
             if len(self._plans) >= PLANS_KEPT:
                 del self._plans[next(iter(self._plans))]  # the oldest
