@@ -268,8 +268,9 @@ class ConvexPolygon:
         for x, y in pts[1:]:  # the centroid, summed in order (as hull.mean(axis=0))
             sx, sy = sx + x, sy + y
         centroid = np.array([sx / len(pts), sy / len(pts)])
+        inside = [o - v for o, v in zip(offsets, (self._normals @ centroid).tolist(), strict=True)]
         #: The largest margin anything can have inside [m] (the centroid's: at most the inradius).
-        self.depth = float((self._offsets - self._normals @ centroid).min())
+        self.depth = math.nan if any(d != d for d in inside) else min(inside)
 
     @classmethod
     def of_points(cls, points: npt.ArrayLike) -> ConvexPolygon:

@@ -162,7 +162,7 @@ class SwingTrajectory:
         half = 0.5 * self.duration_s
         apex = max(p0[2], p1[2]) + self.lift_height_m
         self._cache: tuple[float, SwingSample] | None = None  # the last sample (a cycle asks for it again)
-        self._plane_end_cache: np.ndarray | None = None  # x, y, yaw at the horizontal motion's end
+        self._plane_end_cache: list[float] | None = None  # x, y, yaw at the horizontal motion's end
         self._up = quintic_coefficients(p0[2], 0.0, 0.0, apex, 0.0, 0.0, half)
         self._down = quintic_coefficients(apex, 0.0, 0.0, p1[2], 0.0, 0.0, half)
 
@@ -218,29 +218,28 @@ class SwingTrajectory:
     def yaw_at(self, t_s: float) -> float:
         """The yaw reference [rad] at time ``t_s`` [s] (``at(t_s).yaw_rad``, without copying the sample)."""
         cached = self._cache
-        if cached is not None and cached[0] == t_s:
-            return cached[1].yaw_rad
-        return self.at(t_s).yaw_rad
+        if cached is None or cached[0] != t_s:
+            cached = self._cache = (t_s, self._at(t_s))  # kept as it is: no one else holds it
+        return cached[1].yaw_rad
 
     def _at(self, t_s: float) -> SwingSample:
         tau = min(max(t_s - self.t0_s, 0.0), self.duration_s)
         if t_s >= self.horizontal_end_s:  # at the footstep (x, y, yaw): the same until a retarget
             if self._plane_end_cache is None:
                 end = max(0.0, self.horizontal_end_s - self._plane_t0)
-                self._plane_end_cache = polynomial_at(self._plane, end)[0]
-            p, v, a = self._plane_end_cache, np.zeros(3), np.zeros(3)
+                self._plane_end_cache = polynomial_at(self._plane, end)[0].tolist()
+            p, v, a = self._plane_end_cache, [0.0] * 3, [0.0] * 3
         else:
-            p, v, a = polynomial_at(self._plane, max(0.0, t_s - self._plane_t0))
+            p, v, a = (x.tolist() for x in polynomial_at(self._plane, max(0.0, t_s - self._plane_t0)))
         half = 0.5 * self.duration_s
         if tau <= half:
-            z, vz, az = polynomial_at(self._up, tau)
+            z, vz, az = (x.tolist()[0] for x in polynomial_at(self._up, tau))
         else:
-            z, vz, az = polynomial_at(self._down, tau - half)
+            z, vz, az = (x.tolist()[0] for x in polynomial_at(self._down, tau - half))
         if t_s <= self.t0_s or t_s >= self.end_s:  # at rest outside the swing
-            v, a, vz, az = np.zeros(3), np.zeros(3), np.zeros(1), np.zeros(1)
-        return SwingSample(np.array([p[0], p[1], z[0]]), np.array([v[0], v[1], vz[0]]),
-                           np.array([a[0], a[1], az[0]]), float(p[2]), float(v[2]),
-                           tau / self.duration_s, float(a[2]))
+            v, a, vz, az = [0.0] * 3, [0.0] * 3, 0.0, 0.0
+        return SwingSample(np.array([p[0], p[1], z]), np.array([v[0], v[1], vz]), np.array([a[0], a[1], az]),
+                           p[2], v[2], tau / self.duration_s, a[2])
 
 
 def _point(label: str, value: npt.ArrayLike) -> np.ndarray:
