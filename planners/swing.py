@@ -84,6 +84,10 @@ def _floats(x: npt.ArrayLike) -> list[float] | None:
     """A scalar's or a vector's values as floats (None for anything else)."""
     if isinstance(x, float):
         return [x]
+    if type(x) is list and all(type(v) is float for v in x):
+        return x
+    if type(x) is np.ndarray and x.ndim == 1 and x.dtype == np.float64:
+        return x.tolist()
     a = np.asarray(x, dtype=float)
     return a.ravel().tolist() if a.ndim <= 1 else None
 
@@ -244,6 +248,6 @@ class SwingTrajectory:
 
 def _point(label: str, value: npt.ArrayLike) -> np.ndarray:
     arr = np.array(value, dtype=float)
-    if arr.shape != (3,) or not np.all(np.isfinite(arr)):
+    if arr.shape != (3,) or not all(map(math.isfinite, arr.tolist())):
         raise InvalidPlanningInput(f"{label} must be a finite (3,) position [m] in W; got {value!r}")
     return arr

@@ -361,9 +361,11 @@ class WalkingController:
         cmp = dcm_feedback(xi, ref, self.omega, cfg.dcm_gain_1_s)
         cmp_c = support.clamp(cmp, cfg.cmp_margin_m)
         z_ref, vz_ref, az_ref = gait.height(t)
-        acc = np.array([*(self.omega**2 * (com[:2] - cmp_c)), az_ref])
+        ax, ay = (self.omega**2 * (com[:2] - cmp_c)).tolist()
+        acc = np.array([ax, ay, az_ref])
         # the CoM task: its horizontal error is zero by construction, so the acceleration is the DCM law's
-        self.standing.com.set_target([com[0], com[1], z_ref], [vcom[0], vcom[1], vz_ref], acc)
+        (cx, cy, _), (vx, vy, _) = com.tolist(), vcom.tolist()
+        self.standing.com.set_target([cx, cy, z_ref], [vx, vy, vz_ref], acc)
         self._orient(gait.heading(t))
         self._swing(gait, t)
         if self._arm_swing and cfg.arm_swing_gain:
