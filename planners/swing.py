@@ -167,6 +167,7 @@ class SwingTrajectory:
         apex = max(p0[2], p1[2]) + self.lift_height_m
         self._cache: tuple[float, SwingSample] | None = None  # the last sample (a cycle asks for it again)
         self._plane_end_cache: list[float] | None = None  # x, y, yaw at the horizontal motion's end
+        self._plane_cache: tuple[float, tuple[list[float], list[float], list[float]]] | None = None
         self._up = quintic_coefficients(p0[2], 0.0, 0.0, apex, 0.0, 0.0, half)
         self._down = quintic_coefficients(apex, 0.0, 0.0, p1[2], 0.0, 0.0, half)
 
@@ -198,11 +199,11 @@ class SwingTrajectory:
         p1 = _point("target_position", target_position)
         if left < MIN_RETARGET_S:
             return False
-        p, v, a = polynomial_at(self._plane, max(0.0, t_s - self._plane_t0))
-        goal = self._goal(float(p[2]), p1, target_yaw_rad)
+        p, v, a = self._plane_at(t_s)
+        goal = self._goal(p[2], p1, target_yaw_rad)
         self._plane = quintic_coefficients(p, v, a, goal, 0.0, 0.0, left)
         self._plane_t0 = float(t_s)
-        self._cache = self._plane_end_cache = None
+        self._cache = self._plane_end_cache = self._plane_cache = None
         self.target_position = np.array([p1[0], p1[1], self.target_position[2]])
         self.target_yaw_rad = float(goal[2])
         return True
@@ -222,19 +223,26 @@ class SwingTrajectory:
     def yaw_at(self, t_s: float) -> float:
         """The yaw reference [rad] at time ``t_s`` [s] (``at(t_s).yaw_rad``, without copying the sample)."""
         cached = self._cache
-        if cached is None or cached[0] != t_s:
-            cached = self._cache = (t_s, self._at(t_s))  # kept as it is: no one else holds it
-        return cached[1].yaw_rad
+        if cached is not None and cached[0] == t_s:
+            return cached[1].yaw_rad
+        return self._plane_at(t_s)[0][2]
 
-    def _at(self, t_s: float) -> SwingSample:
-        tau = min(max(t_s - self.t0_s, 0.0), self.duration_s)
+    def _plane_at(self, t_s: float) -> tuple[list[float], list[float], list[float]]:
+        """(x, y, yaw), their rates and accelerations at ``t_s`` (kept for the same time and path)."""
         if t_s >= self.horizontal_end_s:  # at the footstep (x, y, yaw): the same until a retarget
             if self._plane_end_cache is None:
                 end = max(0.0, self.horizontal_end_s - self._plane_t0)
                 self._plane_end_cache = polynomial_at(self._plane, end)[0].tolist()
-            p, v, a = self._plane_end_cache, [0.0] * 3, [0.0] * 3
-        else:
-            p, v, a = (x.tolist() for x in polynomial_at(self._plane, max(0.0, t_s - self._plane_t0)))
+            return self._plane_end_cache, [0.0] * 3, [0.0] * 3
+        cached = self._plane_cache
+        if cached is None or cached[0] != t_s:
+            p, v, a = polynomial_at(self._plane, max(0.0, t_s - self._plane_t0))
+            cached = self._plane_cache = (t_s, (p.tolist(), v.tolist(), a.tolist()))
+        return cached[1]
+
+    def _at(self, t_s: float) -> SwingSample:
+        tau = min(max(t_s - self.t0_s, 0.0), self.duration_s)
+        p, v, a = self._plane_at(t_s)
         half = 0.5 * self.duration_s
         if tau <= half:
             z, vz, az = (x.tolist()[0] for x in polynomial_at(self._up, tau))
