@@ -4,8 +4,10 @@ QP, and a 20 s walk against real time.
     python bench/bench_walk.py                 # all three (needs MENAGERIE_ROOT)
     python bench/bench_walk.py --walk-s 20     # the walk's simulated time (default 20 s)
 
-Cycle timings are medians over the same states of a walk at 0.3 m/s (the walker's own, recorded
-every 5th cycle), replayed into fresh controllers in interleaved rounds: the walking controller's
+Cycle timings are medians over the same states of a walk at 0.3 m/s (the walker's own, every
+cycle from its first, so a fresh walker replaying them decides as the recording one did and its
+per-cycle reuse of plans holds as in the loop), replayed into fresh controllers in interleaved
+rounds: the walking controller's
 whole ``compute`` (gait, footsteps, DCM plan, step adaptation, task targets, the QP) against the
 standing controller's (``standing_controller``, the g1-wbc stand task set) on the same states, in
 thread CPU time and wall time. The step-adaptation QP is timed on the DCM errors of a push; the
@@ -44,8 +46,8 @@ def _walker(robot, q0):
     return WalkingController(robot, FEET, PELVIS, TORSO, q0, config)
 
 
-def _walk_states(robot, q0, seconds: float = 4.0, stride: int = 5):
-    """States of a 0.3 m/s walk under the walker, every ``stride``-th cycle (after the start phase)."""
+def _walk_states(robot, q0, seconds: float = 4.0):
+    """Every state of a 0.3 m/s walk under the walker, from its first cycle."""
     sim = Simulator(robot)
     sim.reset(KEYFRAME)
     sim.set_state(q0, np.zeros(robot.nv))
@@ -54,8 +56,7 @@ def _walk_states(robot, q0, seconds: float = 4.0, stride: int = 5):
     states = []
 
     def keep(k, state, reference, command) -> None:
-        if k % stride == 0 and state.time_s > 1.0:
-            states.append(state)
+        states.append(state)
 
     run(sim, walker, None, seconds, on_step=keep)
     return states
@@ -85,7 +86,7 @@ def cycles(robot, q0, rounds: int) -> None:
     states = _walk_states(robot, q0)
     walker = _walker(robot, q0)
     walker.set_command((0.3, 0.0, 0.0))
-    standing, stand_states = _stand_states(robot, q0, len(states))
+    standing, stand_states = _stand_states(robot, q0, len(states), stride=1)
     def run_walker() -> None:
         walker.reset()  # each round replays the walk from its start
         for s in states:
