@@ -157,7 +157,9 @@ class DcmPlan:
                 start = (np.asarray(xi0, dtype=float), np.asarray(xid0, dtype=float), 0.0)
             else:
                 start = self._exponential(k, a)
-            coeffs = self._coefficients[i] = quintic_coefficients(*start, *self._exponential(k + 1, b), b - a)
+            end = self._exponential(k + 1, b)
+            coeffs = quintic_coefficients(start[0], start[1], start[2], end[0], end[1], end[2], b - a)
+            self._coefficients[i] = coeffs
         return coeffs
 
     def _segment(self, t_s: float) -> int:
