@@ -249,3 +249,18 @@ def test_the_reduced_qp_gives_the_whole_qps_optimum(seed, deferred, pin):
     violated = bool((g > up[deferred] + 1e-5).any() or (g < lo[deferred] - 1e-5).any())
     assert whole == ([1] if violated else [])
     assert violated or deferred.start != 0
+
+
+def test_the_reduced_qps_point_is_checked_against_every_left_out_row():
+    """A row over pinned forces only is left out of the reduced QP; were it unmet at zero (here it
+    asks the pinned force for 1 N), the reduced point is not taken: the whole QP finds no solution."""
+    qp = _problem(3, 0.0)
+    qp.deferred_rows = slice(8, 10)
+    pinned = NV + NF - 1
+    qp.lb[pinned] = qp.ub[pinned] = 0.0
+    qp.force_free[-1] = False
+    qp.G[4] = 0.0
+    qp.G[4, pinned] = 1.0
+    qp.g_lo[4], qp.g_up[4] = 1.0, 2.0
+    result = qp.solve(M_EQ)
+    assert result.x is None and result.status < 0
