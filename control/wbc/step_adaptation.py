@@ -117,9 +117,19 @@ class StepAdapter:
         angles = 2.0 * math.pi * np.arange(REACH_VERTICES) / REACH_VERTICES
         self._unit = np.column_stack([np.cos(angles), np.sin(angles)])
         self._axes = (lim.max_forward_m, lim.max_backward_m, lim.max_outward_m)
+        self._reach: dict[int, tuple[np.ndarray, np.ndarray]] = {}
 
     def _reach_rows(self, side: int) -> tuple[np.ndarray, np.ndarray]:
-        """The reach polygon ``G x <= h`` about the nominal stance (0, side w), for a step on ``side``."""
+        """The reach polygon ``G x <= h`` about the nominal stance (0, side w), for a step on ``side``.
+
+        Made once per side (the limits are the planner's, fixed).
+        """
+        rows = self._reach.get(side)
+        if rows is None:
+            rows = self._reach[side] = self._reach_polygon(side)
+        return rows
+
+    def _reach_polygon(self, side: int) -> tuple[np.ndarray, np.ndarray]:
         fwd, back, out = self._axes
         w = self.planner.limits.nominal_width_m
         u = self._unit
