@@ -53,31 +53,28 @@ def quintic_coefficients(p0: npt.ArrayLike, v0: npt.ArrayLike, a0: npt.ArrayLike
         duration_s: T [s] (> 0).
 
     Raises:
-        InvalidPlanningInput: A non-positive or non-finite duration.
+        InvalidPlanningInput: A non-positive or non-finite duration, or end values of other shapes.
     """
     T = check_time("duration_s", duration_s)
-    floats = [_floats(x) for x in (p0, v0, a0, p1, v1, a1)]
-    ends = [e for e in floats if e is not None]
+    # plain floats: a few values per call, where numpy's per-call cost would be most of the work
+    values = [_floats(x) for x in (p0, v0, a0, p1, v1, a1)]
+    ends = [e for e in values if e is not None]
     n = max((len(e) for e in ends), default=0)
-    if len(ends) == 6 and all(len(e) in (1, n) for e in ends):  # plain floats: the same arithmetic as below
-        T2, T3, T4, T5 = T**2, 2.0 * T**3, 2.0 * T**4, 2.0 * T**5
-        rows: list[list[float]] = [[], [], [], [], [], []]
-        for i in range(n):
-            p, v, a, q, w, b = (e[0] if len(e) == 1 else e[i] for e in ends)
-            dq = q - p
-            for row, c in zip(rows, (p, v, 0.5 * a,
-                                     (20.0 * dq - (8.0 * w + 12.0 * v) * T - (3.0 * a - b) * T2) / T3,
-                                     (-30.0 * dq + (14.0 * w + 16.0 * v) * T + (3.0 * a - 2.0 * b) * T2) / T4,
-                                     (12.0 * dq - 6.0 * (w + v) * T - (a - b) * T2) / T5), strict=True):
-                row.append(c)
-        return np.array(rows)
-    p0, v0, a0, p1, v1, a1 = np.broadcast_arrays(*(np.atleast_1d(np.asarray(x, dtype=float))
-                                                  for x in (p0, v0, a0, p1, v1, a1)))
-    dp = p1 - p0
-    c3 = (20.0 * dp - (8.0 * v1 + 12.0 * v0) * T - (3.0 * a0 - a1) * T**2) / (2.0 * T**3)
-    c4 = (-30.0 * dp + (14.0 * v1 + 16.0 * v0) * T + (3.0 * a0 - 2.0 * a1) * T**2) / (2.0 * T**4)
-    c5 = (12.0 * dp - 6.0 * (v1 + v0) * T - (a0 - a1) * T**2) / (2.0 * T**5)
-    return np.vstack([p0, v0, 0.5 * a0, c3, c4, c5])
+    if len(ends) < 6 or any(len(e) not in (1, n) for e in ends):
+        shapes = [np.shape(x) for x in (p0, v0, a0, p1, v1, a1)]
+        raise InvalidPlanningInput(f"the end values must be scalars or vectors of one length (n,); got "
+                                   f"shapes {shapes}")
+    T2, T3, T4, T5 = T**2, 2.0 * T**3, 2.0 * T**4, 2.0 * T**5
+    rows: list[list[float]] = [[], [], [], [], [], []]
+    for i in range(n):
+        p, v, a, q, w, b = (e[0] if len(e) == 1 else e[i] for e in ends)
+        dq = q - p
+        for row, c in zip(rows, (p, v, 0.5 * a,
+                                 (20.0 * dq - (8.0 * w + 12.0 * v) * T - (3.0 * a - b) * T2) / T3,
+                                 (-30.0 * dq + (14.0 * w + 16.0 * v) * T + (3.0 * a - 2.0 * b) * T2) / T4,
+                                 (12.0 * dq - 6.0 * (w + v) * T - (a - b) * T2) / T5), strict=True):
+            row.append(c)
+    return np.array(rows)
 
 
 def _floats(x: npt.ArrayLike) -> list[float] | None:

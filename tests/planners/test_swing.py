@@ -33,6 +33,13 @@ def test_quintic_coefficients_are_the_planners_closed_form():
         np.testing.assert_allclose(a, traj.a[k], atol=1e-9)
 
 
+def test_quintic_end_values_of_other_lengths_are_named():
+    with pytest.raises(InvalidPlanningInput, match=r"scalars or vectors of one length .*\(2,\), \(3,\)"):
+        quintic_coefficients([0.0, 1.0], [0.0, 0.0, 0.0], 0.0, 1.0, 0.0, 0.0, 0.5)
+    with pytest.raises(InvalidPlanningInput, match=r"\(2, 2\)"):
+        quintic_coefficients(np.zeros((2, 2)), 0.0, 0.0, 1.0, 0.0, 0.0, 0.5)
+
+
 def test_the_foot_leaves_and_lands_at_rest_on_its_footstep():
     s = _swing()
     first, last = s.at(2.0), s.at(2.5)
