@@ -321,8 +321,10 @@ class ConvexPolygon:
         margin leaves nothing (a polygon narrower than twice the margin) the margin is reduced to what
         fits. The projection is exact, in one pass: a point outside projects onto an edge line or a
         vertex of the shrunk polygon, so the nearest of the feasible candidates (each edge line's
-        foot of the perpendicular, each pair of lines' intersection) is it. (Dykstra's alternating
-        projections, used before, took up to 100 rounds, 3 ms, for a point far outside near a vertex.)
+        foot of the perpendicular, each pair of lines' intersection) is it; a candidate counts as
+        feasible within ``1e-9 (1 + max_i |c_i|)`` m of every shrunk edge line ``n_i . x <= c_i``.
+        (Dykstra's alternating projections, used before, took up to 100 rounds, 3 ms, for a point far
+        outside near a vertex.)
         """
         p = np.asarray(point, dtype=float)[:2].copy()
         if len(self.hull) < 3:
