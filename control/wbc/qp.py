@@ -73,8 +73,11 @@ class _Reduction:
     ``A`` holds the kept rows, then the equalities, over the kept variables.
     """
 
-    def __init__(self, keep: np.ndarray, rows: np.ndarray, n_x: int, m_eq_max: int, force_weight: float):
+    def __init__(self, keep: np.ndarray, rows: np.ndarray, pinned_rows: np.ndarray, n_x: int, m_eq_max: int,
+                 force_weight: float):
         self.keep, self.rows = keep, rows
+        #: (n_x + m_in,) the bounds and rows that involve pinned forces only
+        self.pinned_rows = pinned_rows
         k, r = len(keep), len(rows)
         self.bounds_at = np.concatenate([keep, n_x + rows])  # in [x; G x]
         self.H = np.zeros((k, k))
@@ -140,7 +143,6 @@ class WholeBodyQP:
         self._rhs = np.zeros((nv, m_eq_max + 1), order="F")  # LAPACK's layout: solved in place
         self._pinned = False
         self._skip_fast = False  # the last solve was daqp's with an inequality active
-        self._pinned_memo: tuple[np.ndarray, np.ndarray] | None = None
         #: Inequality rows (a slice of G's) that daqp first solves without: rows that are rarely
         #: active (the controller's torque limits), checked at the reduced QP's optimum
         self.deferred_rows: slice | None = None
@@ -202,25 +204,16 @@ class WholeBodyQP:
         lam = result.duals[:self.n_x + self.m_in]
         if not self._pinned:
             return bool(lam.any())
-        return bool(np.any((lam != 0.0) & ~self._pinned_rows()))
+        return bool(np.any((lam != 0.0) & ~self._reduction().pinned_rows))
 
     def _pinned_rows(self) -> np.ndarray:
-        """(n_x + m_in,) whether a bound or row involves pinned forces only.
-
-        Kept while the pins stay (G's pattern of non-zeros taken as fixed meanwhile). It decides
-        which rows the reduced QP leaves out and whether the next solve tries the fast path first,
-        never what the solution is: the reduced QP's point is checked against every row, so a
-        stale pattern would cost a solve of the whole QP, not a wrong point.
-        """
+        """(n_x + m_in,) whether a bound or row involves pinned forces only (at G's present pattern)."""
         pinned_f = self._free_f == 0.0
-        if self._pinned_memo is not None and np.array_equal(self._pinned_memo[0], pinned_f):
-            return self._pinned_memo[1]
         out = np.zeros(self.n_x + self.m_in, dtype=bool)
         out[self.nv:self.n_x] = pinned_f
         G_v_zero = ~self.G[:, :self.nv].any(axis=1)
         touches_free = (self.G[:, self.nv:] != 0.0) @ ~pinned_f
         out[self.n_x:] = G_v_zero & ~touches_free
-        self._pinned_memo = (pinned_f, out)
         return out
 
     def _kkt(self, m_eq: int) -> tuple[np.ndarray | None, np.ndarray]:
@@ -295,16 +288,23 @@ class WholeBodyQP:
         return result._replace(dependent_rows=dropped), self._inequality_active(result)
 
     def _reduction(self) -> _Reduction:
-        """The variables and rows of the reduced QP for the present pins (made once per pattern)."""
+        """The variables and rows of the reduced QP for the present pins (made once per pattern).
+
+        Made with G's pattern of non-zeros at the time, taken as fixed while the pins stay. It
+        decides which rows the reduced QP leaves out and whether the next solve tries the fast path
+        first, never what the solution is: the reduced QP's point is checked against every row, so
+        a stale pattern would cost a solve of the whole QP, not a wrong point.
+        """
         d = self.deferred_rows
         key = (self._free_f.tobytes(), None if d is None else (d.start, d.stop, d.step))
         red = self._reductions.get(key)
         if red is None:
             keep = np.concatenate([np.arange(self.nv), self.nv + np.flatnonzero(self._free_f)])
-            left_out = self._pinned_rows()[self.n_x:].copy()
+            pinned_rows = self._pinned_rows()
+            left_out = pinned_rows[self.n_x:].copy()
             if d is not None:
                 left_out[d] = True
-            red = _Reduction(keep, np.flatnonzero(~left_out), self.n_x, self.m_eq_max, np.nan)
+            red = _Reduction(keep, np.flatnonzero(~left_out), pinned_rows, self.n_x, self.m_eq_max, np.nan)
             self._reductions[key] = red
         if red.force_weight != self._w_f:
             np.einsum("ii->i", red.H)[self.nv:] = self._w_f * self._w_f
