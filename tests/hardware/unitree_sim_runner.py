@@ -14,9 +14,14 @@ viewer that script opens at import:
    turns each LowCmd into ``ctrl`` (``tau + kp (q* - q) + kd (dq* - dq)`` at the command's arrival);
 4. the robot is held still (no physics) until the first command, as a harness holds a robot;
 5. then MuJoCo steps, either paced to wall-clock time at ``SIMULATE_DT`` as their simulation thread
-   (``--pace wall``), or one step per command received, no faster than real time, each followed by
-   their ``PublishLowState`` (``--pace command``: lock-step-ish, so a loaded machine slows the run
-   instead of changing it; their publishing thread is stopped once the first command came).
+   (``--pace wall``), or in lock-step (``--pace command``): one step once a command has come since
+   the step before, no faster than real time, followed by their ``PublishLowState``, so a loaded
+   machine slows the run instead of changing it (their publishing thread is stopped once the first
+   command came). Each step uses the command answering the state before it: stepping once per
+   command *counted* instead let a step run on the previous command whenever the answer to the
+   state just published came late (under load), so the explicit motor law acted on a 2-step-old
+   state and the G1 fell at 2 ms. Commands that came together (a state answered twice) are
+   counted and said at the end.
 
 It stops after ``--idle-timeout`` seconds without a command (counted from its start), after
 ``--duration``, or when the physics diverges (non-finite state, MuJoCo's divergence warnings):
@@ -121,8 +126,9 @@ def main() -> int:
     except KeyboardInterrupt:
         why = "interrupted"
     base_z = physics.base_z
-    print(f"stopped after {physics.steps} steps ({why}); pelvis z start {base_z[0]:.4f} m, min "
-          f"{min(base_z):.4f} m until the damping command, final {mj_data.qpos[2]:.4f} m",
+    print(f"stopped after {physics.steps} steps ({why}; {physics.merged} commands merged); pelvis z "
+          f"start {base_z[0]:.4f} m, min {min(base_z):.4f} m until the damping command, final "
+          f"{mj_data.qpos[2]:.4f} m",
           file=sys.stderr, flush=True)
     return 1 if why == "diverged" else 0
 
@@ -142,6 +148,7 @@ class Physics:
 
         self.bridge, self.model, self.data, self.pace = bridge, mj_model, mj_data, pace
         self.steps = 0
+        self.merged = 0  # commands that came with another after the first step (command pace)
         self.base_z = [float(mj_data.qpos[2])]  # the pelvis height [m] at the start and while commanded
         warning = mujoco.mjtWarning
         self._divergence = [int(w) for w in (warning.mjWARN_BADQPOS, warning.mjWARN_BADQVEL,
@@ -172,9 +179,10 @@ class Physics:
                 continue
             if self.pace == "command" and self.steps == 0:
                 bridge.lowStateThread.Wait(1.0)  # from now on one state per command, published below
-            for _ in range(new if self.pace == "command" else 1):
-                if not self.step():
-                    return "diverged"
+            if self.pace == "command" and self.steps:  # (before the first step their thread published)
+                self.merged += max(0, new - 1)
+            if not self.step():
+                return "diverged"
 
     def step(self) -> bool:
         """One physics step (then, in command pace, their LowState), no faster than real time; if sane."""
