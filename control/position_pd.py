@@ -8,13 +8,15 @@ target ``u`` [rad], with its own ``kp`` [N m/rad] and ``kv`` [N m s/rad]. Choosi
 turns it into ``f = kp (q_ref - q) + kv (v_ref - v) + tau_ff``: the actuator's PD tracks the
 reference velocity too, and ``tau_ff`` [N m] is a feed-forward, here the gravity ``g(q)`` of the
 Pinocchio model (optional). The gains are the actuators' own (the plant's stiffness and damping
-are integrated implicitly by MuJoCo, so stiff gains stay stable). Targets outside the actuator's
-ctrlrange are clipped and counted.
+are integrated implicitly by MuJoCo, so stiff gains stay stable), or those a plant applies to
+position targets (:meth:`PositionTargetPD.use_gains` with the plant's ``position_gains()``: a robot
+over DDS may lower them to keep its motor law stable). Targets outside the actuator's ctrlrange are
+clipped and counted.
 """
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import replace
 
 import numpy as np
@@ -70,6 +72,23 @@ class PositionTargetPD(ControllerBase):
         self._use_model(pin_model)
         self.gravity_feedforward = gravity_feedforward
         self._idx_v = jmap.v_selector
+        self._kv_over_kp = self.kv / self.kp
+
+    def use_gains(self, gains: Mapping[str, tuple[float, float]]) -> None:
+        """Compute the targets for these (kp [N m/rad], kd [N m s/rad]) by joint (a plant's own).
+
+        Raises:
+            ControllerSetupError: A controlled joint missing from ``gains``, or its kp <= 0.
+        """
+        missing = [j for j in self.joints if j not in gains]
+        weak = [f"{j} (kp {gains[j][0]:g})" for j in self.joints if j in gains and not gains[j][0] > 0]
+        if missing or weak:
+            raise ControllerSetupError(
+                "PositionTargetPD needs kp > 0 on every controlled joint; "
+                + "; ".join(filter(None, (("no gains for " + ", ".join(missing)) if missing else "",
+                                         ("kp <= 0 on " + ", ".join(weak)) if weak else ""))))
+        self.kp = np.array([gains[j][0] for j in self.joints], dtype=float)
+        self.kv = np.array([gains[j][1] for j in self.joints], dtype=float)
         self._kv_over_kp = self.kv / self.kp
 
     def compute(self, state: RobotState, reference: JointReference) -> Command:

@@ -4,9 +4,10 @@ A plant beside sim/: it imports robots/ and the Unitree floor (:mod:`mbctl.unitr
 sim/ or control/ (the base-state estimator is given by the job).
 """
 
+from mbctl.hardware.dds_options import WATCHDOG_PERIODS, DdsOptions
 from mbctl.hardware.exceptions import DryRunError, HardwareError, JointOutOfLimits, LinkLost, NoRobotError
 from mbctl.hardware.motor_commands import MotorCommandWriter, MotorGains, MotorPolicy, default_damping
-from mbctl.hardware.unitree_hg import WATCHDOG_PERIODS, DdsOptions, UnitreeG1, UnitreeHG
+from mbctl.hardware.unitree_hg import UnitreeG1, UnitreeHG
 
 __all__ = [
     "WATCHDOG_PERIODS",

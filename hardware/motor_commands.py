@@ -64,6 +64,11 @@ class MotorGains:
         return cls(np.array([a.kp if a.kind == "position" else np.nan for a in infos]),
                    np.array([a.kv if a.kind == "position" else np.nan for a in infos]))
 
+    def by_joint(self, motors: MotorMap) -> dict[str, tuple[float, float]]:
+        """(kp, kd) by joint name, for the motors that have gains."""
+        return {j: (float(self.kp[i]), float(self.kd[i])) for i, j in enumerate(motors.joints)
+                if np.isfinite(self.kp[i]) and np.isfinite(self.kd[i])}
+
     @classmethod
     def uniform(cls, n: int, kp: float, kd: float) -> MotorGains:
         """The same gains on ``n`` motors."""

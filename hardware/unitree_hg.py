@@ -51,24 +51,25 @@ the GIL released; no reader thread (the loop takes the states).
 from __future__ import annotations
 
 import gc
-import math
 import time
-from dataclasses import dataclass
+from collections.abc import Sequence
 
 import numpy as np
 import numpy.typing as npt
 
 from mbctl.hardware.command_link import check_command_link
 from mbctl.hardware.damping import DampingKeeper
+from mbctl.hardware.dds_options import DdsOptions
 from mbctl.hardware.exceptions import DryRunError, HardwareError, JointOutOfLimits, LinkLost, NoRobotError
 from mbctl.hardware.lowstate import PERIOD_RANGE_S, RATE_STATES, LowStateStream
 from mbctl.hardware.motor_commands import MotorCommandWriter, MotorGains, default_damping, write_damping
+from mbctl.hardware.motor_law import stabilize
 from mbctl.robots.commands import Command
 from mbctl.robots.interface import BaseStateEstimator, Proprioception, RobotState
 from mbctl.robots.model_pair import Robot
 from mbctl.robots.plant_report import LinkReport, PlantReport, SafetyReport, TimingReport
-from mbctl.unitree import LOOPBACK, TOPIC_LOWCMD, TOPIC_LOWSTATE, Channel
-from mbctl.unitree.channel import DISCOVERY_S, RawWriter, message_types
+from mbctl.unitree import TOPIC_LOWCMD, TOPIC_LOWSTATE, Channel
+from mbctl.unitree.channel import RawWriter, message_types
 from mbctl.unitree.clock import CycleClock, RealtimePriority
 from mbctl.unitree.motors import MODE_PR, MOTOR_ENABLED, MotorMap
 from mbctl.unitree.tables import G1_29DOF, MotorTable
@@ -76,58 +77,6 @@ from mbctl.unitree.wire import low_cmd_codec
 
 #: The longest the first cycle waits for the robot's answer [s] (the watchdog arms after it).
 FIRST_CYCLE_S = 1.0
-#: Periods without a new state after which the link counts as lost, by default.
-WATCHDOG_PERIODS = 25
-#: How long the interface waits for the robot's state stream by default [s].
-CONNECT_TIMEOUT_S = 1.0
-
-
-@dataclass(frozen=True)
-class DdsOptions:
-    """How to reach the robot and how strict to be.
-
-    Attributes:
-        domain: DDS domain id (the robot's is 0).
-        network_interface: The interface wired to the robot (default ``lo``: the bridge on this
-            machine).
-        rate_hz: The robot's state rate [Hz], which paces the loop; None measures it at connect.
-        connect_timeout_s: How long to wait for the robot's state stream [s].
-        watchdog_periods: Periods without a new LowState after which the link counts as lost.
-        limit_tolerance_rad: How far [rad] a joint may be past its limit at start (encoder slack
-            at the end stops).
-        dry_run: Read and report the state, never command.
-        quiet_loop: During the loop: no garbage collection (the objects made before it frozen) and
-            real-time priority where permitted (see the module docstring).
-        check_state_crc: Refuse LowStates with CRC 0 too (the real G1 signs its states); False
-            accepts those unchecked (Unitree's simulator leaves the CRC 0), never a wrong non-zero one.
-        cyclone_config: A Cyclone DDS configuration file of the user's, used as written (None:
-            the one mbctl makes for ``network_interface``).
-        discovery_s: How long [s] from the start connecting waits at least for discovery to show
-            another ``rt/lowcmd`` writer (another client): the interface then refuses to start.
-    """
-
-    domain: int = 0
-    network_interface: str = LOOPBACK
-    rate_hz: float | None = None
-    connect_timeout_s: float = CONNECT_TIMEOUT_S
-    watchdog_periods: int = WATCHDOG_PERIODS
-    limit_tolerance_rad: float = 0.01
-    dry_run: bool = False
-    quiet_loop: bool = True
-    check_state_crc: bool = True
-    cyclone_config: str | None = None
-    discovery_s: float = DISCOVERY_S
-
-    def __post_init__(self) -> None:
-        if self.rate_hz is not None and not (math.isfinite(self.rate_hz) and self.rate_hz > 0):
-            raise HardwareError(f"rate_hz must be a positive number of Hz (the G1's is 500); "
-                                f"got {self.rate_hz}")
-        if not (math.isfinite(self.connect_timeout_s) and self.connect_timeout_s > 0):
-            raise HardwareError(f"connect_timeout_s must be > 0 s; got {self.connect_timeout_s}")
-        if self.watchdog_periods < 1:
-            raise HardwareError(f"watchdog_periods must be >= 1; got {self.watchdog_periods}")
-
-
 class UnitreeHG:
     """A ``unitree_hg`` robot over Unitree's low-level DDS (see the module docstring).
 
@@ -140,6 +89,8 @@ class UnitreeHG:
         gains: Gains of position and velocity targets (default: the model's position actuators').
         damping_kd: Damping [N m s/rad] per motor for the damping command (default: the torque
             limit reached at 10 rad/s).
+        feet: Frames on the ground at connect (a robot standing there), for the stability of the
+            gains (``DdsOptions.stable_gains``); none: judged with the robot in the air.
 
     Raises:
         ChannelError: The hardware extra is missing, a bad domain or an unknown interface.
@@ -159,16 +110,20 @@ class UnitreeHG:
         activate: bool = True,
         gains: MotorGains | None = None,
         damping_kd: npt.ArrayLike | None = None,
+        feet: Sequence[str] = (),
     ):
         self.options = options or DdsOptions()
         self._robot = robot
         self.table = table
         self.motors = MotorMap.for_robot(robot, table)
         self.estimator = estimator
+        self.feet = tuple(feet)
         self.gains = gains or MotorGains.from_actuators(robot, self.motors)
         self.damping_kd = (default_damping(self.motors) if damping_kd is None
                            else np.asarray(damping_kd, dtype=float))
         self.commands = MotorCommandWriter(robot, self.motors, self.gains)
+        #: Gains lowered at connect for stability (``stable_gains``): joint -> {gain: (given, sent)}.
+        self.gains_lowered: dict[str, dict[str, tuple[float, float]]] = {}
         self._cmd_codec = low_cmd_codec()
         self._period = 1.0 / self.options.rate_hz if self.options.rate_hz else 0.002
         self._clock = CycleClock(self._period)
@@ -258,6 +213,12 @@ class UnitreeHG:
                 f"[{self.motors.q_low[i]:.4f}, {self.motors.q_high[i]:.4f}]" for i in out)
                 + ". Move the joint back inside its range by hand (robot powered down or damped), "
                 "then retry.")
+        if o.stable_gains:
+            stable = stabilize(self._robot, self.motors, self.gains, self.damping_kd, period, q, self.feet)
+            self.gains_lowered = stable.lowered
+            if stable.lowered:
+                self.gains, self.damping_kd = stable.gains, stable.damping_kd
+                self.commands = MotorCommandWriter(self._robot, self.motors, self.gains)
         cmd = self._cmd_codec.message
         cmd["mode_pr"] = MODE_PR
         cmd["mode_machine"] = self.mode_machine
@@ -274,6 +235,10 @@ class UnitreeHG:
         motor_cmd["kd"][: self.motors.n][hold] = self.gains.kd[hold]
         self.estimator.reset(self._reading())
         self._fresh = True
+
+    def position_gains(self) -> dict[str, tuple[float, float]]:
+        """The (kp [N m/rad], kd [N m s/rad]) sent with a position target, by joint (motors with gains)."""
+        return self.gains.by_joint(self.motors)
 
     def _no_robot_message(self) -> str:
         o = self.options
@@ -466,7 +431,8 @@ class UnitreeHG:
                           state_gap_p99_ms=gap_p99, state_gap_max_ms=gap_max)
         binder = self.commands.binder
         safety = SafetyReport(binder.clamped(), binder.clamped_commands, self.watchdog_events,
-                              damped=None if self.options.dry_run else self._damped)
+                              damped=None if self.options.dry_run else self._damped,
+                              gains_lowered=self.gains_lowered)
         return PlantReport("dds", timing, link, safety, self.estimator.estimated)
 
     def close(self) -> None:

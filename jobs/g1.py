@@ -433,6 +433,7 @@ def _arm_pd(ctx: RunContext, params: ArmPDParams, robot: Robot, traj: JointTraje
     if p.options.dry_run:
         return dry_run(ctx, p, duration)
     z0 = float(q0[_base_z_index(robot)])
+    controller.use_gains(sim.position_gains())  # the plant's (over DDS: lowered where unstable)
     ctx.sections["inputs"] = {
         "duration_s": duration, "controller": "position_pd",
         "limits": {"max_velocity_rad_s": ARM_LIMITS[0], "max_acceleration_rad_s2": ARM_LIMITS[1],

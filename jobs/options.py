@@ -15,7 +15,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from mbctl.hardware.unitree_hg import CONNECT_TIMEOUT_S, WATCHDOG_PERIODS
+from mbctl.hardware.dds_options import CONNECT_TIMEOUT_S, WATCHDOG_PERIODS
 from mbctl.jobs import ik_params
 from mbctl.jobs.demo import DemoConfig
 from mbctl.jobs.excite import ExciteParams

@@ -41,7 +41,7 @@ from mbctl.control.estimation import LegKinematicsEstimator
 from mbctl.control.loop import RunLog
 from mbctl.control.wbc.contacts import foot_contact_from_model
 from mbctl.hardware import DdsOptions, UnitreeG1
-from mbctl.hardware.unitree_hg import CONNECT_TIMEOUT_S, WATCHDOG_PERIODS
+from mbctl.hardware.dds_options import CONNECT_TIMEOUT_S, WATCHDOG_PERIODS
 from mbctl.jobs.model_options import ModelOptions
 from mbctl.jobs.recording import q_columns
 from mbctl.jobs.runner import JobError, Outcome, RunContext
@@ -272,7 +272,7 @@ def prepare_plant(options: PlantOptions, robot: Robot, keyframe: str | None = No
             domain=options.domain, network_interface=options.network_interface, rate_hz=options.rate_hz,
             connect_timeout_s=options.wait_s, watchdog_periods=options.watchdog_periods,
             dry_run=options.dry_run, check_state_crc=options.state_crc == "on",
-            cyclone_config=options.dds_config))
+            cyclone_config=options.dds_config), feet=FEET)
         return lambda ctx: Plant(dds, None, options, ctx, legs)
 
     def make(ctx: RunContext) -> Plant:

@@ -6,6 +6,7 @@ it, and so does the Unitree G1 over DDS (:class:`mbctl.hardware.UnitreeG1`).
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import NamedTuple, Protocol, runtime_checkable
 
@@ -158,6 +159,9 @@ class RobotInterface(Protocol):
 
     def report(self) -> PlantReport:
         """The plant's typed report on the run so far."""
+
+    def position_gains(self) -> Mapping[str, tuple[float, float]]:
+        """The (kp [N m/rad], kd [N m s/rad]) the plant applies to a position target, by joint name."""
 
     def __enter__(self) -> RobotInterface:
         """``open()``."""

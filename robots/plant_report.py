@@ -121,15 +121,20 @@ class SafetyReport:
         watchdog_events: Times the link was declared lost.
         damped: Whether the damping command was sent at the end; None for a plant without one
             (the simulator: nothing to protect).
+        gains_lowered: Motor gains the plant lowered to keep its motor law stable, per joint:
+            gain name (``kp``, ``kd``, ``damping_kd``) -> (given, sent); read-only.
     """
 
     clamped: Mapping[str, int] = field(default_factory=dict)
     clamped_commands: int = 0
     watchdog_events: int = 0
     damped: bool | None = None
+    gains_lowered: Mapping[str, Mapping[str, tuple[float, float]]] = field(default_factory=dict)
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "clamped", MappingProxyType(dict(self.clamped)))
+        object.__setattr__(self, "gains_lowered", MappingProxyType(
+            {j: MappingProxyType(dict(g)) for j, g in self.gains_lowered.items()}))
 
 
 @dataclass(frozen=True)
@@ -166,4 +171,7 @@ class PlantReport:
         flat["watchdog_events"] = self.safety.watchdog_events
         if self.safety.damped is not None:
             flat["damped"] = self.safety.damped
+        if self.safety.gains_lowered:
+            flat["gains_lowered"] = {j: {k: list(v) for k, v in g.items()}
+                                     for j, g in self.safety.gains_lowered.items()}
         return flat

@@ -244,6 +244,10 @@ class LinkedSimulator:
     def __exit__(self, *exc: object) -> None:
         self.close()
 
+    def position_gains(self) -> dict[str, tuple[float, float]]:
+        """The simulator's position actuators' (kp, kv), by joint name."""
+        return self.sim.position_gains()
+
     def report(self) -> PlantReport:
         """The plant's report: simulated timing, the link's counts and model, the plant's clamp counts."""
         plant = self.sim.report()

@@ -443,6 +443,10 @@ class Simulator:
     def __exit__(self, *exc: object) -> None:
         self.close()
 
+    def position_gains(self) -> dict[str, tuple[float, float]]:
+        """The position actuators' (kp [N m/rad], kv [N m s/rad]), by joint name."""
+        return {a.joint: (a.kp, a.kv) for a in self._robot.actuators.values() if a.kind == "position"}
+
     def report(self) -> PlantReport:
         """The plant's report: simulated timing (every period exact), no link, the clamp counts."""
         period_ms = self.control_period_s * 1e3

@@ -178,7 +178,7 @@ def test_a_spoofed_tick_on_a_held_robot_does_not_become_its_clock(g1, fake_g1, d
 def test_the_cli_s_defaults_are_the_interface_s():
     """The help shows the defaults without importing numpy: its copies must be the interface's."""
     from mbctl.cli import plant_options
-    from mbctl.hardware import unitree_hg
+    from mbctl.hardware import dds_options
 
-    assert plant_options.WATCHDOG_PERIODS == unitree_hg.WATCHDOG_PERIODS
-    assert plant_options.CONNECT_TIMEOUT_S == unitree_hg.CONNECT_TIMEOUT_S
+    assert plant_options.WATCHDOG_PERIODS == dds_options.WATCHDOG_PERIODS
+    assert plant_options.CONNECT_TIMEOUT_S == dds_options.CONNECT_TIMEOUT_S

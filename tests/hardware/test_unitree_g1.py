@@ -106,7 +106,8 @@ def test_joint_outside_its_limits_is_refused_by_name(g1, fake_g1, dds_domain):
 def test_command_kinds_map_explicitly(g1, fake_g1, dds_domain):
     fake = fake_g1()
     motors = MotorMap.for_robot(g1)
-    with UnitreeG1(g1, StillBase(), DdsOptions(domain=dds_domain, watchdog_periods=50)) as robot:
+    options = DdsOptions(domain=dds_domain, watchdog_periods=50, stable_gains=False)  # the model's gains
+    with UnitreeG1(g1, StillBase(), options) as robot:
         state = robot.read_state()
         assert state.estimated == (BASE_POSITION, BASE_LINEAR_VELOCITY)
         assert np.allclose(state.q[7:], g1.keyframe_q("stand")[7:], atol=1e-6)

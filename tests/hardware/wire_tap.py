@@ -66,10 +66,11 @@ class WireTap:
 
 
 def is_damping(cmd: np.ndarray, robot: Robot) -> bool:
-    """Whether motor records ``cmd`` (29,) are the damping command: kp = 0, the default kd, no torque."""
+    """Whether motor records ``cmd`` (29,) are the damping command: kp = 0, no target, no torque, and
+    kd > 0 up to the default (lowered where the plant's motor law needs it: hardware/motor_law.py)."""
     kd = default_damping(MotorMap.for_robot(robot))
-    return bool(np.all(cmd["kp"] == 0) and np.allclose(cmd["kd"], kd, rtol=1e-6) and np.all(cmd["tau"] == 0)
-                and np.all(cmd["mode"] == 1))
+    return bool(np.all(cmd["kp"] == 0) and np.all(cmd["kd"] > 0) and np.all(cmd["kd"] <= kd * (1 + 1e-6))
+                and np.all(cmd["tau"] == 0) and np.all(cmd["dq"] == 0) and np.all(cmd["mode"] == 1))
 
 
 def after_the_loop(tap: WireTap, robot: Robot) -> tuple[list[bool], np.ndarray]:
