@@ -171,6 +171,15 @@ def test_controllers_compute_their_law_as_a_command_from_a_robot_state(
     assert cmd.kind is CommandKind.POSITION and cmd.values.shape == (pos_robot.nu,)
     np.testing.assert_allclose(cmd.values, ref.q + (kv_act * ref.v + pos_robot.gravity(q)) / kp_act,
                                rtol=1e-12, atol=1e-12)
+    # ... or the plant's own gains (a robot over DDS may lower them): the same torque under them
+    pd = PositionTargetPD(pos_robot)
+    pd.use_gains(dict(zip(pd.joints, [(50.0, 1.0), (20.0, 0.5)], strict=True)))
+    cmd = pd.compute(state, ref)
+    kp, kv = np.array([50.0, 20.0]), np.array([1.0, 0.5])
+    np.testing.assert_allclose(cmd.values, ref.q + (kv * ref.v + pos_robot.gravity(q)) / kp, rtol=1e-12,
+                               atol=1e-12)
+    with pytest.raises(ControllerSetupError, match=r"no gains for .*; kp <= 0 on "):
+        pd.use_gains({pd.joints[0]: (0.0, 1.0)})
 
     # reset() clears the clip counters a saturated command left behind
     pd = JointPD(robot, gains)
