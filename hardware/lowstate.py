@@ -25,7 +25,11 @@ Every LowState taken from ``rt/lowstate`` is decoded and checked before it can b
 
 The time of a state is the robot's own once its tick advances (tick steps times the period, from
 the newest state's time then, so a run's timing does not depend on when this process got round to
-reading), and its arrival time before.
+reading); in arrival order, from connect on, its count of new states times the measured period (a
+plant publishes one a period: arrival times carry this process's and the link's jitter, which on
+a loaded machine put an excitation's accelerations, and the masses identified from them, off);
+and its arrival time before (while connecting, or from a tick's first advance until its step is
+known).
 
 The rate is measured at connect (:meth:`LowStateStream.measured_period`): over the first
 :data:`RATE_STATES` valid arrivals (a held robot's repeats included: they come at its rate), the
@@ -208,6 +212,7 @@ class LowStateStream:
         if self.order == ORDER_ARRIVAL:  # the first non-zero tick: the robot's clock starts
             self.order = ORDER_TICK
             self._base = (tick, c.valid)
+            self._clock = None  # the count's clock ends; the tick's starts once its step is known
             return True
         step = tick - self.tick
         if step < 0:
@@ -236,11 +241,16 @@ class LowStateStream:
         return self.tick_step * (2 * math.ceil(elapsed / period) + TICK_SLACK_STATES)
 
     def _time_of(self, tick: int, now: float) -> float:
-        """The state's time [s]: on the tick clock once it runs, else its arrival."""
+        """The state's time [s]: on the robot's clock once it runs, else its arrival.
+
+        The robot's clock is its tick, or in arrival order the count of new states.
+        """
         if self._clock is None:
             return now - self.t0
-        tick0, time0 = self._clock
-        return time0 + (tick - tick0) / self.tick_step * self.period_s  # type: ignore[operator]
+        mark, time0 = self._clock
+        if self.order == ORDER_ARRIVAL:
+            return time0 + (self.counts.valid - mark) * self.period_s  # type: ignore[operator]
+        return time0 + (tick - mark) / self.tick_step * self.period_s  # type: ignore[operator]
 
     def measured_period(self) -> float | None:
         """The state period [s] from the arrivals so far (None before :data:`RATE_STATES`)."""
@@ -258,11 +268,16 @@ class LowStateStream:
         return round(period, digits)
 
     def start_clock(self, period_s: float) -> None:
-        """The loop's period [s] from now on; in tick order the tick clock counts from the newest state."""
+        """The loop's period [s] from now on; the robot's clock counts from the newest state.
+
+        The robot's clock is its tick, or in arrival order the count of new states.
+        """
         self.period_s = period_s
         self._arrivals.clear()
         if self.order == ORDER_TICK and self.tick_step:
             self._clock = (self.tick, self.time_s)
+        elif self.order == ORDER_ARRIVAL:
+            self._clock = (self.counts.valid, self.time_s)
 
     def begin_loop(self) -> None:
         """The loop begins: the waits between new states count from its first new state on."""

@@ -161,6 +161,19 @@ def test_ticks_the_time_explains_are_taken():
     assert stream.counts.bad_states == 0
 
 
+def test_in_arrival_order_the_time_counts_states_at_the_period_not_their_arrivals():
+    """Tick 0 (Unitree's simulator): from connect, n new states are n periods, however they arrive;
+    the first advancing tick ends that clock (its arrival until the tick's step is known)."""
+    stream = LowStateStream(_NoReader(), 29)
+    _feed(stream, [(0, 0.0), (0, 0.005), (0, 0.010)])
+    assert stream.order == "arrival" and stream.time_s == pytest.approx(0.010)  # arrivals, connecting
+    stream.start_clock(0.005)
+    assert _feed(stream, [(0, 0.019), (0, 0.020), (0, 0.041)]) == [True, True, True]  # stalls, a burst
+    assert stream.time_s == pytest.approx(0.010 + 3 * 0.005)
+    assert _feed(stream, [(5, 0.046)]) == [True] and stream.order == "tick"
+    assert stream.time_s == pytest.approx(0.046)
+
+
 def test_a_spoofed_tick_on_a_held_robot_does_not_become_its_clock(g1, fake_g1, dds_domain):
     """As ``mbctl serve g1 --lockstep`` before the first command: the tick held, then it advances."""
     fake = fake_g1(tick_step=0)
