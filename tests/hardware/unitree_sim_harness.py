@@ -82,7 +82,8 @@ class UnitreeSim:
 
 @contextmanager
 def unitree_sim(domain: int, robot: Robot, q: np.ndarray, folder: Path, *, dt: float = UNITREE_DT,
-                pace: str = "command", idle_timeout_s: float = 30.0) -> Iterator[UnitreeSim]:
+                pace: str = "command", idle_timeout_s: float = 30.0,
+                truth: Path | None = None) -> Iterator[UnitreeSim]:
     """Unitree's simulator on ``domain`` (lo) with the G1 at ``q``; yields it once it serves.
 
     At the end of the block it is stopped (SIGINT) unless it stopped by itself; wait for that (its
@@ -96,14 +97,16 @@ def unitree_sim(domain: int, robot: Robot, q: np.ndarray, folder: Path, *, dt: f
         dt: SIMULATE_DT [s].
         pace: "command" (one physics step per command, no faster than real time) or "wall".
         idle_timeout_s: It stops this long [s] after its last command (or its start).
+        truth: Where it writes the true CoM and pelvis per step when it stops (CSV), if given.
     """
     root = unitree_mujoco()
     start = folder / "unitree_start.json"
     start.write_text(json.dumps(start_pose(robot, q)))
-    proc = subprocess.Popen([sys.executable, str(RUNNER), "--root", str(root), "--domain", str(domain),
-                             "--dt", str(dt), "--pace", pace, "--start", str(start), "--idle-timeout",
-                             str(idle_timeout_s)], stdout=subprocess.DEVNULL, stderr=subprocess.PIPE,
-                            text=True)
+    args = ["--root", str(root), "--domain", str(domain), "--dt", str(dt), "--pace", pace,
+            "--start", str(start), "--idle-timeout", str(idle_timeout_s),
+            *(["--truth", str(truth)] if truth else [])]
+    proc = subprocess.Popen([sys.executable, str(RUNNER), *args], stdout=subprocess.DEVNULL,
+                            stderr=subprocess.PIPE, text=True)
     sim = UnitreeSim(proc)
     try:
         line = _first_line(proc)
@@ -148,3 +151,24 @@ def kill_after(proc: subprocess.Popen[str], delay_s: float) -> threading.Timer:
     timer.start()
     time.sleep(0)
     return timer
+
+
+def true_com_rms_m(truth: Path, run_csv: Path) -> float:
+    """The RMS [m] of the plant's CoM against a g1-wbc run's CoM reference, from the runner's truth.
+
+    In lock-step cycle k uses the state of the runner's row k + 1 (its first step follows the
+    first command, whose state is the held start). The leg-kinematics estimator cannot observe
+    x, y, so they are compared as displacements from the first cycle; z is absolute.
+
+    Args:
+        truth: The runner's ``--truth`` CSV.
+        run_csv: The run's ``g1_wbc.csv``.
+    """
+    rows = np.genfromtxt(truth, delimiter=",", names=True)
+    log = np.genfromtxt(run_csv, delimiter=",", names=True)
+    axes = ("x", "y", "z")
+    ref = np.column_stack([log[f"com_ref_{a}_m"] for a in axes])
+    estimated = np.column_stack([log[f"com_{a}_m"] for a in axes])
+    com = np.column_stack([rows[f"com_{a}_m"] for a in axes])[1:len(log) + 1]
+    com[:, :2] += estimated[0, :2] - com[0, :2]
+    return float(np.sqrt(((com - ref) ** 2).sum(axis=1).mean()))

@@ -83,6 +83,7 @@ def main() -> int:
     parser.add_argument("--start", type=Path, required=True, help="JSON: base pose and joint angles")
     parser.add_argument("--idle-timeout", type=float, default=30.0)
     parser.add_argument("--duration", type=float, default=300.0)
+    parser.add_argument("--truth", type=Path, help="CSV: step, time and the true CoM and pelvis per step")
     args = parser.parse_args()
     stand_in_modules(args.root, args.domain, args.dt)
     import config
@@ -125,6 +126,11 @@ def main() -> int:
         why = physics.run(args.idle_timeout, args.duration)
     except KeyboardInterrupt:
         why = "interrupted"
+    if args.truth is not None:
+        import numpy as np
+
+        np.savetxt(args.truth, np.asarray(physics.truth), delimiter=",", comments="",
+                   header="step,time_s,com_x_m,com_y_m,com_z_m,base_x_m,base_y_m,base_z_m")
     base_z = physics.base_z
     print(f"stopped after {physics.steps} steps ({why}; {physics.merged} commands merged); pelvis z "
           f"start {base_z[0]:.4f} m, min {min(base_z):.4f} m until the damping command, final "
@@ -149,6 +155,10 @@ class Physics:
         self.bridge, self.model, self.data, self.pace = bridge, mj_model, mj_data, pace
         self.steps = 0
         self.merged = 0  # commands that came with another after the first step (command pace)
+        #: per step: step, time [s], the CoM and the pelvis [m] of the state its LowState carries
+        #: (MuJoCo computes both before it integrates, as the sensors)
+        self.truth: list[tuple[float, ...]] = []
+        self.pelvis = mj_model.body("pelvis").id
         self.base_z = [float(mj_data.qpos[2])]  # the pelvis height [m] at the start and while commanded
         warning = mujoco.mjtWarning
         self._divergence = [int(w) for w in (warning.mjWARN_BADQPOS, warning.mjWARN_BADQVEL,
@@ -195,6 +205,7 @@ class Physics:
         self.steps += 1
         if not self.bridge.damping:
             self.base_z.append(float(d.qpos[2]))
+        self.truth.append((self.steps, d.time, *d.subtree_com[self.pelvis], *d.xpos[self.pelvis]))
         warned = any(d.warning[w].number for w in self._divergence)
         if warned or not (np.isfinite(d.qpos).all() and np.isfinite(d.qacc).all()):
             print(f"diverged at t={d.time:.3f} s (step {self.steps})", file=sys.stderr, flush=True)
