@@ -32,6 +32,7 @@ import sys
 import time
 from collections.abc import Callable
 from dataclasses import dataclass
+from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -261,8 +262,11 @@ def prepare_plant(options: PlantOptions, robot: Robot, keyframe: str | None = No
         NoRobotError, JointOutOfLimits, ChannelError: Over DDS, before anything is written.
     """
     if options.interface == "dds":
-        if options.truth is not None:
-            check_truth_header(options.truth)  # a file that is no truth log: exit 2 before connecting
+        # a file that is no truth log: exit 2 before connecting; one not there yet is the log of a
+        # bridge still loading (the README's `serve ... &` then the client): checked once it serves
+        truth_later = options.truth is not None and not Path(options.truth).exists()
+        if options.truth is not None and not truth_later:
+            check_truth_header(options.truth)
         if options.wait_s > CONNECT_TIMEOUT_S:
             print(f"mbctl: waiting up to {options.wait_s:g} s for the robot's state on DDS domain "
                   f"{options.domain}, network interface {options.network_interface!r} (--wait-s)",
@@ -273,6 +277,12 @@ def prepare_plant(options: PlantOptions, robot: Robot, keyframe: str | None = No
             connect_timeout_s=options.wait_s, watchdog_periods=options.watchdog_periods,
             dry_run=options.dry_run, check_state_crc=options.state_crc == "on",
             cyclone_config=options.dds_config), feet=FEET)
+        if truth_later:
+            try:
+                check_truth_header(options.truth)  # type: ignore[arg-type]
+            except BaseException:
+                dds.close()  # never commanded: nothing to damp
+                raise
         return lambda ctx: Plant(dds, None, options, ctx, legs)
 
     def make(ctx: RunContext) -> Plant:

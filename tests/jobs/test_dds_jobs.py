@@ -81,13 +81,23 @@ def test_g1_stand_over_dds_stands_and_checks_against_the_truth(g1, dds_domain, t
 
 
 def test_g1_wbc_over_dds_holds_the_com_checked_against_the_truth(g1, dds_domain, tmp_path):
-    """The whole-body QP on the bridge's crouched G1: the CoM RMS comes from the plant's truth log."""
+    """The whole-body QP on the bridge's crouched G1: the CoM RMS comes from the plant's truth log.
+
+    Started as the README pastes it: the client first, its truth log not there yet (the bridge
+    writes it once it serves), waiting for the robot."""
     serve_dir, run_dir = tmp_path / "serve", tmp_path / "wbc"
-    with bridge(dds_domain, serve_dir, "--start", "crouched"):
-        out = mbctl("g1-wbc", "stand", "--interface", "dds", "--domain", str(dds_domain), "--duration", "1.5",
-                    *WATCHDOG, "--truth", str(serve_dir / "truth.csv"), "--output", str(run_dir), "-q")
+    client = subprocess.Popen(mbctl_command(
+        "g1-wbc", "stand", "--interface", "dds", "--domain", str(dds_domain), "--duration", "1.5", *WATCHDOG,
+        "--wait-s", "120", "--truth", str(serve_dir / "truth.csv"), "--output", str(run_dir), "-q"),
+        stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=os.environ.copy())
+    try:
+        with bridge(dds_domain, serve_dir, "--start", "crouched"):
+            stdout, stderr = client.communicate(timeout=120)
+    finally:
+        stop(client)
     values = json.loads((run_dir / "report.json").read_text())["values"]
-    assert out.returncode == 0, out.stdout + out.stderr + json.dumps(values)
+    assert client.returncode == 0, stdout + stderr + json.dumps(values)
+    assert "waiting up to 120 s for the robot's state" in stderr
     assert values["com_error_source"] == "truth log" and values["cycles"] == 750
     # the truth CoM in the estimator's frame (x, y from its start): millimetres, not the start offset
     assert values["com_error_rms_m"] < 5e-3 and values["fell"] is False
