@@ -82,11 +82,11 @@ class PositionTargetPD(ControllerBase):
         """
         missing = [j for j in self.joints if j not in gains]
         weak = [f"{j} (kp {gains[j][0]:g})" for j in self.joints if j in gains and not gains[j][0] > 0]
-        if missing or weak:
-            raise ControllerSetupError(
-                "PositionTargetPD needs kp > 0 on every controlled joint; "
-                + "; ".join(filter(None, (("no gains for " + ", ".join(missing)) if missing else "",
-                                         ("kp <= 0 on " + ", ".join(weak)) if weak else ""))))
+        problems = [f"{what} {', '.join(joints)}" for what, joints in (("no gains for", missing),
+                                                                       ("kp <= 0 on", weak)) if joints]
+        if problems:
+            raise ControllerSetupError("PositionTargetPD needs kp > 0 on every controlled joint; "
+                                       + "; ".join(problems))
         self.kp = np.array([gains[j][0] for j in self.joints], dtype=float)
         self.kv = np.array([gains[j][1] for j in self.joints], dtype=float)
         self._kv_over_kp = self.kv / self.kp
