@@ -13,6 +13,7 @@ refused (:class:`TruthLogError`, exit 2), as is a log without the rows.
 
 from __future__ import annotations
 
+import io
 from datetime import datetime, timezone
 from pathlib import Path
 from typing import Any
@@ -60,14 +61,20 @@ def check_truth_header(path: str | Path) -> None:
 def read_truth(path: str | Path) -> np.ndarray:
     """The truth log as a structured array (one field per column).
 
+    A bridge still running may be writing its last row as the client reads (its rows go out one
+    write at a time): a last line without its newline is that row, left out; any other bad line
+    is an error.
+
     Raises:
         TruthLogError: A missing or unreadable file, or columns other than :data:`TRUTH_COLUMNS`.
     """
     path = Path(path)
     try:
         with open(path, encoding="utf-8") as f:
-            header = f.readline().strip().split(",")
-        data = np.genfromtxt(path, delimiter=",", names=True, ndmin=1)
+            text = f.read()
+        complete = text[: text.rfind("\n") + 1]  # up to the last whole line
+        header = complete.split("\n", 1)[0].strip().split(",")
+        data = np.genfromtxt(io.StringIO(complete), delimiter=",", names=True, ndmin=1)
     except (OSError, ValueError) as exc:
         raise TruthLogError(f"cannot read the truth log {path}: {exc}; give the truth.csv that "
                             "`mbctl serve g1 --output DIR` wrote") from None

@@ -189,8 +189,11 @@ class Physics:
                 continue
             if self.pace == "command" and self.steps == 0:
                 bridge.lowStateThread.Wait(1.0)  # from now on one state per command, published below
-            if self.pace == "command" and self.steps:  # (before the first step their thread published)
-                self.merged += max(0, new - 1)
+            if self.pace == "command":
+                if not new:  # lock-step: no step without a command answering the last state
+                    continue
+                if self.steps:  # (before the first step their thread published too)
+                    self.merged += new - 1
             if not self.step():
                 return "diverged"
 

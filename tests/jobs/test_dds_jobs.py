@@ -22,7 +22,7 @@ import numpy as np
 import pytest
 
 from mbctl.control.loop import RunLog
-from mbctl.jobs.truth import TruthLogError, check_truth_header, truth_checks
+from mbctl.jobs.truth import TruthLogError, check_truth_header, read_truth, truth_checks
 from mbctl.sim.dds_bridge import TRUTH_COLUMNS, wait_until_serving
 from mbctl.unitree import ChannelError
 from mbctl.unitree.domain_lock import reserve_domain
@@ -130,6 +130,17 @@ def _truth_log(path: Path, ticks: range, unix_s: float) -> Path:
         rows.append(",".join(repr(float(row[c])) for c in TRUTH_COLUMNS))
     path.write_text(",".join(TRUTH_COLUMNS) + "\n" + "\n".join(rows) + "\n")
     return path
+
+
+def test_a_truth_log_row_being_written_is_left_out_and_a_bad_whole_row_is_refused(tmp_path):
+    """A running bridge's last row may be half written when the client reads (CI saw it once)."""
+    path = _truth_log(tmp_path / "truth.csv", range(5), 1_800_000_000.0)
+    whole = path.read_text()
+    path.write_text(whole + "5,0.0")  # the sixth row, cut mid-write
+    assert read_truth(path)["tick"].tolist() == [0, 1, 2, 3, 4]
+    path.write_text(whole + "5,0.0\n")
+    with pytest.raises(TruthLogError, match="got 2 columns instead of 26"):
+        read_truth(path)
 
 
 def test_a_truth_log_made_outside_the_runs_loop_is_another_runs(tmp_path):
