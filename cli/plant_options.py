@@ -48,6 +48,10 @@ RateOpt = Annotated[float | None, typer.Option(
 WaitOpt = Annotated[float, typer.Option(
     "--wait-s", help="DDS: how long to wait for the robot's state stream (s), e.g. for a bridge still "
                      "loading.")]
+MotorGainsOpt = Annotated[str, typer.Option(
+    "--motor-gains", help="DDS: stable (the position and damping gains checked against the state period, "
+                          "lowered where a motor law applied once per period, as Unitree's simulator does, "
+                          "would not keep them stable; each one said in the report) or as-given.")]
 DdsConfigOpt = Annotated[Path | None, typer.Option(
     "--dds-config", help="DDS: a Cyclone DDS configuration file of yours, used as written (default: mbctl's "
                          "for the network interface).")]
@@ -66,7 +70,7 @@ PLANT_PARAMETERS = _params(
     ("truth", TruthOpt, None), ("watchdog_periods", WatchdogOpt, WATCHDOG_PERIODS),
     ("dry_run", DryRunOpt, False),
     ("state_crc", StateCrcOpt, "on"), ("rate_hz", RateOpt, None), ("wait_s", WaitOpt, CONNECT_TIMEOUT_S),
-    ("dds_config", DdsConfigOpt, None))
+    ("dds_config", DdsConfigOpt, None), ("motor_gains", MotorGainsOpt, "stable"))
 
 #: ``--payload``, ``--plant-error``, ``--controller-model``: every simulating job.
 MODEL_PARAMETERS = _params(("payload", PayloadOpt, None), ("plant_error", PlantErrorOpt, 0.0),

@@ -52,13 +52,13 @@ def g1_stand(duration: float = 10.0, omega: float = 10.0, zeta: float = 1.0,
              drop: float = 0.0, imu_noise: float = 0.0, estimate: bool = False, link_seed: int = 0,
              truth: Path | None = None, watchdog_periods: int = WATCHDOG_PERIODS, dry_run: bool = False,
              state_crc: str = "on", rate_hz: float | None = None, wait_s: float = CONNECT_TIMEOUT_S,
-             dds_config: Path | None = None,
+             dds_config: Path | None = None, motor_gains: str = "stable",
              payload: str | None = None, plant_error: float = 0.0,
              controller_model: str | None = None) -> StandParams:
     """``mbctl g1-stand``: duration in s, omega in rad/s, zeta (-); the plant and model options."""
     return StandParams(duration, omega, zeta, model_dir, plant(
         interface, domain, network_interface, latency_ms, jitter_ms, drop, imu_noise, estimate, link_seed,
-        truth, watchdog_periods, dry_run, state_crc, rate_hz, wait_s, dds_config),
+        truth, watchdog_periods, dry_run, state_crc, rate_hz, wait_s, dds_config, motor_gains),
         ModelOptions(payload, plant_error, controller_model))
 
 
@@ -76,13 +76,13 @@ def g1_arm_pd(duration: float | None = None, side: str = "left", gravity_feedfor
               drop: float = 0.0, imu_noise: float = 0.0, estimate: bool = False, link_seed: int = 0,
               truth: Path | None = None, watchdog_periods: int = WATCHDOG_PERIODS, dry_run: bool = False,
               state_crc: str = "on", rate_hz: float | None = None, wait_s: float = CONNECT_TIMEOUT_S,
-              dds_config: Path | None = None,
+              dds_config: Path | None = None, motor_gains: str = "stable",
               payload: str | None = None, plant_error: float = 0.0,
               controller_model: str | None = None) -> ArmPDParams:
     """``mbctl g1-arm-pd``: duration in s, side left or right, max_rms_rad in rad; plant and model options."""
     return ArmPDParams(duration, side, gravity_feedforward, max_rms_rad, model_dir, plant(
         interface, domain, network_interface, latency_ms, jitter_ms, drop, imu_noise, estimate, link_seed,
-        truth, watchdog_periods, dry_run, state_crc, rate_hz, wait_s, dds_config),
+        truth, watchdog_periods, dry_run, state_crc, rate_hz, wait_s, dds_config, motor_gains),
         ModelOptions(payload, plant_error, controller_model))
 
 
@@ -90,16 +90,19 @@ def plant(interface: str = "sim", domain: int = 0, network_interface: str = "lo"
           jitter_ms: float = 0.0, drop: float = 0.0, imu_noise: float = 0.0, estimate: bool = False,
           link_seed: int = 0, truth: Path | None = None, watchdog_periods: int = WATCHDOG_PERIODS,
           dry_run: bool = False, state_crc: str = "on", rate_hz: float | None = None,
-          wait_s: float = CONNECT_TIMEOUT_S, dds_config: Path | None = None) -> PlantOptions:
+          wait_s: float = CONNECT_TIMEOUT_S, dds_config: Path | None = None,
+          motor_gains: str = "stable") -> PlantOptions:
     """The plant options of the G1 jobs: latency and jitter in ms, drop a probability, imu_noise a factor.
 
     ``link_seed`` (not ``seed``: a sweep's ``--seeds`` is for jobs that always draw random numbers)
     seeds the in-process link's drops, jitter and noise. Over DDS: ``state_crc`` on or off, ``rate_hz``
-    in Hz (None: measured), ``wait_s`` in s, ``dds_config`` a Cyclone configuration file.
+    in Hz (None: measured), ``wait_s`` in s, ``dds_config`` a Cyclone configuration file, ``motor_gains``
+    stable or as-given.
     """
     return PlantOptions(interface, domain, network_interface, latency_ms, jitter_ms, drop, imu_noise,
                         estimate, link_seed, None if truth is None else str(truth), watchdog_periods, dry_run,
-                        state_crc, rate_hz, wait_s, None if dds_config is None else str(dds_config))
+                        state_crc, rate_hz, wait_s, None if dds_config is None else str(dds_config),
+                        motor_gains)
 
 
 def serve(robot: str = "g1", start: str = "stand", domain: int = 0, network_interface: str = "lo",
@@ -117,13 +120,13 @@ def g1_wbc(scenario: str = "stand", duration: float | None = None, impulse: floa
            jitter_ms: float = 0.0, drop: float = 0.0, imu_noise: float = 0.0, estimate: bool = False,
            link_seed: int = 0, truth: Path | None = None, watchdog_periods: int = WATCHDOG_PERIODS,
            dry_run: bool = False, state_crc: str = "on", rate_hz: float | None = None,
-           wait_s: float = CONNECT_TIMEOUT_S, dds_config: Path | None = None,
+           wait_s: float = CONNECT_TIMEOUT_S, dds_config: Path | None = None, motor_gains: str = "stable",
            payload: str | None = None, plant_error: float = 0.0,
            controller_model: str | None = None) -> WBCParams:
     """``mbctl g1-wbc``: duration in s, impulse in N s, direction in deg, model_error %; plant options."""
     return WBCParams(scenario, duration, impulse, direction, model_error, model_dir, plant(
         interface, domain, network_interface, latency_ms, jitter_ms, drop, imu_noise, estimate, link_seed,
-        truth, watchdog_periods, dry_run, state_crc, rate_hz, wait_s, dds_config),
+        truth, watchdog_periods, dry_run, state_crc, rate_hz, wait_s, dds_config, motor_gains),
         ModelOptions(payload, plant_error, controller_model))
 
 
@@ -200,7 +203,7 @@ def excite(robot: str, duration: float | None = None, seed: int = 0, period: flo
            jitter_ms: float = 0.0, drop: float = 0.0, imu_noise: float = 0.0, estimate: bool = False,
            link_seed: int = 0, truth: Path | None = None, watchdog_periods: int = WATCHDOG_PERIODS,
            dry_run: bool = False, state_crc: str = "on", rate_hz: float | None = None,
-           wait_s: float = CONNECT_TIMEOUT_S, dds_config: Path | None = None,
+           wait_s: float = CONNECT_TIMEOUT_S, dds_config: Path | None = None, motor_gains: str = "stable",
            payload: str | None = None, plant_error: float = 0.0,
            controller_model: str | None = None) -> ExciteParams:
     """``mbctl excite``: duration and period in s; the plant options (the G1); model options (as demo)."""
@@ -208,7 +211,7 @@ def excite(robot: str, duration: float | None = None, seed: int = 0, period: flo
                         ModelOptions(payload, plant_error, controller_model), plant(
                             interface, domain, network_interface, latency_ms, jitter_ms, drop, imu_noise,
                             estimate, link_seed, truth, watchdog_periods, dry_run, state_crc, rate_hz, wait_s,
-                            dds_config))
+                            dds_config, motor_gains))
 
 
 def identify(runs: list[str], robot: str | None = None, bodies: str | None = None, friction: bool = False,

@@ -71,6 +71,9 @@ MIN_COMMANDED_FRACTION = 0.5
 MAX_RUN_S = 3600.0
 #: ``--state-crc``: check the CRC of every state (on), or accept states with CRC 0 unchecked (off).
 STATE_CRC = ("on", "off")
+#: ``--motor-gains``: lower the gains a motor law applied once per state period would not keep stable
+#: (stable; ``mbctl.hardware.motor_law``), or send the model's as they are (as-given).
+MOTOR_GAINS = ("stable", "as-given")
 
 
 class PlantOptionError(JobError):
@@ -100,6 +103,8 @@ class PlantOptions:
         rate_hz: The robot's state rate [Hz]; None measures it at connect (dds).
         wait_s: How long to wait for the robot's state stream [s] (dds).
         dds_config: A Cyclone DDS configuration file of the user's, used as written (dds).
+        motor_gains: "stable" (the gains checked against the state period, lowered where a motor
+            law applied once per period would not keep them stable) or "as-given" (dds).
     """
 
     interface: str = "sim"
@@ -118,6 +123,7 @@ class PlantOptions:
     rate_hz: float | None = None
     wait_s: float = CONNECT_TIMEOUT_S
     dds_config: str | None = None
+    motor_gains: str = "stable"
 
     def __post_init__(self) -> None:  # noqa: C901 - one check per option, each with its message
         if self.interface not in INTERFACES:
@@ -135,6 +141,9 @@ class PlantOptions:
             if self.state_crc not in STATE_CRC:
                 raise PlantOptionError(f"state_crc must be one of {', '.join(STATE_CRC)}; "
                                        f"got {self.state_crc!r}")
+            if self.motor_gains not in MOTOR_GAINS:
+                raise PlantOptionError(f"motor_gains must be one of {', '.join(MOTOR_GAINS)}; "
+                                       f"got {self.motor_gains!r}")
             if self.rate_hz is not None and not (np.isfinite(self.rate_hz) and self.rate_hz > 0):
                 raise PlantOptionError(f"rate_hz must be a positive number of Hz (the G1's is 500); "
                                        f"got {self.rate_hz}")
@@ -153,7 +162,8 @@ class PlantOptions:
             ("--watchdog-periods", WATCHDOG_PERIODS, self.watchdog_periods), ("--truth", None, self.truth),
             ("--dry-run", False, self.dry_run), ("--state-crc", "on", self.state_crc),
             ("--rate-hz", None, self.rate_hz), ("--wait-s", CONNECT_TIMEOUT_S, self.wait_s),
-            ("--dds-config", None, self.dds_config)) if value != default]
+            ("--dds-config", None, self.dds_config), ("--motor-gains", "stable", self.motor_gains))
+            if value != default]
         if given:
             one = len(given) == 1
             raise PlantOptionError(
@@ -276,7 +286,7 @@ def prepare_plant(options: PlantOptions, robot: Robot, keyframe: str | None = No
             domain=options.domain, network_interface=options.network_interface, rate_hz=options.rate_hz,
             connect_timeout_s=options.wait_s, watchdog_periods=options.watchdog_periods,
             dry_run=options.dry_run, check_state_crc=options.state_crc == "on",
-            cyclone_config=options.dds_config), feet=FEET)
+            cyclone_config=options.dds_config, stable_gains=options.motor_gains == "stable"), feet=FEET)
         if truth_later:
             try:
                 check_truth_header(options.truth)  # type: ignore[arg-type]

@@ -87,6 +87,19 @@ def test_the_g1_jobs_stay_up_on_unitree_s_simulator(g1, dds_domain, tmp_path, jo
         assert inputs["actuator_kp_N_m_rad"][4] == sent[1]  # the left arm's 5th joint: wrist roll
 
 
+def test_motor_gains_as_given_sends_the_model_s_gains(g1, dds_domain, tmp_path):
+    """``--motor-gains as-given`` from the command line: nothing lowered, the arm's targets for kp 500
+    (at 2 ms Unitree's model holds them: its joints' friction stills the small motions)."""
+    with unitree_sim(dds_domain, g1, g1.keyframe_q("stand"), tmp_path, dt=G1_DT) as sim:
+        out = run_mbctl("g1-arm-pd", "--interface", "dds", "--domain", str(dds_domain), "--state-crc", "off",
+                        "--watchdog-periods", str(WATCHDOG), "--motor-gains", "as-given", "--duration", "1",
+                        "--output", str(tmp_path / "run"), "-q")
+    assert out.returncode == 0, out.stdout + out.stderr
+    report = json.loads((tmp_path / "run" / "report.json").read_text())
+    assert "gains_lowered" not in report["values"] and set(report["inputs"]["actuator_kp_N_m_rad"]) == {500.0}
+    assert sim.pelvis_z_m()["min"] > G1_FALL.base_min_z_m + 0.2
+
+
 def test_the_motor_table_moves_the_joint_it_names(g1, dds_domain, tmp_path):
     """Held by position targets, then one joint's target moved: that joint follows, no other (2 ms)."""
     q0 = g1.keyframe_q("stand")

@@ -226,6 +226,9 @@ def _running(folder: Path) -> bool:
     (("g1-stand", "--state-crc", "off", "--wait-s", "3"),
      "--state-crc, --wait-s are options of --interface dds"),
     (("g1-stand", "--interface", "dds", "--state-crc", "maybe"), "state_crc must be one of on, off"),
+    (("g1-arm-pd", "--motor-gains", "as-given"), "--motor-gains is an option of --interface dds"),
+    (("g1-arm-pd", "--interface", "dds", "--motor-gains", "loose"),
+     "motor_gains must be one of stable, as-given; got 'loose'"),
     (("g1-wbc", "push", "--interface", "dds"), "the push scenario needs the in-process plant "
                                                "(--interface sim): over DDS nothing can push the robot"),
     (("g1-stand", "--interface", "dds", "--payload", "1@pelvis"), "--payload and --plant-error change the "
