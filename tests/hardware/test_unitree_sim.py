@@ -39,10 +39,16 @@ from tests.hardware.wire_tap import WireTap, after_the_loop
 
 #: The watchdog of these runs [periods]: a loaded machine may stall either process (see the docstring).
 WATCHDOG = 100
+#: The rate the 2 ms runs are given: their rate is measured on the states Unitree's publishing thread
+#: sends while the robot is held, every 2 ms by a timer whose late expirations it merges; on a
+#: loaded machine (two busy loops beside the tests) it came out 2.5 ms, a 400 Hz robot. The 5 ms
+#: runs measure it (and tests/hardware/test_lowstate.py the measurement).
+G1_RATE_HZ = 1 / G1_DT
 
 
-def _plant(domain: int) -> PlantOptions:
-    return PlantOptions("dds", domain, state_crc="off", watchdog_periods=WATCHDOG)
+def _plant(domain: int, dt: float = UNITREE_DT) -> PlantOptions:
+    return PlantOptions("dds", domain, state_crc="off", watchdog_periods=WATCHDOG,
+                        rate_hz=G1_RATE_HZ if dt == G1_DT else None)
 
 
 def _job(name, prepare, params, g1, folder):
@@ -67,7 +73,7 @@ def test_the_g1_jobs_stay_up_on_unitree_s_simulator(g1, dds_domain, tmp_path, jo
             record = _job(job, prepare_stand, StandParams(2.0, plant=_plant(dds_domain)), g1,
                           tmp_path / "run")
         else:
-            record = _job(job, prepare_arm_pd, ArmPDParams(2.0, plant=_plant(dds_domain)), g1,
+            record = _job(job, prepare_arm_pd, ArmPDParams(2.0, plant=_plant(dds_domain, dt)), g1,
                           tmp_path / "run")
     assert record.status == "completed", record.message
     v = record.values
@@ -92,8 +98,8 @@ def test_motor_gains_as_given_sends_the_model_s_gains(g1, dds_domain, tmp_path):
     (at 2 ms Unitree's model holds them: its joints' friction stills the small motions)."""
     with unitree_sim(dds_domain, g1, g1.keyframe_q("stand"), tmp_path, dt=G1_DT) as sim:
         out = run_mbctl("g1-arm-pd", "--interface", "dds", "--domain", str(dds_domain), "--state-crc", "off",
-                        "--watchdog-periods", str(WATCHDOG), "--motor-gains", "as-given", "--duration", "1",
-                        "--output", str(tmp_path / "run"), "-q")
+                        "--watchdog-periods", str(WATCHDOG), "--rate-hz", str(G1_RATE_HZ), "--motor-gains",
+                        "as-given", "--duration", "1", "--output", str(tmp_path / "run"), "-q")
     assert out.returncode == 0, out.stdout + out.stderr
     report = json.loads((tmp_path / "run" / "report.json").read_text())
     assert "gains_lowered" not in report["values"] and set(report["inputs"]["actuator_kp_N_m_rad"]) == {500.0}
@@ -105,7 +111,8 @@ def test_the_motor_table_moves_the_joint_it_names(g1, dds_domain, tmp_path):
     q0 = g1.keyframe_q("stand")
     joint, delta = "left_elbow_joint", 0.3
     with unitree_sim(dds_domain, g1, q0, tmp_path, dt=G1_DT):
-        options = DdsOptions(domain=dds_domain, check_state_crc=False, watchdog_periods=WATCHDOG)
+        options = DdsOptions(domain=dds_domain, check_state_crc=False, watchdog_periods=WATCHDOG,
+                             rate_hz=G1_RATE_HZ)
         with UnitreeG1(g1, StillBase(), options) as robot:
             target = {j: float(q0[g1.joint(j).idx_q]) for j in robot.motors.joints}
 
@@ -170,8 +177,10 @@ def test_excite_identify_and_the_identified_model_halve_the_com_error_on_unitree
     nominal model does not match: a short excitation over DDS, the torso identified from it, and
     g1-wbc stand's true CoM RMS (the simulator's own CoM) at least halves with the identified model
     (measured: 14.2 -> 0.35 mm, the torso 9.588 kg; the same with two busy loops beside it)."""
+    # lock-step: a stall only slows the run; 10 s of watchdog (a 3.6 s stall was seen with two busy
+    # loops and the other test worker beside it)
     dds = ("--interface", "dds", "--domain", str(dds_domain), "--state-crc", "off", "--watchdog-periods",
-           str(WATCHDOG), "--wait-s", "60")
+           "5000", "--rate-hz", str(G1_RATE_HZ), "--wait-s", "60")
     with unitree_sim(dds_domain, g1, crouched_start(g1), tmp_path, dt=G1_DT, idle_timeout_s=60):
         out = run_mbctl("excite", "g1", *dds, "--duration", "14", "--output", str(tmp_path / "excite"))
     assert out.returncode == 0, out.stdout + out.stderr
