@@ -36,9 +36,9 @@ job gives (:class:`~mbctl.robots.interface.BaseStateEstimator`) and ``RobotState
 
 Safety: ``watchdog_periods`` periods without a new LowState send the damping command and raise
 :class:`LinkLost` ("link lost", with what the stream saw); the watchdog arms after the first
-completed cycle (the first waits up to ``FIRST_CYCLE_S``, 1 s: a plant that only starts on the
-first command, a first cycle that warms up); commands are clamped to the model's torque and
-position limits and counted; Ctrl-C (KeyboardInterrupt) goes through ``close()`` and so damps;
+completed cycle (the first waits up to ``FIRST_CYCLE_S``, 1 s from its start, however long
+connecting took: a plant that only starts on the first command, a first cycle that warms up);
+commands are clamped to the model's torque and position limits and counted; Ctrl-C (KeyboardInterrupt) goes through ``close()`` and so damps;
 ``dry_run`` reads and never commands.
 
 Stalls (``quiet_loop``; measured in bench/bench_dds.py, see docs/api/dds.rst): the loop's first
@@ -75,8 +75,11 @@ from mbctl.unitree.motors import MODE_PR, MOTOR_ENABLED, MotorMap
 from mbctl.unitree.tables import G1_29DOF, MotorTable
 from mbctl.unitree.wire import low_cmd_codec
 
-#: The longest the first cycle waits for the robot's answer [s] (the watchdog arms after it).
+#: The longest the first cycle waits for the robot's answer [s], from its own start (the watchdog
+#: arms after it).
 FIRST_CYCLE_S = 1.0
+
+
 class UnitreeHG:
     """A ``unitree_hg`` robot over Unitree's low-level DDS (see the module docstring).
 
@@ -138,6 +141,7 @@ class UnitreeHG:
         self._realtime = RealtimePriority()
         self._ran_realtime = False
         self._armed = False
+        self._loop_start = -float("inf")  # when cycle 0 began (time.perf_counter) [s]
         self._fresh = False
         self._state: RobotState | None = None
         self._damped = False
@@ -351,11 +355,13 @@ class UnitreeHG:
         if earliest > now:
             time.sleep(earliest - now)
         limit_s = self.options.watchdog_periods * period
-        if not self._armed:
+        since = self.stream.last_rx
+        if not self._armed:  # counted from the loop's start: connecting is not the link's silence
             limit_s = max(limit_s, FIRST_CYCLE_S)
+            since = max(since, self._loop_start)
         self._drain()
         while not self._fresh:
-            remaining = self.stream.last_rx + limit_s - time.perf_counter()
+            remaining = since + limit_s - time.perf_counter()
             if remaining <= 0 or not self._reader.wait(remaining):
                 self._lost(limit_s)
             self._drain()
@@ -374,6 +380,7 @@ class UnitreeHG:
             self._ran_realtime = self._realtime.acquire()
         self.stream.begin_loop()
         self._clock.start()
+        self._loop_start = time.perf_counter()
 
     def _end_loop(self) -> None:
         """The loop is over: collection back on, the thread's own priority (idempotent)."""

@@ -31,12 +31,14 @@ class FakeG1:
         period_s: Its state period [s].
         tick_step: How much the tick advances per message (0: never; negative: it runs backwards).
         tick0: The first message's tick (0 with ``tick_step`` 0: Unitree's simulator).
+        held: Hold the tick until the first command (as ``mbctl serve g1 --lockstep``).
     """
 
     def __init__(self, domain: int, q: np.ndarray, quat_wxyz=(1.0, 0.0, 0.0, 0.0), bad_crc: bool = False,
                  unsigned: bool = False, period_s: float = PERIOD_S, tick_step: int = 1,
-                 tick0: int = 1 << 20):
+                 tick0: int = 1 << 20, held: bool = False):
         self.channel = Channel(domain)
+        self._held = held
         lowcmd, lowstate = message_types()
         self._writer = self.channel.writer(TOPIC_LOWSTATE, lowstate)
         self._reader = self.channel.reader(TOPIC_LOWCMD, lowcmd, depth=64)
@@ -61,7 +63,8 @@ class FakeG1:
 
     def _publish(self) -> None:
         m = self._state.message
-        m["tick"] = int(m["tick"]) + self._tick_step
+        if not (self._held and not self.commands):
+            m["tick"] = int(m["tick"]) + self._tick_step
         saved = {}
         for field, value in self._once.items():  # this message only
             saved[field] = m["imu_state"][field].copy() if field == "quaternion" else m[field].copy()

@@ -188,6 +188,25 @@ def test_the_watchdog_arms_after_the_first_cycle(g1, fake_g1, dds_domain):
         assert robot.report().timing.cycles == 0
 
 
+def test_the_first_cycle_s_wait_counts_from_the_loop_not_from_a_slow_connect(g1, fake_g1, dds_domain,
+                                                                             monkeypatch):
+    """A robot held until its first command (``serve g1 --lockstep``), and a connect that took longer
+    than FIRST_CYCLE_S (its gains checked on a loaded machine): the first cycle still gets its second."""
+    import mbctl.hardware.unitree_hg as hg
+
+    checked = hg.stabilize
+
+    def slow(*args, **kwargs):
+        time.sleep(FIRST_CYCLE_S + 0.3)
+        return checked(*args, **kwargs)
+
+    monkeypatch.setattr(hg, "stabilize", slow)
+    fake_g1(held=True)
+    with UnitreeG1(g1, StillBase(), DdsOptions(domain=dds_domain, watchdog_periods=50)) as robot:
+        log = run(robot, ConstantTorque(g1), HOLD, 0.02)
+        assert log.cycles == 10 and robot.report().safety.watchdog_events == 0
+
+
 def test_ctrl_c_sends_damping(g1, fake_g1, dds_domain):
     fake = fake_g1()
     with pytest.raises(KeyboardInterrupt), UnitreeG1(g1, StillBase(), DdsOptions(domain=dds_domain)) as robot:
