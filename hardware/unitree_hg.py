@@ -38,8 +38,8 @@ Safety: ``watchdog_periods`` periods without a new LowState send the damping com
 :class:`LinkLost` ("link lost", with what the stream saw); the watchdog arms after the first
 completed cycle (the first waits up to ``FIRST_CYCLE_S``, 1 s from its start, however long
 connecting took: a plant that only starts on the first command, a first cycle that warms up);
-commands are clamped to the model's torque and position limits and counted; Ctrl-C (KeyboardInterrupt) goes through ``close()`` and so damps;
-``dry_run`` reads and never commands.
+commands are clamped to the model's torque and position limits and counted; Ctrl-C
+(KeyboardInterrupt) goes through ``close()`` and so damps; ``dry_run`` reads and never commands.
 
 Stalls (``quiet_loop``; measured in bench/bench_dds.py, see docs/api/dds.rst): the loop's first
 ``read_state`` freezes every object made before it (``gc.freeze``; ``close()`` undoes it), turns
