@@ -37,7 +37,6 @@ from dataclasses import dataclass
 
 import numpy as np
 import numpy.typing as npt
-import pinocchio as pin
 
 from mbctl.hardware.motor_commands import MotorGains
 from mbctl.robots.model_pair import Robot
@@ -73,16 +72,9 @@ def inverse_inertia(robot: Robot, q: npt.ArrayLike, idx_v: npt.ArrayLike,
         idx_v: The dofs (indices into v).
         fixed_frames: Frames held still (the feet of a robot standing).
     """
-    model = robot.pin_model
-    data = model.createData()
-    q = np.asarray(q, dtype=float)
-    minv = pin.computeMinverse(model, data, q)
-    minv = np.triu(minv) + np.triu(minv, 1).T
+    minv = np.linalg.inv(robot.mass_matrix(q))
     if fixed_frames:
-        pin.computeJointJacobians(model, data, q)
-        pin.updateFramePlacements(model, data)
-        jac = np.vstack([pin.getFrameJacobian(model, data, model.getFrameId(f), pin.LOCAL)
-                         for f in fixed_frames])
+        jac = np.vstack([robot.jacobian(f, q, "local") for f in fixed_frames])
         mj = minv @ jac.T
         minv = minv - mj @ np.linalg.pinv(jac @ mj, rcond=1e-10) @ mj.T
     idx = np.asarray(idx_v, dtype=int)
@@ -179,7 +171,7 @@ def stabilize(robot: Robot, motors: MotorMap, gains: MotorGains, damping_kd: np.
         q_joints: The motors' joint angles (n,) [rad] now (the inertia depends on them).
         feet: The frames on the ground now.
     """
-    q = pin.neutral(robot.pin_model)
+    q = robot.neutral_q()
     q[motors.idx_q] = q_joints
     kp, kd = stable_gains(inverse_inertia(robot, q, motors.idx_v, feet), gains.kp, gains.kd, period_s)
     _, damping = stable_gains(inverse_inertia(robot, q, motors.idx_v), np.zeros(motors.n), damping_kd,
