@@ -13,7 +13,6 @@ refused (:class:`TruthLogError`, exit 2), as is a log without the rows.
 
 from __future__ import annotations
 
-import io
 from datetime import datetime, timezone
 from pathlib import Path
 from typing import Any
@@ -71,10 +70,10 @@ def read_truth(path: str | Path) -> np.ndarray:
     path = Path(path)
     try:
         with open(path, encoding="utf-8") as f:
-            text = f.read()
-        complete = text[: text.rfind("\n") + 1]  # up to the last whole line
-        header = complete.split("\n", 1)[0].strip().split(",")
-        data = np.genfromtxt(io.StringIO(complete), delimiter=",", names=True, ndmin=1)
+            header = f.readline().strip().split(",")
+            f.seek(0)
+            whole_lines = (line for line in f if line.endswith("\n"))
+            data = np.genfromtxt(whole_lines, delimiter=",", names=True, ndmin=1)
     except (OSError, ValueError) as exc:
         raise TruthLogError(f"cannot read the truth log {path}: {exc}; give the truth.csv that "
                             "`mbctl serve g1 --output DIR` wrote") from None
