@@ -198,7 +198,7 @@ class VideoRecorder:
         self._scene = mujoco.MjvScene(sim.model, maxgeom=1000)  # the frame's extra geoms
         self._renderer: mujoco.Renderer | None = None  # in-process, for render() only
         self._pool = RenderPool(sim.model, spec.width, spec.height, CameraSpec.of(self.camera), self.path,
-                                spec.fps, default_workers(simulating=True) if workers is None else workers)
+                                spec.fps, default_workers() if workers is None else workers)
         self.frames = 0
         self._next_t = float(sim.data.time) + 1.0 / spec.fps
 
@@ -272,7 +272,7 @@ def film_trajectory(model: mujoco.MjModel, t_s: np.ndarray, qpos: np.ndarray, pa
     if not n:
         return 0
     pool = RenderPool(model, spec.width, spec.height, CameraSpec.of(camera), Path(path), spec.fps,
-                      default_workers(simulating=False) if workers is None else workers)
+                      default_workers() if workers is None else workers)
     try:
         for k in range(n):
             i = int(np.searchsorted(t_s, t_s[0] + k / spec.fps + 1e-9, side="right")) - 1

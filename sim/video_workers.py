@@ -45,6 +45,10 @@ from mbctl.gl import INSTALL_HINT, VideoError
 #: file plays to within 0.6 s of the last frame sent (tests/sim/test_video.py), for 15 % more bytes.
 KEYFRAME_INTERVAL_S, LOOKAHEAD_S = 0.5, 1.0 / 3.0
 
+#: Niceness a render worker adds to its own: the job's simulation or control loop keeps its core
+#: while the workers render with what is left.
+WORKER_NICE = 10
+
 #: Mode of the MP4 (``mbctl.sim.atomic.FILE_MODE``; not imported: the workers load this module
 #: without the ``mbctl.sim`` package, whose imports cost them a second).
 FILE_MODE = 0o644
@@ -322,10 +326,15 @@ class Writer:
                 self._log = None
 
 
-def default_workers(simulating: bool) -> int:
-    """Render workers for this machine: the cores left by the simulation (1 to 3), or all (1 to 4)."""
+def default_workers() -> int:
+    """Render workers for this machine: one a core (1 to 4), also while a simulation runs.
+
+    Workers run at a lower priority (:data:`WORKER_NICE`), so while a simulation runs they take
+    the cores it leaves, and when it ends the frames still to render spread over every core (one
+    worker fewer than the cores left a core idle then: bench/README.md, video section).
+    """
     cores = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else (os.cpu_count() or 1)
-    return max(1, min(cores - 1, 3)) if simulating else max(1, min(cores, 4))
+    return max(1, min(cores, 4))
 
 
 def _render(renderer: mujoco.Renderer, model: mujoco.MjModel, data: mujoco.MjData,
@@ -346,6 +355,8 @@ def _render(renderer: mujoco.Renderer, model: mujoco.MjModel, data: mujoco.MjDat
 def _worker_main() -> None:
     """A render worker (see the module doc): argv holds its pipes' descriptors."""
     jobs_fd, status_fd, out_fd, *follower_fds = (int(a) for a in sys.argv[1:])
+    with contextlib.suppress(OSError):
+        os.nice(WORKER_NICE)  # below the simulation and a control loop (ffmpeg, its child, inherits it)
     jobs, status = Connection(jobs_fd, writable=False), Connection(status_fd, readable=False)
     out = Connection(out_fd, readable=False) if out_fd >= 0 else None
     followers = [Connection(fd, writable=False) for fd in follower_fds]

@@ -285,3 +285,27 @@ def test_meshes_merged_below_a_pixel_draw_the_same_g1_frame(g1):
         renderer.close()
     diff = np.abs(frames[1] - frames[0])
     assert diff.mean() < 1.0 and (diff.max(axis=-1) > 30).mean() < 0.01
+
+
+def test_render_workers_and_their_encoder_run_below_the_simulation(tmp_path):
+    """Every render worker (and the ffmpeg it starts) runs WORKER_NICE below the filming process."""
+    from mbctl.sim.video_pool import RenderPool
+    from mbctl.sim.video_workers import WORKER_NICE, CameraSpec, FrameState
+
+    def nice(pid: int) -> int:  # field 19 of /proc/PID/stat, after the command's parentheses
+        return int(Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()[16])
+
+    model = load_robot("two_link_torque").mj_model
+    camera = CameraSpec.of(default_camera(model, mujoco.MjData(model), 0))
+    pool = RenderPool(model, *SMALL_WH, camera, tmp_path / "clip.mp4", 30.0, workers=2)
+    try:
+        pool.submit(FrameState(np.zeros(model.nq), np.zeros((0, 3)), np.zeros((0, 4)), None))
+        ours = os.getpriority(os.PRIO_PROCESS, 0)
+        workers = [proc.pid for proc in pool._procs]
+        assert [nice(pid) for pid in workers] == [min(19, ours + WORKER_NICE)] * 2
+        encoders = subprocess.run(["ps", "-o", "pid=,ni=", "--ppid", str(workers[0])], capture_output=True,
+                                  text=True, check=True).stdout.split()
+        assert encoders[1::2] == [str(min(19, ours + WORKER_NICE))]
+    finally:
+        pool.close()
+    assert _frames(tmp_path / "clip.mp4").shape == (1, 240, 320, 3)
