@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import functools
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -53,6 +54,10 @@ class WBCConfig:
             torques are below its dry friction sticks without it (e.g. 0.3 N m of frictionloss per joint).
         friction_speed_rad_s: Speed [rad/s] (> 0) at which the Coulomb term reaches 76 % of its
             value (``tanh(v / speed)``): a smooth sign, so a joint at rest gets none.
+        torsion_m: Each foot's yaw moment about its sole's centre (the mean of its points) stays
+            within ``torsion_m`` times its normal force [m] (> 0; ``inf``: unbounded). A sole of
+            point contacts resists a yaw moment only by its points' friction, and less as its
+            centre of pressure nears an edge.
     """
 
     f_min_n: float = 1.0
@@ -70,6 +75,7 @@ class WBCConfig:
     fallback_kd_n_m_s_rad: float = 5.0
     friction_feedforward: bool = False
     friction_speed_rad_s: float = 0.01
+    torsion_m: float = math.inf
 
     def __post_init__(self) -> None:
         checks = {
@@ -82,6 +88,8 @@ class WBCConfig:
             "fallback_kd_n_m_s_rad": self.fallback_kd_n_m_s_rad >= 0,
             "friction_speed_rad_s": self.friction_speed_rad_s > 0,
         }
+        if not self.torsion_m > 0:
+            raise WBCSetupError(f"WBCConfig.torsion_m={self.torsion_m!r} is out of range (> 0 m, or inf)")
         for name, ok in checks.items():
             value = getattr(self, name)
             if not (np.isfinite(value) and ok):
@@ -153,6 +161,17 @@ class WBCSolution:
             r = self.points_W[name] - self.foot_origins_W[name]
             out[name] = np.concatenate([F.sum(0), np.cross(r, F).sum(0)])
         return out
+
+    def moment_about_W(self, point_W: np.ndarray) -> tuple[np.ndarray, float]:
+        """The contact forces' total moment (3,) [N m] about ``point_W`` (3,) [m] and their total z [N], in W.
+
+        About the CoM the moment is the rate of the centroidal angular momentum the QP planned.
+        """
+        moment, fz = np.zeros(3), 0.0
+        for name, wrench in self.wrenches_W.items():
+            moment += wrench[3:] + np.cross(self.foot_origins_W[name] - point_W, wrench[:3])
+            fz += float(wrench[2])
+        return moment, fz
 
     @functools.cached_property
     def totals_and_cops_W(self) -> dict[str, tuple[np.ndarray, np.ndarray]]:

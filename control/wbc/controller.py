@@ -49,6 +49,7 @@ When the QP has no solution, it is solved again without the joint-limit bounds
 
 from __future__ import annotations
 
+import math
 import time
 from collections.abc import Sequence
 
@@ -129,7 +130,7 @@ class WholeBodyController:
         self._force_slices = {name: slice(cs.cols.start - nv, cs.cols.stop - nv)
                               for name, cs in self.contacts.items()}
         n_f = col - nv
-        self._n_fric = 4 * n_f // 3
+        self._n_fric = 4 * n_f // 3 + 2 * len(self.contacts)  # the pyramids, then each foot's torsion
         n_a = len(self._act)
         self._qp = WholeBodyQP(nv, n_f, self._n_fric + n_a, self._n_unact + 6 * len(self.contacts),
                                self._config.force_weight, m_force=self._n_unact)  # foot rows: no f
@@ -144,6 +145,17 @@ class WholeBodyController:
                         qp.G[row, c0 + 2] = -mu
                         qp.g_up[row] = 0.0
                         row += 1
+        # torsion rows (their f_z terms written by the config setter): +-M_z - torsion_m sum f_z <= 0
+        # with M_z = sum (p - c)_x f_y - (p - c)_y f_x about the sole's centre c, in F
+        self._torsion_rows = []
+        for cs in self.contacts.values():
+            r = cs.contact.points_F - cs.contact.points_F.mean(axis=0)
+            moment = np.zeros(self.n_x)
+            moment[cs.cols.start:cs.cols.stop:3] = -r[:, 1]
+            moment[cs.cols.start + 1:cs.cols.stop:3] = r[:, 0]
+            self._torsion_rows.append((row, moment, cs.fz))
+            qp.g_up[row:row + 2] = 0.0
+            row += 2
         self._T = qp.G[self._n_fric:]  # torque rows: tau = T x + b_a (a view, written each cycle)
         qp.deferred_rows = slice(self._n_fric, self._n_fric + n_a)  # the torque limits: rarely active
         self._Jc = np.zeros((n_f, nv))  # the points' Jacobians, in their foot frames
@@ -180,6 +192,12 @@ class WholeBodyController:
     def config(self, config: WBCConfig) -> None:
         self._config = config
         self._qp.force_weight = config.force_weight
+        G, bounded = self._qp.G, math.isfinite(config.torsion_m)
+        for row, moment, fz in getattr(self, "_torsion_rows", ()):  # (none yet while __init__ runs)
+            G[row:row + 2] = 0.0  # unbounded: 0 <= 0
+            if bounded:
+                G[row], G[row + 1] = moment, -moment
+                G[row:row + 2, fz] = -config.torsion_m
         #: the weight each foot's force bounds were last written with (None: rewrite them)
         self._bound_weight: dict[str, float | None] = dict.fromkeys(self.contacts)
         # joint limits: (q_lim -+ margin) 2 / Th^2, the fixed part of the acceleration bounds

@@ -42,7 +42,7 @@ from __future__ import annotations
 import math
 import time
 from collections.abc import Callable, Mapping, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 import pinocchio as pin
@@ -52,6 +52,7 @@ from mbctl.control.tasks.base import AccelerationGains
 from mbctl.control.tasks.frame_pose import FramePoseTask
 from mbctl.control.tasks.state import DynamicsState
 from mbctl.control.wbc.config import WBCConfig
+from mbctl.control.wbc.contacts import foot_contact_from_model
 from mbctl.control.wbc.gait import Gait, GaitEvent
 from mbctl.control.wbc.standing import Standing, standing_controller
 from mbctl.control.wbc.step_adaptation import StepAdaptation, StepAdapter, dcm_tube
@@ -193,9 +194,11 @@ class WalkingController:
         if len(feet) != 2:
             raise WBCSetupError(f"walking needs two feet (left, right); got {list(feet)}")
         self.feet = (feet[0], feet[1])
-        wbc_config = WBCConfig(**{**cfg.wbc.__dict__, "ramp_s": cfg.ramp_s})
+        wbc_config = WBCConfig(**{**cfg.wbc.__dict__, "ramp_s": cfg.ramp_s, "torsion_m": cfg.torsion_m})
+        contacts = [foot_contact_from_model(robot, f) for f in self.feet]
+        contacts = [replace(c, mu=c.mu * cfg.friction_fraction) for c in contacts]
         self.standing: Standing = standing_controller(robot, self.feet, base_frame, torso_frame, pin_model,
-                                                      wbc_config)
+                                                      wbc_config, contacts)
         self.wbc = self.standing.controller
         self.standing.com.set_cost(cfg.com_cost)
         self.standing.com.servo = cfg.height_gains
@@ -361,7 +364,13 @@ class WalkingController:
         cmp = dcm_feedback(xi, ref, self.omega, cfg.dcm_gain_1_s)
         cmp_c = support.clamp(cmp, cfg.cmp_margin_m)
         z_ref, vz_ref, az_ref = gait.height(t)
-        ax, ay = (self.omega**2 * (com[:2] - cmp_c)).tolist()
+        cmp_com = cmp_c
+        last = self.wbc.last
+        if cfg.moment_feedforward and self.wbc.steps and last is not None and not last.fallback:
+            moment, fz = last.moment_about_W(com)  # CoP = CMP + (-m_y, m_x) / f_z
+            if fz > 0.0:
+                cmp_com = cmp_c + np.array([moment[1], -moment[0]]) / fz
+        ax, ay = (self.omega**2 * (com[:2] - cmp_com)).tolist()
         acc = np.array([ax, ay, az_ref])
         # the CoM task: its horizontal error is zero by construction, so the acceleration is the DCM law's
         (cx, cy, _), (vx, vy, _) = com.tolist(), vcom.tolist()

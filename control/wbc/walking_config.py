@@ -28,6 +28,17 @@ class WalkingConfig:
             within the sole: errors beyond it are stepped away.
         dcm_gain_1_s: DCM feedback gain k [1/s] (the error decays as exp(-k t)).
         cmp_margin_m: The desired CMP stays this far inside the support polygon [m].
+        moment_feedforward: The CoM's CMP is the DCM law's (the centre of pressure asked for) offset
+            by the last cycle's centroidal moment over its normal force, so the swing leg's
+            momentum moves the CoM instead of driving the centre of pressure to the sole's edges.
+        friction_fraction: The QP plans with this fraction of the soles' friction coefficient
+            (0, 1]. At 0.7 (just under 1/sqrt 2) its pyramid, a box about the foot's axes, lies
+            inside MuJoCo's pyramidal cone (``|f_t1| + |f_t2| <= mu f_n`` about the contact's world-
+            aligned tangents) whatever the foot's yaw; the QP's box at full friction reaches
+            outside it (its corners at sqrt 2 mu), where the plant's spheres slide.
+        torsion_m: Each stance sole's yaw moment stays within this times its normal force [m]
+            (replaces the QP's ``torsion_m``): the swing leg's yaw reaction otherwise turns the
+            sole about its toe.
         preview_steps: Footsteps planned ahead of the swing foot's (>= 1).
         ramp_s: Contact force ramp [s] (<= the double support time).
         swing_horizontal_fraction: The swing foot reaches its footstep's x, y and yaw at this
@@ -57,7 +68,7 @@ class WalkingConfig:
         max_speed_correction_m_s: Its largest correction [m/s].
         max_acceleration: How fast the walking speed follows the command: (forward [m/s^2],
             sideways [m/s^2], turning [rad/s^2]) (a step change of command is ramped).
-        wbc: The QP's options (its ``ramp_s`` is replaced by ``ramp_s`` above).
+        wbc: The QP's options (its ``ramp_s`` and ``torsion_m`` are replaced by those above).
     """
 
     com_height_m: float = 0.64
@@ -69,6 +80,9 @@ class WalkingConfig:
     dcm_tube_fraction: float = 0.5
     dcm_gain_1_s: float = 3.0
     cmp_margin_m: float = 0.01
+    moment_feedforward: bool = True
+    friction_fraction: float = 0.7
+    torsion_m: float = 0.01
     preview_steps: int = 3
     ramp_s: float = 0.05
     swing_horizontal_fraction: float = 0.8
@@ -97,6 +111,7 @@ class WalkingConfig:
             "lift_height_m": self.lift_height_m >= 0, "landing_depth_m": self.landing_depth_m >= 0,
             "swing_horizontal_fraction": 0 < self.swing_horizontal_fraction <= 1,
             "dcm_gain_1_s": self.dcm_gain_1_s > 0, "cmp_margin_m": self.cmp_margin_m >= 0,
+            "friction_fraction": 0 < self.friction_fraction <= 1, "torsion_m": self.torsion_m > 0,
             "dcm_tube_fraction": 0 <= self.dcm_tube_fraction <= 1, "preview_steps": self.preview_steps >= 1,
             "ramp_s": 0 < self.ramp_s <= self.timing.double_support_s, "swing_cost": self.swing_cost > 0,
             "swing_orientation_cost": self.swing_orientation_cost > 0,

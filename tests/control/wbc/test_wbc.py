@@ -241,6 +241,9 @@ def test_bad_options_are_named():
         WBCConfig(solver="nope")
     with pytest.raises(WBCSetupError, match="on_infeasible must be one of raise, damp; got 'fly'"):
         WBCConfig(on_infeasible="fly")
+    for bad in (0.0, -0.01, float("nan")):
+        with pytest.raises(WBCSetupError, match=rf"torsion_m={bad!r} is out of range \(> 0 m, or inf\)"):
+            WBCConfig(torsion_m=bad)
     with pytest.raises(TaskSetupError, match="AccelerationGains.omega_rad_s must be finite and >= 0"):
         AccelerationGains(-1.0)
 
@@ -358,6 +361,13 @@ def test_wrench_and_cop_agree_with_the_point_forces(tiny_biped, crouch):
         assert np.all(cop[:2] >= lo[:2] - 1e-9) and np.all(cop[:2] <= hi[:2] + 1e-9), name
         # the CoP is where the moment of the normal forces about it vanishes
         assert abs(((points[:, :2] - cop[:2]) * F[:, 2:3]).sum(0)).max() < 1e-9
+    # both feet's moment about a point (the CoM: the centroidal momentum's rate), and their total z
+    c = np.array([0.03, -0.02, 0.5])
+    moment, fz = sol.moment_about_W(c)
+    F = np.vstack(list(sol.forces_W.values()))
+    P = np.vstack(list(sol.points_W.values()))
+    np.testing.assert_allclose(moment, np.cross(P - c, F).sum(0), atol=1e-9)
+    assert fz == pytest.approx(F[:, 2].sum(), abs=1e-9) and fz > 100.0
 
 
 def test_mass_matrix_is_symmetric_and_matches_crba(tiny_biped, crouch):
