@@ -18,8 +18,9 @@ from 3 s on, every single-support cycle is measured in MuJoCo and in the QP's so
 A sole that turns about its toe line shows a yaw change of tenths of a radian with a heel drift
 several times the toe's. First, as a yardstick, the creep of MuJoCo's soft contacts alone: a block
 of the G1's mass on the same four spheres, pushed well inside their friction. ``--cone`` and
-``--impratio`` walk on other friction settings of the plant. Not a timing: a diagnostic of the
-plant's contacts (the walking section of docs/api/walking.rst quotes it).
+``--impratio`` walk on other friction settings of the plant; ``--without-margins`` without the
+walker's moment feedforward, friction fraction and torsion bound (``WalkingConfig``). Not a
+timing: a diagnostic of the plant's contacts (the walking section of docs/api/walking.rst quotes it).
 """
 
 from __future__ import annotations
@@ -32,6 +33,7 @@ import mujoco
 import numpy as np
 
 from mbctl.control.loop import run
+from mbctl.control.wbc import WalkingConfig, WBCConfig
 from mbctl.jobs.g1_walk import g1_walker
 from mbctl.robots import load_robot
 from mbctl.robots.edits import position_to_motor
@@ -41,6 +43,10 @@ from mbctl.sim.simulator import Simulator
 
 #: MuJoCo's friction cones by name.
 CONES = {"pyramidal": int(mujoco.mjtCone.mjCONE_PYRAMIDAL), "elliptic": int(mujoco.mjtCone.mjCONE_ELLIPTIC)}
+
+#: The job's walker without what keeps its soles from turning (issue 28's first walker).
+WITHOUT_MARGINS = WalkingConfig(wbc=WBCConfig(on_infeasible="damp"), moment_feedforward=False,
+                                friction_fraction=1.0, torsion_m=math.inf)
 
 #: Single-support cycles before this time [s] are not counted (the start and the first steps).
 SETTLE_S = 3.0
@@ -75,10 +81,11 @@ def creep(cone: int, impratio: float, push_mg: float = 0.15, seconds: float = 0.
 
 
 def soles(speed_m_s: float, seconds: float, cone: int | None = None,
-          impratio: float | None = None) -> dict[str, float]:
+          impratio: float | None = None, config: WalkingConfig | None = None) -> dict[str, float]:
     """Walk ``seconds`` at ``speed_m_s`` forward; the figures of the module doc.
 
-    ``cone`` and ``impratio`` replace the scene's friction cone and impedance ratio.
+    ``cone`` and ``impratio`` replace the scene's friction cone and impedance ratio; ``config``
+    the job's walking configuration.
     """
     robot = position_to_motor(with_palm_sites(load_robot("g1")))
     if cone is not None:
@@ -89,7 +96,7 @@ def soles(speed_m_s: float, seconds: float, cone: int | None = None,
     sim = Simulator(robot)
     sim.reset(KEYFRAME)
     sim.set_state(q0, np.zeros(robot.nv))
-    walker = g1_walker(robot, q0)
+    walker = g1_walker(robot, q0, config=config)
     walker.set_command((speed_m_s, 0.0, 0.0))
     geoms = {f: cs.contact.geoms for f, cs in walker.wbc.contacts.items()}
     monitor = PlantMonitor(sim, geoms, sites=FEET, fall_rule=G1_FALL.reason).attach()
@@ -176,13 +183,17 @@ def main() -> int:
                         help="the plant's friction cone (default: the scene's, pyramidal)")
     parser.add_argument("--impratio", type=float, default=None,
                         help="the plant's impratio (default: the scene's, 1)")
+    parser.add_argument("--without-margins", action="store_true",
+                        help="the walker without its moment feedforward, friction fraction and torsion bound")
     args = parser.parse_args()
     for name, cone in CONES.items():
         print(f"creep of a 35 kg block on the four spheres, 0.15 m g for 0.5 s, {name} cones: "
               + ", ".join(f"impratio {r:g} {creep(cone, r) * 1e3:.2f} mm" for r in (1.0, 10.0)))
     cone = None if args.cone is None else CONES[args.cone]
-    r = soles(args.speed, args.seconds, cone, args.impratio)
+    config = WITHOUT_MARGINS if args.without_margins else None
+    r = soles(args.speed, args.seconds, cone, args.impratio, config)
     plant = "" if cone is None and args.impratio is None else f" (cone {args.cone}, impratio {args.impratio})"
+    plant += " without the walker's margins" if args.without_margins else ""
     print(f"g1 walking forward at {args.speed:g} m/s for {args.seconds:g} s{plant} (fell: {r['fell']}); "
           f"{r['stances']} stances from {SETTLE_S:g} s on, medians of each stance's largest change:")
     print(f"  site drift {r['slip_median_mm']:.1f} mm; yaw {r['yaw_median_rad']:.3f} rad; "

@@ -37,8 +37,8 @@ class WalkingConfig:
             aligned tangents) whatever the foot's yaw; the QP's box at full friction reaches
             outside it (its corners at sqrt 2 mu), where the plant's spheres slide.
         torsion_m: Each stance sole's yaw moment stays within this times its normal force [m]
-            (replaces the QP's ``torsion_m``): the swing leg's yaw reaction otherwise turns the
-            sole about its toe.
+            (``inf``: unbounded; replaces the QP's ``torsion_m``): the swing leg's yaw reaction
+            otherwise turns the sole about its toe.
         preview_steps: Footsteps planned ahead of the swing foot's (>= 1).
         ramp_s: Contact force ramp [s] (<= the double support time).
         swing_horizontal_fraction: The swing foot reaches its footstep's x, y and yaw at this
@@ -111,7 +111,7 @@ class WalkingConfig:
             "lift_height_m": self.lift_height_m >= 0, "landing_depth_m": self.landing_depth_m >= 0,
             "swing_horizontal_fraction": 0 < self.swing_horizontal_fraction <= 1,
             "dcm_gain_1_s": self.dcm_gain_1_s > 0, "cmp_margin_m": self.cmp_margin_m >= 0,
-            "friction_fraction": 0 < self.friction_fraction <= 1, "torsion_m": self.torsion_m > 0,
+            "friction_fraction": 0 < self.friction_fraction <= 1,
             "dcm_tube_fraction": 0 <= self.dcm_tube_fraction <= 1, "preview_steps": self.preview_steps >= 1,
             "ramp_s": 0 < self.ramp_s <= self.timing.double_support_s, "swing_cost": self.swing_cost > 0,
             "swing_orientation_cost": self.swing_orientation_cost > 0,
@@ -129,6 +129,8 @@ class WalkingConfig:
             value = getattr(self, name)
             if not (math.isfinite(value) and ok):
                 raise WBCSetupError(f"WalkingConfig.{name}={value!r} is out of range")
+        if not self.torsion_m > 0:
+            raise WBCSetupError(f"WalkingConfig.torsion_m={self.torsion_m!r} is out of range (> 0 m, or inf)")
         if len(self.max_acceleration) != 3 or not all(math.isfinite(a) and a > 0
                                                       for a in self.max_acceleration):
             raise WBCSetupError(f"WalkingConfig.max_acceleration must be 3 finite values > 0 (m/s^2, m/s^2, "
