@@ -117,6 +117,9 @@ class WBCSolution:
         force_slices: Each foot's entries of ``forces``, by foot name.
         points_F: Contact points by foot name, (n_points, 3) [m] in F.
         foot_poses_W: Foot frame poses ``X_WF`` by foot name (copies).
+        wrench_map: (6 n_feet, n_f): the foot with index k (in ``foot_poses_W``'s order) has the
+            wrench ``[f; m]`` about its frame's origin, in F, of rows 6k to 6k + 6 times ``forces``
+            (the points' Jacobian map ``blockdiag(G_F)`` transposed).
         controller_time_s: Wall time of the whole ``compute`` [s].
         qp_time_s: Wall time of the QP solve alone [s].
         fallback: The torques are the damping fallback's, not the QP's.
@@ -128,6 +131,7 @@ class WBCSolution:
     force_slices: dict[str, slice]
     points_F: dict[str, np.ndarray]
     foot_poses_W: dict[str, pin.SE3]
+    wrench_map: np.ndarray
     controller_time_s: float
     qp_time_s: float
     fallback: bool = False
@@ -166,12 +170,21 @@ class WBCSolution:
         """The contact forces' total moment (3,) [N m] about ``point_W`` (3,) [m] and their total z [N], in W.
 
         About the CoM the moment is the rate of the centroidal angular momentum the QP planned.
+        Each foot: ``R m_F + (t - point) x R f_F`` from its wrench in F (``wrench_map``), in plain
+        floats (a controller reads it every cycle; ``np.cross`` costs ~10 us a call at this size).
         """
-        moment, fz = np.zeros(3), 0.0
-        for name, wrench in self.wrenches_W.items():
-            moment += wrench[3:] + np.cross(self.foot_origins_W[name] - point_W, wrench[:3])
-            fz += float(wrench[2])
-        return moment, fz
+        cx, cy, cz = point_W.tolist()
+        mx = my = mz = fz = 0.0
+        wrenches = (self.wrench_map @ self.forces).reshape(-1, 2, 3)
+        for X, wrench in zip(self.foot_poses_W.values(), wrenches, strict=True):
+            (ax, bx), (ay, by), (az, bz) = (X.rotation @ wrench.T).tolist()  # columns: f, m in W
+            tx, ty, tz = X.translation.tolist()
+            rx, ry, rz = tx - cx, ty - cy, tz - cz
+            mx += bx + ry * az - rz * ay
+            my += by + rz * ax - rx * az
+            mz += bz + rx * ay - ry * ax
+            fz += az
+        return np.array([mx, my, mz]), fz
 
     @functools.cached_property
     def totals_and_cops_W(self) -> dict[str, tuple[np.ndarray, np.ndarray]]:

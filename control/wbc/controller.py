@@ -422,7 +422,7 @@ class WholeBodyController:
             self._add_friction(tau, x[:nv], dt_s)
         self.steps += 1
         self.last = WBCSolution(tau, x[:nv], x[nv:], self._force_slices, self._points_F, poses,
-                                time.perf_counter() - t0, qp_time)
+                                self._G_blk.T, time.perf_counter() - t0, qp_time)
         return Command(CommandKind.TORQUE, tau, self._command_names)
 
     def _solve(self, m_eq: int) -> QPResult:
@@ -464,6 +464,6 @@ class WholeBodyController:
         poses = {name: pin.SE3(self.state.frame_pose(cs.fid)) for name, cs in self.contacts.items()}
         self.steps += 1
         self.last = WBCSolution(tau, np.full(self.model.nv, np.nan), np.zeros(self.n_x - self.model.nv),
-                                self._force_slices, self._points_F, poses, time.perf_counter() - t0, 0.0,
-                                fallback=True)
+                                self._force_slices, self._points_F, poses, self._G_blk.T,
+                                time.perf_counter() - t0, 0.0, fallback=True)
         return Command(CommandKind.TORQUE, tau, self._command_names)
