@@ -28,17 +28,6 @@ class WalkingConfig:
             within the sole: errors beyond it are stepped away.
         dcm_gain_1_s: DCM feedback gain k [1/s] (the error decays as exp(-k t)).
         cmp_margin_m: The desired CMP stays this far inside the support polygon [m].
-        moment_feedforward: The CoM's CMP is the DCM law's (the centre of pressure asked for) offset
-            by the last cycle's centroidal moment over its normal force, so the swing leg's
-            momentum moves the CoM instead of driving the centre of pressure to the sole's edges.
-        friction_fraction: The QP plans with this fraction of the soles' friction coefficient
-            (0, 1]. At 0.7 (just under 1/sqrt 2) its pyramid, a box about the foot's axes, lies
-            inside MuJoCo's pyramidal cone (``|f_t1| + |f_t2| <= mu f_n`` about the contact's world-
-            aligned tangents) whatever the foot's yaw; the QP's box at full friction reaches
-            outside it (its corners at sqrt 2 mu), where the plant's spheres slide.
-        torsion_m: Each stance sole's yaw moment stays within this times its normal force [m]
-            (``inf``: unbounded; replaces the QP's ``torsion_m``): the swing leg's yaw reaction
-            otherwise turns the sole about its toe.
         preview_steps: Footsteps planned ahead of the swing foot's (>= 1).
         ramp_s: Contact force ramp [s] (<= the double support time).
         swing_horizontal_fraction: The swing foot reaches its footstep's x, y and yaw at this
@@ -68,7 +57,18 @@ class WalkingConfig:
         max_speed_correction_m_s: Its largest correction [m/s].
         max_acceleration: How fast the walking speed follows the command: (forward [m/s^2],
             sideways [m/s^2], turning [rad/s^2]) (a step change of command is ramped).
-        wbc: The QP's options (its ``ramp_s`` and ``torsion_m`` are replaced by those above).
+        wbc: The QP's options (its ``ramp_s`` and ``torsion_m`` are replaced by those here).
+        moment_feedforward: The CoM's CMP is the DCM law's (the centre of pressure asked for) offset
+            by the last cycle's centroidal moment over its normal force, so the swing leg's
+            momentum moves the CoM instead of driving the centre of pressure to the sole's edges.
+        friction_fraction: The QP plans with this fraction of the soles' friction coefficient
+            (0, 1]. At 0.7 (just under 1/sqrt 2) its pyramid, a box about the foot's axes, lies
+            inside MuJoCo's pyramidal cone (``|f_t1| + |f_t2| <= mu f_n`` about the contact's world-
+            aligned tangents) whatever the foot's yaw; the QP's box at full friction reaches
+            outside it (its corners at sqrt 2 mu), where the plant's spheres slide.
+        torsion_m: Each stance sole's yaw moment stays within this times its normal force [m]
+            (``inf``: unbounded; replaces the QP's ``torsion_m``): the swing leg's yaw reaction
+            otherwise turns the sole about its toe.
     """
 
     com_height_m: float = 0.64
@@ -80,9 +80,6 @@ class WalkingConfig:
     dcm_tube_fraction: float = 0.5
     dcm_gain_1_s: float = 3.0
     cmp_margin_m: float = 0.01
-    moment_feedforward: bool = True
-    friction_fraction: float = 0.7
-    torsion_m: float = 0.01
     preview_steps: int = 3
     ramp_s: float = 0.05
     swing_horizontal_fraction: float = 0.8
@@ -104,6 +101,9 @@ class WalkingConfig:
     max_speed_correction_m_s: float = 0.15
     max_acceleration: tuple[float, float, float] = (1.0, 0.5, 1.0)
     wbc: WBCConfig = field(default_factory=WBCConfig)
+    moment_feedforward: bool = True
+    friction_fraction: float = 0.7
+    torsion_m: float = 0.01
 
     def __post_init__(self) -> None:
         checks = {
