@@ -8,6 +8,7 @@ Formulation (one QP per control cycle; W world, F a foot frame, P a contact poin
     s.t.  M_u vdot + b_u = sum_P J_Pu^T f_P                 unactuated rows (the base)
           J_F vdot + Jdot_F v = kp S log6(X_F,F0) - kd v_F  each foot in contact (LOCAL; S: x, y, yaw)
           |f_Px|, |f_Py| <= mu/sqrt(2) f_Pz                 friction pyramid about F's z (the sole's normal)
+          |sum_P (p - c)_x f_Py - (p - c)_y f_Px| <= k sum_P f_Pz   each sole's yaw moment (torsion_m k)
           w_c f_min <= f_Pz <= w_c f_max                    normal force; w_c in [0, 1] ramps
           tau_min <= M_a vdot + b_a - sum_P J_Pa^T f_P <= tau_max     torque limits
           vdot_lo(q, v) <= vdot_j <= vdot_hi(q, v)          joint limits reached in T_lim at most
