@@ -158,25 +158,29 @@ class WBCSolution:
         return {name: X.translation.copy() for name, X in self.foot_poses_W.items()}
 
     @functools.cached_property
+    def wrenches_F(self) -> np.ndarray:
+        """Each foot's wrench [f, m] [N, N m] about its frame's origin, in F, (n_feet, 2, 3).
+
+        Feet in ``foot_poses_W``'s order; ``wrench_map`` times ``forces``.
+        """
+        return (self.wrench_map @ self.forces).reshape(-1, 2, 3)
+
+    @functools.cached_property
     def wrenches_W(self) -> dict[str, np.ndarray]:
         """Foot wrench about the foot frame origin, in W, [f; m] (6,) [N, N m], by foot name."""
-        out = {}
-        for name, F in self.forces_W.items():
-            r = self.points_W[name] - self.foot_origins_W[name]
-            out[name] = np.concatenate([F.sum(0), np.cross(r, F).sum(0)])
-        return out
+        return {name: (wrench @ X.rotation.T).ravel()
+                for (name, X), wrench in zip(self.foot_poses_W.items(), self.wrenches_F, strict=True)}
 
     def moment_about_W(self, point_W: np.ndarray) -> tuple[np.ndarray, float]:
         """The contact forces' total moment (3,) [N m] about ``point_W`` (3,) [m] and their total z [N], in W.
 
         About the CoM the moment is the rate of the centroidal angular momentum the QP planned.
-        Each foot: ``R m_F + (t - point) x R f_F`` from its wrench in F (``wrench_map``), in plain
-        floats (a controller reads it every cycle; ``np.cross`` costs ~10 us a call at this size).
+        Each foot: ``R m_F + (t - point) x R f_F`` from ``wrenches_F``, in plain floats (a controller
+        reads it every cycle; ``np.cross`` costs ~10 us a call at this size).
         """
         cx, cy, cz = point_W.tolist()
         mx = my = mz = fz = 0.0
-        wrenches = (self.wrench_map @ self.forces).reshape(-1, 2, 3)
-        for X, wrench in zip(self.foot_poses_W.values(), wrenches, strict=True):
+        for X, wrench in zip(self.foot_poses_W.values(), self.wrenches_F, strict=True):
             (ax, bx), (ay, by), (az, bz) = (X.rotation @ wrench.T).tolist()  # columns: f, m in W
             tx, ty, tz = X.translation.tolist()
             rx, ry, rz = tx - cx, ty - cy, tz - cz

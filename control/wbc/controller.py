@@ -194,7 +194,7 @@ class WholeBodyController:
         self._config = config
         self._qp.force_weight = config.force_weight
         G, bounded = self._qp.G, math.isfinite(config.torsion_m)
-        for row, moment, fz in getattr(self, "_torsion_rows", ()):  # (none yet while __init__ runs)
+        for row, moment, fz in self._torsion_rows:
             G[row:row + 2] = 0.0  # unbounded: 0 <= 0
             if bounded:
                 G[row], G[row + 1] = moment, -moment

@@ -195,8 +195,8 @@ class WalkingController:
             raise WBCSetupError(f"walking needs two feet (left, right); got {list(feet)}")
         self.feet = (feet[0], feet[1])
         wbc_config = WBCConfig(**{**cfg.wbc.__dict__, "ramp_s": cfg.ramp_s, "torsion_m": cfg.torsion_m})
-        contacts = [foot_contact_from_model(robot, f) for f in self.feet]
-        contacts = [replace(c, mu=c.mu * cfg.friction_fraction) for c in contacts]
+        contacts = [replace(c, mu=c.mu * cfg.friction_fraction)
+                    for c in (foot_contact_from_model(robot, f) for f in self.feet)]
         self.standing: Standing = standing_controller(robot, self.feet, base_frame, torso_frame, pin_model,
                                                       wbc_config, contacts)
         self.wbc = self.standing.controller

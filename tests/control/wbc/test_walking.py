@@ -35,8 +35,11 @@ FEET = ("l_sole", "r_sole")
 CONFIG = WalkingConfig(com_height_m=0.5, wbc=WBCConfig(on_infeasible="damp"))
 
 
-def _walk(robot, crouch, command, duration_s, config=CONFIG, measured=True, every=None):
-    """Run the walker on the biped in MuJoCo; returns (walker, log, per-cycle records)."""
+def _walk(robot, crouch, command, duration_s, config=CONFIG, measured=True, observe=None):
+    """Run the walker on the biped in MuJoCo; returns (walker, log, per-cycle records).
+
+    ``observe(walker)``, if given, is called after every cycle.
+    """
     q0 = crouch(robot)
     sim = Simulator(robot)
     sim.set_state(q0, np.zeros(robot.nv))
@@ -52,6 +55,8 @@ def _walk(robot, crouch, command, duration_s, config=CONFIG, measured=True, ever
         rows.append((state.time_s, s.phase, s.event, {f: walker.wbc.contacts[f].weight for f in FEET},
                      {f: float(sol.forces_W[f][:, 2].sum()) for f in FEET},
                      {f: monitor.contacts[f].normal_n for f in FEET}, np.linalg.norm(s.dcm - s.dcm_ref)))
+        if observe is not None:
+            observe(walker)
         return state.q[2] < 0.4
 
     log = run(sim, walker, None, duration_s, on_step=on_step)
@@ -91,20 +96,15 @@ def test_the_biped_walks_forward_with_ramped_contact_switches(tiny_biped, crouch
 
 def _cop_errors(robot, crouch, config) -> np.ndarray:
     """Each single-support cycle's |QP centre of pressure - the one the DCM law asked for| [m]."""
-    q0 = crouch(robot)
-    sim = Simulator(robot)
-    sim.set_state(q0, np.zeros(robot.nv))
-    walker = WalkingController(robot, FEET, "pelvis", "torso", q0, config)
-    walker.set_command((0.15, 0.0, 0.0))
     errors = []
 
-    def on_step(k, state, ref, cmd):
+    def observe(walker):
         s, sol = walker.status, walker.wbc.solution
         if s.phase == "single":
             F, P = sol.forces_W[s.stance], sol.points_W[s.stance]
             errors.append(np.linalg.norm(F[:, 2] @ P[:, :2] / F[:, 2].sum() - s.cmp_clamped))
 
-    run(sim, walker, None, 3.2, on_step=on_step)
+    _walk(robot, crouch, (0.15, 0.0, 0.0), 3.2, config, observe=observe)
     return np.array(errors)
 
 
@@ -123,14 +123,9 @@ def test_the_soles_yaw_moment_and_friction_stay_within_the_walkers_margins(tiny_
     mu = {f: foot_contact_from_model(tiny_biped, f).mu for f in FEET}
 
     def worst(config):
-        q0 = crouch(tiny_biped)
-        sim = Simulator(tiny_biped)
-        sim.set_state(q0, np.zeros(tiny_biped.nv))
-        walker = WalkingController(tiny_biped, FEET, "pelvis", "torso", q0, config)
-        walker.set_command((0.15, 0.0, 0.1))
         out = [0.0, 0.0]
 
-        def on_step(k, state, ref, cmd):
+        def observe(walker):
             sol = walker.wbc.solution
             for f, F in sol.forces_F.items():
                 if F[:, 2].sum() > 1.0:
@@ -139,7 +134,7 @@ def test_the_soles_yaw_moment_and_friction_stay_within_the_walkers_margins(tiny_
                     out[0] = max(out[0], abs(moment) / F[:, 2].sum())
                     out[1] = max(out[1], float(np.max(np.abs(F[:, :2]) / (mu[f] * F[:, 2:] + 1e-12))))
 
-        run(sim, walker, None, 2.4, on_step=on_step)
+        _walk(tiny_biped, crouch, (0.15, 0.0, 0.1), 2.4, config, observe=observe)
         return out
 
     assert CONFIG.torsion_m == 0.01 and CONFIG.friction_fraction == 0.7
