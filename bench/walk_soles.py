@@ -38,6 +38,7 @@ from mbctl.jobs.g1_walk import g1_walker
 from mbctl.robots import load_robot
 from mbctl.robots.edits import position_to_motor
 from mbctl.robots.g1 import FEET, G1_FALL, KEYFRAME, crouched_start, with_palm_sites
+from mbctl.sim.contacts import ContactSensor
 from mbctl.sim.monitor import PlantMonitor
 from mbctl.sim.simulator import Simulator
 
@@ -106,7 +107,7 @@ def soles(speed_m_s: float, seconds: float, cone: int | None = None,
     site = {f: m.site(f).id for f in FEET}  # the foot frame F of the spheres' points
     points = {f: walker.wbc.contacts[f].contact.points_F for f in FEET}
     heel = {f: np.flatnonzero(points[f][:, 0] < points[f][:, 0].mean()) for f in FEET}
-    c6 = np.zeros(6)
+    spheres = {f: ContactSensor(m, {str(g): [g] for g in geoms[f]}) for f in FEET}  # a group per sphere
     counts = {"single": 0, "one_sphere": 0, "heel_lifted": 0}
     cop, cmp = [], []
     home: dict[str, tuple | None] = dict.fromkeys(FEET)
@@ -141,13 +142,7 @@ def soles(speed_m_s: float, seconds: float, cone: int | None = None,
         if status.phase != "single" or d.time < SETTLE_S:
             return monitor.fall_reason is not None
         foot = status.stance
-        loads = np.zeros(len(points[foot]))
-        for i in range(d.ncon):
-            con = d.contact[i]
-            for g in (con.geom1, con.geom2):
-                if g in geoms[foot]:
-                    mujoco.mj_contactForce(m, d, i, c6)
-                    loads[geoms[foot].index(g)] += c6[0]
+        loads = np.array([group[2] for group in spheres[foot].sums(d)])  # each sphere's normal force [N]
         total = loads.sum()
         if total > 0.1 * mg:
             counts["single"] += 1
