@@ -11,7 +11,8 @@ from mbctl.control.wbc.controller import WholeBodyController
 from mbctl.control.wbc.gait import GaitEvent
 from mbctl.control.wbc.standing import Scheduled, Standing, standing_controller
 from mbctl.control.wbc.step_adaptation import StepAdaptation, StepAdapter, dcm_tube
-from mbctl.control.wbc.walking import SwingFootTask, WalkingController, WalkingStatus
+from mbctl.control.wbc.swing_task import SwingFootTask
+from mbctl.control.wbc.walking import WalkingController, WalkingStatus
 from mbctl.control.wbc.walking_config import WalkingConfig
 
 __all__ = [

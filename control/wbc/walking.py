@@ -48,14 +48,12 @@ import numpy as np
 import pinocchio as pin
 
 from mbctl.control.exceptions import WBCSetupError
-from mbctl.control.tasks.base import AccelerationGains
-from mbctl.control.tasks.frame_pose import FramePoseTask
-from mbctl.control.tasks.state import DynamicsState
 from mbctl.control.wbc.config import WBCConfig
 from mbctl.control.wbc.contacts import foot_contact_from_model
 from mbctl.control.wbc.gait import Gait, GaitEvent
 from mbctl.control.wbc.standing import Standing, standing_controller
 from mbctl.control.wbc.step_adaptation import StepAdaptation, StepAdapter, dcm_tube
+from mbctl.control.wbc.swing_task import SwingFootTask
 from mbctl.control.wbc.walking_config import WalkingConfig
 from mbctl.planners.dcm import ConvexPolygon, DcmPlan, dcm_feedback, dcm_omega
 from mbctl.planners.footsteps import (
@@ -65,7 +63,6 @@ from mbctl.planners.footsteps import (
     VelocityCommand,
     step_limits_from_model,
 )
-from mbctl.planners.swing import SwingSample
 from mbctl.robots.commands import Command
 from mbctl.robots.interface import RobotState
 from mbctl.robots.model_pair import Robot
@@ -83,36 +80,6 @@ PLANS_KEPT = 4
 def _step_key(step: Footstep | None) -> tuple | None:
     """A footstep's values, as a key (exact: equal keys plan equal footsteps)."""
     return None if step is None else (step.foot, step.side, *step.position.tolist(), step.yaw_rad)
-
-
-class SwingFootTask(FramePoseTask):
-    """The swing foot's pose with its turning fed forward: a frame pose task plus a yaw rate and acceleration.
-
-    ``a_des = a_ref + kp log6(X_FT) + kd (v_ref - J_F v)`` in F, with ``v_ref = R_FW [v_W; w_W]`` and
-    ``a_ref = R_FW [a_W; alpha_W]``, ``w_W = (0, 0, yaw rate)``, ``alpha_W = (0, 0, yaw acceleration)``
-    (the frame pose task's angular references are zero, so a turning foot would lag).
-    """
-
-    def __init__(self, frame: str, model: pin.Model, cost: float, servo: AccelerationGains,
-                 orientation_cost: float | None = None):
-        super().__init__(frame, model, cost, cost if orientation_cost is None else orientation_cost,
-                         name=f"{frame} swing", servo=servo)
-        self.yaw_rate_rad_s = 0.0
-        self.yaw_acceleration_rad_s2 = 0.0
-
-    def set_swing_target(self, sample: SwingSample) -> None:
-        """The target pose, velocity and acceleration from a swing path sample (a level foot at its yaw)."""
-        X = pin.SE3(pin.rpy.rpyToMatrix(0.0, 0.0, sample.yaw_rad), sample.position)
-        self.set_target(X, sample.velocity, sample.acceleration)
-        self.yaw_rate_rad_s = sample.yaw_rate_rad_s
-        self.yaw_acceleration_rad_s2 = sample.yaw_acceleration_rad_s2
-
-    def desired_acceleration(self, state: DynamicsState, J: np.ndarray) -> np.ndarray:
-        """``a_ref + kp log6(X_FT) + kd (v_ref - J_F v)`` (6,) in F, with the yaw references."""
-        R_FW = state.frame_pose(self.frame_id).rotation.T
-        v_ref = np.concatenate([R_FW @ self.v_ref_W, R_FW[:, 2] * self.yaw_rate_rad_s])
-        a_ref = np.concatenate([R_FW @ self.a_ref_W, R_FW[:, 2] * self.yaw_acceleration_rad_s2])
-        return a_ref + self._kp * self.compute_error(state) + self._kd * (v_ref - J @ state.v)
 
 
 @dataclass
