@@ -10,7 +10,9 @@ per-cycle reuse of plans holds as in the loop), replayed into fresh controllers 
 rounds: the walking controller's
 whole ``compute`` (gait, footsteps, DCM plan, step adaptation, task targets, the QP) against the
 standing controller's (``standing_controller``, the g1-wbc stand task set) on the same states, in
-thread CPU time and wall time. The step-adaptation QP is timed on the DCM errors of a push; the
+thread CPU time and wall time; beside them a walker planning its footsteps every cycle
+(``replan_period_s=0``: it replays the same states, deciding as a walker planning every cycle
+would on them). The step-adaptation QP is timed on the DCM errors of a push; the
 walk is ``g1-walk forward`` through the job (CSV, plots), wall time over simulated time. The load
 average is printed with every figure: the machine is shared, so only ratios within a run compare.
 """
@@ -41,8 +43,8 @@ sys.path.insert(0, str(Path(__file__).parent))
 from harness import interleaved  # noqa: E402
 
 
-def _walker(robot, q0):
-    config = WalkingConfig(wbc=WBCConfig(on_infeasible="damp"))
+def _walker(robot, q0, **options):
+    config = WalkingConfig(wbc=WBCConfig(on_infeasible="damp"), **options)
     return WalkingController(robot, FEET, PELVIS, TORSO, q0, config)
 
 
@@ -85,23 +87,29 @@ def cycles(robot, q0, rounds: int) -> None:
     """The walking cycle on walking states against the standing WBC cycle on standing (squat) states."""
     states = _walk_states(robot, q0)
     walker = _walker(robot, q0)
-    walker.set_command((0.3, 0.0, 0.0))
+    every_cycle = _walker(robot, q0, replan_period_s=0.0)  # footsteps planned every cycle
+    for w in (walker, every_cycle):
+        w.set_command((0.3, 0.0, 0.0))
     standing, stand_states = _stand_states(robot, q0, len(states), stride=1)
-    def run_walker() -> None:
-        walker.reset()  # each round replays the walk from its start
+
+    def replay(w) -> None:
+        w.reset()  # each round replays the walk from its start
         for s in states:
-            walker.compute(s)
+            w.compute(s)
 
     def run_standing() -> None:
         for s in stand_states:
             standing.controller.compute(s)
 
     for timer, label in ((time.thread_time, "thread CPU"), (time.perf_counter, "wall")):
-        t = interleaved({"walk": run_walker, "stand": run_standing}, repeats=rounds, timer=timer)
+        t = interleaved({"walk": partial(replay, walker), "every": partial(replay, every_cycle),
+                         "stand": run_standing}, repeats=rounds, timer=timer)
         n = len(states)
         print(f"cycle ({label}, median of {rounds} rounds over {n} states each): walking "
               f"{t['walk'] / n * 1e6:.0f} us (0.3 m/s), standing WBC {t['stand'] / n * 1e6:.0f} us (squat), "
-              f"ratio {t['walk'] / t['stand']:.2f} (target <= 1.2); load {os.getloadavg()[0]:.2f}")
+              f"ratio {t['walk'] / t['stand']:.2f} (target <= 1.2); footsteps planned every cycle "
+              f"(replan_period_s=0) {t['every'] / n * 1e6:.0f} us, ratio {t['every'] / t['stand']:.2f}; "
+              f"load {os.getloadavg()[0]:.2f}")
 
 
 def adaptation_qp(robot, q0, repeats: int = 2000) -> None:

@@ -23,6 +23,8 @@ Each cycle:
    command), and their speed the measured speed's error over the last step (the speed loop). The
    swing footstep follows the command until ``retarget_until_phase`` of the swing, moved by the
    step-adaptation QP when the measured DCM leaves its tube (:mod:`mbctl.control.wbc.step_adaptation`).
+   The footsteps are planned every ``replan_period_s`` and at every contact event; steps 3 and 4
+   run every cycle, on the plan in force.
 3. **DCM** (:mod:`mbctl.planners.dcm`): the plan through the footsteps' sole centres, the measured
    DCM ``xi = x + xdot / omega`` (CoM from the state), the feedback law's desired CMP, clamped into
    the support polygon (the active feet's contact points) less ``cmp_margin_m``,
@@ -242,6 +244,7 @@ class WalkingController:
         self.speed_correction = np.zeros(2)
         self._last_mid: tuple[float, np.ndarray] | None = None
         self._adaptation: StepAdaptation | None = None
+        self._next_replan_s: float | None = None  # when the footsteps are planned next [s]
         self._in_contact = {}
         self._plan_memo: tuple[tuple, tuple[DcmPlan, list[Footstep]]] | None = None
         self._plans: dict[tuple, tuple[DcmPlan, list[Footstep]]] = {}
@@ -317,14 +320,18 @@ class WalkingController:
         t = state.time_s
         com, vcom, poses = self._kinematics(state)
         gait = self.gait or self._start(state, com, poses)
-        self._follow_command(t, gait)
+        replan = self._next_replan_s is None or t >= self._next_replan_s
+        if replan:
+            self._follow_command(t, gait)
         event = gait.advance(t, poses, self._steer, self._touching(gait, poses))
         if event is not None and event.kind == "touchdown":
             self._correct_speed(t, gait)
         self._tell_contacts()
         xi = com[:2] + vcom[:2] / self.omega
-        if gait.retargetable(t):
-            gait.retarget(t, self._swing_footstep(gait, t, xi))
+        if replan or event is not None:
+            if gait.retargetable(t):
+                gait.retarget(t, self._swing_footstep(gait, t, xi))
+            self._next_replan_s = t + cfg.replan_period_s
         plan, steps = self._plan(gait, t)
         ref = plan.at(t)
         support = ConvexPolygon.of_points(self._support_points(poses))

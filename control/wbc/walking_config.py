@@ -69,6 +69,10 @@ class WalkingConfig:
         torsion_m: Each stance sole's yaw moment stays within this times its normal force [m]
             (``inf``: unbounded; replaces the QP's ``torsion_m``): the swing leg's yaw reaction
             otherwise turns the sole about its toe.
+        replan_period_s: The footsteps (the command followed, the swing footstep's retarget and step
+            adaptation, the DCM plan through them) are planned every this many seconds, and at
+            every contact event; the DCM feedback, the tasks and the QP run every cycle, on the
+            plan in force (0: plan every cycle).
     """
 
     com_height_m: float = 0.64
@@ -104,6 +108,7 @@ class WalkingConfig:
     moment_feedforward: bool = True
     friction_fraction: float = 0.7
     torsion_m: float = 0.01
+    replan_period_s: float = 0.008
 
     def __post_init__(self) -> None:
         checks = {
@@ -124,6 +129,7 @@ class WalkingConfig:
             "retarget_until_phase": 0 <= self.retarget_until_phase <= 1,
             "heading_gain_1_s": self.heading_gain_1_s >= 0, "speed_gain": 0 <= self.speed_gain <= 1,
             "max_speed_correction_m_s": self.max_speed_correction_m_s >= 0,
+            "replan_period_s": self.replan_period_s >= 0,
         }
         for name, ok in checks.items():
             value = getattr(self, name)

@@ -191,6 +191,8 @@ def test_the_command_is_clamped_and_reported(tiny_biped, crouch):
         WalkingConfig(friction_fraction=1.2)
     with pytest.raises(WBCSetupError, match=r"WalkingConfig.torsion_m=0.0 is out of range"):
         WalkingConfig(torsion_m=0.0)
+    with pytest.raises(WBCSetupError, match=r"WalkingConfig.replan_period_s=-0.002 is out of range"):
+        WalkingConfig(replan_period_s=-0.002)
     with pytest.raises(WBCSetupError, match="arm_swing names joints the model does not have: l_shoulder"):
         WalkingController(tiny_biped, FEET, "pelvis", "torso", crouch(tiny_biped), CONFIG,
                           arm_swing={"l_shoulder": "r_hip_pitch"})
@@ -248,9 +250,13 @@ def test_the_swing_task_feeds_the_yaw_rate_and_acceleration_forward(tiny_biped, 
     np.testing.assert_allclose(a[:3], 0.0, atol=1e-9)
 
 
-def test_a_plan_is_reused_while_its_footsteps_and_command_stay(tiny_biped, crouch, monkeypatch):
+@pytest.mark.parametrize(("replan_period_s", "plans"), [(0.0, 76), (0.008, 20)])
+def test_a_plan_is_reused_while_its_footsteps_and_command_stay(tiny_biped, crouch, monkeypatch,
+                                                               replan_period_s, plans):
     # standing before the first swing: the command ramps to 0.15 m/s at 1 m/s^2 (0.15 s, 75 cycles of
-    # 2 ms), then the footsteps, the VRPs and the command stay and so does the plan (one per cycle before)
+    # 2 ms), then the footsteps, the VRPs and the command stay and so does the plan. While it ramps, a
+    # plan is made at every footstep planning: every cycle (0 s), or every 4th (0.008 s: at 0, 0.008,
+    # ..., 0.152 s, where the command has stayed at 0.15 m/s)
     import mbctl.control.wbc.walking as walking
 
     built = []
@@ -261,12 +267,39 @@ def test_a_plan_is_reused_while_its_footsteps_and_command_stay(tiny_biped, crouc
             super().__init__(*args, **kwargs)
 
     monkeypatch.setattr(walking, "DcmPlan", Counting)
-    walker, log, rows = _walk(tiny_biped, crouch, (0.15, 0.0, 0.0), 0.5)
+    config = replace(CONFIG, replan_period_s=replan_period_s)
+    walker, log, rows = _walk(tiny_biped, crouch, (0.15, 0.0, 0.0), 0.5, config)
     assert log.cycles == 250 and all(r[1] == "start" for r in rows)
-    assert len(built) == 76 and walker.velocity.vx_m_s == 0.15
+    assert len(built) == plans and walker.velocity.vx_m_s == 0.15
     # the plan kept is the one a fresh build gives: the same reference at the last cycle
     plan, _ = walker._plan(walker.gait, rows[-1][0])
     again = walking.DcmPlan.__mro__[1](plan.omega, plan.vrps, plan.switch_times_s, plan.double_support_s,
                                        plan.alpha, plan._initial)
     for t in (rows[-1][0], 0.55, 0.7, 1.2):
         np.testing.assert_array_equal(plan.at(t).xi, again.at(t).xi)
+
+
+def test_footsteps_are_planned_every_replan_period_and_at_every_contact_event(tiny_biped, crouch):
+    # the command followed and the swing footstep (retarget, step adaptation) are updated every
+    # replan_period_s (here 5 cycles) and at each release, lift-off and touchdown, never in between;
+    # the DCM law and the QP still run every cycle, on the plan in force, and the biped walks as far
+    config = replace(CONFIG, replan_period_s=0.01)
+    retargets, events = [], []
+
+    def observe(walker):
+        status = walker.status
+        if status.event is not None:
+            events.append(status.time_s)
+        if walker._adaptation is not None and walker._adaptation is not getattr(observe, "last", None):
+            observe.last = walker._adaptation
+            retargets.append(status.time_s)
+
+    walker, log, rows = _walk(tiny_biped, crouch, (0.15, 0.0, 0.0), 3.2, config, observe=observe)
+    assert log.q[:, 2].min() > 0.5 and walker.wbc.infeasible_at_s is None
+    assert 0.25 < log.q[-1, 0] - log.q[0, 0] < 0.5
+    gaps = np.diff(retargets)
+    off_schedule = [t for t, gap in zip(retargets[1:], gaps, strict=True)
+                    if gap < 0.01 - 1e-9 and not any(abs(t - e) < 1e-9 for e in events)]
+    assert off_schedule == [] and len(retargets) > 100
+    # within a swing's retargeting window (0.6 of 0.5 s) it is planned every 5th cycle
+    assert np.median(gaps) == pytest.approx(0.01)
