@@ -46,7 +46,7 @@ can carry it past one), so the width is never below ``w_min`` and the feet never
 is a proportional law in the body frame toward the current goal (toward an intermediate one at no
 less than a cruise speed, so the walk does not stop at each; facing the way to it while it is more
 than ``FACE_WITHIN_M`` ahead, turning to its heading nearer), clamped as above, and the goal counts
-as reached within a position and a yaw tolerance.
+as reached within a position and a yaw tolerance. After the last, the law holds it.
 """
 
 from __future__ import annotations
@@ -463,17 +463,19 @@ class WaypointFollower:
         return math.hypot(gx - x, gy - y), abs(math.remainder(gyaw - yaw, 2 * math.pi))
 
     def command(self, pose: npt.ArrayLike, t_s: float) -> VelocityCommand:
-        """The command at body pose (x, y, yaw) [m, m, rad] in W at time ``t_s`` [s]; zero once done."""
+        """The command at body pose (x, y, yaw) [m, m, rad] in W at time ``t_s`` [s].
+
+        Once every waypoint is reached it holds the last one (the same law toward it), so a walk
+        stops on it rather than wherever its deceleration ends, and steps back to it after a drift.
+        """
         while not self.done:
             d, dyaw = self.errors(pose)
             if d > self.position_tolerance_m or dyaw > self.yaw_tolerance_rad:
                 break
             self.reached_at_s[self.index] = t_s
             self.index += 1
-        if self.done:
-            return VelocityCommand()
         x, y, yaw = (float(v) for v in np.asarray(pose, dtype=float))
-        gx, gy, gyaw = self.waypoints[self.index]
+        gx, gy, gyaw = self.waypoints[min(self.index, len(self.waypoints) - 1)]
         c, s = math.cos(yaw), math.sin(yaw)
         ex, ey = c * (gx - x) + s * (gy - y), -s * (gx - x) + c * (gy - y)
         k = self.gain_1_s

@@ -201,8 +201,12 @@ def test_waypoints_are_followed_in_turn_and_reported():
     near = follower.command([1.0, 0.8, math.pi / 2], 2.0)  # 0.2 m short (within 0.3 m): to its heading
     assert tuple(near) == pytest.approx((0.2, 0.0, 0.0), abs=1e-12)
     cmd = follower.command([1.0, 1.0, math.pi / 2 - 0.01], 4.0)
-    assert follower.done and cmd == VelocityCommand() and follower.reached_at_s[1] == 4.0
+    assert follower.done and follower.reached_at_s[1] == 4.0
+    assert tuple(cmd) == pytest.approx((0.0, 0.0, 0.01), abs=1e-12)  # the last one held: its heading
     assert follower.errors([1.0, 1.0, math.pi / 2 - 0.01]) == pytest.approx((0.0, 0.01))
+    # past it by 8 cm (forward, facing +y): back to it, within reach of its heading (no turn to face it)
+    back = follower.command([1.0, 1.08, math.pi / 2], 5.0)
+    assert tuple(back) == pytest.approx((-0.08, 0.0, 0.0), abs=1e-12) and follower.reached_at_s[1] == 4.0
 
 
 def test_invalid_limits_and_timing_name_the_value():
