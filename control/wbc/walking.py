@@ -211,6 +211,8 @@ class WalkingController:
     def set_command(self, command: VelocityCommand | tuple[float, float, float]) -> CommandClamp:
         """Walk at (vx [m/s], vy [m/s], yaw rate [rad/s]) in the body frame from now on (any cycle).
 
+        The walk follows it from the next footstep planning (within ``replan_period_s``).
+
         Returns:
             What the step limits made of it.
 
@@ -320,7 +322,7 @@ class WalkingController:
         t = state.time_s
         com, vcom, poses = self._kinematics(state)
         gait = self.gait or self._start(state, com, poses)
-        replan = self._next_replan_s is None or t >= self._next_replan_s
+        replan = self._next_replan_s is None or t >= self._next_replan_s - 1e-9
         if replan:
             self._follow_command(t, gait)
         event = gait.advance(t, poses, self._steer, self._touching(gait, poses))

@@ -62,7 +62,7 @@ class WalkingConfig:
             by the last cycle's centroidal moment over its normal force, so the swing leg's
             momentum moves the CoM instead of driving the centre of pressure to the sole's edges.
         friction_fraction: The QP plans with this fraction of the soles' friction coefficient
-            (0, 1]. At 0.7 (just under 1/sqrt 2) its pyramid, a box about the foot's axes, lies
+            (0, 1]. Below 1/sqrt 2 its pyramid, a box about the foot's axes, lies
             inside MuJoCo's pyramidal cone (``|f_t1| + |f_t2| <= mu f_n`` about the contact's world-
             aligned tangents) whatever the foot's yaw; the QP's box at full friction reaches
             outside it (its corners at sqrt 2 mu), where the plant's spheres slide.
@@ -106,8 +106,8 @@ class WalkingConfig:
     max_acceleration: tuple[float, float, float] = (1.0, 0.5, 1.0)
     wbc: WBCConfig = field(default_factory=WBCConfig)
     moment_feedforward: bool = True
-    friction_fraction: float = 0.7
-    torsion_m: float = 0.01
+    friction_fraction: float = 0.65
+    torsion_m: float = 0.008
     replan_period_s: float = 0.008
 
     def __post_init__(self) -> None:

@@ -62,7 +62,7 @@ def test_the_g1_walks_forward_and_the_csv_says_so(g1, tmp_path):
     force = v["contact_force_error"]["single"]
     assert force["median_N"] < 0.05 * mg and force["p95_N"] <= force["max_N"]
     # the stance soles hold (the moment feedforward and the QP's friction margins, docs/api/walking.rst):
-    # each stance's drift within 5 mm, from the CSV's slip columns (measured 4.4 mm; ~15 mm without them)
+    # each stance's drift within 5 mm, from the CSV's slip columns (measured 4.3 mm; ~15 mm without them)
     slip = np.maximum(c["left_foot_slip_m"], c["right_foot_slip_m"])
     assert slip.max() == pytest.approx(v["max_foot_slip_m"], abs=1e-9) and v["max_foot_slip_m"] < 0.005
     report = json.loads(record.report_path.read_text())
