@@ -56,3 +56,60 @@ def test_a_gap_in_the_readings_does_not_throw_the_estimate(g1_torque):
     shaken = first.imu._replace(accel_I=first.imu.accel_I + [3.0, 0.0, 0.0])
     q_base, _ = estimator.update(first._replace(time_s=first.time_s + 1.0, imu=shaken))
     assert abs(q_base[0]) < 5e-3
+
+
+def test_the_per_axis_filter_is_the_full_kalman_filter(g1_torque):
+    # the estimator keeps one (2 + n) covariance for the three world axes; the textbook filter on the
+    # whole (6 + 3 n) state, written out here, must give the same state and covariance every step,
+    # through noisy IMU readings, a moving leg and a foot leaving and regaining contact
+    sim = Simulator(g1_torque)
+    sim.reset("stand")
+    reader = ImuReader(sim, G1_IMU)
+    est = g1_estimator(g1_torque)
+    first = reader.proprioception()
+    est.reset(first)
+    n, nz = len(est.feet), est.noise
+    x, P = est.x, np.diag([1e-6] * 3 + [1e-4] * 3 + [1e-6] * 3 * n)
+    np.testing.assert_array_equal(est.P, P)
+    rng = np.random.default_rng(7)
+    I3, t = np.eye(3), first.time_s
+    for k in range(60):
+        contact = np.array([True, k < 20 or k >= 40])  # the right foot lifted for steps 20-39
+        est.set_contacts(dict(zip(est.feet, contact.tolist(), strict=True)))
+        t += 0.002
+        nj = len(first.q_joints)
+        r = first._replace(time_s=t, q_joints=first.q_joints + 0.02 * rng.standard_normal(nj),
+                           v_joints=0.3 * rng.standard_normal(nj),
+                           imu=first.imu._replace(accel_I=first.imu.accel_I + rng.standard_normal(3),
+                                                  gyro_I=0.1 * rng.standard_normal(3)))
+        est.update(r)
+        # the full filter: predict ...
+        R_WB = est._orientation(r)[1]
+        a_W = est._orientation(r)[0] @ r.imu.accel_I + est._g_W
+        F = np.eye(6 + 3 * n)
+        F[:3, 3:6] = 0.002 * I3
+        x = F @ x
+        x[:3] += 0.5 * 0.002**2 * a_W
+        x[3:6] += a_W * 0.002
+        walk = np.repeat(np.where(contact, nz.foot_slip_m_s, nz.foot_swing_m_s) ** 2, 3) * 0.002
+        Q = np.diag(np.concatenate([np.full(3, (0.5 * nz.accel_m_s2 * 0.002**2) ** 2),
+                                    np.full(3, nz.accel_m_s2**2 * 0.002), walk]))
+        P = F @ P @ F.T + Q
+        # ... and correct with each foot in contact (position relative to the base, base velocity)
+        w_B = est._R_BI @ r.imu.gyro_I
+        p_BP, v_B = est._legs(r, w_B.tolist())
+        rows, z, noise = [], [], []
+        for i in np.flatnonzero(contact):
+            h = np.zeros((3, 6 + 3 * n))
+            h[:, :3], h[:, 6 + 3 * i:9 + 3 * i] = -I3, I3
+            rows.append(h), z.append(R_WB @ p_BP[i]), noise.append(np.full(3, nz.kinematics_m**2))
+        for i in np.flatnonzero(contact):
+            h = np.zeros((3, 6 + 3 * n))
+            h[:, 3:6] = I3
+            rows.append(h), z.append(R_WB @ v_B[i]), noise.append(np.full(3, nz.leg_velocity_m_s**2))
+        H, zv = np.vstack(rows), np.concatenate(z)
+        K = P @ H.T @ np.linalg.inv(H @ P @ H.T + np.diag(np.concatenate(noise)))
+        x = x + K @ (zv - H @ x)
+        P = (np.eye(len(x)) - K @ H) @ P
+        np.testing.assert_allclose(est.x, x, rtol=0, atol=1e-9)
+        np.testing.assert_allclose(est.P, 0.5 * (P + P.T), rtol=1e-6, atol=1e-15)
