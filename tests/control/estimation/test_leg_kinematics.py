@@ -20,6 +20,16 @@ def g1_estimator(robot):
     return LegKinematicsEstimator(robot, feet, G1_IMU.site)
 
 
+def _started(robot):
+    """The estimator reset on the first reading of the G1 standing in MuJoCo; (estimator, reading)."""
+    sim = Simulator(robot)
+    sim.reset("stand")
+    first = ImuReader(sim, G1_IMU).proprioception()
+    estimator = g1_estimator(robot)
+    estimator.reset(first)
+    return estimator, first
+
+
 def test_it_estimates_the_base_position(g1_torque):
     estimator = g1_estimator(g1_torque)
     assert BASE_POSITION in estimator.estimated
@@ -47,12 +57,7 @@ def test_bad_setups_are_named(g1_torque, two_link):
 def test_a_gap_in_the_readings_does_not_throw_the_estimate(g1_torque):
     # a process that stalls 1 s between two readings (the DDS client before its loop starts) must
     # not integrate the accelerometer over the whole gap
-    sim = Simulator(g1_torque)
-    sim.reset("stand")
-    reader = ImuReader(sim, G1_IMU)
-    estimator = g1_estimator(g1_torque)
-    first = reader.proprioception()
-    estimator.reset(first)
+    estimator, first = _started(g1_torque)
     shaken = first.imu._replace(accel_I=first.imu.accel_I + [3.0, 0.0, 0.0])
     q_base, _ = estimator.update(first._replace(time_s=first.time_s + 1.0, imu=shaken))
     assert abs(q_base[0]) < 5e-3
@@ -62,12 +67,7 @@ def test_the_per_axis_filter_is_the_full_kalman_filter(g1_torque):
     # the estimator keeps one (2 + n) covariance for the three world axes; the textbook filter on the
     # whole (6 + 3 n) state, written out here, must give the same state and covariance every step,
     # through noisy IMU readings, a moving leg and a foot leaving and regaining contact
-    sim = Simulator(g1_torque)
-    sim.reset("stand")
-    reader = ImuReader(sim, G1_IMU)
-    est = g1_estimator(g1_torque)
-    first = reader.proprioception()
-    est.reset(first)
+    est, first = _started(g1_torque)
     n, nz = len(est.feet), est.noise
     x, P = est.x, np.diag([1e-6] * 3 + [1e-4] * 3 + [1e-6] * 3 * n)
     np.testing.assert_array_equal(est.P, P)
