@@ -23,8 +23,8 @@ covariance starts isotropic, so it stays the Kronecker product of one (2 + n) x 
 covariance over [p, v, p_P1, ..., p_Pn] with the 3 x 3 identity. The filter keeps that one
 covariance and the state as a (2 + n) x 3 matrix (one column per axis): one gain serves all three
 axes, the same estimate as the full (6 + 3 n) filter (``P`` gives its covariance; the two agree to
-7e-13 over a G1 walk) on matrices a ninth of the size (69 against 75 us an update on the G1,
-replayed; numpy's per-call cost dominates at either size).
+7e-13 over a humanoid's walk) on matrices a ninth of the size (69 against 75 us an update on a
+29-joint humanoid, replayed; numpy's per-call cost dominates at either size).
 
 Position and yaw are unobservable: they stay where they started and drift only as much as the
 feet slip. The height is observable through the starting assumption that the contact points
