@@ -253,7 +253,7 @@ class LegKinematicsEstimator:
         p_BP, v_B_legs = self._legs(reading, w_B.tolist())
         if len(feet):
             # each axis's measurements: rows (positions, then velocities) x columns (x, y, z)
-            Z = np.vstack([p_BP[feet] @ R_WB.T, v_B_legs[feet] @ R_WB.T])
+            Z = np.vstack([p_BP[feet], v_B_legs[feet]]) @ R_WB.T
             PHt = P @ H.T
             S = H @ PHt
             S.flat[::len(S) + 1] += r_diag
@@ -268,9 +268,8 @@ class LegKinematicsEstimator:
         if not np.all(np.isfinite(X)):
             raise EstimatorError(f"the estimate diverged at t={reading.time_s:.3f} s (non-finite "
                                  "readings or noise models); check the IMU and encoder values")
-        x = X.ravel()  # (p, v, the feet) by rows: x[0:3] = p_WB, x[3:6] = v_WB
-        q_base = np.concatenate([x[0:3], q_WB.coeffs()])  # coeffs: (x, y, z, w)
-        v_base = np.concatenate([R_WB.T @ x[3:6], w_B])
+        q_base = np.concatenate([X[0], q_WB.coeffs()])  # coeffs: (x, y, z, w)
+        v_base = np.concatenate([R_WB.T @ X[1], w_B])
         return q_base, v_base
 
     @property

@@ -284,14 +284,14 @@ def test_footsteps_are_planned_every_replan_period_and_at_every_contact_event(ti
     # replan_period_s (here 5 cycles) and at each release, lift-off and touchdown, never in between;
     # the DCM law and the QP still run every cycle, on the plan in force, and the biped walks as far
     config = replace(CONFIG, replan_period_s=0.01)
-    retargets, events = [], []
+    retargets, events, adaptations = [], [], []
 
     def observe(walker):
         status = walker.status
         if status.event is not None:
             events.append(status.time_s)
-        if walker._adaptation is not None and walker._adaptation is not getattr(observe, "last", None):
-            observe.last = walker._adaptation
+        if status.adaptation is not None and (not adaptations or status.adaptation is not adaptations[-1]):
+            adaptations.append(status.adaptation)  # a new one: the swing footstep was planned this cycle
             retargets.append(status.time_s)
 
     walker, log, rows = _walk(tiny_biped, crouch, (0.15, 0.0, 0.0), 3.2, config, observe=observe)
