@@ -272,7 +272,8 @@ class Playback:
         self.button = gui.add_button("Play")
         self.speed = gui.add_dropdown("speed", ("0.25x", "0.5x", "1x", "2x"), initial_value="1x")
         self._playing = threading.Event()
-        self._lock = threading.Lock()
+        self._lock = threading.Lock()  # the frame shown, vs. the slider's callback and the player
+        self._tick = threading.RLock()  # a player's step, vs. play/pause: no step lands after a pause
         self.slider.on_update(lambda _: self._draw(self.slider.value))
         self.button.on_click(lambda _: self.pause() if self.playing else self.play())
         self.thread = threading.Thread(target=self._run, args=(stop, fps), name="mbctl-web-playback",
@@ -299,19 +300,23 @@ class Playback:
 
     def play(self) -> None:
         """Play from the slider's time (from the start when at the end)."""
-        if self.slider.value >= self.t[-1] - 1e-9:
-            self.seek(float(self.t[0]))
-        self._playing.set()
-        self.button.label = "Pause"
+        with self._tick:
+            if self.slider.value >= self.t[-1] - 1e-9:
+                self.seek(float(self.t[0]))
+            self._playing.set()
+            self.button.label = "Pause"
 
     def pause(self) -> None:
-        """Stop at the current frame."""
-        self._playing.clear()
-        self.button.label = "Play"
+        """Stop at the current frame (a step the player is drawing finishes first; none comes after)."""
+        with self._tick:
+            self._playing.clear()
+            self.button.label = "Play"
 
     def _run(self, stop: threading.Event, fps: float) -> None:
         while not stop.wait(1.0 / fps):
-            if self._playing.is_set():
+            with self._tick:  # checked and drawn as one: a pause between the two would be overrun
+                if not self._playing.is_set():
+                    continue
                 now = self.slider.value + float(self.speed.value[:-1]) / fps
                 if now >= self.t[-1]:
                     now = float(self.t[-1])
