@@ -180,12 +180,14 @@ def minimum_jerk_at(
         InvalidPlanningInput: A non-positive or non-finite duration.
     """
     T = check_time("duration_s", duration_s)
+    if t_s < t0_s or t_s > t0_s + T:  # at rest: the end held (no arithmetic: this runs every cycle)
+        held = np.array(start if t_s < t0_s else goal, dtype=float)
+        zero = np.zeros_like(held)
+        return held, zero, zero.copy()
     a, b = np.asarray(start, dtype=float), np.asarray(goal, dtype=float)
     d = b - a
-    tau = min(max((t_s - t0_s) / T, 0.0), 1.0)
+    tau = (t_s - t0_s) / T
     s = tau**3 * (10.0 - 15.0 * tau + 6.0 * tau * tau)
-    if t_s < t0_s or t_s > t0_s + T:
-        return a + s * d, np.zeros_like(d), np.zeros_like(d)
     ds = 30.0 * tau * tau * (1.0 - tau) ** 2
     dds = 60.0 * tau * (1.0 - tau) * (1.0 - 2.0 * tau)
     return a + s * d, d * (ds / T), d * (dds / T**2)

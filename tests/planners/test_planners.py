@@ -334,6 +334,9 @@ def test_minimum_jerk_at_one_time_equals_the_sampled_trajectory_and_holds_outsid
         p, v, a = minimum_jerk_at(q0, q1, t, t0, T)
         np.testing.assert_array_equal(p, held)
         assert not v.any() and not a.any()
+        p += 1.0  # new arrays: a caller may change them (the squat lowers its target in place)
+        v += 1.0
+        assert held[0] in (0.2, 1.2) and not a.any()
     with pytest.raises(InvalidPlanningInput, match="duration_s"):
         minimum_jerk_at(q0, q1, 0.0, 0.0, 0.0)
 
