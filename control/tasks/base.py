@@ -99,6 +99,19 @@ def weights_epoch() -> int:
     return _WEIGHTS_EPOCH[0]
 
 
+def dot_into(a: np.ndarray, b: np.ndarray, out: np.ndarray) -> None:
+    """``out[:] = a @ b`` for the small products of the velocity rows.
+
+    ``np.dot`` with ``out`` costs ~0.5 us against ``np.matmul``'s ~1.5 us on a (6, 6) x (6, nv)
+    product (the same BLAS call); it takes only a C-contiguous ``out``, so any other is written
+    by a copy.
+    """
+    try:
+        np.dot(a, b, out=out)
+    except ValueError:  # out not C-contiguous (or misshaped: the copy then says so)
+        out[:] = a @ b
+
+
 def floating_dofs(model: pin.Model) -> np.ndarray:
     """Tangent indices of the model's free-flyer joints (left out of posture and damping)."""
     idx: list[int] = []

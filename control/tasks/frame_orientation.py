@@ -11,7 +11,7 @@ import numpy as np
 import numpy.typing as npt
 import pinocchio as pin
 
-from mbctl.control.tasks.base import AccelerationGains
+from mbctl.control.tasks.base import AccelerationGains, dot_into
 from mbctl.control.tasks.frame import FrameTask
 from mbctl.control.tasks.residuals import TaskResidual
 from mbctl.control.tasks.state import DynamicsState, TaskState
@@ -63,16 +63,16 @@ class FrameOrientationTask(FrameTask):
 
     def write_velocity_rows(self, state: TaskState, J_out: np.ndarray, e_out: np.ndarray) -> None:
         """The active rows of ``(-J_e, -e) = (Jlog3(R_TF) J_F[3:], log3(R_TF))`` (both negated)."""
-        if self._X_TW is None:
+        if self._X_WT is None:
             raise self._no_target()
-        R_TF = (self._X_TW * state.oMf[self.frame_id]).rotation
-        rows = self._index
+        R_TF = self._X_WT.actInv(state.oMf[self.frame_id]).rotation  # one binding call (see FramePoseTask)
         J_w = state.frame_jacobian(self.frame_id)[3:]
         if self._all_active:
-            np.matmul(pin.Jlog3(R_TF), J_w, out=J_out)
+            dot_into(pin.Jlog3(R_TF), J_w, J_out)
             e_out[:] = pin.log3(R_TF)
         else:
-            np.matmul(pin.Jlog3(R_TF)[rows], J_w, out=J_out)
+            rows = self._index
+            dot_into(pin.Jlog3(R_TF)[rows], J_w, J_out)
             e_out[:] = pin.log3(R_TF)[rows]
 
     def jacobian_and_drift(self, state: DynamicsState) -> tuple[np.ndarray, np.ndarray]:

@@ -15,6 +15,7 @@ import numpy as np
 import numpy.typing as npt
 import pinocchio as pin
 
+from mbctl.control.tasks.base import dot_into
 from mbctl.control.tasks.frame import FrameTask, pose_cost
 from mbctl.control.tasks.residuals import TaskResidual
 from mbctl.control.tasks.state import TaskState
@@ -102,7 +103,7 @@ class RelativeFrameTask(FrameTask):
         """The active rows of ``(J_e, e)``."""
         X_TF = self._X_TF(state)
         rows = self.active_index()
-        np.matmul(pin.Jlog6(X_TF)[rows], self._relative_jacobian(state), out=J_out)
+        dot_into(pin.Jlog6(X_TF)[rows], self._relative_jacobian(state), J_out)
         e_out[:] = pin.log6(X_TF).vector[rows]
 
     def residual(self, state: TaskState) -> TaskResidual:

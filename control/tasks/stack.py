@@ -23,7 +23,7 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from mbctl.control.tasks.base import Task, weights_epoch
+from mbctl.control.tasks.base import Task, dot_into, weights_epoch
 from mbctl.control.tasks.diagonal import DiagonalTask
 from mbctl.control.tasks.state import DynamicsState, TaskState
 
@@ -63,7 +63,6 @@ class TaskStack:
         rows = [t.active_rows() for t in dense]
         n_rows = sum(len(a) for a in rows)
         self._Wv = np.zeros((n_rows, self.nv))
-        self._WvT = np.zeros((self.nv, n_rows))  # W^T contiguous: W^T W is ~1 us faster from it
         self._rv = np.zeros(n_rows)
         views, row = [], 0
         col, r_scale, lm = [], [], []
@@ -125,9 +124,9 @@ class TaskStack:
         r_neg *= self._r_scale
         mu = 0.0 if self._lm_rows is None else float((r_neg * r_neg) @ self._lm_rows)
         if W.shape[0]:
-            WT = self._WvT
-            WT[:] = W.T
-            np.matmul(WT, W, out=H)
+            # np.dot on (W^T, W) sees one buffer and calls BLAS syrk (half the products, H exactly
+            # symmetric): ~1 us less than a contiguous W^T copy and a matmul
+            dot_into(W.T, W, H)
             np.dot(r_neg, W, out=c)
         else:
             H.fill(0.0)
