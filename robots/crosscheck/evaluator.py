@@ -147,80 +147,121 @@ class Evaluator:
         self._pk_tmp, self._pk_J = np.zeros((chunk, L)), np.zeros((chunk, 6, L))
         self._pk_p = np.zeros((chunk, 3, L))
         self._pk_pT = np.zeros((chunk, 3, nf))
+        self._make_slots()
+
+    def _make_slots(self) -> None:
+        """Views made once: MjData's arrays, and per buffer slot the rows each state writes.
+
+        Every attribute access of MjData and every indexing of a buffer builds a new array (0.1-0.3
+        us); a state writes about 30 of them, so they are built here, not per state.
+        """
+        m, d, chunk = self.m, self.d, self.chunk
+        # MuJoCo's inputs in the plant's size, filled per chunk: the scene's coordinates stay at
+        # qpos0 and at rest (zero qvel, qfrc_applied and qacc), so a state is whole-array copies.
+        self._in_qpos = np.tile(m.qpos0, (chunk, 1))
+        self._in_v = np.zeros((3, chunk, m.nv))  # qvel, qfrc_applied, qacc
+        self._d_in = (d.qpos, d.qvel, d.qfrc_applied, d.qacc)
+        self._d_out = (d.xpos, d.xmat, d.site_xpos, d.site_xmat, d.qfrc_bias, d.qacc, d.energy,
+                       d.subtree_com, d.subtree_linvel, d.subtree_angmom, d.qfrc_inverse)
+        self._J_mj_flat = self._J_mj.reshape(-1)
+        self._pin_energies: list[tuple[float, float]] = []  # per state of the chunk (kinetic, potential)
+        p_vec, m_vec = self._p_vectors, self._m_vectors
+        self._pin_slots = [
+            (self._X_WJ[i], self._J_world_out[i], self._p_M[i], p_vec[i, 0], p_vec[i, 1],
+             self._p_points[i, 0], self._Jcom_out[i], self._hg_out[i], p_vec[i, 2], p_vec[i, 3])
+            for i in range(chunk)
+        ]
+        self._mj_slots = [
+            ((self._in_qpos[i], self._in_v[0, i], self._in_v[1, i], self._in_v[2, i]),
+             (self._xbody[i], self._xbody_mat[i], self._xsite[i], self._xsite_mat[i], m_vec[i, 0],
+              m_vec[i, 2], self._energy[i], self._sub[i, 0], self._sub[i, 1], self._sub[i, 2], m_vec[i, 3]),
+             self._J_mj_packed[i], self._M_mj[i], m_vec[i, 1],
+             [(m, d, self._Jsub[i, k], int(r)) for k, r in enumerate(self.tops)])
+            for i in range(chunk)
+        ]
 
     # ------------------------------------------------------------------ per state
     def _pin_state(self, i: int, q: np.ndarray, v: np.ndarray, tau: np.ndarray, a: np.ndarray) -> None:
-        pm, pd, vec = self.pm, self.pd, self._p_vectors[i]
+        pm, pd = self.pm, self.pd
+        X_WJ, J, M, nle, g, com, Jcom, hg, fd, id_ = self._pin_slots[i]
         pin.computeAllTerms(pm, pd, q, v)
-        self._X_WJ[i] = list(map(_HOMOGENEOUS, pd.oMi.tolist()))
-        self._J_world_out[i] = pd.J
-        self._p_M[i] = pd.M  # upper triangle; symmetrized per chunk
-        vec[0] = pd.nle
-        vec[1] = pd.g
-        self._p_points[i, 0] = pd.com[0]
-        self._Jcom_out[i] = pd.Jcom
-        self._hg_out[i] = pd.hg.vector
-        # the rigid bodies' energy from pd.v (the armature's is added per chunk)
-        self._p_energies[i] = pin.computeKineticEnergy(self._pm_rigid, pd), pd.potential_energy
-        vec[2] = pin.aba(pm, pd, q, v, tau)
-        vec[3] = pin.rnea(pm, pd, q, v, a)
+        X_WJ[...] = list(map(_HOMOGENEOUS, pd.oMi.tolist()))
+        J[...] = pd.J
+        M[...] = pd.M  # upper triangle; symmetrized per chunk
+        nle[...] = pd.nle
+        g[...] = pd.g
+        com[...] = pd.com[0]
+        Jcom[...] = pd.Jcom
+        hg[...] = pd.hg.vector
+        # the rigid bodies' energy from pd.v (the armature's is added per chunk); plain floats,
+        # converted once per chunk
+        self._pin_energies[i] = (pin.computeKineticEnergy(self._pm_rigid, pd), pd.potential_energy)
+        fd[...] = pin.aba(pm, pd, q, v, tau)
+        id_[...] = pin.rnea(pm, pd, q, v, a)
 
-    def _mj_state(
-        self, i: int, qpos: np.ndarray, qvel: np.ndarray, qfrc: np.ndarray, qacc: np.ndarray
-    ) -> None:
-        m, d, vec = self.m, self.d, self._m_vectors[i]
-        d.qpos[self.qi] = qpos
-        d.qvel[self.vi] = qvel
-        d.qfrc_applied[self.vi] = qfrc
+    def _mj_state(self, i: int) -> None:
+        m, d = self.m, self.d
+        inputs, outputs, J_packed, M, gravity, jac_subtree_args = self._mj_slots[i]
+        d_qpos, d_qvel, d_qfrc, d_qacc = self._d_in
+        qpos, qvel, qfrc, qacc = inputs
+        d_qpos[...] = qpos
+        d_qvel[...] = qvel
+        d_qfrc[...] = qfrc
         mujoco.mj_forward(m, d)
-        self._xbody[i] = d.xpos  # whole arrays: a plain copy costs less than picking the frames
-        self._xbody_mat[i] = d.xmat
-        self._xsite[i] = d.site_xpos
-        self._xsite_mat[i] = d.site_xmat
         deque(starmap(mujoco.mj_jacBody, self._jac_body_args), maxlen=0)  # the loops in C
         deque(starmap(mujoco.mj_jacSite, self._jac_site_args), maxlen=0)
-        # only the compared entries are kept (the rest are zeros in both engines): small buffers
-        np.take(self._J_mj.reshape(-1), self._pk_mj, out=self._J_mj_packed[i])
-        mujoco.mj_fullM(m, d, self._M_mj[i])
-        vec[0] = d.qfrc_bias
-        vec[2] = d.qacc
-        self._energy[i] = d.energy
-        for k, r in enumerate(self.tops):
-            mujoco.mj_jacSubtreeCom(m, d, self._Jsub[i, k], r)
+        # only the compared entries are kept (the rest are zeros in both engines): small buffers.
+        # mode="clip": with "raise" numpy checks every index and writes through a temporary.
+        self._J_mj_flat.take(self._pk_mj, out=J_packed, mode="clip")
+        mujoco.mj_fullM(m, d, M)
+        deque(starmap(mujoco.mj_jacSubtreeCom, jac_subtree_args), maxlen=0)
         mujoco.mj_subtreeVel(m, d)
-        sub = self._sub[i]
-        sub[0] = d.subtree_com
-        sub[1] = d.subtree_linvel
-        sub[2] = d.subtree_angmom
         if not self._pe_static_known:  # bodies welded to the world and the scene do not move
             s = self.static
             self._pe_static = float(-np.sum(m.body_mass[s] * (d.xipos[s] @ m.opt.gravity)))
             self._pe_static_known = True
+        out, src = outputs, self._d_out
+        # whole arrays: a plain copy costs less than picking the frames (all but qfrc_inverse,
+        # which is written below, are final after mj_subtreeVel)
+        out[0][...] = src[0]
+        out[1][...] = src[1]
+        out[2][...] = src[2]
+        out[3][...] = src[3]
+        out[4][...] = src[4]
+        out[5][...] = src[5]
+        out[6][...] = src[6]
+        out[7][...] = src[7]
+        out[8][...] = src[8]
+        out[9][...] = src[9]
         # Inverse dynamics at the same (q, v): the position and velocity stages are current.
-        if not self.robot.covers_plant:
-            d.qacc[:] = 0.0  # the scene's dofs at rest
-        d.qacc[self.vi] = qacc
+        d_qacc[...] = qacc  # the scene's dofs at rest
         mujoco.mj_inverseSkip(m, d, mujoco.mjtStage.mjSTAGE_VEL, 1)
-        vec[3] = d.qfrc_inverse
+        out[10][...] = src[10]
         # Gravity: the bias force at zero velocity (mj_rne reads cvel, so recompute it).
-        d.qvel[:] = 0.0
+        d_qvel.fill(0.0)
         mujoco.mj_comVel(m, d)
-        mujoco.mj_rne(m, d, 0, vec[1])
+        mujoco.mj_rne(m, d, 0, gravity)
 
     # ------------------------------------------------------------------ per chunk
     def _evaluate(self, states: States, start: int, stop: int) -> None:
         """Evaluate states ``start:stop`` (at most ``chunk``) into buffer slots 0 .. stop - start."""
         conv = self.robot.converter
+        c = stop - start
         q, v, tau, a = (x[start:stop] for x in (states.q, states.v, states.tau, states.a))
         self._maps = maps = conv.velocity_maps(q)
         self._Tdot_v = maps.dot_v(v)
         # MuJoCo's inputs: qpos, qvel = T v, qfrc = T tau, qacc = T a + Tdot v (batched)
-        mj_in = (conv.qs_pin_to_mj(q), maps.to_mj(v), maps.to_mj(tau), maps.to_mj(a) + self._Tdot_v)
+        self._in_qpos[:c, self.qi] = conv.qs_pin_to_mj(q)
+        in_v = self._in_v[:, :c]
+        in_v[0][:, self.vi] = maps.to_mj(v)
+        in_v[1][:, self.vi] = maps.to_mj(tau)
+        in_v[2][:, self.vi] = maps.to_mj(a) + self._Tdot_v
+        self._pin_energies = [(0.0, 0.0)] * c
         pin_state, mj_state = self._pin_state, self._mj_state
-        rows = zip(zip(q, v, tau, a, strict=True), zip(*mj_in, strict=True), strict=True)
-        for i, (pin_args, mj_args) in enumerate(rows):
+        for i, pin_args in enumerate(zip(q, v, tau, a, strict=True)):
             pin_state(i, *pin_args)
-            mj_state(i, *mj_args)
+            mj_state(i)
+        self._p_energies[:c] = self._pin_energies
         self._v = v
 
     def aligned(self, c: int, full: bool = False) -> tuple[dict[str, np.ndarray], dict[str, np.ndarray]]:
