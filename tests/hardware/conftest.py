@@ -13,8 +13,6 @@ from mbctl.unitree.channel import message_types
 
 #: The fake's state period [s] (the G1's 500 Hz).
 PERIOD_S = 0.002
-#: How far behind its grid [s] the fake catches up, by publishing without sleeping.
-CATCH_UP_S = 0.05
 
 
 class FakeG1:
@@ -102,12 +100,9 @@ class FakeG1:
                     self.bad_commands += 1
             next_s += self.period_s  # a timer's grid, as a robot's: no drift from the work done
             now = time.perf_counter()
-            if next_s < now - CATCH_UP_S:  # a long stall: go on from now
+            if next_s < now:  # held up: go on from now, no burst of catch-up states (as a robot)
                 next_s = now
-            # held up less: this thread (not the robot it stands for) was descheduled or waited for
-            # the GIL, so it catches up on its grid, as a robot's own timer would have gone on; going
-            # on from now instead slows its rate on a loaded machine (a 500 Hz fake measured 400 Hz)
-            time.sleep(max(next_s - now, 0.0))
+            time.sleep(next_s - now)
 
     def set_q(self, q: np.ndarray, bad_crc: bool = False) -> None:
         """Publish motor positions ``q`` (29,) [rad], with a bad CRC if ``bad_crc``, from the next message on.
