@@ -15,6 +15,7 @@ from mbctl.control.ik import (
     QPWholeBodyIK,
     WholeBodyIKConfig,
 )
+from mbctl.control.ik import collision as collision_module
 from mbctl.control.tasks import KinematicState, Tolerance
 from mbctl.robots import load_robot
 from mbctl.robots.collision import CollisionPair, pair_distances
@@ -134,6 +135,23 @@ def test_coincident_witness_points_use_the_line_between_the_geoms_centres(crab):
     w = np.hstack([n, np.cross(p, n)])
     expected = (w @ state.data.J) * limit._dmask[idx]
     np.testing.assert_allclose(G, expected, atol=1e-12)
+
+
+def test_the_broad_phase_keeps_the_same_pairs_by_the_incidence_product_and_by_gathering(crab, monkeypatch):
+    """The pairs' centre differences as one product with their incidence matrix (small pair sets)
+    and by gathering the geoms' centres (large ones) keep the same candidates."""
+    by_product = CollisionAvoidanceLimit(crab, PAIRS, detection_distance_m=0.1)
+    monkeypatch.setattr(collision_module, "INCIDENCE_MAX", 0)
+    by_gather = CollisionAvoidanceLimit(crab, PAIRS, detection_distance_m=0.1)
+    assert by_product._incidence is not None and by_gather._incidence is None
+    counts = set()
+    for seed in range(12):
+        q = _random_q(crab, seed)
+        by_product.sync(q)
+        by_gather.sync(q)
+        np.testing.assert_array_equal(by_product.candidates(), by_gather.candidates())
+        counts.add(len(by_product.candidates()))
+    assert len(counts) > 1  # the configurations keep different numbers of pairs
 
 
 def test_mink_gets_the_same_pairs_and_the_same_rows(crab):
