@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import sys
 import threading
 import time
 
@@ -127,6 +128,21 @@ class FakeG1:
         self._stop.set()
         self._thread.join(timeout=2)
         self.channel.close()
+
+
+@pytest.fixture(autouse=True)
+def short_gil_slices():
+    """The interpreter hands the GIL round every 0.2 ms instead of every 5 ms, during each test here.
+
+    The fake robot publishes from a thread of the test's own process, beside the client under test:
+    with Python's default switch interval (5 ms) a busy client thread held it off for longer than
+    its 2 ms period, and a loaded CI measured the fake's rate as 400 Hz. A robot runs on its own
+    timer; this keeps the fake near one.
+    """
+    saved = sys.getswitchinterval()
+    sys.setswitchinterval(2e-4)
+    yield
+    sys.setswitchinterval(saved)
 
 
 @pytest.fixture
