@@ -99,6 +99,11 @@ class Evaluator:
         self._frame_joint = np.array([self.pm.frames[f].parentJoint for f in frames.pin_ids], dtype=int)
         X_JF = [self.pm.frames[f].placement.homogeneous for f in frames.pin_ids]
         self._X_JF = np.array(X_JF).reshape(nf, 4, 4)
+        # Most frames sit at their joint (44 of 50 on the G1): X_WF = X_WJ, no product needed.
+        self._moved = np.flatnonzero(np.any(self._X_JF != np.eye(4), axis=(1, 2)))
+        # Placements are kept transposed, (c, 4, 3, nf) for [R_WF | p_WF] (c, nf, 3, 4): positions and
+        # rotations are then contiguous blocks (reductions over them, p_WF for the Jacobians).
+        self._X_pin = np.zeros((chunk, 4, 3, nf))
         self._mask = support_mask(self.pm, frames.pin_ids)
         # The (frame, column) entries the Jacobians are compared on: the union of both supports.
         union = (self._mask + mj_support_mask(robot, m, frames)) > 0
@@ -108,7 +113,11 @@ class Evaluator:
         # Flat indices of the compared entries in MuJoCo's (nf, 6, nvp) Jacobians (plant columns).
         plant_col = np.arange(nvp)[self.vi][self._pk_col]
         self._pk_mj = self._pk_frame * 6 * nvp + np.arange(6)[:, None] * nvp + plant_col  # (6, L)
-        self._tril = np.tril_indices(nv, -1)
+        # Pinocchio's crba fills the upper triangle: the lower one is copied from it per chunk,
+        # as one gather and one scatter on the flat matrices (2-d fancy indexing costs more).
+        lo, up = np.tril_indices(nv, -1)
+        self._tril_lo, self._tril_up = lo * nv + up, up * nv + lo
+        self._M_upper = np.zeros((chunk, lo.size))
         # Pinocchio's outputs per state, in its convention.
         self._p_vectors = np.zeros((chunk, 4, nv))  # nle, g, aba, rnea (GROUPS["vectors"] order)
         self._p_energies = np.zeros((chunk, 2))
@@ -122,14 +131,16 @@ class Evaluator:
         self._Jcom_out = self._p_Jcom[..., 0] if nv == 1 else self._p_Jcom
         self._hg_out = self._p_points[:, 1:].reshape(chunk, 6)
         # MuJoCo's raw outputs per state, in its convention and the plant's size.
-        self._xbody, self._xbody_mat = np.zeros((chunk, m.nbody, 3)), np.zeros((chunk, m.nbody, 9))
-        self._xsite, self._xsite_mat = np.zeros((chunk, m.nsite, 3)), np.zeros((chunk, m.nsite, 9))
+        # placements of all bodies, then all sites, transposed as _X_pin: the compared ones are one
+        # gather per chunk
+        self._X_all = np.zeros((chunk, 4, 3, m.nbody + m.nsite))
+        self._frame_rows = np.concatenate([frames.mj_body_ids, m.nbody + frames.mj_site_ids]).astype(int)
         self._J_mj = np.zeros((nf, 6, nvp))  # one state's, packed into _J_mj_packed right away
         self._J_mj_packed = np.zeros((chunk, 6, self._pk_col.size))
         self._M_mj = np.zeros((chunk, nvp, nvp))
         self._m_vectors = np.zeros((chunk, 4, nvp))  # qfrc_bias, rne at v = 0, qacc, qfrc_inverse
         self._energy = np.zeros((chunk, 2))
-        self._X_mj = np.zeros((chunk, nf, 3, 4))
+        self._X_mj = np.zeros((chunk, 4, 3, nf))
         self._m_points = np.zeros((chunk, 3, 3))  # p_WC, momentum: linear, angular about C
         nt = self.tops.size
         self._Jsub = np.zeros((chunk, nt, 3, nvp))
@@ -146,7 +157,6 @@ class Evaluator:
         L = self._pk_col.size
         self._pk_tmp, self._pk_J = np.zeros((chunk, L)), np.zeros((chunk, 6, L))
         self._pk_p = np.zeros((chunk, 3, L))
-        self._pk_pT = np.zeros((chunk, 3, nf))
         self._make_slots()
 
     def _make_slots(self) -> None:
@@ -161,11 +171,13 @@ class Evaluator:
         self._in_qpos = np.tile(m.qpos0, (chunk, 1))
         self._in_v = np.zeros((3, chunk, m.nv))  # qvel, qfrc_applied, qacc
         self._d_in = (d.qpos, d.qvel, d.qfrc_applied, d.qacc)
-        self._d_out = (d.xpos, d.xmat, d.site_xpos, d.site_xmat, d.qfrc_bias, d.qacc, d.energy,
+        self._d_out = (d.xpos, d.xmat.reshape(-1, 3, 3), d.site_xpos, d.site_xmat.reshape(-1, 3, 3),
+                       d.qfrc_bias, d.qacc, d.energy,
                        d.subtree_com, d.subtree_linvel, d.subtree_angmom, d.qfrc_inverse)
         self._J_mj_flat = self._J_mj.reshape(-1)
         self._pin_energies: list[tuple[float, float]] = []  # per state of the chunk (kinetic, potential)
         p_vec, m_vec = self._p_vectors, self._m_vectors
+        X_all, nb = self._X_all, m.nbody
         self._pin_slots = [
             (self._X_WJ[i], self._J_world_out[i], self._p_M[i], p_vec[i, 0], p_vec[i, 1],
              self._p_points[i, 0], self._Jcom_out[i], self._hg_out[i], p_vec[i, 2], p_vec[i, 3])
@@ -173,7 +185,8 @@ class Evaluator:
         ]
         self._mj_slots = [
             ((self._in_qpos[i], self._in_v[0, i], self._in_v[1, i], self._in_v[2, i]),
-             (self._xbody[i], self._xbody_mat[i], self._xsite[i], self._xsite_mat[i], m_vec[i, 0],
+             (X_all[i, 3, :, :nb].T, X_all[i, :3, :, :nb].T, X_all[i, 3, :, nb:].T, X_all[i, :3, :, nb:].T,
+              m_vec[i, 0],
               m_vec[i, 2], self._energy[i], self._sub[i, 0], self._sub[i, 1], self._sub[i, 2], m_vec[i, 3]),
              self._J_mj_packed[i], self._M_mj[i], m_vec[i, 1],
              [(m, d, self._Jsub[i, k], int(r)) for k, r in enumerate(self.tops)])
@@ -275,10 +288,15 @@ class Evaluator:
         """
         maps, vi, Tdot_v = self._maps, self.vi, self._Tdot_v
         M = self._p_M[:c]
-        M[:, self._tril[0], self._tril[1]] = M[:, self._tril[1], self._tril[0]]  # crba: upper triangle
+        M_flat = M.reshape(c, -1)
+        M_flat[:, self._tril_lo] = M_flat.take(self._tril_up, axis=1, out=self._M_upper[:c], mode="clip")
         energies = self._p_energies[:c].copy()
         energies[:, 0] += (self._v * self._v) @ self._half_armature
-        X_WF = np.matmul(np.take(self._X_WJ[:c, :, :3], self._frame_joint, axis=1), self._X_JF)  # 3 x 4
+        X_WJ_t = self._X_WJ[:c, :, :3].transpose(0, 3, 2, 1)  # (c, 4, 3, njoints)
+        X_t = X_WJ_t.take(self._frame_joint, axis=3, out=self._X_pin[:c], mode="clip")
+        X_WF = X_t.transpose(0, 3, 2, 1)  # (c, nf, 3, 4), a view
+        if self._moved.size:  # the frames away from their joint: X_WJ X_JF (3 x 4)
+            X_WF[:, self._moved] = np.matmul(X_WF[:, self._moved], self._X_JF[self._moved])
         P = {"vectors": self._p_vectors[:c], "energies": energies, "points": self._p_points[:c],
              "mass_matrix": M, "com_jacobian": self._p_Jcom[:c], "frames": X_WF}
         if full:
@@ -287,7 +305,7 @@ class Evaluator:
                 self._J_world[:c], X_WF[..., 3], self._mask, np.zeros((c, nf, 6, self.robot.nv))
             )
         else:
-            P["jacobian"] = self._packed_pin(c, X_WF[..., 3])
+            P["jacobian"] = self._packed_pin(c, X_t[:, 3])
         M_mj = maps.congruence(self._M_mj[:c][(slice(None), *self.vv)])  # the robot's block: T^T M T
         vectors = self._m_vectors[:c][..., vi]  # bias, gravity, qacc, inverse (MuJoCo's convention)
         vectors[:, 2] -= Tdot_v  # a_pin = T^T (a_mj - Tdot v)
@@ -318,23 +336,20 @@ class Evaluator:
         return P, Q
 
     def _mj_frames(self, c: int) -> np.ndarray:
-        """MuJoCo's placements ``[R_WF | p_WF]`` (c, nf, 3, 4) of the compared bodies and sites."""
-        fr, X = self.frames, self._X_mj[:c]
-        nb, ns = fr.mj_body_ids.size, fr.mj_site_ids.size
-        X[:, :nb, :, :3] = np.take(self._xbody_mat[:c], fr.mj_body_ids, axis=1).reshape(c, nb, 3, 3)
-        X[:, nb:, :, :3] = np.take(self._xsite_mat[:c], fr.mj_site_ids, axis=1).reshape(c, ns, 3, 3)
-        X[:, :nb, :, 3] = np.take(self._xbody[:c], fr.mj_body_ids, axis=1)
-        X[:, nb:, :, 3] = np.take(self._xsite[:c], fr.mj_site_ids, axis=1)
-        return X
+        """MuJoCo's placements ``[R_WF | p_WF]`` (c, nf, 3, 4) of the compared bodies and sites (a view)."""
+        X_t = self._X_all[:c].take(self._frame_rows, axis=3, out=self._X_mj[:c], mode="clip")
+        return X_t.transpose(0, 3, 2, 1)
 
-    def _packed_pin(self, c: int, p_WF: np.ndarray) -> np.ndarray:
-        """Pinocchio's frame Jacobians (c, 6, L) on the compared entries (``frame_jacobians``)."""
+    def _packed_pin(self, c: int, p_T: np.ndarray) -> np.ndarray:
+        """Pinocchio's frame Jacobians (c, 6, L) on the compared entries (``frame_jacobians``).
+
+        ``p_T``: the frames' origins ``p_WF`` transposed (c, 3, nf).
+        """
         # np.take into C-ordered buffers: fancy indexing on the last axis returns strided arrays,
         # on which the arithmetic below runs several times slower.
-        J = np.take(self._J_world[:c], self._pk_col, axis=2, out=self._pk_J[:c])  # (c, 6, L)
-        p_T = self._pk_pT[:c]
-        np.copyto(p_T, p_WF.transpose(0, 2, 1))
-        p = np.take(p_T, self._pk_frame, axis=2, out=self._pk_p[:c])  # (c, 3, L)
+        # mode="clip": with "raise" numpy checks every index and writes through a temporary.
+        J = self._J_world[:c].take(self._pk_col, axis=2, out=self._pk_J[:c], mode="clip")  # (c, 6, L)
+        p = p_T.take(self._pk_frame, axis=2, out=self._pk_p[:c], mode="clip")  # (c, 3, L)
         tmp = self._pk_tmp[:c]
         for a, b, e in ((0, 1, 2), (1, 2, 0), (2, 0, 1)):  # v_F = v_O - p_WF x w, without temporaries
             np.multiply(p[:, b], J[:, 3 + e], out=tmp)
@@ -395,12 +410,14 @@ class Evaluator:
                 continue
             diff = np.abs(P[k] - Q[k]).reshape(c, -1)  # one reduction axis: several cost far more
             out[k] = (diff.max(axis=1), float(np.abs(Q[k]).max()))
-        D = np.abs(P["frames"] - Q["frames"])  # positions and rotations at once
+        # positions and rotations at once, transposed (c, 4, 3, nf): each a contiguous block per state
+        X_q = Q["frames"].transpose(0, 3, 2, 1)
+        D = np.abs(P["frames"].transpose(0, 3, 2, 1) - X_q)
         for name, cols in (("fk_position", 3), ("fk_rotation", slice(0, 3))):
             if D.size == 0:
                 out[name] = (np.zeros(c), 0.0)
                 continue
-            dx, mag = D[..., cols], Q["frames"][..., cols]
+            dx, mag = D[:, cols], X_q[:, cols]
             out[name] = (dx.reshape(c, -1).max(axis=1), float(max(mag.max(), -mag.min())))
         # The Jacobians are the bulk of the data: in place, on the compared entries (c, 6, L).
         D = self._J_diff[:c]
