@@ -143,11 +143,12 @@ class DiffIK:
         self._box_static = tuple(lim for lim in self._box if not lim.state_dependent)
         self._other = tuple(lim for lim in self.limits if not isinstance(lim, BoxLimit))
         self._guards = tuple(lim for lim in self.limits if type(lim).guard_step is not Limit.guard_step)
-        self._lb = np.empty(nv)
-        self._ub = np.empty(nv)
+        # lower and upper bounds as the rows of one buffer (each row contiguous): one copy a step
+        self._bounds_buffer = np.empty((2, nv))
+        self._lb, self._ub = self._bounds_buffer
         self._static_dt: float | None = None
-        self._static_lb = np.empty(nv)
-        self._static_ub = np.empty(nv)
+        self._static_bounds = np.empty((2, nv))
+        self._static_lb, self._static_ub = self._static_bounds
         self._qp = QPSolver(nv, solver, self.solver_options)
 
     # ------------------------------------------------------------------ QP
@@ -165,8 +166,7 @@ class DiffIK:
                 lim.intersect_bounds(self.state, dt, self._static_lb, self._static_ub)
             self._static_dt = dt
         lb, ub = self._lb, self._ub
-        np.copyto(lb, self._static_lb)
-        np.copyto(ub, self._static_ub)
+        np.copyto(self._bounds_buffer, self._static_bounds)
         for lim in self._box_dynamic:
             lim.intersect_bounds(self.state, dt, lb, ub)
         return lb, ub

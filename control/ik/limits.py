@@ -136,8 +136,10 @@ class JointPositionLimit(BoxLimit):
         self.gain = float(gain)
         self.joint_names = tuple(names)
         # scratch and gain-scaled limits for the hot path (intersect_bounds runs every step)
-        self._gq_min, self._gq_max = self.gain * self.q_min, self.gain * self.q_max
-        self._gq, self._lo, self._hi = np.empty(len(iq)), np.empty(len(iq)), np.empty(len(iq))
+        # (gain q_min; gain q_max) as one (2, n) array: both bounds by one subtraction
+        self._gq_bounds = self.gain * np.stack([self.q_min, self.q_max])
+        self._gq, self._lo_hi = np.empty(len(iq)), np.empty((2, len(iq)))
+        self._lo, self._hi = self._lo_hi  # views of its rows
 
     def intersect_bounds(
         self, state: TaskState, dt: float, lower: np.ndarray, upper: np.ndarray
@@ -145,9 +147,8 @@ class JointPositionLimit(BoxLimit):
         """Tighten with ``gain (q_min - q)`` and ``gain (q_max - q)`` on the limited dofs."""
         gq = self._gq
         np.multiply(state.q[self._sq], self.gain, out=gq)
+        np.subtract(self._gq_bounds, gq, out=self._lo_hi)
         lo, hi = self._lo, self._hi
-        np.subtract(self._gq_min, gq, out=lo)
-        np.subtract(self._gq_max, gq, out=hi)
         iv = self._sv
         if isinstance(iv, slice):  # contiguous dofs: tighten the views in place
             low, up = lower[iv], upper[iv]
