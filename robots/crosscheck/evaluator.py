@@ -332,7 +332,10 @@ class Evaluator:
             last = VelocityMaps(maps.free_v, maps.R[c - 1 :])
             Q["jacobian"] = last.right(np.array(self._J_mj[None][..., vi]))
         else:
-            Q["jacobian"] = maps.right_packed(self._J_mj_packed[:c], self._pk_free)  # J_mj T
+            # J_mj T: T mixes only a free joint's linear columns, whose angular rows are exact zeros in
+            # both engines (a translation turns no frame), so only the linear rows are turned.
+            maps.right_packed(self._J_mj_packed[:c, :3], self._pk_free)
+            Q["jacobian"] = self._J_mj_packed[:c]
         return P, Q
 
     def _mj_frames(self, c: int) -> np.ndarray:
