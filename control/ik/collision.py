@@ -270,7 +270,7 @@ class CollisionAvoidanceLimit(Limit):
         for _ in range(MAX_HALVINGS + 1):
             self._measure(pin.integrate(model, q, dq))
             after = self.distances_m
-            if after.min() >= self.min_distance_m or not np.any(
+            if np.minimum.reduce(after) >= self.min_distance_m or not np.any(
                     (after < self.min_distance_m) & (after < before - 1e-12)):
                 return dq
             dq = 0.5 * dq

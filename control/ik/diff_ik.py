@@ -266,7 +266,7 @@ class DiffIK:
         for lim in self._guards:
             dq = lim.guard_step(self.model, q, dq)
         self.state.update(pin.integrate(self.model, q, dq))
-        return float(np.max(np.abs(dq)))
+        return float(np.maximum.reduce(np.abs(dq)))  # np.max without its Python wrapper (~1 us)
 
     # ------------------------------------------------------------------ loop
     @property
