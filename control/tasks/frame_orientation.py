@@ -65,7 +65,8 @@ class FrameOrientationTask(FrameTask):
         """The active rows of ``(-J_e, -e) = (Jlog3(R_TF) J_F[3:], log3(R_TF))`` (both negated)."""
         if self._X_WT is None:
             raise self._no_target()
-        R_TF = self._X_WT.actInv(state.oMf[self.frame_id]).rotation  # one binding call (see FramePoseTask)
+        # X_WT^-1 X_WF by one binding call (see FramePoseTask)
+        R_TF = self._X_WT.actInv(state.frame_placements[self.frame_id]).rotation
         J_w = state.frame_jacobian(self.frame_id)[3:]
         if self._all_active:
             dot_into(pin.Jlog3(R_TF), J_w, J_out)

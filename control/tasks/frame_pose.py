@@ -90,7 +90,7 @@ class FramePoseTask(FrameTask):
         if self._X_WT is None:
             raise self._no_target()
         # X_WT^-1 X_WF by actInv: one binding call, ~2x faster than the SE3 product's overload dispatch
-        X_TF = self._X_WT.actInv(state.oMf[self.frame_id])
+        X_TF = self._X_WT.actInv(state.frame_placements[self.frame_id])
         J_F = state.frame_jacobian(self.frame_id)
         # np.dot: ~0.5 us against matmul's ~1.5 us for these small products (the same BLAS call)
         if self._all_active:
