@@ -1,21 +1,22 @@
 """Both engines over the cross-check's states: per state the engine calls, per chunk the rest.
 
 Per state only what an engine must do for that state runs: Pinocchio's ``computeAllTerms`` (its
-joint placements ``oMi`` and joint Jacobians ``J`` fetched), kinetic energy, ABA and RNEA;
-MuJoCo's ``mj_forward``, one ``mj_jacBody`` / ``mj_jacSite`` per compared frame, ``mj_fullM``,
-the subtree quantities, ``mj_inverse`` and ``mj_rne`` at zero velocity. Their outputs are copied
-into buffers of ``chunk`` states. Everything else is done once per chunk with batched numpy: the
-MuJoCo inputs in MuJoCo's convention, the outputs back into Pinocchio's
-(``StateConverter.velocity_maps``: ``T(q)`` block by block), and the error reduction, in place in
-preallocated buffers (a fresh temporary per operation costs more than the operation).
+joint placements ``oMi`` and joint Jacobians ``J`` read), kinetic energy, ABA and RNEA; MuJoCo's
+``mj_forward``, one ``mj_jacBody`` / ``mj_jacSite`` per compared frame, ``mj_fullM``, the subtree
+quantities, ``mj_inverse`` and ``mj_rne`` at zero velocity. Their outputs are copied into buffers
+of ``chunk`` states through views made once (``_make_slots``; all joint placements in one copy
+through a view of ``data.oMi``, ``frames.joint_placements_view``). Everything else is done once
+per chunk with batched numpy: the MuJoCo inputs in MuJoCo's convention, the outputs back into
+Pinocchio's (``StateConverter.velocity_maps``: ``T(q)`` block by block), and the error reduction,
+in place in preallocated buffers (a fresh temporary per operation costs more than the operation).
 
 Pinocchio's frame placements are formed per chunk the way ``updateFramePlacements`` forms them,
-``X_WF = X_WJ X_JF`` from the joint placements (one placement per joint fetched per state, not one
-per frame), and its frame Jacobians from the joint Jacobians (``frames.frame_jacobians``); the
-test suite checks both against Pinocchio's functions. MuJoCo's frame Jacobians stay its own calls,
-so the comparison still checks one engine's Jacobian routine against the other's. Only the
-Jacobian entries in the union of both engines' supports are compared, packed
-(``frames.jacobian_packing``; MuJoCo's per state, right after its calls).
+``X_WF = X_WJ X_JF`` from the joint placements (the product only for frames away from their
+joint), and its frame Jacobians from the joint Jacobians (``frames.frame_jacobians``); the test
+suite checks both against Pinocchio's functions. MuJoCo's frame Jacobians stay its own calls, so
+the comparison still checks one engine's Jacobian routine against the other's. Only the Jacobian
+entries in the union of both engines' supports are compared, packed (``frames.jacobian_packing``;
+MuJoCo's per state, right after its calls).
 
 The compared frames and the Jacobian supports are in ``frames``; ``match_frames`` and
 ``frame_jacobians`` are re-exported here.
@@ -36,6 +37,7 @@ from mbctl.robots.crosscheck.frames import (
     Frames,
     frame_jacobians,
     jacobian_packing,
+    joint_placements_view,
     match_frames,
     mj_support_mask,
     support_mask,
@@ -48,7 +50,6 @@ from mbctl.robots.model_pair import Robot
 __all__ = ["CHUNK_SIZE", "GROUPS", "SINGLES", "Evaluator", "Frames", "frame_jacobians", "match_frames",
            "mj_support_mask", "support_mask"]
 
-#: ``SE3.homogeneous`` called directly: the attribute lookup costs a sixth of the call (31 per state)
 _HOMOGENEOUS = pin.SE3.homogeneous.fget
 
 #: States evaluated between two batched conversions and error reductions: long enough to spread
@@ -124,7 +125,9 @@ class Evaluator:
         self._p_points = np.zeros((chunk, 3, 3))  # com, then hg (linear, angular)
         self._p_M = np.zeros((chunk, nv, nv))
         self._p_Jcom = np.zeros((chunk, 3, nv))
-        self._X_WJ = np.zeros((chunk, self.pm.njoints, 4, 4))
+        # per state the columns of [R_WJ | p_WJ] of every joint, read through one view of pd.oMi
+        self._X_WJ = np.zeros((chunk, self.pm.njoints, 4, 3))
+        self._oMi = joint_placements_view(self.pd)
         self._J_world = np.zeros((chunk, 6, nv))
         # Pinocchio returns (6, nv) and (3, nv) matrices as vectors when nv = 1: write through views.
         self._J_world_out = self._J_world[..., 0] if nv == 1 else self._J_world
@@ -198,7 +201,10 @@ class Evaluator:
         pm, pd = self.pm, self.pd
         X_WJ, J, M, nle, g, com, Jcom, hg, fd, id_ = self._pin_slots[i]
         pin.computeAllTerms(pm, pd, q, v)
-        X_WJ[...] = list(map(_HOMOGENEOUS, pd.oMi.tolist()))
+        if self._oMi is not None:
+            X_WJ[...] = self._oMi
+        else:  # Pinocchio's memory layout is not the one joint_placements_view reads: one by one
+            X_WJ[...] = np.array(list(map(_HOMOGENEOUS, pd.oMi.tolist())))[:, :3].transpose(0, 2, 1)
         J[...] = pd.J
         M[...] = pd.M  # upper triangle; symmetrized per chunk
         nle[...] = pd.nle
@@ -292,7 +298,7 @@ class Evaluator:
         M_flat[:, self._tril_lo] = M_flat.take(self._tril_up, axis=1, out=self._M_upper[:c], mode="clip")
         energies = self._p_energies[:c].copy()
         energies[:, 0] += (self._v * self._v) @ self._half_armature
-        X_WJ_t = self._X_WJ[:c, :, :3].transpose(0, 3, 2, 1)  # (c, 4, 3, njoints)
+        X_WJ_t = self._X_WJ[:c].transpose(0, 2, 3, 1)  # (c, 4, 3, njoints)
         X_t = X_WJ_t.take(self._frame_joint, axis=3, out=self._X_pin[:c], mode="clip")
         X_WF = X_t.transpose(0, 3, 2, 1)  # (c, nf, 3, 4), a view
         if self._moved.size:  # the frames away from their joint: X_WJ X_JF (3 x 4)
