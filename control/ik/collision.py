@@ -9,10 +9,11 @@ point p moving with its body, from the model pair's Pinocchio Jacobians::
 
     J_p dq = v_O + w x p  =>  n^T J_p = [n; p x n]^T J_B
 
-with ``J_B = [v_O; w]`` the WORLD-frame Jacobian of the body's joint (``data.J`` after
-``pin.computeJointJacobians``, restricted to the joints that move the body). Since ``p2 - p1`` is
-along n, ``p2 x n = p1 x n``: one row ``[n; p1 x n]^T data.J`` serves both points, with the dofs
-that move only geom 1 counted +1 and only geom 2 counted -1 (the ones moving both cancel). The limit is the
+with ``J_B = [v_O; w]`` the WORLD-frame Jacobian of the body's joint (``data.J`` after the
+state's update, as ``pin.computeJointJacobians`` leaves it, restricted to the joints that move
+the body). Since ``p2 - p1`` is along n, ``p2 x n = p1 x n``: one row ``[n; p1 x n]^T data.J``
+serves both points, with the dofs that move only geom 1 counted +1 and only geom 2 counted -1
+(the ones moving both cancel). The limit is the
 velocity damper (Kanoun et al.; mink's ``CollisionAvoidanceLimit``)::
 
     -d'(dq) <= gain (d - d_min)    if d > d_min,    -d'(dq) <= 0  otherwise

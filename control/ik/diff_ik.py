@@ -27,7 +27,9 @@ redundant rows for the solver to trip on. Regularisers (posture, damping) belong
 level. One level is the weighted QP above.
 
 ``DiffIK`` preallocates W, r, H, c and the bounds for a fixed task/limit set; one step costs one
-``pin.computeJointJacobians`` + ``pin.updateFramePlacements`` (+ CoM) and one QP per level.
+Pinocchio pass for the joint Jacobians (with the CoM's when a task needs it,
+``pin.jacobianCenterOfMass``; else ``pin.computeJointJacobians``) + ``pin.updateFramePlacements``
+and one QP per level.
 """
 
 from __future__ import annotations
