@@ -158,8 +158,12 @@ class Evaluator:
                                for k, s in enumerate(frames.mj_site_ids, start=nb)]
         self._J_diff = np.zeros((chunk, 6, self._pk_col.size))
         L = self._pk_col.size
-        self._pk_tmp, self._pk_J = np.zeros((chunk, L)), np.zeros((chunk, 6, L))
-        self._pk_p = np.zeros((chunk, 3, L))
+        # The free joints' linear columns come first in the packing; their angular rows are exact
+        # zeros (a translation turns no frame), so the shift to the frame's origin starts after them.
+        self._pk_turn = 3 * sum(F for _, F in self._pk_free)
+        self._pk_J = np.zeros((chunk, 6, L))
+        turned = L - self._pk_turn
+        self._pk_tmp, self._pk_p = np.zeros((chunk, turned)), np.zeros((chunk, 3, turned))
         self._make_slots()
 
     def _make_slots(self) -> None:
@@ -358,13 +362,14 @@ class Evaluator:
         # on which the arithmetic below runs several times slower.
         # mode="clip": with "raise" numpy checks every index and writes through a temporary.
         J = self._J_world[:c].take(self._pk_col, axis=2, out=self._pk_J[:c], mode="clip")  # (c, 6, L)
-        p = p_T.take(self._pk_frame, axis=2, out=self._pk_p[:c], mode="clip")  # (c, 3, L)
-        tmp = self._pk_tmp[:c]
+        t = self._pk_turn  # entries before t have w = 0: v_F = v_O
+        p = p_T.take(self._pk_frame[t:], axis=2, out=self._pk_p[:c], mode="clip")  # (c, 3, L - t)
+        tmp, Jt = self._pk_tmp[:c], J[..., t:]
         for a, b, e in ((0, 1, 2), (1, 2, 0), (2, 0, 1)):  # v_F = v_O - p_WF x w, without temporaries
-            np.multiply(p[:, b], J[:, 3 + e], out=tmp)
-            J[:, a] -= tmp
-            np.multiply(p[:, e], J[:, 3 + b], out=tmp)
-            J[:, a] += tmp
+            np.multiply(p[:, b], Jt[:, 3 + e], out=tmp)
+            Jt[:, a] -= tmp
+            np.multiply(p[:, e], Jt[:, 3 + b], out=tmp)
+            Jt[:, a] += tmp
         if not self._pk_pin_all:  # entries of MuJoCo's chain outside Pinocchio's support
             J *= self._pk_in_pin
         return J
