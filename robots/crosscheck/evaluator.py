@@ -54,8 +54,9 @@ _HOMOGENEOUS = pin.SE3.homogeneous.fget
 
 #: States evaluated between two batched conversions and error reductions: long enough to spread
 #: the cost of the numpy calls per chunk, short enough that the chunk's buffers stay in cache
-#: (measured on the G1: 32 beats 16 and 24; 48 and more are much slower).
-CHUNK_SIZE = 32
+#: (measured on the G1, same process, interleaved: 64 takes 0.97-0.975x the time of 32, 48 0.97-0.99x,
+#: 128 no better; the 2-link arm 0.88x).
+CHUNK_SIZE = 64
 
 #: Quantities kept side by side in one buffer, so that each group costs one set of numpy calls:
 #: generalized forces and accelerations (c, 4, nv), energies (c, 2) and 3-vectors (c, 3, 3).
