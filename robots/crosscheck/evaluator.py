@@ -52,6 +52,11 @@ __all__ = ["CHUNK_SIZE", "GROUPS", "SINGLES", "Evaluator", "Frames", "frame_jaco
 
 _HOMOGENEOUS = pin.SE3.homogeneous.fget
 
+
+def _pin_outputs(pd: pin.Data) -> tuple[np.ndarray, ...]:
+    """``computeAllTerms``'s outputs the cross-check copies: J, M, nle, g, com, Jcom, hg."""
+    return pd.J, pd.M, pd.nle, pd.g, pd.com[0], pd.Jcom, pd.hg.vector
+
 #: States evaluated between two batched conversions and error reductions: long enough to spread
 #: the cost of the numpy calls per chunk, short enough that the chunk's buffers stay in cache
 #: (measured on the G1, same process, interleaved: 64 takes 0.97-0.975x the time of 32, 48 0.97-0.99x,
@@ -183,6 +188,10 @@ class Evaluator:
                        d.qfrc_bias, d.qacc, d.energy,
                        d.subtree_com, d.subtree_linvel, d.subtree_angmom, d.qfrc_inverse)
         self._J_mj_flat = self._J_mj.reshape(-1)
+        # Pinocchio's outputs as views into pd, read once; None when a read returns a copy
+        views = _pin_outputs(self.pd)
+        same = all(a.ctypes.data == b.ctypes.data for a, b in zip(views, _pin_outputs(self.pd), strict=True))
+        self._pd_views = views if same else None
         self._pin_energies: list[tuple[float, float]] = []  # per state of the chunk (kinetic, potential)
         p_vec, m_vec = self._p_vectors, self._m_vectors
         X_all, nb = self._X_all, m.nbody
@@ -210,13 +219,14 @@ class Evaluator:
             X_WJ[...] = self._oMi
         else:  # Pinocchio's memory layout is not the one joint_placements_view reads: one by one
             X_WJ[...] = np.array(list(map(_HOMOGENEOUS, pd.oMi.tolist())))[:, :3].transpose(0, 2, 1)
-        J[...] = pd.J
-        M[...] = pd.M  # upper triangle; symmetrized per chunk
-        nle[...] = pd.nle
-        g[...] = pd.g
-        com[...] = pd.com[0]
-        Jcom[...] = pd.Jcom
-        hg[...] = pd.hg.vector
+        J_, M_, nle_, g_, com_, Jcom_, hg_ = self._pd_views or _pin_outputs(pd)
+        J[...] = J_
+        M[...] = M_  # upper triangle; symmetrized per chunk
+        nle[...] = nle_
+        g[...] = g_
+        com[...] = com_
+        Jcom[...] = Jcom_
+        hg[...] = hg_
         # the rigid bodies' energy from pd.v (the armature's is added per chunk); plain floats,
         # converted once per chunk
         self._pin_energies[i] = (pin.computeKineticEnergy(self._pm_rigid, pd), pd.potential_energy)

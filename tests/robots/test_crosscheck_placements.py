@@ -1,8 +1,9 @@
-"""The cross-check reads Pinocchio's joint placements through one view of ``data.oMi``.
+"""The cross-check reads Pinocchio's outputs through views into its data, made once.
 
-``frames.joint_placements_view`` aliases Pinocchio's memory: these tests hold it to Pinocchio's
-own placements state by state, and the evaluator without it (one SE3 at a time) to the same
-results bit for bit.
+``frames.joint_placements_view`` aliases Pinocchio's memory (all joint placements in one view);
+the evaluator also holds views of ``computeAllTerms``'s matrices. These tests hold the placements
+view to Pinocchio's own placements state by state, and the evaluator without the views (reading
+Pinocchio's attributes per state) to the same results bit for bit.
 """
 
 from __future__ import annotations
@@ -39,13 +40,15 @@ def test_the_view_follows_data_omi_state_by_state(robot):
             np.testing.assert_array_equal(view[j, 3], X.translation)
 
 
-def test_without_the_view_the_results_are_the_same(robot, monkeypatch):
+def test_without_the_views_the_results_are_the_same(robot, monkeypatch):
     m, _ = comparison_model(robot.mj_model, robot.scene_body_ids)
     frames, states = match_frames(robot), sample_states(robot, 12, 3)
     with_view = Evaluator(robot, m, frames, 5).run(states)
+    outputs = evaluator_module._pin_outputs
     monkeypatch.setattr(evaluator_module, "joint_placements_view", lambda data: None)
+    monkeypatch.setattr(evaluator_module, "_pin_outputs", lambda pd: tuple(np.array(x) for x in outputs(pd)))
     evaluator = Evaluator(robot, m, frames, 5)
-    assert evaluator._oMi is None
+    assert evaluator._oMi is None and evaluator._pd_views is None
     without = evaluator.run(states)
     for name, (err, scale) in with_view.items():
         np.testing.assert_array_equal(without[name][0], err)
