@@ -14,7 +14,7 @@ Per run, on the same states (those ``crosscheck`` draws from the run's seed):
 Both are timed in CPU time of the thread (what other processes on a shared machine take is not
 counted) and in wall time (eval also as ``crosscheck`` reports it). It prints the medians and
 ranges over the runs, ``eval/raw : R`` (the median of the per-run CPU-time ratios) and the load
-average before and after. Goals on the G1 (issue 21): eval/raw <= 2.5 and
+average before and after. Goals on the G1: eval/raw <= 2.2 (issue 30; issue 21 asked for 2.5) and
 >= 5,000 states/s on an idle machine. ``--scaling`` prints eval time per state against nv: the
 2-link arm, a 7-DoF arm and a 50-DoF floating robot built in code, and the G1 (CPU time).
 """
@@ -44,7 +44,7 @@ from mbctl.robots.crosscheck.frames import match_frames  # noqa: E402
 from mbctl.robots.crosscheck.plant import comparison_model  # noqa: E402
 from mbctl.robots.crosscheck.sampling import sample_states  # noqa: E402
 
-GOAL_RATIO = 2.5
+GOAL_RATIO = 2.2  # issue 30 (issue 21: 2.5)
 GOAL_STATES_PER_S = 5000.0
 
 
