@@ -57,6 +57,7 @@ def _pin_outputs(pd: pin.Data) -> tuple[np.ndarray, ...]:
     """``computeAllTerms``'s outputs the cross-check copies: J, M, nle, g, com, Jcom, hg."""
     return pd.J, pd.M, pd.nle, pd.g, pd.com[0], pd.Jcom, pd.hg.vector
 
+
 #: States evaluated between two batched conversions and error reductions: long enough to spread
 #: the cost of the numpy calls per chunk, short enough that the chunk's buffers stay in cache
 #: (measured on the G1, same process, interleaved: 64 takes 0.97-0.975x the time of 32, 48 0.97-0.99x,
@@ -184,9 +185,10 @@ class Evaluator:
         self._in_qpos = np.tile(m.qpos0, (chunk, 1))
         self._in_v = np.zeros((3, chunk, m.nv))  # qvel, qfrc_applied, qacc
         self._d_in = (d.qpos, d.qvel, d.qfrc_applied, d.qacc)
+        # MuJoCo's outputs, and per slot (_mj_slots) where each goes, in the same order
         self._d_out = (d.xpos, d.xmat.reshape(-1, 3, 3), d.site_xpos, d.site_xmat.reshape(-1, 3, 3),
-                       d.qfrc_bias, d.qacc, d.energy,
-                       d.subtree_com, d.subtree_linvel, d.subtree_angmom, d.qfrc_inverse)
+                       d.qfrc_bias, d.qacc, d.energy, d.subtree_com, d.subtree_linvel, d.subtree_angmom,
+                       d.qfrc_inverse)
         self._J_mj_flat = self._J_mj.reshape(-1)
         # Pinocchio's outputs as views into pd, read once; None when a read returns a copy
         views = _pin_outputs(self.pd)
@@ -203,8 +205,8 @@ class Evaluator:
         self._mj_slots = [
             ((self._in_qpos[i], self._in_v[0, i], self._in_v[1, i], self._in_v[2, i]),
              (X_all[i, 3, :, :nb].T, X_all[i, :3, :, :nb].T, X_all[i, 3, :, nb:].T, X_all[i, :3, :, nb:].T,
-              m_vec[i, 0],
-              m_vec[i, 2], self._energy[i], self._sub[i, 0], self._sub[i, 1], self._sub[i, 2], m_vec[i, 3]),
+              m_vec[i, 0], m_vec[i, 2], self._energy[i], self._sub[i, 0], self._sub[i, 1], self._sub[i, 2],
+              m_vec[i, 3]),
              self._J_mj_packed[i], self._M_mj[i], m_vec[i, 1],
              [(m, d, self._Jsub[i, k], int(r)) for k, r in enumerate(self.tops)])
             for i in range(chunk)
@@ -254,7 +256,7 @@ class Evaluator:
             s = self.static
             self._pe_static = float(-np.sum(m.body_mass[s] * (d.xipos[s] @ m.opt.gravity)))
             self._pe_static_known = True
-        out, src = outputs, self._d_out
+        out, src = outputs, self._d_out  # see _make_slots for the order
         # whole arrays: a plain copy costs less than picking the frames (all but qfrc_inverse,
         # which is written below, are final after mj_subtreeVel)
         out[0][...] = src[0]
