@@ -5,9 +5,8 @@ rows are its axes in W and its normal points from geom1 to geom2, and the force 
 opposite on geom1). A :class:`ContactSensor` sums, per group of geoms (a foot), the force on the
 group in W, the normal (z) and tangential parts, and the centre of pressure on the ground; a
 :class:`FloorContacts` names the bodies touching the floor. Both look their geoms up in arrays built
-once, and the sensor decodes the contacts' forces from the constraint forces as ``mj_contactForce``
-does (:func:`frame_force`), so a control loop can read them every period for the price of a few
-array reads and plain-float sums over the contacts that concern them.
+once, so a control loop can read them every period for the price of ``mj_contactForce`` on the
+contacts that concern them.
 """
 
 from __future__ import annotations
@@ -48,33 +47,6 @@ class MeasuredContact:
         return float(np.hypot(self.force_W[0], self.force_W[1]))
 
 
-def frame_force(efc_force: list[float], address: int, dim: int, friction: list[float],
-                elliptic: bool) -> tuple[float, float, float]:
-    """One contact's force in its contact frame (normal, tangent 1, tangent 2) [N], as ``mj_contactForce``.
-
-    Decoded from the constraint forces (``efc_force`` as a list) as MuJoCo does: an elliptic cone's
-    (or a frictionless contact's) are the force itself; a pyramid's 2 (dim - 1) edge forces sum to
-    the normal force, and the tangential ones are ``mu_j (f_2j - f_2j+1)``. Zero for an excluded
-    contact (no constraint rows). For a loop over contacts in plain floats (see ``sums``).
-
-    Args:
-        efc_force: ``data.efc_force.tolist()``.
-        address: The contact's ``efc_address``.
-        dim: Its ``dim`` (1, 3, 4 or 6).
-        friction: Its ``friction`` (5,), as a list.
-        elliptic: Whether the model's friction cone is elliptic.
-    """
-    if address < 0:
-        return 0.0, 0.0, 0.0
-    if dim == 1:
-        return efc_force[address], 0.0, 0.0
-    if elliptic:
-        return efc_force[address], efc_force[address + 1], efc_force[address + 2]
-    edges = efc_force[address:address + 2 * (dim - 1)]
-    return (sum(edges), friction[0] * (edges[0] - edges[1]),
-            friction[1] * (edges[2] - edges[3]) if dim > 2 else 0.0)
-
-
 class ContactSensor:
     """Measures the contact force on named groups of geoms from an ``MjData``'s current contacts.
 
@@ -93,6 +65,7 @@ class ContactSensor:
         for k, geoms in enumerate(groups.values()):
             self._owner[np.asarray(list(geoms), dtype=int)] = k
         self._owner_list = self._owner.tolist()
+        self._f6 = np.zeros(6)
 
     def sums(self, data: mujoco.MjData, geoms: list[list[int]] | None = None) -> list[list[float]]:
         """Per group, in ``names`` order: ``[fx, fy, fz, fz x, fz y, n]``, plain Python numbers.
@@ -110,26 +83,23 @@ class ContactSensor:
         if not ncon:
             return acc
         contact = data.contact
-        owner = self._owner_list
-        elliptic = self.model.opt.cone == mujoco.mjtCone.mjCONE_ELLIPTIC
+        owner, f6, model, contact_force = self._owner_list, self._f6, self.model, mujoco.mj_contactForce
         # each array's rows to Python once, when a contact concerns a group
         frames: list[list[float]] = []
+        positions: list[list[float]] = []
         # plain Python floats: with a handful of contacts (the G1's 8), per-contact arithmetic on floats
         # costs less than numpy: a vectorised version (one gather of efc_force, the pyramids decoded,
-        # the frames applied by one matmul, the groups summed by one product) took 19 us against a loop
-        # of mj_contactForce's 17 on the G1 standing, and 29 against 17 right after a step as in a
-        # control loop (numpy's ~1 us per call on these small arrays); this loop decodes the
-        # constraint forces as mj_contactForce does (the same sums, bit for bit: 13.5 us against its
-        # 22.6 after a step), as MuJoCo has no call that returns all contacts' forces at once
+        # the frames applied by one matmul, the groups summed by one product) took 19 us against this
+        # loop's 17 on the G1 standing, and 29 against 17 right after a step as in a control loop
+        # (numpy's ~1 us per call on these small arrays)
         for i, (g1, g2) in enumerate(contact.geom.tolist() if geoms is None else geoms):
             k1, k2 = owner[g1], owner[g2]
             if k1 < 0 and k2 < 0:
                 continue
             if not frames:
                 frames, positions = contact.frame.tolist(), contact.pos.tolist()
-                address, dims = contact.efc_address.tolist(), contact.dim.tolist()
-                mu, efc = contact.friction.tolist(), data.efc_force.tolist()
-            fn, t1, t2 = frame_force(efc, address[i], dims[i], mu[i], elliptic)
+            contact_force(model, data, i, f6)
+            fn, t1, t2 = f6[:3].tolist()
             r = frames[i]  # rows: the contact frame's axes in W; f_W = frame^T f
             fx = r[0] * fn + r[3] * t1 + r[6] * t2
             fy = r[1] * fn + r[4] * t1 + r[7] * t2

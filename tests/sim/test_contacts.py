@@ -6,7 +6,7 @@ import mujoco
 import numpy as np
 import pytest
 
-from mbctl.sim.contacts import ContactSensor, frame_force, measure_contacts, touching
+from mbctl.sim.contacts import measure_contacts, touching
 from mbctl.sim.exceptions import SimError
 from mbctl.sim.perturb import Push, PushSchedule
 
@@ -127,31 +127,3 @@ def test_contact_wrenches_and_contacts_elsewhere():
     np.testing.assert_allclose(wrench[0, :3], [0, 0, 2 * 9.81], atol=1e-2)
     np.testing.assert_allclose(wrench[0, 3:], 0.0, atol=1e-3)
     assert contacts_elsewhere(m, d, [box, m.body("ball").id], [box_geom]) == 1  # the ball on the floor
-
-
-@pytest.mark.parametrize("cone", ["pyramidal", "elliptic"])
-@pytest.mark.parametrize("condim", [1, 3, 4, 6])
-def test_frame_force_is_mj_contact_force_for_every_cone_and_condim(cone, condim):
-    """The decoded force is MuJoCo's on a sliding, spinning box, for every contact (to ~1 ulp)."""
-    m = mujoco.MjModel.from_xml_string(BOX.replace('<option timestep="0.002"/>',
-                                                   f'<option timestep="0.002" cone="{cone}"/>')
-                                       .replace('type="sphere" size="0.01"',
-                                                f'type="sphere" size="0.01" condim="{condim}"')
-                                       .replace('type="plane"', f'type="plane" condim="{condim}"'))
-    d = mujoco.MjData(m)
-    mujoco.mj_step(m, d, 1500)
-    d.qvel[:6] = (0.3, -0.2, 0.0, 0.0, 0.0, 2.0)  # sliding and spinning: friction at work
-    mujoco.mj_step(m, d, 2)
-    assert d.ncon >= 3
-    efc, elliptic = d.efc_force.tolist(), cone == "elliptic"
-    f6, tangential = np.zeros(6), 0.0
-    for i in range(d.ncon):
-        c = d.contact[i]
-        mujoco.mj_contactForce(m, d, i, f6)
-        got = frame_force(efc, int(c.efc_address), int(c.dim), c.friction.tolist(), elliptic)
-        np.testing.assert_allclose(got, f6[:3], rtol=1e-14, atol=1e-12)
-        tangential += abs(f6[1]) + abs(f6[2])
-    assert (tangential > 0.1) == (condim > 1)  # the tangential part is exercised where there is one
-    assert frame_force(efc, -1, 3, [1.0] * 5, False) == (0.0, 0.0, 0.0)
-    feet = [mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_GEOM, f"c{i}") for i in range(4)]
-    assert ContactSensor(m, {"box": feet}).sums(d)[0][2] > 0.0
