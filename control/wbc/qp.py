@@ -61,6 +61,8 @@ FEASIBILITY_TOL = 1e-9
 #: still count as the whole QP's (daqp's own primal tolerance).
 DEFERRED_TOL = 1e-6
 
+_max = np.maximum.reduce
+
 #: Relative pivot [-] below which an equality row counts as dependent on the others (in the
 #: metric of ``E H^-1 E^T``).
 RANK_RTOL = 1e-10
@@ -268,8 +270,9 @@ class WholeBodyQP:
         """Whether ``x`` satisfies every bound and inequality row to ``tol``."""
         xg = self._xg
         xg[:self.n_x] = x
-        np.matmul(self.G, x, out=xg[self.n_x:])
-        return bool(np.subtract(self._lo, xg).max() <= tol and np.subtract(xg, self._up).max() <= tol)
+        np.dot(self.G, x, out=xg[self.n_x:])
+        # np.maximum.reduce: ndarray.max's Python wrapper left out
+        return bool(_max(np.subtract(self._lo, xg)) <= tol and _max(np.subtract(xg, self._up)) <= tol)
 
     def _daqp(self, eq_rows: np.ndarray, dropped: int) -> tuple[QPResult, bool]:
         """The QP by daqp, with the equality rows ``eq_rows`` (the first ones if ``dropped`` is 0).
