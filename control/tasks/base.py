@@ -305,6 +305,13 @@ class Task(abc.ABC):
         raise TaskSetupError(f"{self.name}: {type(self).__name__} has no acceleration-level form "
                              "(use it in differential IK only)")
 
+    def _acceleration_scratch(self) -> np.ndarray:
+        """A (k,) buffer of this task's for the temporaries of its acceleration rows (made on first use)."""
+        buf = self.__dict__.get("_acceleration_buffer")
+        if buf is None:
+            buf = self.__dict__["_acceleration_buffer"] = np.zeros(self.k)
+        return buf
+
     def write_acceleration_rows(self, state: DynamicsState, W_t: np.ndarray, r_t: np.ndarray) -> None:
         """Fill this task's acceleration-level rows in place.
 

@@ -122,7 +122,12 @@ class ComTask(Task):
         np.subtract(self._target, state.com(), out=r_t)
         r_t *= self._kp
         r_t += self.a_ref
-        r_t += self._kd * (self.v_ref - J @ state.v)
+        # kd (v_ref - J v) in the task's buffer: np.dot with out, no temporaries (the same values)
+        tmp = self._acceleration_scratch()
+        np.dot(J, state.v, out=tmp)
+        np.subtract(self.v_ref, tmp, out=tmp)
+        tmp *= self._kd
+        r_t += tmp
         r_t -= state.com_drift()
         r_t *= self._cost
 

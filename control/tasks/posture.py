@@ -126,7 +126,9 @@ class PostureTask(DiagonalTask):
         """``-kp e - kd v`` (nv,), the free flyer's entries left as they are (the mask drops them)."""
         a = self.masked_error(state)
         a *= -self._kp
-        a -= self._kd * state.v
+        tmp = self._acceleration_scratch()  # kd v, without a temporary
+        np.multiply(state.v, self._kd, out=tmp)
+        a -= tmp
         return a
 
     def residual(self, state: TaskState) -> TaskResidual:

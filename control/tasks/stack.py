@@ -104,8 +104,8 @@ class TaskStack:
         """``H = W^T W``, ``c = -W^T r`` from the filled rows; returns H's diagonal (a writable view)."""
         W = self._W
         if W.shape[0]:
-            np.matmul(W.T, W, out=H)
-            np.matmul(self._r, W, out=c)
+            np.matmul(W.T, W, out=H)  # (BLAS syrk: a gemm on a copy of W^T would differ in the last bit)
+            np.dot(self._r, W, out=c)  # ~0.4 us less than np.matmul (the same product)
             np.negative(c, out=c)
         else:
             H.fill(0.0)
