@@ -61,7 +61,8 @@ FEASIBILITY_TOL = 1e-9
 #: still count as the whole QP's (daqp's own primal tolerance).
 DEFERRED_TOL = 1e-6
 
-_max = np.maximum.reduce
+# the ufuncs' reductions: ndarray.max and .min's Python wrappers left out (~0.3 us a call)
+_max, _min = np.maximum.reduce, np.minimum.reduce
 
 #: Relative pivot [-] below which an equality row counts as dependent on the others (in the
 #: metric of ``E H^-1 E^T``).
@@ -185,7 +186,7 @@ class WholeBodyQP:
             return QPResult(None, CONTRADICTORY, 0, 0.0)
         free = self._free_f
         np.copyto(free, self.force_free)
-        self._pinned = bool(free.min() == 0.0)
+        self._pinned = bool(_min(free) == 0.0)
         if self._skip_fast:
             result, self._skip_fast = self._daqp(self._rows[:m_eq], 0)
             if result.x is not None:
@@ -247,9 +248,9 @@ class WholeBodyQP:
         rhs += e  # e + E H^-1 c
         # S: a plain Cholesky when E has full row rank (pivots well above round-off), else a
         # pivoted one, whose rank is E's and whose pivots pick independent rows
-        scale = max(float(S.diagonal().max()), 1e-300)
+        scale = max(float(_max(S.diagonal())), 1e-300)
         Ls, y, info = dposv(S, rhs, lower=1)  # y = -lambda
-        if info == 0 and float(Ls.diagonal().min()) ** 2 > RANK_RTOL * scale:
+        if info == 0 and float(_min(Ls.diagonal())) ** 2 > RANK_RTOL * scale:
             rows = all_rows
             X_rows, F_rows = X[:, :m_eq], F
         else:
@@ -271,7 +272,6 @@ class WholeBodyQP:
         xg = self._xg
         xg[:self.n_x] = x
         np.dot(self.G, x, out=xg[self.n_x:])
-        # np.maximum.reduce: ndarray.max's Python wrapper left out
         return bool(_max(np.subtract(self._lo, xg)) <= tol and _max(np.subtract(xg, self._up)) <= tol)
 
     def _daqp(self, eq_rows: np.ndarray, dropped: int) -> tuple[QPResult, bool]:
