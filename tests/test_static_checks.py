@@ -37,7 +37,8 @@ def test_every_package_is_in_pyprojects_list():
     listed = set(tomllib.loads((ROOT / "pyproject.toml").read_text())["tool"]["setuptools"]["packages"])
     skip = {"tests", "bench", "examples", "docs", ".venv", "build"}
     found = {"mbctl." + ".".join(p.parent.relative_to(ROOT).parts) if p.parent != ROOT else "mbctl"
-             for p in ROOT.rglob("__init__.py") if not skip & set(p.relative_to(ROOT).parts)}
+             for p in ROOT.rglob("__init__.py") if not skip & set(p.relative_to(ROOT).parts)
+             and not p.relative_to(ROOT).parts[0].startswith(".")}  # hidden: .venv, a TSID build in .tsid
     assert found - listed == set(), "add these to [tool.setuptools] packages"
     assert listed - found == set(), "these packages do not exist"
 
