@@ -176,21 +176,10 @@ class WholeBodyController:
                                 for i, (name, cs) in enumerate(self.contacts.items()))
         self._GT_neg = -self._G_blk.T  # (negation is exact: the same products as -(G_blk J_F))
         self._foot_v = np.zeros(6 * n_feet)  # J_F v of each foot
-        # M from Pinocchio's upper triangle (data.M, written in place) and its transpose, another buffer:
-        # no temporary for an overlap (DynamicsState.M mirrors within one buffer: ~2x as long)
-        self._M_upper = self.state.data.M
-        self._M_full = np.zeros((nv, nv))
-        self._M_lower = np.tril(np.ones((nv, nv), dtype=bool), -1)
         self._H_vv_diag = np.einsum("ii->i", qp.H_vv)  # a writable view of its diagonal
         self._limits = self._joint_limits()
         self._n_limits = len(self._limits[0])
         self._limit_iv, self._limit_iq = as_slice(self._limits[0]), as_slice(self._limits[1])
-        # with slices: the limited joints' v and q, their bounds and a buffer, as views held once (the
-        # state's v and q and the QP's bounds are written in place, never rebound)
-        self._limit_views: tuple[np.ndarray, ...] | None = None
-        if self._n_limits and isinstance(self._limit_iv, slice) and isinstance(self._limit_iq, slice):
-            self._limit_views = (self.state.v[self._limit_iv], self.state.q[self._limit_iq],
-                                 qp.lb[self._limit_iv], qp.ub[self._limit_iv], np.zeros(self._n_limits))
         self.config = self._config  # the setter derives the config's terms
         self._stack = TaskStack(nv)
         self.last: WBCSolution | None = None
@@ -388,9 +377,7 @@ class WholeBodyController:
                     qp.E[m_eq:m_eq + 6, :nv] = JF[6 * i:6 * i + 6]
                     qp.e[m_eq:m_eq + 6] = err[6 * i:6 * i + 6]
                     m_eq += 6
-        M, b = self._M_full, s.b
-        np.copyto(M, self._M_upper)
-        np.copyto(M, self._M_upper.T, where=self._M_lower)
+        M, b = s.M, s.b
         u, a = self._u, self._a
         dyn = qp.E[:self._n_unact]
         dyn[:, :nv] = M[u]
@@ -408,23 +395,20 @@ class WholeBodyController:
         # for a limit must decelerate (the bound turns positive), at most by the accel cap A, so
         # that lb <= ub and the bounds stay feasible under the torque limits
         iv, iq, lo_scaled, hi_scaled = self._limit_iv, self._limit_iq, self._limit_lo, self._limit_hi
-        if self._limit_views is not None:  # the same operations on the views held once
-            v_lim, q_lim, lo, hi, shift = self._limit_views
+        if self._n_limits:
             Th = cfg.joint_limit_horizon_s
-            np.multiply(v_lim, Th, out=shift)
-            shift += q_lim  # where the joints coast to in Th
+            shift = s.v[iv] * Th
+            shift += s.q[iq]  # where the joints coast to in Th
             shift *= -2.0 / Th**2
             cap = cfg.joint_limit_max_accel_rad_s2
             # (q_lim -+ margin - reach) 2 / Th^2, capped
-            np.minimum(np.add(lo_scaled, shift, out=lo), cap, out=lo)
-            np.maximum(np.add(hi_scaled, shift, out=hi), -cap, out=hi)
-        elif self._n_limits:  # index arrays: the same on copies
-            Th, cap = cfg.joint_limit_horizon_s, cfg.joint_limit_max_accel_rad_s2
-            shift = s.v[iv] * Th
-            shift += s.q[iq]
-            shift *= -2.0 / Th**2
-            lb[iv] = np.minimum(lo_scaled + shift, cap)
-            ub[iv] = np.maximum(hi_scaled + shift, -cap)
+            if isinstance(iv, slice):  # views: written in place
+                lo, hi = lb[iv], ub[iv]
+                np.minimum(np.add(lo_scaled, shift, out=lo), cap, out=lo)
+                np.maximum(np.add(hi_scaled, shift, out=hi), -cap, out=hi)
+            else:
+                lb[iv] = np.minimum(lo_scaled + shift, cap)
+                ub[iv] = np.maximum(hi_scaled + shift, -cap)
         t_qp = time.perf_counter()
         result = self._solve(m_eq)
         if result.x is None and cfg.relax_joint_limits and self._n_limits:
