@@ -337,7 +337,7 @@ class WholeBodyController:
         JF, err, drift = self._JF, self._foot_err, self._foot_drift
         poses = {}
         all_active = True
-        model, data, LOCAL = self.model, s.data, pin.LOCAL
+        LOCAL = pin.LOCAL
         for name, cs, JF_rows, err_rows, drift_rows in self._foot_rows:
             X_WF = s.frame_pose(cs.fid)
             poses[name] = pin.SE3(X_WF)  # a copy: the state's is overwritten by the next update
@@ -350,8 +350,7 @@ class WholeBodyController:
                 self._bound_weight[name] = cs.weight
             if cs.active:
                 err_rows[:] = pin.log6(X_WF.actInv(cs.X_WF0)).vector
-                # s.frame_drift(fid, LOCAL) without its dispatch on the reference
-                drift_rows[:] = pin.getFrameAcceleration(model, data, cs.fid, LOCAL).vector
+                drift_rows[:] = s.frame_drift(cs.fid, LOCAL)
             else:  # no row for this foot (zeros: err is scaled in place every cycle)
                 err_rows[:] = 0.0
                 drift_rows[:] = 0.0
