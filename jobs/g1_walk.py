@@ -57,8 +57,8 @@ from mbctl.jobs.plant import Plant, PlantOptions, dry_run, plant_lines, prepare_
 from mbctl.jobs.runner import Job, Outcome, RunContext, Work
 from mbctl.jobs.truth import read_truth, truth_at_ticks
 from mbctl.planners import VelocityCommand
-from mbctl.robots.edits import position_to_motor, scale_masses
-from mbctl.robots.g1 import FEET, G1_FALL, KEYFRAME, PELVIS, TORSO, crouched_start, with_palm_sites
+from mbctl.robots.edits import scale_masses
+from mbctl.robots.g1 import FEET, G1_FALL, KEYFRAME, PELVIS, TORSO, crouched_start, whole_body_g1
 from mbctl.robots.model_pair import Robot
 from mbctl.robots.registry import load_robot
 from mbctl.sim.monitor import PlantMonitor
@@ -234,11 +234,12 @@ def g1_walker(robot: Robot, start_q: np.ndarray, pin_model: pin.Model | None = N
 
 
 def prepare(params: WalkParams, robot: Robot | None = None) -> Work:
-    """Load the G1 (or take ``robot``, a Menagerie G1) in torque mode with palm sites (no output yet)."""
-    def edit(r: Robot) -> Robot:
-        return position_to_motor(with_palm_sites(r))
+    """Load the G1 (or take ``robot``, a Menagerie G1) as the whole-body jobs run it (no output yet).
 
-    models = build_models(edit(robot or load_robot("g1", model_dir=params.model_dir)), params.models, edit)
+    Torque mode, palm sites, foot contact sensors: :func:`~mbctl.robots.g1.whole_body_g1`.
+    """
+    g1 = robot or load_robot("g1", model_dir=params.model_dir)
+    models = build_models(whole_body_g1(g1), params.models, whole_body_g1)
     robot = models.plant
     pin_model = models.controller_model
     if params.model_error:

@@ -319,6 +319,73 @@ def add_payload(robot: Robot, mass_kg: float, body: str, offset_m: Iterable[floa
                             f"(body frame), body {name}", mj_edit=edit)
 
 
+#: What a contact sensor of :func:`add_contact_sensors` reports (MuJoCo's ``mjtConDataField`` bits):
+#: the number of contacts, the net force [N] and the net moment [N m] about the contacts'
+#: force-weighted centroid, and that centroid [m], world axes (10 values).
+CONTACT_SENSOR_DATA = ("found", "force", "torque", "pos")
+#: MuJoCo's contact-sensor reduction that merges a body's contacts into one net contact.
+NETFORCE = 3
+
+
+def contact_data_bit(field: str) -> int:
+    """MuJoCo's bit of a contact sensor's data field (``"found"``, ``"force"``, ...: ``mjtConDataField``)."""
+    return int(getattr(mujoco.mjtConDataField, f"mjCONDATA_{field.upper()}"))
+
+
+def contact_sensor_name(body: str) -> str:
+    """The name :func:`add_contact_sensors` gives the contact sensor of ``body``."""
+    return f"{body}_contact"
+
+
+def add_contact_sensors(robot: Robot, bodies: Iterable[str]) -> Robot:
+    """Add one MuJoCo contact sensor per body: the net contact force and moment on it, every step.
+
+    Each sensor (``<contact body1=BODY reduce="netforce" data="found force torque pos"/>``) makes
+    MuJoCo itself sum the body's contacts during the step's forward pass (in C), so a monitor that
+    reads the force on a foot every control period (:class:`mbctl.sim.contacts.ContactSensor`) reads
+    10 numbers instead of looping over the contacts in Python. The physics is unchanged; Pinocchio's
+    model too (sensors are MuJoCo's only).
+
+    Args:
+        robot: The robot to extend (unchanged).
+        bodies: Robot bodies (e.g. the feet); idempotent for a body that has the sensor already.
+
+    Returns:
+        A new Robot whose ``source.edits`` records the sensors (the same robot if none is new).
+
+    Raises:
+        UnknownNameError: A body that is not the robot's.
+        RobotError: A sensor of another kind holds the name :func:`contact_sensor_name` gives.
+    """
+    m = robot.mj_model
+    new = []
+    for body in bodies:
+        robot.body_id(body)  # UnknownNameError with close matches
+        name = contact_sensor_name(body)
+        sid = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_SENSOR, name)
+        if sid >= 0:
+            if int(m.sensor_type[sid]) != int(mujoco.mjtSensor.mjSENS_CONTACT):
+                raise RobotError(f"{robot.name!r} has a sensor called {name!r} that is not a contact sensor")
+            continue
+        new.append(body)
+    if not new:
+        return robot
+    fields = sum(1 << contact_data_bit(f) for f in CONTACT_SENSOR_DATA)
+
+    def mj_edit(spec: mujoco.MjSpec) -> None:
+        for body in new:
+            sensor = spec.add_sensor()
+            sensor.name = contact_sensor_name(body)
+            sensor.type = mujoco.mjtSensor.mjSENS_CONTACT
+            sensor.objtype = mujoco.mjtObj.mjOBJ_BODY
+            sensor.objname = body
+            sensor.intprm[0] = fields  # the data fields, as bits
+            sensor.intprm[1] = NETFORCE  # one net contact
+            sensor.intprm[2] = 1  # one slot
+
+    return robot.with_edits(f"contact sensors (net force) on {', '.join(new)} (MjSpec add_sensor)", mj_edit)
+
+
 def standalone_xml(robot: Robot, spec: mujoco.MjSpec | None = None) -> str:
     """The MJCF of ``robot`` (or of ``spec``, an edited copy of its spec), loadable from any folder.
 

@@ -11,6 +11,7 @@ contacts that concern them.
 
 from __future__ import annotations
 
+import math
 from collections.abc import Iterable, Iterator, Mapping, Sequence
 from dataclasses import dataclass
 from typing import TypeVar
@@ -18,7 +19,12 @@ from typing import TypeVar
 import mujoco
 import numpy as np
 
+from mbctl.robots.edits import CONTACT_SENSOR_DATA, NETFORCE, contact_data_bit
+
 _K = TypeVar("_K")
+_SENSOR_OFF = int(mujoco.mjtDisableBit.mjDSBL_SENSOR)
+#: The sizes of a contact sensor's data fields, in MuJoCo's order (``mjtConDataField``).
+_FIELD_SIZES = (1, 3, 3, 1, 3, 3, 3)
 
 
 @dataclass(frozen=True)
@@ -53,6 +59,17 @@ class ContactSensor:
     Read it right after ``mj_step`` for the forces applied during that step (the contacts and
     their forces are those of the step's forward pass).
 
+    Where a group is the colliding geoms of one body and the model has that body's net-force
+    contact sensor (:func:`mbctl.robots.edits.add_contact_sensors`), MuJoCo has summed the group's
+    contacts during the step (in C) and the sums are read from ``sensordata``; otherwise a loop
+    over the contacts (``mj_contactForce``) sums them. Both give the same numbers (to rounding).
+
+    The centre of pressure is where the contacts' moment has no horizontal part, on the horizontal
+    plane through their force-weighted centroid (the |f|-weighted contact positions, the point
+    MuJoCo's net-force sensor reports): the z-force-weighted contact positions when the contacts
+    lie in one horizontal plane (a flat floor); off it, by about the contacts' height spread times
+    their tangential-to-normal force ratio (a few micrometres for a G1 foot on the floor).
+
     Args:
         model: The compiled model.
         groups: Geom ids per group name (a geom in two groups counts for the last).
@@ -66,33 +83,74 @@ class ContactSensor:
             self._owner[np.asarray(list(geoms), dtype=int)] = k
         self._owner_list = self._owner.tolist()
         self._f6 = np.zeros(6)
+        #: The sensordata indices of each group's net-force sensor (10 a group), or None: the loop.
+        self.sensor_index = _net_force_sensors(model, self._owner, len(self.names))
 
-    def sums(self, data: mujoco.MjData, geoms: list[list[int]] | None = None) -> list[list[float]]:
-        """Per group, in ``names`` order: ``[fx, fy, fz, fz x, fz y, n]``, plain Python numbers.
+    @property
+    def from_sensors(self) -> bool:
+        """Whether the sums come from MuJoCo's contact sensors (now: sensors not disabled)."""
+        return self.sensor_index is not None and not self.model.opt.disableflags & _SENSOR_OFF
 
-        The force on the group (3,) [N] in W, its fz-weighted contact positions x, y [N m] (the CoP is
-        their ratio to fz) and the number of active contacts: what :meth:`measure` reports, without
-        its arrays and objects (a control loop reads these every period).
+    def net(self, data: mujoco.MjData, geoms: list[list[int]] | None = None) -> list[float]:
+        """Each group's net contact, 10 plain numbers a group in ``names`` order (MuJoCo's sensor layout).
+
+        Per group: the number of contacts; the force (3,) [N] and the moment (3,) [N m] about the
+        contacts' force-weighted centroid that the group exerts on what it touches (minus those on
+        it), world axes; that centroid (3,) [m]. From MuJoCo's net-force sensors when the model has
+        them (one read), else summed over the contacts. :meth:`sums_from` turns it into sums.
 
         Args:
             data: Right after ``mj_step``.
             geoms: ``data.contact.geom.tolist()`` if the caller read it already (one read per period).
         """
-        acc = [[0.0, 0.0, 0.0, 0.0, 0.0, 0] for _ in self.names]
-        ncon = data.ncon
-        if not ncon:
-            return acc
+        if self.sensor_index is not None and not self.model.opt.disableflags & _SENSOR_OFF:
+            return data.sensordata.take(self.sensor_index).tolist()
+        return self.loop_net(data, geoms)
+
+    def loop_net(self, data: mujoco.MjData, geoms: list[list[int]] | None = None) -> list[float]:
+        """:meth:`net` summed over the contacts (``mj_contactForce`` on each of a group), sensors or not."""
+        acc = [[0.0] * 10 + [0] for _ in self.names]  # F (3), |f|, |f| p (3), p x f (3), count
+        if data.ncon:
+            self._accumulate(data, acc, data.contact.geom.tolist() if geoms is None else geoms)
+        out: list[float] = []
+        for fx, fy, fz, w, wx, wy, wz, mx, my, mz, n in acc:
+            px, py, pz = (wx / w, wy / w, wz / w) if w > 0.0 else (0.0, 0.0, 0.0)
+            # the moment about the centroid p: M_p = M_0 - p x F
+            out += (n, -fx, -fy, -fz, -(mx - (py * fz - pz * fy)), -(my - (pz * fx - px * fz)),
+                    -(mz - (px * fy - py * fx)), px, py, pz)
+        return out
+
+    def sums_from(self, net: Sequence[float]) -> list[list[float]]:
+        """:meth:`sums` from a period's :meth:`net` (read then, converted now)."""
+        out = []
+        for k in range(0, len(net), 10):
+            # fz * CoP = fz p + (horizontal moment about p) x z, from what the group exerts
+            n, fx, fy, fz, nx, ny, _, px, py, _ = net[k:k + 10]
+            out.append([-fx, -fy, -fz, ny - fz * px, -nx - fz * py, int(n)])
+        return out
+
+    def sums(self, data: mujoco.MjData, geoms: list[list[int]] | None = None) -> list[list[float]]:
+        """Per group, in ``names`` order: ``[fx, fy, fz, fz x, fz y, n]``, plain Python numbers.
+
+        The force on the group (3,) [N] in W, fz times the centre of pressure's x, y [N m] (the CoP
+        is their ratio to fz) and the number of active contacts: what :meth:`measure` reports, without
+        its arrays and objects.
+
+        Args:
+            data: Right after ``mj_step``.
+            geoms: ``data.contact.geom.tolist()`` if the caller read it already (one read per period).
+        """
+        return self.sums_from(self.net(data, geoms))
+
+    def _accumulate(self, data: mujoco.MjData, acc: list[list], geoms: list[list[int]]) -> None:
         contact = data.contact
         owner, f6, model, contact_force = self._owner_list, self._f6, self.model, mujoco.mj_contactForce
         # each array's rows to Python once, when a contact concerns a group
         frames: list[list[float]] = []
         positions: list[list[float]] = []
-        # plain Python floats: with a handful of contacts (the G1's 8), per-contact arithmetic on floats
-        # costs less than numpy: a vectorised version (one gather of efc_force, the pyramids decoded,
-        # the frames applied by one matmul, the groups summed by one product) took 19 us against this
-        # loop's 17 on the G1 standing, and 29 against 17 right after a step as in a control loop
-        # (numpy's ~1 us per call on these small arrays)
-        for i, (g1, g2) in enumerate(contact.geom.tolist() if geoms is None else geoms):
+        # plain Python floats: with a handful of contacts, per-contact arithmetic on floats costs less
+        # than numpy (~1 us per call on these small arrays)
+        for i, (g1, g2) in enumerate(geoms):
             k1, k2 = owner[g1], owner[g2]
             if k1 < 0 and k2 < 0:
                 continue
@@ -104,29 +162,73 @@ class ContactSensor:
             fx = r[0] * fn + r[3] * t1 + r[6] * t2
             fy = r[1] * fn + r[4] * t1 + r[7] * t2
             fz = r[2] * fn + r[5] * t1 + r[8] * t2
-            px, py = positions[i][0], positions[i][1]
-            # the force acts on geom2, the opposite on geom1; acc: f (3), fz-weighted x, y, count
-            if k2 >= 0:
-                a = acc[k2]
-                a[0] += fx
-                a[1] += fy
-                a[2] += fz
-                a[3] += fz * px
-                a[4] += fz * py
-                a[5] += 1
-            if k1 >= 0:
-                a = acc[k1]
-                a[0] -= fx
-                a[1] -= fy
-                a[2] -= fz
-                a[3] -= fz * px
-                a[4] -= fz * py
-                a[5] += 1
-        return acc
+            px, py, pz = positions[i]
+            w = math.sqrt(fn * fn + t1 * t1 + t2 * t2)
+            mx, my, mz = py * fz - pz * fy, pz * fx - px * fz, px * fy - py * fx  # p x f
+            # the force acts on geom2, the opposite on geom1
+            for k, sign in ((k2, 1.0), (k1, -1.0)):
+                if k >= 0:
+                    a = acc[k]
+                    a[0] += sign * fx
+                    a[1] += sign * fy
+                    a[2] += sign * fz
+                    a[3] += w
+                    a[4] += w * px
+                    a[5] += w * py
+                    a[6] += w * pz
+                    a[7] += sign * mx
+                    a[8] += sign * my
+                    a[9] += sign * mz
+                    a[10] += 1
 
     def measure(self, data: mujoco.MjData) -> dict[str, MeasuredContact]:
         """Force, CoP and contact count on each group."""
         return measured(self.names, self.sums(data))
+
+
+def _net_force_sensors(model: mujoco.MjModel, owner: np.ndarray, n_groups: int) -> np.ndarray | None:
+    """The sensordata indices (10 a group) of each group's net-force contact sensor, or None.
+
+    A group qualifies when it holds every geom of one body that can collide (contype, conaffinity
+    or an explicit pair) and the model has a contact sensor on that body alone (``body1``, any
+    other side, no cutoff) with ``reduce="netforce"`` and at least the fields found, force, torque
+    and pos. None unless every group qualifies.
+    """
+    sensors = np.flatnonzero(model.sensor_type == int(mujoco.mjtSensor.mjSENS_CONTACT))
+    if not n_groups or not sensors.size:
+        return None
+    paired = set(model.pair_geom1.tolist()) | set(model.pair_geom2.tolist())
+    collides = [bool(model.geom_contype[g] or model.geom_conaffinity[g]) or g in paired
+                for g in range(model.ngeom)]
+    bits = [contact_data_bit(f) for f in CONTACT_SENSOR_DATA]
+    body_type = int(mujoco.mjtObj.mjOBJ_BODY)
+    index = []
+    for k in range(n_groups):
+        geoms = np.flatnonzero(owner == k)
+        bodies = set(model.geom_bodyid[geoms].tolist())
+        if len(bodies) != 1:
+            return None
+        body = bodies.pop()
+        others = [g for g in np.flatnonzero(model.geom_bodyid == body) if owner[g] != k]
+        if any(collides[g] for g in others):
+            return None
+        found = None
+        for s in sensors:
+            fields, reduce = int(model.sensor_intprm[s, 0]), int(model.sensor_intprm[s, 1])
+            if (int(model.sensor_objtype[s]) == body_type and int(model.sensor_objid[s]) == body
+                    and int(model.sensor_refid[s]) < 0 and reduce == NETFORCE and model.sensor_cutoff[s] == 0
+                    and all(fields >> b & 1 for b in bits)):
+                found = s
+                break
+        if found is None:
+            return None
+        fields = int(model.sensor_intprm[found, 0])
+        offsets = np.cumsum([0, *(size if fields >> b & 1 else 0 for b, size in enumerate(_FIELD_SIZES))])
+        adr = int(model.sensor_adr[found])
+        found_at, force_at, torque_at, pos_at = (adr + int(offsets[b]) for b in bits)
+        index += [found_at, *range(force_at, force_at + 3), *range(torque_at, torque_at + 3),
+                  *range(pos_at, pos_at + 3)]
+    return np.array(index, dtype=int)
 
 
 def measured(names: Sequence[str], sums: Sequence[Sequence[float]]) -> dict[str, MeasuredContact]:

@@ -16,6 +16,7 @@ the contacts on the robot elsewhere.
 from __future__ import annotations
 
 from collections.abc import Callable, Iterable, Mapping, Sequence
+from typing import NamedTuple
 
 import numpy as np
 
@@ -35,6 +36,25 @@ from mbctl.sim.simulator import Simulator
 
 #: ``rule(base_z_m, floor_bodies) -> reason`` or None (e.g. ``mbctl.robots.g1.G1_FALL.reason``).
 FallRule = Callable[[float, Sequence[str]], "str | None"]
+
+
+class PlantSample(NamedTuple):
+    """One control period as a :class:`PlantMonitor` read it (immutable: keep it, convert it later).
+
+    Attributes:
+        time_s: Start time [s] of the period (the state its command saw).
+        com_W: Robot CoM (3,) [m] at ``time_s``.
+        site_array_W: The sampled sites' positions (s, 3) [m].
+        contact_net: The contact groups' net contacts, as read
+            (:meth:`ContactSensor.net <mbctl.sim.contacts.ContactSensor.net>`; empty without groups).
+        physics_time_s: Wall time [s] of the period's physics (MuJoCo's steps).
+    """
+
+    time_s: float
+    com_W: np.ndarray
+    site_array_W: np.ndarray
+    contact_net: list[float]
+    physics_time_s: float
 
 
 class PlantMonitor:
@@ -58,6 +78,7 @@ class PlantMonitor:
         UnknownNameError: An unknown site, joint or body.
 
     Attributes:
+        sample: The last period, as read (:class:`PlantSample`); the properties below are its.
         time_s: Start time [s] of the last period sampled (the state its command saw).
         contacts: Measured contact per group over the last period (world frame).
         com_W: Robot CoM (3,) [m] at ``time_s`` (its bodies' masses at MuJoCo's ``xipos``; MuJoCo's
@@ -105,11 +126,11 @@ class PlantMonitor:
             raise SimError(f"a fall rule needs a floating base; {robot.name!r} has a fixed base")
         self._fall_rule = fall_rule
         self._period_s = sim.control_period_s
-        self.time_s = float(sim.data.time)
-        self.contact_sums: list[list[float]] = [[0.0, 0.0, 0.0, 0.0, 0.0, 0] for _ in self.group_names]
+        # before the first period: zero sums, no contacts nor sites by name
+        self.sample = PlantSample(float(sim.data.time), np.zeros(3), np.zeros((len(self.site_names), 3)),
+                                  [], 0.0)
+        self._sums: list[list[float]] | None = [[0.0, 0.0, 0.0, 0.0, 0.0, 0] for _ in self.group_names]
         self._contacts: dict[str, MeasuredContact] | None = {}
-        self.com_W = np.zeros(3)
-        self.site_array_W = np.zeros((len(self.site_names), 3))
         self._sites: dict[str, np.ndarray] | None = {}
         self.floor_bodies: tuple[str, ...] = ()
         self._floor_geoms: list[list[int]] = []  # the contacts' geom pairs floor_bodies is from
@@ -130,6 +151,34 @@ class PlantMonitor:
         grouped = [g for group in (*(contact_groups or {}).values(), *self._wrench_groups) for g in group]
         self._allowed = sorted({int(g) for g in grouped})
         self.contacts_elsewhere = 0
+
+    @property
+    def time_s(self) -> float:
+        """Start time [s] of the last period sampled (the state its command saw)."""
+        return self.sample.time_s
+
+    @property
+    def com_W(self) -> np.ndarray:
+        """Robot CoM (3,) [m] at ``time_s``."""
+        return self.sample.com_W
+
+    @property
+    def site_array_W(self) -> np.ndarray:
+        """The sampled sites' positions (s, 3) [m] in ``sites`` order (a new array each period)."""
+        return self.sample.site_array_W
+
+    @property
+    def contact_sums(self) -> list[list[float]]:
+        """Per contact group: ``[fx, fy, fz, fz x, fz y, n]`` (see the class), converted when first read."""
+        if self._sums is None:
+            self._sums = self.sums_of(self.sample)
+        return self._sums
+
+    def sums_of(self, sample: PlantSample) -> list[list[float]]:
+        """``contact_sums`` of any period's sample (e.g. one kept to be recorded later)."""
+        if self._sensor is None:
+            return []
+        return self._sensor.sums_from(sample.contact_net)
 
     @property
     def contacts(self) -> dict[str, MeasuredContact]:
@@ -153,16 +202,16 @@ class PlantMonitor:
     def __call__(self, sim: Simulator) -> None:
         """Sample the period that just ran (the simulator calls this after every ``sync``/``step``)."""
         d = sim.data
-        self.time_s = float(d.time) - self._period_s
         # the contacts' geom pairs read once for the groups and the floor (the per-period hot path:
-        # plain lists, no numpy temporaries, nothing built that the caller does not read)
+        # plain lists, no numpy temporaries, nothing converted before the caller reads it)
         geoms = d.contact.geom.tolist() if d.ncon else []
-        if self._sensor is not None:
-            self.contact_sums = self._sensor.sums(d, geoms)
-            self._contacts = None
-        self.com_W = d.subtree_com[self._roots[0]].copy() if self._subtree_com else self._com(d)
-        self.site_array_W = d.site_xpos.take(self._site_index, 0)  # take: half a fancy index's time
-        self._sites = None
+        self.sample = PlantSample(
+            float(d.time) - self._period_s,
+            d.subtree_com[self._roots[0]].copy() if self._subtree_com else self._com(d),
+            d.site_xpos.take(self._site_index, 0),  # take: half a fancy index's time
+            self._sensor.net(d, geoms) if self._sensor is not None else [],
+            sim.physics_time_s)
+        self._sums = self._contacts = self._sites = None
         if geoms != self._floor_geoms:  # the bodies on the floor follow from the geom pairs alone
             self.floor_bodies = tuple(self._floor.bodies(d, geoms))
             self._floor_geoms = geoms
@@ -171,7 +220,7 @@ class PlantMonitor:
             self.base_z_m = float(d.xpos[self._roots[0], 2])
             reason = self._fall_rule(self.base_z_m, self.floor_bodies)
             if reason is not None:
-                self.fall_reason, self.fall_time_s = reason, self.time_s
+                self.fall_reason, self.fall_time_s = reason, self.sample.time_s
         if self._dofs is not None:
             self.joint_torques = np.array(d.qfrc_actuator[self._dofs])
         if self._wrench_ids:

@@ -25,8 +25,7 @@ except VideoError:  # the rendering tests fail with the message; the rest run
     GL_BACKEND = None
 
 from mbctl.robots import ModelNotFoundError, Robot, load_robot  # noqa: E402 - after the GL choice
-from mbctl.robots.edits import position_to_motor  # noqa: E402
-from mbctl.robots.g1 import with_palm_sites  # noqa: E402
+from mbctl.robots.g1 import whole_body_g1  # noqa: E402
 from mbctl.unitree.domain_lock import reserve_domain  # noqa: E402
 
 # CI runs property tests with a fixed derivation of examples (reproducible, no flakes); local
@@ -55,8 +54,8 @@ def g1() -> Robot:
 
 @pytest.fixture(scope="module")
 def g1_torque(g1: Robot) -> Robot:
-    """The G1 with torque motors and the palm sites (the whole-body controller's robot)."""
-    return position_to_motor(with_palm_sites(g1))
+    """The G1 with torque motors, the palm sites and foot contact sensors (the whole-body jobs' robot)."""
+    return whole_body_g1(g1)
 
 
 @pytest.fixture(scope="session")

@@ -123,8 +123,10 @@ def test_plant_kinematics_places_the_robot_like_the_simulator(stool):
 
 
 def _forces_per_contact(m: mujoco.MjModel, d: mujoco.MjData, groups: dict) -> dict:
-    """Per group, by ``mj_contactForce`` contact by contact: force (3,) [N] in W, fz-weighted x, y, count."""
-    out = {name: [np.zeros(3), np.zeros(2), 0] for name in groups}
+    """Per group, by ``mj_contactForce`` contact by contact: force (3,) [N] in W, fz times the CoP's x, y
+    (where the moment has no horizontal part, on the plane through the |f|-weighted contact points),
+    count, and the z-force-weighted x, y (the CoP's classic formula, equal for coplanar contacts)."""
+    forces: dict = {name: [] for name in groups}
     f6 = np.zeros(6)
     for i in range(d.ncon):
         con = d.contact[i]
@@ -133,10 +135,17 @@ def _forces_per_contact(m: mujoco.MjModel, d: mujoco.MjData, groups: dict) -> di
         for geom, sign in ((con.geom2, 1.0), (con.geom1, -1.0)):
             for name, geoms in groups.items():
                 if int(geom) in geoms:
-                    acc = out[name]
-                    acc[0] += sign * f_W
-                    acc[1] += sign * f_W[2] * np.asarray(con.pos[:2])
-                    acc[2] += 1
+                    forces[name].append((sign * f_W, np.array(con.pos)))
+    out = {}
+    for name, fp in forces.items():
+        if not fp:
+            out[name] = [np.zeros(3), np.zeros(2), 0, np.zeros(2)]
+            continue
+        f, p = (np.array(x) for x in zip(*fp, strict=True))
+        w = np.linalg.norm(f, axis=1)
+        c = w @ p / w.sum()
+        F, N = f.sum(axis=0), np.cross(p - c, f).sum(axis=0)
+        out[name] = [F, F[2] * c[:2] + np.array([-N[1], N[0]]), len(fp), f[:, 2] @ p[:, :2]]
     return out
 
 
@@ -160,7 +169,7 @@ def test_the_monitors_foot_sums_are_mujocos_contact_forces_on_the_g1(g1, lift_ra
     ref = _forces_per_contact(m, sim.data, feet)
     assert monitor.group_names == G1_FEET and monitor.site_names == G1_FEET
     for name, sums in zip(monitor.group_names, monitor.contact_sums, strict=True):
-        f_ref, m_ref, n_ref = ref[name]
+        f_ref, m_ref, n_ref, _ = ref[name]
         scale = max(np.linalg.norm(f_ref), 1e-300)
         np.testing.assert_allclose(sums[:3], f_ref, rtol=1e-9, atol=1e-9 * scale)
         np.testing.assert_allclose(sums[3:5], m_ref, rtol=1e-9, atol=1e-9 * scale)
@@ -176,6 +185,8 @@ def test_the_monitors_foot_sums_are_mujocos_contact_forces_on_the_g1(g1, lift_ra
     assert monitor.contacts["right_foot"].normal_n > 100  # the robot's ~330 N weight and more
     fz = ref["right_foot"][0][2]
     np.testing.assert_allclose(monitor.contacts["right_foot"].cop_W[:2], ref["right_foot"][1] / fz, rtol=1e-9)
+    # the sole spheres touch the floor at heights a fraction of a millimetre apart: within a micrometre
+    np.testing.assert_allclose(monitor.contacts["right_foot"].cop_W[:2], ref["right_foot"][3] / fz, atol=1e-6)
     np.testing.assert_array_equal(monitor.site_array_W, sim.data.site_xpos[[g1.site_id(f) for f in G1_FEET]])
     np.testing.assert_array_equal(monitor.site_positions_W["right_foot"], monitor.site_array_W[1])
     np.testing.assert_allclose(monitor.com_W, bodies_com(m, sim.data, g1.robot_body_ids), rtol=1e-12)
