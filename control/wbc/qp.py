@@ -40,6 +40,7 @@ import time
 
 import numpy as np
 import qpsolvers
+from scipy.linalg.blas import dtrsm, dtrsv
 from scipy.linalg.lapack import dposv, dpotrf, dpotrs, dpstrf
 
 from mbctl.control.qp import (
@@ -144,6 +145,7 @@ class WholeBodyQP:
         self._daqp_solver = QPSolver(self.n_x, "daqp")
         self._rows = np.arange(m_eq_max)
         self._rhs = np.zeros((nv, m_eq_max + 1), order="F")  # LAPACK's layout: solved in place
+        self._L = np.zeros((nv, nv))  # H_vv's Cholesky factor, made in place
         self._pinned = False
         self._skip_fast = False  # the last solve was daqp's with an inequality active
         #: Inequality rows (a slice of G's) that daqp first solves without: rows that are rarely
@@ -222,6 +224,10 @@ class WholeBodyQP:
     def _kkt(self, m_eq: int) -> tuple[np.ndarray | None, np.ndarray]:
         """The minimiser under the first ``m_eq`` equalities only (KKT by Schur complement).
 
+        With ``H_vv = L L^T`` and ``Y = L^-1 [E_v^T, c_v]`` (one triangular solve, half of
+        ``H_vv^-1 [E_v^T, c_v]``'s): ``S = Y_E^T Y_E + E_f E_f^T / w_f^2``, ``E H^-1 c = Y_E^T Y_c``,
+        and ``vdot = L^-T (Y_E y - Y_c)`` with ``y = -lambda`` (one more solve, with one column).
+
         Returns:
             ``(x, rows)``: x (n_x,) or None if H_vv is not positive definite; ``rows`` the indices
             of a maximal independent subset of the equality rows (x satisfies those). Pinned forces
@@ -230,15 +236,17 @@ class WholeBodyQP:
         nv = self.nv
         E, e = self.E[:m_eq], self.e[:m_eq]
         all_rows = self._rows[:m_eq]
-        # LAPACK directly: numpy.linalg's wrappers cost several us of Python per call at this size
+        # LAPACK and BLAS directly: numpy.linalg's wrappers cost several us of Python per call here
         E_v, E_f = E[:, :nv], E[:, nv:]
-        R = self._rhs[:, :m_eq + 1]  # [E_v^T, c_v], then H_vv^-1 [E_v^T, c_v]: factor and solve in one
+        R = self._rhs[:, :m_eq + 1]  # [E_v^T, c_v], then L^-1 [E_v^T, c_v], in place
         R[:, :m_eq] = E_v.T
         R[:, m_eq] = self.c_v
-        _, X, info = dposv(self.H_vv, R, lower=1)  # H_vv = L L^T
+        np.copyto(self._L, self.H_vv)  # (symmetric: its C order is the Fortran order LAPACK wants)
+        L, info = dpotrf(self._L, lower=1, overwrite_a=1)  # H_vv = L L^T, in place
         if info != 0:
             return None, all_rows
-        P = E_v @ X  # [E_v H^-1 E_v^T, E_v H^-1 c_v]
+        Y = dtrsm(1.0, L, R, lower=1, overwrite_b=1)  # L^-1 [E_v^T, c_v], in place
+        P = np.dot(Y[:, :m_eq].T, Y)  # [E_v H^-1 E_v^T, E_v H^-1 c_v]
         S = P[:, :m_eq]  # S = E H^-1 E^T (c_f = 0, H_ff = w_f^2 I)
         F = E_f[:self.m_force]  # the rows with force columns (the others are zero there)
         if self._pinned:
@@ -252,17 +260,19 @@ class WholeBodyQP:
         Ls, y, info = dposv(S, rhs, lower=1)  # y = -lambda
         if info == 0 and float(_min(Ls.diagonal())) ** 2 > RANK_RTOL * scale:
             rows = all_rows
-            X_rows, F_rows = X[:, :m_eq], F
+            Y_rows, F_rows = Y[:, :m_eq], F
         else:
             _, piv, rank, _ = dpstrf(S, tol=RANK_RTOL * scale, lower=1)
             rows = np.sort(piv[:rank] - 1)
             Ls, _ = dpotrf(S[np.ix_(rows, rows)], lower=1)
             y, _ = dpotrs(Ls, rhs[rows], lower=1)
-            X_rows, F_rows = X[:, rows], F[rows[rows < len(F)]]
-        # x = -H^-1 (c + E^T lambda)
+            Y_rows, F_rows = Y[:, rows], F[rows[rows < len(F)]]
+        # x = -H^-1 (c + E^T lambda): vdot = L^-T (Y_E y - Y_c), f = E_f^T y / w_f^2
         x = np.empty(self.n_x)
-        np.matmul(X_rows, y, out=x[:nv])
-        x[:nv] -= X[:, m_eq]
+        vdot = x[:nv]
+        np.matmul(Y_rows, y, out=vdot)
+        vdot -= Y[:, m_eq]
+        dtrsv(L, vdot, lower=1, trans=1, overwrite_x=1)  # in place (vdot is contiguous)
         np.matmul(F_rows.T, y[:len(F_rows)], out=x[nv:])
         x[nv:] *= self._inv_wf2
         return x, rows
