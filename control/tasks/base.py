@@ -187,6 +187,7 @@ class Task(abc.ABC):
     def servo(self, gains: AccelerationGains) -> None:
         self._servo = gains
         self._kp, self._kd = gains.kp, gains.kd
+        _WEIGHTS_EPOCH[0] += 1  # the stacks' damping rows hold kd
 
     # ------------------------------------------------------------------ weights and targets
     @property
@@ -325,6 +326,27 @@ class Task(abc.ABC):
         np.multiply(col, J, out=W_t)
         np.subtract(self.desired_acceleration(state, J), drift, out=r_t)
         r_t *= self._cost
+
+    #: Whether the task writes :meth:`write_acceleration_terms` (the stack then weighs and damps
+    #: every such task's rows in one product each); else the stack calls ``write_acceleration_rows``.
+    stacked_acceleration: bool = False
+
+    def constant_acceleration_jacobian(self, state: DynamicsState) -> np.ndarray | None:
+        """``J`` (k, nv) when it is the same at every state (written once by the stack), else None."""
+        return None
+
+    def write_acceleration_terms(self, state: DynamicsState, J_t: np.ndarray, r_t: np.ndarray) -> None:
+        """Write ``J`` (k, nv) (unless constant) and ``a_des + kd J v - Jdot v`` (k,), both unweighted.
+
+        The stack (:class:`~mbctl.control.tasks.stack.TaskStack`) then forms the rows of
+        :meth:`write_acceleration_rows` for every such task at once: ``W_t = diag(cost) J``,
+        ``r_t = diag(cost) (terms - kd J v)``. Tasks with ``stacked_acceleration`` override it.
+
+        Raises:
+            TaskSetupError: The task has no stacked form.
+        """
+        raise TaskSetupError(f"{self.name}: {type(self).__name__} writes its acceleration rows whole "
+                             "(write_acceleration_rows)")
 
     # ------------------------------------------------------------------ reports
     @abc.abstractmethod

@@ -131,6 +131,21 @@ class ComTask(Task):
         r_t -= state.com_drift()
         r_t *= self._cost
 
+    stacked_acceleration = True
+
+    def write_acceleration_terms(self, state: DynamicsState, J_t: np.ndarray, r_t: np.ndarray) -> None:
+        """``J_com`` and ``kp (p* - p) + a_ref + kd v_ref - Jdot_com v`` (Task.write_acceleration_terms)."""
+        if self._target is None:
+            raise self._no_target()
+        np.copyto(J_t, state.com_jacobian())
+        np.subtract(self._target, state.com(), out=r_t)
+        r_t *= self._kp
+        r_t += self.a_ref
+        tmp = self._acceleration_scratch()
+        np.multiply(self.v_ref, self._kd, out=tmp)
+        r_t += tmp
+        r_t -= state.com_drift()
+
     def residual(self, state: TaskState) -> TaskResidual:
         """Distance to the target over the weighted axes [m] (axes with zero cost are ignored)."""
         e = self.compute_error(state) * (self.cost > 0.0)

@@ -106,6 +106,29 @@ class FrameOrientationTask(FrameTask):
         r_t -= state.frame_drift(fid, pin.LOCAL)[3:]
         r_t *= self._cost
 
+    stacked_acceleration = True
+
+    def constant_acceleration_jacobian(self, state: DynamicsState) -> np.ndarray | None:
+        """``J_F[3:]`` (3, nv) for a frame fixed to a free-flyer root (the same at every state), else None."""
+        if state.on_free_root(self.frame_id):
+            return state.frame_jacobian(self.frame_id, pin.LOCAL)[3:].copy()
+        return None
+
+    def write_acceleration_terms(self, state: DynamicsState, J_t: np.ndarray, r_t: np.ndarray) -> None:
+        """``J_F[3:]`` and ``kp log3(R_FT) - (Jdot_F v)[3:]`` (see ``Task.write_acceleration_terms``).
+
+        On a free-flyer root the Jacobian is constant (written once by the stack) and the drift zero
+        (:meth:`~mbctl.control.tasks.state.DynamicsState.on_free_root`): only the error is written.
+        """
+        if self._X_TW is None:
+            raise self._no_target()
+        fid = self.frame_id
+        R_TF = np.dot(self._R_TW, state.frame_placements[fid].rotation)
+        np.multiply(pin.log3(R_TF), -self._kp, out=r_t)  # kp log3(R_FT)
+        if not state.on_free_root(fid):
+            J_t[:] = state.frame_jacobian(fid, pin.LOCAL)[3:]
+            r_t -= state.frame_angular_drift(fid)
+
     def residual(self, state: TaskState) -> TaskResidual:
         """Rotation angle to the target [rad]."""
         return TaskResidual(orientation_rad=float(np.linalg.norm(self.compute_error(state))))

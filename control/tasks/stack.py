@@ -15,6 +15,13 @@ rows, the CoM's height row when it is free add nothing to H or c) and weighs eve
 product: each task writes its unweighted rows (:meth:`~mbctl.control.tasks.base.Task.write_velocity_rows`),
 then ``W = diag(cost) J`` and ``r = -diag(gain cost) e`` for the whole stack at once. The weights
 are cached and re-read when any task's cost, gain or LM damping changes.
+
+At the acceleration level the stack weighs and damps in the same way: a stacked task
+(``stacked_acceleration``: the CoM, frame orientations) writes its Jacobian and its terms
+``a_des + kd J v - Jdot v`` unweighted (:meth:`~mbctl.control.tasks.base.Task.write_acceleration_terms`;
+a Jacobian that is the same at every state, a frame on a free-flyer root's, is written once), then
+``W = diag(cost) J`` and ``-r = -diag(cost) terms + diag(kd cost) J v`` are one product each for
+the whole stack; other tasks write their weighted rows whole (weight 1, no damping in the stack).
 """
 
 from __future__ import annotations
@@ -48,14 +55,10 @@ class TaskStack:
         self._diagonal = tuple(t for t in self.tasks if isinstance(t, DiagonalTask) and t.is_diagonal)
         dense = tuple(t for t in self.tasks if t not in self._diagonal)
         n_rows = sum(t.k for t in dense)
-        self._W = np.zeros((n_rows, self.nv))
+        self._W = np.zeros((n_rows, self.nv))  # the acceleration-level rows (see _acceleration_layout)
         self._r = np.zeros(n_rows)
-        views, row = [], 0
-        for t in dense:
-            views.append((t, self._W[row:row + t.k], self._r[row:row + t.k]))
-            row += t.k
-        self._views = tuple(views)
         self._velocity_epoch = -1  # the velocity-level layout is built on first use
+        self._acc_key: tuple | None = None  # and the acceleration-level one
 
     def _velocity_layout(self) -> None:
         """(Re)build the velocity-level rows: active rows only, with their weights stacked."""
@@ -100,18 +103,6 @@ class TaskStack:
             cached = self._diag_view = (H, np.einsum("ii->i", H))
         return cached[1]
 
-    def _hessian(self, H: np.ndarray, c: np.ndarray) -> np.ndarray:
-        """``H = W^T W``, ``c = -W^T r`` from the filled rows; returns H's diagonal (a writable view)."""
-        W = self._W
-        if W.shape[0]:
-            np.matmul(W.T, W, out=H)  # (BLAS syrk: a gemm on a copy of W^T would differ in the last bit)
-            np.dot(self._r, W, out=c)  # ~0.4 us less than np.matmul (the same product)
-            np.negative(c, out=c)
-        else:
-            H.fill(0.0)
-            c.fill(0.0)
-        return self._diagonal_of(H)
-
     def velocity_objective(self, state: TaskState, H: np.ndarray, c: np.ndarray) -> float:
         """Write the IK objective over ``dq`` into ``H`` (nv, nv) and ``c`` (nv,); return the LM term.
 
@@ -152,15 +143,79 @@ class TaskStack:
                         mu += task.lm_damping * float(err @ err)
         return mu
 
-    def acceleration_objective(self, state: DynamicsState, H: np.ndarray, c: np.ndarray) -> None:
-        """Write the inverse-dynamics objective over ``vdot`` into ``H`` (nv, nv) and ``c`` (nv,)."""
-        for task, W_t, r_t in self._views:
-            task.write_acceleration_rows(state, W_t, r_t)
-        diag = self._hessian(H, c)
+    def _acceleration_layout(self, state: DynamicsState, regularization: float) -> None:
+        """(Re)build the acceleration-level rows: the weights and damping of the stacked tasks' rows.
+
+        Stacked tasks (``stacked_acceleration``) write ``J`` and their terms unweighted; the others
+        write their weighted rows whole, so their rows' weight is 1 and their damping 0.
+        """
+        dense = [t for t in self.tasks if t not in self._diagonal]
+        n_rows, nv = self._W.shape
+        self._J = np.zeros((n_rows, nv))
+        self._Jv = np.zeros(n_rows)
+        self._rn = np.zeros(n_rows)
+        writers, col, kd_cost, row = [], [], [], 0
+        for t in dense:
+            J_t, r_t = self._J[row:row + t.k], self._r[row:row + t.k]
+            row += t.k
+            if t.stacked_acceleration:
+                constant = t.constant_acceleration_jacobian(state)
+                if constant is not None:
+                    J_t[:] = constant  # written once: the task leaves these rows alone
+                writers.append((t.write_acceleration_terms, J_t, r_t))
+                col.append(t.cost)
+                kd_cost.append(t.servo.kd * t.cost)
+            else:
+                writers.append((t.write_acceleration_rows, J_t, r_t))
+                col.append(np.ones(t.k))
+                kd_cost.append(np.zeros(t.k))
+        self._acc_writers = tuple(writers)
+        weights = np.concatenate(col) if col else np.zeros(0)
+        self._acc_col = np.repeat(weights[:, None], nv, axis=1)  # contiguous (see _velocity_layout)
+        self._acc_neg_weight = -weights
+        self._acc_kd_cost = np.concatenate(kd_cost) if kd_cost else np.zeros(0)
+        self._acc_damped = bool(np.any(self._acc_kd_cost))
+        diag = np.full(nv, float(regularization))
+        for task in self._diagonal:
+            diag += task.cost2_mask()
+        self._acc_diag = diag
+        self._acc_key = (weights_epoch(), state.model, regularization)
+
+    def acceleration_objective(self, state: DynamicsState, H: np.ndarray, c: np.ndarray,
+                               regularization: float = 0.0) -> None:
+        """Write the inverse-dynamics objective over ``vdot`` into ``H`` (nv, nv) and ``c`` (nv,).
+
+        Args:
+            state: Dynamics state.
+            H: (nv, nv) output, ``W^T W`` plus the diagonal tasks' terms and ``regularization``.
+            c: (nv,) output, ``-W^T r`` plus the diagonal tasks' terms.
+            regularization: Added to H's diagonal [cost^2] (e.g. ``w_r^2`` of ``w_r^2 |vdot|^2``).
+        """
+        if self._acc_key != (weights_epoch(), state.model, regularization):
+            self._acceleration_layout(state, regularization)
+        for write, J_t, r_t in self._acc_writers:
+            write(state, J_t, r_t)
+        W, r_neg = self._W, self._rn
+        if W.shape[0]:
+            # W = diag(cost) J and -r = -diag(cost) (terms - kd J v) for every row at once (the
+            # rows written whole have weight 1 and no damping)
+            J = self._J
+            np.multiply(J, self._acc_col, out=W)
+            np.multiply(self._r, self._acc_neg_weight, out=r_neg)
+            if self._acc_damped:
+                Jv = self._Jv
+                np.dot(J, state.v, out=Jv)
+                Jv *= self._acc_kd_cost
+                r_neg += Jv
+            np.matmul(W.T, W, out=H)  # (BLAS syrk: a gemm on a copy of W^T would differ in the last bit)
+            np.dot(r_neg, W, out=c)  # c = -W^T r (~0.4 us less than np.matmul, the same product)
+        else:
+            H.fill(0.0)
+            c.fill(0.0)
+        diag = self._diagonal_of(H)
+        diag += self._acc_diag
         tmp = self._tmp
         for task in self._diagonal:
             # W_t = diag(cost mask), r_t = cost mask (a_des - 0)  =>  H += cost^2 mask, c -= cost^2 mask a_des
-            cost2_mask = task.cost2_mask()
-            diag += cost2_mask
-            np.multiply(cost2_mask, task.masked_desired_acceleration(state), out=tmp)
+            np.multiply(task.cost2_mask(), task.masked_desired_acceleration(state), out=tmp)
             c -= tmp

@@ -186,8 +186,15 @@ class DynamicsState(TaskState):
         # are the whole robot's momentum balance, which gives dA_g v without another pass
         self._free_root = (model.njoints > 1 and model.joints[1].shortname() == "JointModelFreeFlyer"
                            and list(model.parents[1:]).count(0) == 1)
+        self._on_root = tuple(self._free_root and f.parentJoint == 1 for f in model.frames)
         self._F = np.zeros((6, 6))  # the wrench map from the root frame to G (world axes)
         self.mass = float(pin.computeTotalMass(model))  # the moving bodies (not the universe's)
+        # read every cycle: references into data made once (Pinocchio writes them in place), and
+        # the model's gravity and 1/m (fixed, as the mass above)
+        self._X_WB = self.data.oMi[1] if self._free_root else None
+        self._nle_linear = self.data.nle[:3]
+        self._gravity = np.array(model.gravity.linear)
+        self._inv_mass = 1.0 / self.mass if self.mass > 0.0 else math.inf
         self.update(self._q if q is None else q, v)
 
     def update(self, q: npt.ArrayLike, v: npt.ArrayLike | None = None) -> None:
@@ -236,11 +243,10 @@ class DynamicsState(TaskState):
         With a free-flyer root, the linear rows of :meth:`centroidal_drift` alone: ``R_WB b_B[:3] / m
         + g`` (the CoM task needs no angular part: ~5 us less per cycle on a 35-dof humanoid).
         """
-        if self._free_root and self._centroidal_drift is None:
-            data = self.data
-            drift = data.oMi[1].rotation @ data.nle[:3]
-            drift *= 1.0 / self.mass
-            drift += self.model.gravity.linear
+        if self._X_WB is not None and self._centroidal_drift is None:
+            drift = np.dot(self._X_WB.rotation, self._nle_linear)
+            drift *= self._inv_mass
+            drift += self._gravity
             return drift
         return self.centroidal_drift()[:3] / self.mass
 
@@ -254,6 +260,19 @@ class DynamicsState(TaskState):
         if reference == pin.LOCAL:
             return pin.getFrameAcceleration(self.model, self.data, frame_id, reference).vector
         return pin.getFrameClassicalAcceleration(self.model, self.data, frame_id, reference).vector
+
+    def frame_angular_drift(self, frame_id: int) -> np.ndarray:
+        """The angular rows of ``frame_drift(frame_id, LOCAL)`` (3,) [rad/s^2], in F."""
+        return pin.getFrameAcceleration(self.model, self.data, frame_id, pin.LOCAL).angular
+
+    def on_free_root(self, frame_id: int) -> bool:
+        """Whether frame ``frame_id`` is fixed to a free-flyer root body.
+
+        Its LOCAL Jacobian is then the same at every state (the root's twist is ``v[:6]`` in its
+        own frame) and its LOCAL drift is zero (the root's spatial acceleration at zero vdot is
+        ``v x v = 0``).
+        """
+        return self._on_root[frame_id]
 
     def centroidal_map(self) -> np.ndarray:
         """``A_g`` (6, nv): the centroidal momentum ``h_G = A_g v`` [kg m/s; kg m^2/s] (about the CoM)."""

@@ -176,7 +176,6 @@ class WholeBodyController:
                                 for i, (name, cs) in enumerate(self.contacts.items()))
         self._GT_neg = -self._G_blk.T  # (negation is exact: the same products as -(G_blk J_F))
         self._foot_v = np.zeros(6 * n_feet)  # J_F v of each foot
-        self._H_vv_diag = np.einsum("ii->i", qp.H_vv)  # a writable view of its diagonal
         self._limits = self._joint_limits()
         self._n_limits = len(self._limits[0])
         self._limit_iv, self._limit_iq = as_slice(self._limits[0]), as_slice(self._limits[1])
@@ -329,8 +328,7 @@ class WholeBodyController:
         cfg = self.config
         qp = self._qp
         # tasks: H_vv = W^T W + w_r^2 I, c_v = -W^T r (the task layer's stack)
-        self._stack.acceleration_objective(s, qp.H_vv, qp.c_v)
-        self._H_vv_diag += cfg.acceleration_weight**2
+        self._stack.acceleration_objective(s, qp.H_vv, qp.c_v, cfg.acceleration_weight**2)
 
         # contact points' Jacobians, in their foot frame F: J_P = G_F J_F (J_F LOCAL)
         lb, ub = qp.lb, qp.ub

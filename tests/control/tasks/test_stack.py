@@ -1,5 +1,5 @@
-"""TaskStack at the velocity level: a mixed stack is the sum of its tasks' objectives, and it
-re-reads weights changed between solves (the acceleration-level mixed stack is in
+"""TaskStack: a mixed stack is the sum of its tasks' objectives at the velocity and acceleration levels,
+and it re-reads weights changed between solves (another acceleration-level mixed stack is in
 tests/control/wbc/test_wbc.py)."""
 
 from __future__ import annotations
@@ -9,15 +9,20 @@ import pinocchio as pin
 import pytest
 
 from mbctl.control.tasks import (
+    AccelerationGains,
+    AngularMomentumTask,
     ComTask,
     DampingTask,
+    DynamicsState,
+    FrameOrientationTask,
     FramePoseTask,
     KinematicState,
     PostureTask,
     RelativeFrameTask,
+    Task,
     TaskStack,
 )
-from tests.control.tasks.conftest import FLOATING_HINGES, expected_velocity_objective, random_q
+from tests.control.tasks.conftest import ARM, FLOATING_HINGES, expected_velocity_objective, random_q
 
 MODEL = FLOATING_HINGES
 
@@ -88,3 +93,75 @@ def test_weights_changed_between_solves_are_read_again():
     np.testing.assert_allclose(c, c_ref, atol=1e-12)
     assert mu == pytest.approx(mu_ref, rel=1e-12)
     assert stack.velocity_rows()[0].shape == (4 + 2 + 3, MODEL.nv)  # pose, CoM, relative
+
+
+def _acceleration_tasks(state: DynamicsState, rng: np.random.Generator) -> list:
+    """Stacked tasks (CoM, an orientation on the root and one on the arm) and tasks written whole."""
+    com = ComTask([1.0, 2.0, 0.5], servo=AccelerationGains(7.0, 0.9))
+    com.set_target(state.com() + 0.05 * rng.standard_normal(3), rng.standard_normal(3),
+                   rng.standard_normal(3))
+    tasks = [com]
+    for frame, cost in (("chest", [1.0, 0.5, 2.0]), ("hand", 3.0)):
+        task = FrameOrientationTask(frame, MODEL, cost, servo=AccelerationGains(5.0, 0.7))
+        X_WF = state.frame_pose(state.frame_id(frame))
+        task.set_target(X_WF * pin.exp6(pin.Motion(0.3 * rng.standard_normal(6))))
+        tasks.append(task)
+    pose = FramePoseTask("foot", MODEL, 2.0, 0.5, servo=AccelerationGains(6.0, 1.0))
+    X_WF = state.frame_pose(state.frame_id("foot"))
+    pose.set_target(X_WF * pin.exp6(pin.Motion(0.2 * rng.standard_normal(6))))
+    posture = PostureTask(MODEL, rng.uniform(0.01, 0.1, MODEL.nv), servo=AccelerationGains(4.0, 1.0))
+    posture.set_target(random_q(MODEL, rng))
+    return [*tasks, pose, posture, AngularMomentumTask(0.3, servo=AccelerationGains(3.0, 1.0))]
+
+
+def _generic_acceleration_objective(tasks, state, regularization):
+    """``H = W^T W + diag``, ``c = -W^T r`` from every task's generic rows (Task.write_acceleration_rows)."""
+    rows = [(np.zeros((t.k, MODEL.nv)), np.zeros(t.k)) for t in tasks]
+    for task, (W_t, r_t) in zip(tasks, rows, strict=True):
+        Task.write_acceleration_rows(task, state, W_t, r_t)
+    W, r = np.vstack([w for w, _ in rows]), np.concatenate([r for _, r in rows])
+    return W.T @ W + regularization * np.eye(MODEL.nv), -W.T @ r
+
+
+def test_the_acceleration_stack_equals_every_task_written_whole():
+    """The stacked tasks' terms, weighed and damped by the stack, give the generic rows' objective.
+
+    The root frame's Jacobian is written once (constant) and its drift is zero: checked on other
+    states than the first, and again after costs and gains change between solves.
+    """
+    rng = np.random.default_rng(16)
+    stack, tasks = None, None
+    for k in range(4):
+        state = DynamicsState(MODEL, random_q(MODEL, rng), rng.standard_normal(MODEL.nv))
+        if stack is None:
+            tasks = _acceleration_tasks(state, rng)
+            stack = TaskStack(MODEL.nv, tasks)
+            assert [t.stacked_acceleration for t in tasks] == [True, True, True, False, False, False]
+        if k == 2:
+            tasks[0].set_cost(0.7)
+            tasks[1].servo = AccelerationGains(9.0, 0.3)
+            tasks[4].set_cost(0.2)
+        H, c = np.full((MODEL.nv, MODEL.nv), np.nan), np.full(MODEL.nv, np.nan)
+        stack.acceleration_objective(state, H, c, 1e-4)
+        H_ref, c_ref = _generic_acceleration_objective(tasks, state, 1e-4)
+        np.testing.assert_allclose(H, H_ref, rtol=1e-13, atol=1e-12)
+        np.testing.assert_allclose(c, c_ref, rtol=1e-13, atol=1e-11)
+        assert np.abs(c).max() > 1.0  # a real test: the terms are not all zero
+
+
+def test_a_frame_on_the_free_root_has_a_constant_jacobian_and_no_drift():
+    rng = np.random.default_rng(17)
+    chest, hand = MODEL.getFrameId("chest"), MODEL.getFrameId("hand")
+    first = DynamicsState(MODEL)
+    assert first.on_free_root(chest) and not first.on_free_root(hand)
+    task = FrameOrientationTask("chest", MODEL)
+    J_0 = task.constant_acceleration_jacobian(first)
+    assert J_0 is not None
+    assert FrameOrientationTask("hand", MODEL).constant_acceleration_jacobian(first) is None
+    for _ in range(5):
+        state = DynamicsState(MODEL, random_q(MODEL, rng), 3.0 * rng.standard_normal(MODEL.nv))
+        J, drift = task.jacobian_and_drift(state)
+        np.testing.assert_allclose(J, J_0, atol=1e-15)
+        assert np.abs(drift).max() < 1e-15
+        assert np.abs(state.frame_drift(hand, pin.LOCAL)).max() > 0.1  # the arm's is not zero
+    assert not DynamicsState(ARM).on_free_root(ARM.getFrameId("tip"))  # a fixed base
