@@ -144,7 +144,7 @@ class WholeBodyQP:
         self._c = np.zeros(self.n_x)
         self._daqp_solver = QPSolver(self.n_x, "daqp")
         self._rows = np.arange(m_eq_max)
-        self._rhs = np.zeros((nv, m_eq_max + 1), order="F")  # LAPACK's layout: solved in place
+        self._Z: dict[int, np.ndarray] = {}  # the fast path's buffers, by number of equality rows
         self._L = np.zeros((nv, nv))  # H_vv's Cholesky factor, made in place
         self._pinned = False
         self._skip_fast = False  # the last solve was daqp's with an inequality active
@@ -161,7 +161,7 @@ class WholeBodyQP:
     @force_weight.setter
     def force_weight(self, value: float) -> None:
         self._w_f = float(value)
-        self._inv_wf2 = 1.0 / (self._w_f * self._w_f)
+        self._inv_wf = 1.0 / self._w_f
 
     def solve(self, m_eq: int) -> QPResult:
         """Solve with the first ``m_eq`` equality rows: the fast path, else daqp.
@@ -221,60 +221,65 @@ class WholeBodyQP:
         out[self.n_x:] = G_v_zero & ~touches_free
         return out
 
+    def _schur_buffer(self, m_eq: int) -> np.ndarray:
+        """The (n_x, m_eq + 1) buffer ``Z`` of :meth:`_kkt` for ``m_eq`` rows (made once per count)."""
+        Z = self._Z.get(m_eq)
+        if Z is None:
+            Z = self._Z[m_eq] = np.zeros((self.n_x, m_eq + 1))  # C order: its top block is contiguous
+        return Z
+
     def _kkt(self, m_eq: int) -> tuple[np.ndarray | None, np.ndarray]:
         """The minimiser under the first ``m_eq`` equalities only (KKT by Schur complement).
 
-        With ``H_vv = L L^T`` and ``Y = L^-1 [E_v^T, c_v]`` (one triangular solve, half of
-        ``H_vv^-1 [E_v^T, c_v]``'s): ``S = Y_E^T Y_E + E_f E_f^T / w_f^2``, ``E H^-1 c = Y_E^T Y_c``,
-        and ``vdot = L^-T (Y_E y - Y_c)`` with ``y = -lambda`` (one more solve, with one column).
+        With ``H_vv = L L^T``, one buffer ``Z = [L^-1 E_v^T, L^-1 c_v; E_f^T / w_f, 0]`` (one
+        triangular solve, in place) gives ``Z^T Z = [S, E H^-1 c; ...]`` in one product:
+        ``S = E H^-1 E^T = Y_E^T Y_E + E_f E_f^T / w_f^2``. Then ``y = -lambda = S^-1 (e + E H^-1 c)``,
+        ``vdot = L^-T (Y_E y - Y_c)`` (a second solve, one column) and ``f = E_f^T y / w_f^2``.
 
         Returns:
             ``(x, rows)``: x (n_x,) or None if H_vv is not positive definite; ``rows`` the indices
             of a maximal independent subset of the equality rows (x satisfies those). Pinned forces
             (``force_free`` False, as read by :meth:`solve`) are left out and zero.
         """
-        nv = self.nv
-        E, e = self.E[:m_eq], self.e[:m_eq]
+        nv, m_f = self.nv, min(self.m_force, m_eq)
+        E = self.E[:m_eq]
         all_rows = self._rows[:m_eq]
         # LAPACK and BLAS directly: numpy.linalg's wrappers cost several us of Python per call here
-        E_v, E_f = E[:, :nv], E[:, nv:]
-        R = self._rhs[:, :m_eq + 1]  # [E_v^T, c_v], then L^-1 [E_v^T, c_v], in place
-        R[:, :m_eq] = E_v.T
-        R[:, m_eq] = self.c_v
+        Z = self._schur_buffer(m_eq)
+        Z_v, Z_f = Z[:nv], Z[nv:, :m_f]  # (the force rows' other columns stay zero)
+        Z_v[:, :m_eq] = E[:, :nv].T
+        Z_v[:, m_eq] = self.c_v
+        np.multiply(E[:m_f, nv:].T, self._inv_wf, out=Z_f)
+        if self._pinned:
+            Z_f *= self._free_f[:, None]  # the pinned forces' columns left out (they stay at zero)
         np.copyto(self._L, self.H_vv)  # (symmetric: its C order is the Fortran order LAPACK wants)
         L, info = dpotrf(self._L, lower=1, overwrite_a=1)  # H_vv = L L^T, in place
         if info != 0:
             return None, all_rows
-        Y = dtrsm(1.0, L, R, lower=1, overwrite_b=1)  # L^-1 [E_v^T, c_v], in place
-        P = np.dot(Y[:, :m_eq].T, Y)  # [E_v H^-1 E_v^T, E_v H^-1 c_v]
-        S = P[:, :m_eq]  # S = E H^-1 E^T (c_f = 0, H_ff = w_f^2 I)
-        F = E_f[:self.m_force]  # the rows with force columns (the others are zero there)
-        if self._pinned:
-            F = F * self._free_f  # the pinned forces' columns left out (they stay at zero)
-        S[:len(F), :len(F)] += (F @ F.T) * self._inv_wf2
-        rhs = P[:, m_eq]
-        rhs += e  # e + E H^-1 c
+        # Z_v^T (Fortran order) L^-T = (L^-1 Z_v)^T: solved in place
+        dtrsm(1.0, L, Z_v.T, side=1, lower=1, trans_a=1, overwrite_b=1)
+        P = np.dot(Z.T, Z)  # [S, E H^-1 c; ., .] (c_f = 0, H_ff = w_f^2 I)
+        S = P[:m_eq, :m_eq]
+        rhs = P[:m_eq, m_eq]
+        rhs += self.e[:m_eq]  # e + E H^-1 c
         # S: a plain Cholesky when E has full row rank (pivots well above round-off), else a
         # pivoted one, whose rank is E's and whose pivots pick independent rows
         scale = max(float(_max(S.diagonal())), 1e-300)
         Ls, y, info = dposv(S, rhs, lower=1)  # y = -lambda
         if info == 0 and float(_min(Ls.diagonal())) ** 2 > RANK_RTOL * scale:
             rows = all_rows
-            Y_rows, F_rows = Y[:, :m_eq], F
+            x = np.dot(Z[:, :m_eq], y)  # [Y_E y; E_f^T y / w_f]
         else:
             _, piv, rank, _ = dpstrf(S, tol=RANK_RTOL * scale, lower=1)
             rows = np.sort(piv[:rank] - 1)
             Ls, _ = dpotrf(S[np.ix_(rows, rows)], lower=1)
             y, _ = dpotrs(Ls, rhs[rows], lower=1)
-            Y_rows, F_rows = Y[:, rows], F[rows[rows < len(F)]]
+            x = np.dot(Z[:, rows], y)
         # x = -H^-1 (c + E^T lambda): vdot = L^-T (Y_E y - Y_c), f = E_f^T y / w_f^2
-        x = np.empty(self.n_x)
         vdot = x[:nv]
-        np.matmul(Y_rows, y, out=vdot)
-        vdot -= Y[:, m_eq]
+        vdot -= Z_v[:, m_eq]
         dtrsv(L, vdot, lower=1, trans=1, overwrite_x=1)  # in place (vdot is contiguous)
-        np.matmul(F_rows.T, y[:len(F_rows)], out=x[nv:])
-        x[nv:] *= self._inv_wf2
+        x[nv:] *= self._inv_wf
         return x, rows
 
     def _feasible(self, x: np.ndarray, tol: float = FEASIBILITY_TOL) -> bool:
