@@ -36,6 +36,7 @@ not expose the capture point.
 from __future__ import annotations
 
 import bisect
+import functools
 import math
 from collections.abc import Sequence
 from typing import NamedTuple
@@ -44,7 +45,7 @@ import numpy as np
 import numpy.typing as npt
 
 from mbctl.planners.exceptions import InvalidPlanningInput
-from mbctl.planners.swing import polynomial_at, quintic_coefficients
+from mbctl.planners.swing import quintic_columns, quintic_columns_at
 
 #: Standard gravity [m/s^2] (the plan's default; pass the model's).
 GRAVITY_M_S2 = 9.81
@@ -132,7 +133,7 @@ class DcmPlan:
         #: time when given); each window's quintic is computed when first evaluated.
         self.windows: list[tuple[float, float]] = []
         self._window_switch: list[int] = []
-        self._coefficients: dict[int, np.ndarray] = {}
+        self._coefficients: dict[int, list[tuple[float, ...]]] = {}
         for k, tk in enumerate(tl):
             a = tk - self.alpha * self.double_support_s
             b = tk + (1.0 - self.alpha) * self.double_support_s
@@ -146,8 +147,8 @@ class DcmPlan:
                 self._window_switch.append(k)
         self._initial = initial
 
-    def _window(self, i: int) -> np.ndarray:
-        """The quintic (6, 2) of window ``i``: the exponentials' (or the initial) states at its ends."""
+    def _window(self, i: int) -> list[tuple[float, ...]]:
+        """Window ``i``'s quintic (x, y columns): the exponentials' (or the initial) states at its ends."""
         coeffs = self._coefficients.get(i)
         if coeffs is None:
             (a, b), k = self.windows[i], self._window_switch[i]
@@ -158,7 +159,7 @@ class DcmPlan:
             else:
                 start = self._exponential(k, a)
             end = self._exponential(k + 1, b)
-            coeffs = quintic_coefficients(start[0], start[1], start[2], end[0], end[1], end[2], b - a)
+            coeffs = quintic_columns(start[0], start[1], start[2], end[0], end[1], end[2], b - a)
             self._coefficients[i] = coeffs
         return coeffs
 
@@ -179,8 +180,9 @@ class DcmPlan:
         """The plan at time ``t_s`` [s]."""
         for i, (a, b) in enumerate(self.windows):
             if a <= t_s <= b:
-                xi, xid, _ = polynomial_at(self._window(i), t_s - a)
-                return DcmReference(xi, xid, xi - xid / self.omega)
+                (x, y), (xd, yd), _ = quintic_columns_at(self._window(i), t_s - a)
+                w = self.omega
+                return DcmReference(np.array([x, y]), np.array([xd, yd]), np.array([x - xd / w, y - yd / w]))
         if self._initial is not None and self.windows and t_s < self.windows[0][0]:
             _, xi0, xid0 = self._initial
             xi = np.asarray(xi0, dtype=float).copy()
@@ -245,17 +247,23 @@ def _cross(o: Sequence[float], a: Sequence[float], b: Sequence[float]) -> float:
 class ConvexPolygon:
     """A convex polygon (a support polygon) with its edges' outward normals, for margins and clamps.
 
+    The edges, the margins and the inside test are on plain floats (a walker asks for a few every
+    cycle, where numpy's per-call cost would be most of the work); the clamp of a point outside uses
+    the arrays.
+
     Args:
         hull: Its vertices (m, 2) [m], counter-clockwise (:func:`convex_hull`'s).
     """
 
     def __init__(self, hull: npt.ArrayLike):
         self.hull = np.asarray(hull, dtype=float)
-        if len(self.hull) >= 3:
-            self._edges(self.hull.tolist())
+        self._set_vertices(self.hull.tolist())
 
-    def _edges(self, pts: list[list[float]]) -> None:
-        """The edges' outward normals and offsets from the vertices ``pts`` (plain floats: a few of them)."""
+    def _set_vertices(self, pts: list[list[float]]) -> None:
+        """The vertices ``pts`` (counter-clockwise), and from 3 of them the edges' normals and offsets."""
+        self._vertices = pts
+        if len(pts) < 3:
+            return
         normals, offsets = [], []
         for (ax, ay), (bx, by) in zip(pts, pts[1:] + pts[:1], strict=True):
             ex, ey = bx - ax, by - ay
@@ -263,16 +271,24 @@ class ConvexPolygon:
             nx, ny = (ey / norm, -ex / norm) if norm > 0 else (_over_zero(ey), _over_zero(-ex))
             normals.append((nx, ny))
             offsets.append(ax * nx + (0.0 + ay * ny))  # n_i . x <= offset_i inside (summed as numpy does)
-        self._normals = np.array(normals)
-        self._offsets = np.array(offsets)
-        self._offset_list = offsets
+        self._normal_list, self._offset_list = normals, offsets
         sx, sy = pts[0]
         for x, y in pts[1:]:  # the centroid, summed in order (as hull.mean(axis=0))
             sx, sy = sx + x, sy + y
-        centroid = np.array([sx / len(pts), sy / len(pts)])
-        inside = [o - v for o, v in zip(offsets, (self._normals @ centroid).tolist(), strict=True)]
+        cx, cy = sx / len(pts), sy / len(pts)
+        inside = [o - (nx * cx + ny * cy) for (nx, ny), o in zip(normals, offsets, strict=True)]
         #: The largest margin anything can have inside [m] (the centroid's: at most the inradius).
         self.depth = math.nan if any(d != d for d in inside) else min(inside)
+
+    @functools.cached_property
+    def _normals(self) -> np.ndarray:
+        """The edges' outward unit normals (m, 2)."""
+        return np.array(self._normal_list)
+
+    @functools.cached_property
+    def _offsets(self) -> np.ndarray:
+        """The edges' offsets (m,) [m]: ``n_i . x <= offset_i`` inside."""
+        return np.array(self._offset_list)
 
     @classmethod
     def of_points(cls, points: npt.ArrayLike) -> ConvexPolygon:
@@ -285,12 +301,24 @@ class ConvexPolygon:
                 isinstance(p, list | tuple) and len(p) == 2 and math.isfinite(p[0]) and math.isfinite(p[1])
                 for p in points)):
             return cls(convex_hull(points))
-        vertices = _hull([[float(x), float(y)] for x, y in points])
+        return cls.of_vertices(_hull([[float(x), float(y)] for x, y in points]))
+
+    @classmethod
+    def of_finite_points(cls, points: list[list[float]]) -> ConvexPolygon:
+        """:meth:`of_points` on a list of finite (x, y) float pairs, unchecked (a walker's, every cycle)."""
+        return cls.of_vertices(_hull(points))
+
+    @classmethod
+    def of_vertices(cls, vertices: list[list[float]]) -> ConvexPolygon:
+        """The polygon of finite vertices (x, y) [m], counter-clockwise and convex (a hull's): unchecked."""
         polygon = cls.__new__(cls)
-        polygon.hull = np.array(vertices)
-        if len(vertices) >= 3:
-            polygon._edges(vertices)
+        polygon._set_vertices(vertices)
         return polygon
+
+    @functools.cached_property
+    def hull(self) -> np.ndarray:
+        """Its vertices (m, 2) [m], counter-clockwise."""
+        return np.array(self._vertices).reshape(-1, 2)
 
     def margin(self, point: npt.ArrayLike) -> float:
         """Signed distance [m] from ``point`` (2,) to the edges: > 0 inside.
@@ -299,18 +327,18 @@ class ConvexPolygon:
         polygon (to a vertex or an edge). A hull of one or two points has no inside (the distance,
         negated).
         """
-        p = np.asarray(point, dtype=float)[:2]
-        if len(self.hull) < 3:
-            return -_distance_to_chain(p, self.hull)
-        worst = self._excess(p, 0.0)
+        px, py = _xy(point)
+        if len(self._vertices) < 3:
+            return -_distance_to_chain(np.array([px, py]), self.hull)
+        worst = self._excess(px, py, 0.0)
         if worst <= 0:
             return -worst
-        return -_distance_to_chain(p, np.vstack([self.hull, self.hull[:1]]))
+        return -_distance_to_chain(np.array([px, py]), np.vstack([self.hull, self.hull[:1]]))
 
-    def _excess(self, p: np.ndarray, shrink: float) -> float:
+    def _excess(self, px: float, py: float, shrink: float) -> float:
         """``max_i n_i . p - (offset_i - shrink)`` (NaN if any is: a NaN point is nowhere inside)."""
-        values = [a - (b - shrink)
-                  for a, b in zip((self._normals @ p).tolist(), self._offset_list, strict=True)]
+        values = [nx * px + ny * py - (o - shrink)
+                  for (nx, ny), o in zip(self._normal_list, self._offset_list, strict=True)]
         worst = max(values)
         return math.nan if any(v != v for v in values) else worst
 
@@ -326,13 +354,13 @@ class ConvexPolygon:
         (Dykstra's alternating projections, used before, took up to 100 rounds, 3 ms, for a point far
         outside near a vertex.)
         """
-        p = np.asarray(point, dtype=float)[:2].copy()
-        if len(self.hull) < 3:
-            return _nearest_on_chain(p, self.hull)
-        n = self._normals
+        px, py = _xy(point)
+        if len(self._vertices) < 3:
+            return _nearest_on_chain(np.array([px, py]), self.hull)
         shrink = min(max(margin_m, 0.0), 0.999 * self.depth)
-        if self._excess(p, shrink) <= 1e-12:
-            return p
+        if self._excess(px, py, shrink) <= 1e-12:
+            return np.array([px, py])
+        p, n = np.array([px, py]), self._normals
         c = self._offsets - shrink  # n_i . x <= c_i
         feet = p - (n @ p - c)[:, None] * n  # the foot on each line (n_i unit)
         i, j = np.triu_indices(len(n), 1)
@@ -346,6 +374,17 @@ class ConvexPolygon:
         feasible = candidates[(candidates @ n.T - c).max(axis=1) <= slack]
         d2 = ((feasible - p) ** 2).sum(axis=1)
         return feasible[int(np.argmin(d2))].copy()
+
+
+def _xy(point: npt.ArrayLike) -> tuple[float, float]:
+    """A point's x and y as floats (its first two values)."""
+    if type(point) is np.ndarray and point.dtype == np.float64 and point.ndim == 1:
+        x, y = point[:2].tolist()
+        return x, y
+    if type(point) in (list, tuple) and len(point) >= 2:
+        return float(point[0]), float(point[1])
+    x, y = np.asarray(point, dtype=float)[:2].tolist()
+    return x, y
 
 
 def _over_zero(x: float) -> float:

@@ -55,8 +55,20 @@ def quintic_coefficients(p0: npt.ArrayLike, v0: npt.ArrayLike, a0: npt.ArrayLike
     Raises:
         InvalidPlanningInput: A non-positive or non-finite duration, or end values of other shapes.
     """
+    return np.array(list(zip(*quintic_columns(p0, v0, a0, p1, v1, a1, duration_s), strict=True)))
+
+
+def quintic_columns(p0: npt.ArrayLike, v0: npt.ArrayLike, a0: npt.ArrayLike, p1: npt.ArrayLike,
+                    v1: npt.ArrayLike, a1: npt.ArrayLike, duration_s: float) -> list[tuple[float, ...]]:
+    """:func:`quintic_coefficients` as plain floats, by coordinate: n tuples ``(c_0, ..., c_5)``.
+
+    For :func:`quintic_columns_at` (a path sampled every control cycle, where numpy's per-call cost
+    would be most of the work).
+
+    Raises:
+        InvalidPlanningInput: A non-positive or non-finite duration, or end values of other shapes.
+    """
     T = check_time("duration_s", duration_s)
-    # plain floats: a few values per call, where numpy's per-call cost would be most of the work
     values = [_floats(x) for x in (p0, v0, a0, p1, v1, a1)]
     ends = [e for e in values if e is not None]
     n = max((len(e) for e in ends), default=0)
@@ -65,16 +77,31 @@ def quintic_coefficients(p0: npt.ArrayLike, v0: npt.ArrayLike, a0: npt.ArrayLike
         raise InvalidPlanningInput(f"the end values must be scalars or vectors of one length (n,); got "
                                    f"shapes {shapes}")
     T2, T3, T4, T5 = T**2, 2.0 * T**3, 2.0 * T**4, 2.0 * T**5
-    rows: list[list[float]] = [[], [], [], [], [], []]
+    columns = []
     for i in range(n):
         p, v, a, q, w, b = (e[0] if len(e) == 1 else e[i] for e in ends)
         dq = q - p
-        for row, c in zip(rows, (p, v, 0.5 * a,
-                                 (20.0 * dq - (8.0 * w + 12.0 * v) * T - (3.0 * a - b) * T2) / T3,
-                                 (-30.0 * dq + (14.0 * w + 16.0 * v) * T + (3.0 * a - 2.0 * b) * T2) / T4,
-                                 (12.0 * dq - 6.0 * (w + v) * T - (a - b) * T2) / T5), strict=True):
-            row.append(c)
-    return np.array(rows)
+        columns.append((p, v, 0.5 * a,
+                        (20.0 * dq - (8.0 * w + 12.0 * v) * T - (3.0 * a - b) * T2) / T3,
+                        (-30.0 * dq + (14.0 * w + 16.0 * v) * T + (3.0 * a - 2.0 * b) * T2) / T4,
+                        (12.0 * dq - 6.0 * (w + v) * T - (a - b) * T2) / T5))
+    return columns
+
+
+def quintic_columns_at(columns: list[tuple[float, ...]], t_s: float
+                       ) -> tuple[list[float], list[float], list[float]]:
+    """Position, velocity and acceleration (n floats each) of :func:`quintic_columns`' polynomials at t_s."""
+    t = t_s
+    t2 = t * t
+    t3 = t2 * t
+    t4 = t3 * t
+    t5 = t4 * t
+    p, v, a = [], [], []
+    for c0, c1, c2, c3, c4, c5 in columns:
+        p.append(c0 + c1 * t + c2 * t2 + c3 * t3 + c4 * t4 + c5 * t5)
+        v.append(c1 + 2.0 * c2 * t + 3.0 * c3 * t2 + 4.0 * c4 * t3 + 5.0 * c5 * t4)
+        a.append(2.0 * c2 + 6.0 * c3 * t + 12.0 * c4 * t2 + 20.0 * c5 * t3)
+    return p, v, a
 
 
 def _floats(x: npt.ArrayLike) -> list[float] | None:
@@ -156,8 +183,9 @@ class SwingTrajectory:
         if not np.all(np.isfinite(start)):
             raise InvalidPlanningInput(f"start_yaw_rad must be finite; got {start_yaw_rad!r}")
         self._plane_t0 = self.t0_s
-        self._plane = quintic_coefficients(start, 0.0, 0.0, self._goal(start[2], p1, target_yaw_rad),
-                                           0.0, 0.0, self.horizontal_end_s - self.t0_s)
+        # the path's polynomials by coordinate, on plain floats (sampled every control cycle)
+        self._plane = quintic_columns(start, 0.0, 0.0, self._goal(float(start[2]), p1, target_yaw_rad),
+                                      0.0, 0.0, self.horizontal_end_s - self.t0_s)
         self.target_position = p1
         self.target_yaw_rad = float(self._plane_end()[2])
         half = 0.5 * self.duration_s
@@ -165,23 +193,24 @@ class SwingTrajectory:
         self._cache: tuple[float, SwingSample] | None = None  # the last sample (a cycle asks for it again)
         self._plane_end_cache: list[float] | None = None  # x, y, yaw at the horizontal motion's end
         self._plane_cache: tuple[float, tuple[list[float], list[float], list[float]]] | None = None
-        self._up = quintic_coefficients(p0[2], 0.0, 0.0, apex, 0.0, 0.0, half)
-        self._down = quintic_coefficients(apex, 0.0, 0.0, p1[2], 0.0, 0.0, half)
+        self._up = quintic_columns(float(p0[2]), 0.0, 0.0, float(apex), 0.0, 0.0, half)
+        self._down = quintic_columns(float(apex), 0.0, 0.0, float(p1[2]), 0.0, 0.0, half)
 
     @property
     def end_s(self) -> float:
         """Planned touchdown time [s]."""
         return self.t0_s + self.duration_s
 
-    def _plane_end(self) -> np.ndarray:
-        return polynomial_at(self._plane, self.horizontal_end_s - self._plane_t0)[0]
+    def _plane_end(self) -> list[float]:
+        return quintic_columns_at(self._plane, self.horizontal_end_s - self._plane_t0)[0]
 
     @staticmethod
-    def _goal(yaw_now: float, target: np.ndarray, target_yaw_rad: float) -> np.ndarray:
+    def _goal(yaw_now: float, target: np.ndarray, target_yaw_rad: float) -> list[float]:
         if not math.isfinite(target_yaw_rad):
             raise InvalidPlanningInput(f"target_yaw_rad must be finite; got {target_yaw_rad!r}")
         yaw = yaw_now + math.remainder(float(target_yaw_rad) - yaw_now, 2.0 * math.pi)
-        return np.array([target[0], target[1], yaw])
+        x, y, _ = target.tolist()
+        return [x, y, yaw]
 
     def retarget(self, t_s: float, target_position: npt.ArrayLike, target_yaw_rad: float) -> bool:
         """Move the footstep (x, y, yaw) from time ``t_s`` on, continuously; the height profile stays.
@@ -198,11 +227,11 @@ class SwingTrajectory:
             return False
         p, v, a = self._plane_at(t_s)
         goal = self._goal(p[2], p1, target_yaw_rad)
-        self._plane = quintic_coefficients(p, v, a, goal, 0.0, 0.0, left)
+        self._plane = quintic_columns(p, v, a, goal, 0.0, 0.0, left)
         self._plane_t0 = float(t_s)
         self._cache = self._plane_end_cache = self._plane_cache = None
         self.target_position = np.array([p1[0], p1[1], self.target_position[2]])
-        self.target_yaw_rad = float(goal[2])
+        self.target_yaw_rad = goal[2]
         return True
 
     def at(self, t_s: float) -> SwingSample:
@@ -229,22 +258,20 @@ class SwingTrajectory:
         if t_s >= self.horizontal_end_s:  # at the footstep (x, y, yaw): the same until a retarget
             if self._plane_end_cache is None:
                 end = max(0.0, self.horizontal_end_s - self._plane_t0)
-                self._plane_end_cache = polynomial_at(self._plane, end)[0].tolist()
+                self._plane_end_cache = quintic_columns_at(self._plane, end)[0]
             return self._plane_end_cache, [0.0] * 3, [0.0] * 3
         cached = self._plane_cache
         if cached is None or cached[0] != t_s:
-            p, v, a = polynomial_at(self._plane, max(0.0, t_s - self._plane_t0))
-            cached = self._plane_cache = (t_s, (p.tolist(), v.tolist(), a.tolist()))
+            tau = max(0.0, t_s - self._plane_t0)
+            cached = self._plane_cache = (t_s, quintic_columns_at(self._plane, tau))
         return cached[1]
 
     def _at(self, t_s: float) -> SwingSample:
         tau = min(max(t_s - self.t0_s, 0.0), self.duration_s)
         p, v, a = self._plane_at(t_s)
         half = 0.5 * self.duration_s
-        if tau <= half:
-            z, vz, az = (x.tolist()[0] for x in polynomial_at(self._up, tau))
-        else:
-            z, vz, az = (x.tolist()[0] for x in polynomial_at(self._down, tau - half))
+        (z,), (vz,), (az,) = (quintic_columns_at(self._up, tau) if tau <= half
+                              else quintic_columns_at(self._down, tau - half))
         if t_s <= self.t0_s or t_s >= self.end_s:  # at rest outside the swing
             v, a, vz, az = [0.0] * 3, [0.0] * 3, 0.0, 0.0
         return SwingSample(np.array([p[0], p[1], z]), np.array([v[0], v[1], vz]), np.array([a[0], a[1], az]),

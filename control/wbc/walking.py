@@ -57,7 +57,7 @@ from mbctl.control.wbc.standing import Standing, standing_controller
 from mbctl.control.wbc.step_adaptation import StepAdaptation, StepAdapter, dcm_tube
 from mbctl.control.wbc.swing_task import SwingFootTask
 from mbctl.control.wbc.walking_config import WalkingConfig
-from mbctl.planners.dcm import ConvexPolygon, DcmPlan, dcm_feedback, dcm_omega
+from mbctl.planners.dcm import ConvexPolygon, DcmPlan, dcm_omega
 from mbctl.planners.footsteps import (
     CommandClamp,
     Footstep,
@@ -336,9 +336,12 @@ class WalkingController:
             self._next_replan_s = t + cfg.replan_period_s
         plan, steps = self._plan(gait, t)
         ref = plan.at(t)
-        support = ConvexPolygon.of_points(self._support_points(poses))
-        cmp = dcm_feedback(xi, ref, self.omega, cfg.dcm_gain_1_s)
-        cmp_c = support.clamp(cmp, cfg.cmp_margin_m)
+        support = self._support_polygon(poses)
+        (ix, iy), (rx, ry), (zx, zy) = xi.tolist(), ref.xi.tolist(), ref.vrp.tolist()
+        gain = 1.0 + cfg.dcm_gain_1_s / self.omega  # dcm_feedback's law, on floats
+        cmp_xy = [zx + gain * (ix - rx), zy + gain * (iy - ry)]
+        cmp = np.array(cmp_xy)
+        cmp_c = support.clamp(cmp_xy, cfg.cmp_margin_m)
         z_ref, vz_ref, az_ref = gait.height(t)
         cmp_com = cmp_c
         last = self.wbc.last
@@ -359,12 +362,16 @@ class WalkingController:
                 target[arm] = q0[arm] + cfg.arm_swing_gain * (state.q[leg] - q0[leg])
             self.standing.posture.set_target(target)
         self.status = WalkingStatus(t, gait.phase, gait.stance_name, xi, ref.xi, ref.vrp,
-                                    support.margin(ref.vrp), cmp, support.margin(cmp), cmp_c, acc,
+                                    support.margin((zx, zy)), cmp, support.margin(cmp_xy), cmp_c, acc,
                                     tuple(steps), event, self._adaptation)
         return self.wbc.compute(state)
 
-    def _support_points(self, poses: dict[str, pin.SE3]) -> list[list[float]]:
-        """The active feet's contact points (x, y) [m] in W (plain floats: a few points per foot)."""
+    def _support_polygon(self, poses: dict[str, pin.SE3]) -> ConvexPolygon:
+        """The support polygon: the hull of the active feet's contact points (x, y) [m] in W.
+
+        Raises:
+            InvalidPlanningInput: Non-finite foot poses.
+        """
         points = []
         for f in self.feet:
             contact = self.wbc.contacts[f]
@@ -372,7 +379,9 @@ class WalkingController:
                 xs, ys, _ = (poses[f].rotation @ contact.contact.points_F.T).tolist()
                 ox, oy, _ = poses[f].translation.tolist()
                 points += [[x + ox, y + oy] for x, y in zip(xs, ys, strict=True)]
-        return points
+        if not (points and math.isfinite(sum(x + y for x, y in points))):
+            return ConvexPolygon.of_points(points)  # raises
+        return ConvexPolygon.of_finite_points(points)
 
     def _tell_contacts(self) -> None:
         """Tell the contact listener which feet are on the ground (their contact in force), on a change."""
