@@ -252,8 +252,8 @@ def _overhead_line(values: dict) -> list[str]:
     if not math.isfinite(us):
         return []
     return [f"cycle {values['cycle_time_median_us']:.0f} us median: controller, physics step "
-            f"{values['physics_step_time_median_us']:.0f} us, and {us:.0f} us beyond them (targets, state, "
-            "command, plant monitor, CSV row)"]
+            f"{values['physics_step_time_median_us']:.0f} us, and {us:.0f} us beyond them (mean "
+            f"{values['cycle_overhead_mean_us']:.0f} us: targets, state, command, plant monitor, CSV row)"]
 
 
 G1_WBC = Job("g1-wbc", prepare)

@@ -92,6 +92,11 @@ def test_a_capped_log_keeps_20_rows_and_reports_every_cycles_figures(g1, tmp_pat
     assert v["qp_solve_time_median_us"] == float(np.median(qp_us[qp_us > 0]))
     assert v["physics_step_time_median_us"] == float(np.median(physics_us))
     assert 0 < v["cycle_overhead_median_us"] < v["cycle_time_median_us"]
+    # the mean overhead: every cycle's (each recorded once, BATCH at a time) from the uncapped rows
+    rf = full_log.record()
+    physics = full_log._rows[: full_log.rows, full_log._extra["physics_us"]]
+    overhead = (rf.cycle_us - rf.ctrl_us - physics)[1:]  # the first cycle has no start
+    assert vf["cycle_overhead_mean_us"] == pytest.approx(overhead.mean(), rel=1e-5)
     with pytest.raises(ValueError, match="with_truth is for a run over DDS: in-process the CoM is the plant"):
         log.with_truth(np.zeros((250, 3)), fell=False)
 
