@@ -223,14 +223,18 @@ class DynamicsState(TaskState):
     @property
     def M(self) -> np.ndarray:  # noqa: N802 - the mass matrix is M in every text
         """Joint-space inertia (nv, nv) at q, both triangles filled (read-only, once per update)."""
-        if self._M is None:  # Pinocchio fills the upper triangle (the lower holds other values)
-            M, upper = self._M_buffer, self.data.M
-            np.copyto(M, upper)
-            # the lower triangle from Pinocchio's upper one (another buffer: no overlap, no temporary;
-            # mirroring within M made numpy copy it first, ~2x as long)
-            np.copyto(M, upper.T, where=self._lower)
+        if self._M is None:
+            self.mass_matrix_into(self._M_buffer)
             self._M = self._M_view
         return self._M
+
+    def mass_matrix_into(self, out: np.ndarray) -> None:
+        """Write the joint-space inertia (nv, nv), both triangles, into ``out`` (e.g. a block of rows)."""
+        upper = self.data.M  # Pinocchio fills the upper triangle (the lower holds other values)
+        np.copyto(out, upper)
+        # the lower triangle from Pinocchio's upper one (another buffer: no overlap, no temporary;
+        # mirroring within M made numpy copy it first, ~2x as long)
+        np.copyto(out, upper.T, where=self._lower)
 
     @property
     def b(self) -> np.ndarray:

@@ -131,12 +131,25 @@ class WholeBodyController:
         self._force_slices = {name: slice(cs.cols.start - nv, cs.cols.stop - nv)
                               for name, cs in self.contacts.items()}
         n_f = col - nv
-        self._n_fric = 4 * n_f // 3 + 2 * len(self.contacts)  # the pyramids, then each foot's torsion
-        n_a = len(self._act)
-        self._qp = WholeBodyQP(nv, n_f, self._n_fric + n_a, self._n_unact + 6 * len(self.contacts),
-                               self._config.force_weight, m_force=self._n_unact)  # foot rows: no f
+        n_feet = len(self.contacts)
+        self._n_fric = 4 * n_f // 3 + 2 * n_feet  # the pyramids, then each foot's torsion
+        n_a, n_u, n_feet_rows = len(self._act), self._n_unact, 6 * n_feet
+        # the QP's rows, one buffer: the feet's rows and the base's dynamics rows (the equalities,
+        # the last n_u with force columns), the torque rows, the friction pyramids and the feet's
+        # torsion (the inequalities); [M, -Jc^T]'s rows [u; a] are one block of it
+        self._qp = WholeBodyQP(nv, n_f, n_a + self._n_fric, n_feet_rows + n_u, self._config.force_weight,
+                               m_force=n_u)
         qp = self._qp
-        row = 0
+        self._n_feet_rows = n_feet_rows
+        self._dyn = qp.rows[n_feet_rows:n_feet_rows + nv]  # [M, -Jc^T], rows u then a
+        self._T = qp.G[:n_a]  # torque rows: tau = T x + b_a (its rows a, written each cycle)
+        qp.deferred_rows = slice(0, n_a)  # the torque limits: rarely active
+        # M's and -Jc^T's rows in order when the unactuated dofs come first (a free flyer's), else
+        # picked by index
+        in_order = isinstance(self._u, slice) and isinstance(self._a, slice) \
+            and (self._u.start, self._u.stop, self._a.start, self._a.stop) == (0, n_u, n_u, nv)
+        self._dyn_rows = None if in_order else np.concatenate([self._unact, self._act])
+        row = n_a
         for cs in self.contacts.values():  # friction pyramid rows: |f_x|, |f_y| <= mu / sqrt(2) f_z
             mu = cs.contact.mu / np.sqrt(2.0)
             for c0 in range(cs.cols.start, cs.cols.stop, 3):
@@ -157,17 +170,14 @@ class WholeBodyController:
             self._torsion_rows.append((row, moment, cs.fz))
             qp.g_up[row:row + 2] = 0.0
             row += 2
-        self._T = qp.G[self._n_fric:]  # torque rows: tau = T x + b_a (a view, written each cycle)
-        qp.deferred_rows = slice(self._n_fric, self._n_fric + n_a)  # the torque limits: rarely active
         # the points' Jacobians in their foot frames, transposed and negated: -Jc^T = J_F^T (-G_blk^T),
-        # one product whose rows are the dynamics' and the torque rows' force columns (contiguous
-        # row blocks to copy, where -Jc[:, u].T was a transposing copy per block)
+        # one product whose rows are the dynamics' and the torque rows' force columns
         self._JcT_neg = np.zeros((nv, n_f))
-        n_feet = len(self.contacts)
-        self._JF = np.zeros((6 * n_feet, nv))  # every foot's LOCAL Jacobian, stacked
-        self._foot_err = np.zeros(6 * n_feet)  # log6(X_FF0) of each foot, then its row's target
-        self._foot_drift = np.zeros(6 * n_feet)  # Jdot_F v of each foot
-        self._G_blk = np.zeros((n_f, 6 * n_feet))  # Jc = blockdiag(G_F) J_F, one product
+        self._JF = qp.E[:n_feet_rows, :nv]  # every foot's LOCAL Jacobian, stacked: its rows of E
+        self._foot_err = qp.e[:n_feet_rows]  # log6(X_FF0) of each foot, then its row's target
+        self._foot_drift = np.zeros(n_feet_rows)  # Jdot_F v of each foot
+        self._packed = False  # a foot's rows were moved over another's (their force columns to clear)
+        self._G_blk = np.zeros((n_f, n_feet_rows))  # Jc = blockdiag(G_F) J_F, one product
         for i, cs in enumerate(self.contacts.values()):
             self._G_blk[cs.cols.start - nv:cs.cols.stop - nv, 6 * i:6 * i + 6] = cs.G_F
         # each foot's rows of J_F, its error and its drift: views made once (no slices per cycle)
@@ -175,7 +185,7 @@ class WholeBodyController:
                                  self._foot_drift[6 * i:6 * i + 6])
                                 for i, (name, cs) in enumerate(self.contacts.items()))
         self._GT_neg = -self._G_blk.T  # (negation is exact: the same products as -(G_blk J_F))
-        self._foot_v = np.zeros(6 * n_feet)  # J_F v of each foot
+        self._foot_v = np.zeros(n_feet_rows)  # J_F v of each foot
         self._limits = self._joint_limits()
         self._n_limits = len(self._limits[0])
         self._limit_iv, self._limit_iq = as_slice(self._limits[0]), as_slice(self._limits[1])
@@ -363,31 +373,35 @@ class WholeBodyController:
         foot_v *= 2.0 * cfg.contact_omega_rad_s
         err -= foot_v
         err -= drift
-        m_eq = self._n_unact
-        if all_active:  # (the force columns of the foot rows stay zero)
-            qp.E[m_eq:m_eq + len(err), :nv] = JF
-            qp.e[m_eq:m_eq + len(err)] = err
-            m_eq += len(err)
+        # [M, -Jc^T]: its rows u are the base's dynamics rows M_u vdot - Jc_u^T f = -b_u (equalities),
+        # its rows a the torque rows, tau = T x + b_a with T = [M_a, -Jc_a^T]; tau_min <= tau <= tau_max
+        D, b = self._dyn, s.b
+        if self._dyn_rows is None:
+            s.mass_matrix_into(D[:, :nv])
+            D[:, nv:] = JcT_neg
         else:
+            D[:, :nv] = s.M[self._dyn_rows]
+            D[:, nv:] = JcT_neg[self._dyn_rows]
+        n_u, n_feet_rows = self._n_unact, self._n_feet_rows
+        m_eq = n_feet_rows + n_u
+        E, e = qp.E, qp.e
+        np.negative(b[self._u], out=e[n_feet_rows:m_eq])
+        b_a = b[self._a]
+        np.subtract(self.tau_high, b_a, out=qp.g_up[:len(b_a)])
+        np.subtract(self.tau_low, b_a, out=qp.g_lo[:len(b_a)])
+        if self._packed:  # rows the last cycle moved: the feet's rows have no force columns
+            E[:n_feet_rows, nv:] = 0.0
+            self._packed = False
+        if not all_active:  # the active feet's rows, then the dynamics rows, moved up to the top
+            k = 0
             for i, cs in enumerate(self.contacts.values()):
                 if cs.active:
-                    qp.E[m_eq:m_eq + 6, :nv] = JF[6 * i:6 * i + 6]
-                    qp.e[m_eq:m_eq + 6] = err[6 * i:6 * i + 6]
-                    m_eq += 6
-        M, b = s.M, s.b
-        u, a = self._u, self._a
-        dyn = qp.E[:self._n_unact]
-        dyn[:, :nv] = M[u]
-        dyn[:, nv:] = JcT_neg[u]
-        np.negative(b[u], out=qp.e[:self._n_unact])
-        # torque rows: tau = T x + b_a with T = [M_a, -Jc_a^T]; tau_min <= tau <= tau_max
-        T = self._T
-        T[:, :nv] = M[a]
-        T[:, nv:] = JcT_neg[a]
-        b_a = b[a]
-        n_fric = self._n_fric
-        np.subtract(self.tau_high, b_a, out=qp.g_up[n_fric:])
-        np.subtract(self.tau_low, b_a, out=qp.g_lo[n_fric:])
+                    if k != i:
+                        E[6 * k:6 * k + 6], e[6 * k:6 * k + 6] = E[6 * i:6 * i + 6], e[6 * i:6 * i + 6]
+                    k += 1
+            E[6 * k:6 * k + n_u], e[6 * k:6 * k + n_u] = E[n_feet_rows:m_eq], e[n_feet_rows:m_eq]
+            m_eq = 6 * k + n_u
+            self._packed = True
         # joint limits: q + v T + vdot T^2/2 within [q_min + margin, q_max - margin]: a joint heading
         # for a limit must decelerate (the bound turns positive), at most by the accel cap A, so
         # that lb <= ub and the bounds stay feasible under the torque limits
@@ -428,7 +442,7 @@ class WholeBodyController:
                 raise error
             self.infeasible_at_s, self.infeasible_message = state.time_s, str(error)
             return self._fallback(state, t0)
-        tau = np.dot(T, x)
+        tau = np.dot(self._T, x)
         tau += b_a
         if cfg.friction_feedforward:
             self._add_friction(tau, x[:nv], dt_s)

@@ -105,8 +105,9 @@ class WholeBodyQP:
         m_in: Number of two-sided inequality rows.
         m_eq_max: The most equality rows a cycle may have.
         force_weight: ``w_f`` [cost]/[N]: the force block of H is ``w_f^2 I``.
-        m_force: Only the first ``m_force`` equality rows have non-zero force columns (default:
-            any row may); the others are skipped in ``E_f E_f^T``.
+        m_force: Only the last ``m_force`` of the equality rows in use (``E[m_eq - m_force:m_eq]``)
+            have non-zero force columns (default: any row may); the others are skipped in
+            ``E_f E_f^T``.
 
     Attributes:
         H_vv: (nv, nv) the acceleration block of H (symmetric positive definite).
@@ -114,6 +115,7 @@ class WholeBodyQP:
         E: (m_eq_max, n_x) equality rows; the first ``m_eq`` are used.
         e: (m_eq_max,) their right-hand side.
         G: (m_in, n_x) inequality rows; ``g_lo``, ``g_up`` (m_in,) their bounds (+-inf: none).
+        rows: (m_eq_max + m_in, n_x) ``E`` then ``G``: the buffer both are views of.
         lb, ub: (n_x,) bounds on x (+-inf: none).
         (g_lo, g_up, lb and ub are views into two buffers: write into them, never rebind them.)
     """
@@ -125,9 +127,10 @@ class WholeBodyQP:
         self.m_in, self.m_eq_max = m_in, m_eq_max
         self.H_vv = np.zeros((nv, nv))
         self.c_v = np.zeros(nv)
-        self.E = np.zeros((m_eq_max, self.n_x))
+        # E and G in one buffer: a caller may write a block that spans both (e.g. [M, -Jc^T]'s rows)
+        self.rows = np.zeros((m_eq_max + m_in, self.n_x))
+        self.E, self.G = self.rows[:m_eq_max], self.rows[m_eq_max:]
         self.e = np.zeros(m_eq_max)
-        self.G = np.zeros((m_in, self.n_x))
         # the bounds, then the rows' bounds, in one array per side (one comparison checks them all)
         self._lo = np.full(self.n_x + m_in, -np.inf)
         self._up = np.full(self.n_x + m_in, np.inf)
@@ -246,10 +249,10 @@ class WholeBodyQP:
         all_rows = self._rows[:m_eq]
         # LAPACK and BLAS directly: numpy.linalg's wrappers cost several us of Python per call here
         Z = self._schur_buffer(m_eq)
-        Z_v, Z_f = Z[:nv], Z[nv:, :m_f]  # (the force rows' other columns stay zero)
+        Z_v, Z_f = Z[:nv], Z[nv:, m_eq - m_f:m_eq]  # (the force rows' other columns stay zero)
         Z_v[:, :m_eq] = E[:, :nv].T
         Z_v[:, m_eq] = self.c_v
-        np.multiply(E[:m_f, nv:].T, self._inv_wf, out=Z_f)
+        np.multiply(E[m_eq - m_f:, nv:].T, self._inv_wf, out=Z_f)
         if self._pinned:
             Z_f *= self._free_f[:, None]  # the pinned forces' columns left out (they stay at zero)
         np.copyto(self._L, self.H_vv)  # (symmetric: its C order is the Fortran order LAPACK wants)

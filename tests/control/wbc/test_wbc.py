@@ -268,7 +268,9 @@ def test_a_released_foot_leaves_no_row_and_no_stale_target(tiny_biped, crouch):
         for k in range(1, 2000):
             ctrl.compute(RobotState(state.q, v, 0.002 * k))
     assert ctrl.contact_released("r_sole")
-    assert np.abs(ctrl._foot_err).max() < 10.0  # the damping of a 0.01 rad/s drift, not kp^k
+    # the feet's targets in the QP: the left foot's rows, then the base's (moved over the right's)
+    assert np.abs(ctrl._qp.e[:6]).max() < 10.0  # the damping of a 0.01 rad/s drift, not kp^k
+    np.testing.assert_array_equal(ctrl._qp.e[6:12], -ctrl.state.b[:6])
     assert np.isfinite(ctrl.solution.tau).all()
 
 
@@ -342,6 +344,36 @@ def test_the_actuator_order_does_not_change_the_torques(tiny_biped, tiny_biped_r
     for joint, tau in torques["slices"].items():
         assert torques["arrays"][joint] == pytest.approx(tau, abs=1e-7), joint
     assert max(abs(t) for t in torques["slices"].values()) > 1.0  # a loaded, moving state
+
+
+@pytest.mark.parametrize("released", ["l_sole", "r_sole"])
+def test_the_rows_in_order_equal_the_rows_picked_by_index_through_a_release(tiny_biped, crouch, released):
+    """[M, -Jc^T] written in place (the free flyer's dofs first) against its rows picked by index
+    (the general path), on moving states while one foot's force ramps down and after it is
+    released (its rows dropped: the other foot's and the base's moved up); the base's dynamics
+    rows hold at the solution: M_u vdot + b_u = Jc_u^T f."""
+    ctrls = []
+    for general in (False, True):
+        wb, _ = _stance(tiny_biped, crouch)
+        if general:
+            wb.controller._dyn_rows = np.arange(tiny_biped.nv)  # the private hook: M[rows], indexed
+        ctrls.append(wb.controller)
+    assert ctrls[0]._dyn_rows is None
+    for k in range(400):
+        if k == 50:
+            for ctrl in ctrls:
+                ctrl.release(released)
+        state = _moving_state(tiny_biped, crouch, seed=k)
+        state = RobotState(state.q, state.v, 0.002 * k)
+        taus = [ctrl.compute(state).values for ctrl in ctrls]
+        np.testing.assert_allclose(taus[0], taus[1], rtol=0.0, atol=1e-12)
+        for ctrl in ctrls:
+            sol, s = ctrl.solution, ctrl.state
+            base = s.M[:6] @ sol.vdot + s.b[:6] + ctrl._JcT_neg[:6] @ sol.forces
+            assert np.abs(base).max() < 1e-8, k
+    assert ctrls[0].contact_released(released)
+    np.testing.assert_array_equal(ctrls[0].solution.forces[ctrls[0].solution.force_slices[released]], 0.0)
+    assert np.abs(taus[0]).max() > 1.0
 
 
 def test_wrench_and_cop_agree_with_the_point_forces(tiny_biped, crouch):
