@@ -131,6 +131,8 @@ class Gait:
         self.steps = 0
         self.touchdowns = {"early": 0, "on time": 0, "late": 0, "forced": 0}
         self.events: list[GaitEvent] = []
+        #: Counts the changes of the footsteps (placed, swung to) and phases: equal revisions plan alike.
+        self.revision = 0
 
     def footstep(self, foot: str, X_WF: pin.SE3) -> Footstep:
         """The footstep a foot at pose ``X_WF`` makes."""
@@ -181,6 +183,7 @@ class Gait:
 
     def _event(self, event: GaitEvent) -> GaitEvent:
         self.events.append(event)
+        self.revision += 1
         return event
 
     def _lift_off(self, t: float, foot: str, poses: dict[str, pin.SE3],
@@ -226,8 +229,8 @@ class Gait:
 
     def retarget(self, t: float, step: Footstep) -> None:
         """Move the swing footstep to ``step`` (x, y, yaw; the landing height stays)."""
-        if self.swing is not None:
-            self.swing.path.retarget(t, step.position, step.yaw_rad)
+        if self.swing is not None and self.swing.path.retarget(t, step.position, step.yaw_rad):
+            self.revision += 1
 
     def swing_sample(self, foot: str, t: float) -> SwingSample | None:
         """The swing foot's reference at ``t`` (lowered further while late); None for a foot not swinging."""
@@ -253,21 +256,28 @@ class Gait:
             support), the VRPs in force before it, the time of the first switch [s], the footstep
             the preview continues from, and the initial DCM state (start phase only).
         """
-        T_ds = self.config.timing.double_support_s
+        t1 = self.first_switch_s(t, alpha)
         if self.swing is not None:
             first = self.swing.footstep(1 if self.swing.foot == self.feet[0] else -1)
-            t1 = max(self.phase_end, t) + alpha * T_ds
             return first, [self._placed_vrp(self.swing.stance)], t1, first, None
         if self.leading is not None:
             lead = self.placed[self.leading]
             vrps = [self._placed_vrp(self._other(self.leading)), self._placed_vrp(self.leading)]
-            return None, vrps, self.t_phase + alpha * T_ds, lead, None
+            return None, vrps, t1, lead, None
         foot = self._other(self.releasing or self._first_swing(command))
         stance = self.placed[foot]
         first = self.planner.next_footstep(stance, command)
         xi0 = self._com0[:2].copy()
-        t1 = self.phase_end - (1.0 - alpha) * T_ds
         return first, [xi0, self._placed_vrp(foot)], t1, first, (self.t0_s, xi0, np.zeros(2))
+
+    def first_switch_s(self, t: float, alpha: float) -> float:
+        """The DCM plan's first switch [s] at ``t`` (``plan_start``'s ``t1``)."""
+        T_ds = self.config.timing.double_support_s
+        if self.swing is not None:
+            return max(self.phase_end, t) + alpha * T_ds
+        if self.leading is not None:
+            return self.t_phase + alpha * T_ds
+        return self.phase_end - (1.0 - alpha) * T_ds
 
     def height(self, t: float) -> tuple[float, float, float]:
         """CoM height reference [m], its rate [m/s] and acceleration [m/s^2] at ``t``."""

@@ -50,6 +50,7 @@ import numpy as np
 import pinocchio as pin
 
 from mbctl.control.exceptions import WBCSetupError
+from mbctl.control.wbc._walking_plan import WalkPlans
 from mbctl.control.wbc.config import WBCConfig
 from mbctl.control.wbc.contacts import foot_contact_from_model
 from mbctl.control.wbc.gait import Gait, GaitEvent
@@ -57,7 +58,7 @@ from mbctl.control.wbc.standing import Standing, standing_controller
 from mbctl.control.wbc.step_adaptation import StepAdaptation, StepAdapter, dcm_tube
 from mbctl.control.wbc.swing_task import SwingFootTask
 from mbctl.control.wbc.walking_config import WalkingConfig
-from mbctl.planners.dcm import ConvexPolygon, DcmPlan, dcm_omega
+from mbctl.planners.dcm import ConvexPolygon, dcm_omega
 from mbctl.planners.footsteps import (
     CommandClamp,
     Footstep,
@@ -72,16 +73,6 @@ from mbctl.robots.model_pair import Robot
 #: ``contact_force(foot) -> normal force [N]`` measured on a foot (None: not measured).
 ContactForce = Callable[[str], "float | None"]
 
-#: Where each double support's DCM switch sits in it [-] (0.5: centred).
-DS_ALPHA = 0.5
-
-#: DCM plans kept for reuse, by their inputs (the last few cycles' distinct plans).
-PLANS_KEPT = 4
-
-
-def _step_key(step: Footstep | None) -> tuple | None:
-    """A footstep's values, as a key (exact: equal keys plan equal footsteps)."""
-    return None if step is None else (step.foot, step.side, *step.position.tolist(), step.yaw_rad)
 
 
 @dataclass
@@ -182,6 +173,7 @@ class WalkingController:
         self.omega = dcm_omega(cfg.com_height_m, float(np.linalg.norm(self.model.gravity.linear)))
         tube = dcm_tube(points, cfg.cmp_margin_m, cfg.dcm_gain_1_s, self.omega, cfg.dcm_tube_fraction)
         self.adapter = StepAdapter(self.planner, self.omega, tube)
+        self.plans = WalkPlans(self.planner, cfg, self.omega)
         self.swing_tasks = {f: SwingFootTask(f, self.model, cfg.swing_cost, cfg.swing_gains,
                                              cfg.swing_orientation_cost) for f in self.feet}
         self.contact_force = contact_force
@@ -248,8 +240,7 @@ class WalkingController:
         self._adaptation: StepAdaptation | None = None
         self._next_replan_s: float | None = None  # when the footsteps are planned next [s]
         self._in_contact = {}
-        self._plan_memo: tuple[tuple, tuple[DcmPlan, list[Footstep]]] | None = None
-        self._plans: dict[tuple, tuple[DcmPlan, list[Footstep]]] = {}
+        self.plans.reset()
         self._oriented: tuple[float, list[pin.SE3]] | None = None
 
     def _follow_command(self, t: float, gait: Gait) -> None:
@@ -334,7 +325,7 @@ class WalkingController:
             if gait.retargetable(t):
                 gait.retarget(t, self._swing_footstep(gait, t, xi))
             self._next_replan_s = t + cfg.replan_period_s
-        plan, steps = self._plan(gait, t)
+        plan, steps = self.plans.plan(gait, t, self._steer)
         ref = plan.at(t)
         support = self._support_polygon(poses)
         (ix, iy), (rx, ry), (zx, zy) = xi.tolist(), ref.xi.tolist(), ref.vrp.tolist()
@@ -419,46 +410,9 @@ class WalkingController:
         nominal = self.planner.next_footstep(stance, self._steer)
         if not self.config.step_adaptation:
             return nominal
-        plan, _ = self._plan(gait, t, nominal)
+        plan, _ = self.plans.plan(gait, t, self._steer, nominal)
         self._adaptation = self.adapter.adapt(stance, nominal, xi - plan.at(t).xi, plan.switch_times_s[0] - t)
         return self._adaptation.footstep
-
-    def _plan(self, gait: Gait, t: float,
-              swing_step: Footstep | None = None) -> tuple[DcmPlan, list[Footstep]]:
-        """The DCM plan from now through the swing footstep (or ``swing_step``) and the preview footsteps."""
-        cfg = self.config
-        first, vrps, t1, stance, initial = gait.plan_start(t, DS_ALPHA, self._steer)
-        if swing_step is not None:
-            first = stance = swing_step
-        # a cycle that moves the swing footstep plans twice, through the nominal footstep and then
-        # through the one it swings to: the same plan when the adaptation kept the nominal one (the
-        # swing path keeps its yaw unwrapped and rounds: equal to 1e-12 m and rad counts as the same)
-        first_key = _step_key(first)
-        key = (t, self._steer, None if first_key is None else (  # (foot, side, x, y, z, yaw)
-            round(first_key[2], 12), round(first_key[3], 12),
-            round(math.remainder(first_key[5], 2.0 * math.pi), 12)))
-        if self._plan_memo is not None and self._plan_memo[0] == key:
-            return self._plan_memo[1]
-        # the plan depends on these only (on t through t1): a cycle planning through the same footsteps
-        # at the same command as an earlier one (double support, a swing footstep no longer moving) reuses it
-        inputs = (first_key, first_key if stance is first else _step_key(stance),
-                  tuple(tuple(v.tolist()) for v in vrps), t1,
-                  None if initial is None else (initial[0], *initial[1].tolist(), *initial[2].tolist()),
-                  self._steer)
-        plan = self._plans.get(inputs)
-        if plan is None:
-            steps = [first] if first is not None else []
-            steps += self.planner.plan(stance, self._steer, cfg.preview_steps)
-            vrps += [gait.vrp(s) for s in steps]
-            before_last = vrps[-2] if len(steps) > 1 else gait.vrp(stance)
-            vrps.append(0.5 * (vrps[-1] + before_last))  # the stop: between the last two footsteps
-            switches = [t1 + cfg.timing.step_s * k for k in range(len(vrps) - 1)]  # (as t1 + T arange(n))
-            plan = DcmPlan(self.omega, vrps, switches, cfg.timing.double_support_s, DS_ALPHA, initial), steps
-            if len(self._plans) >= PLANS_KEPT:
-                del self._plans[next(iter(self._plans))]  # the oldest
-            self._plans[inputs] = plan
-        self._plan_memo = (key, plan)
-        return plan
 
     def _orient(self, yaw: float) -> None:
         """Pelvis and torso upright, heading ``yaw`` [rad]."""

@@ -257,23 +257,23 @@ def test_a_plan_is_reused_while_its_footsteps_and_command_stay(tiny_biped, crouc
     # 2 ms), then the footsteps, the VRPs and the command stay and so does the plan. While it ramps, a
     # plan is made at every footstep planning: every cycle (0 s), or every 4th (0.008 s: at 0, 0.008,
     # ..., 0.152 s, where the command has stayed at 0.15 m/s)
-    import mbctl.control.wbc.walking as walking
+    import mbctl.control.wbc._walking_plan as walking_plan
 
     built = []
 
-    class Counting(walking.DcmPlan):
+    class Counting(walking_plan.DcmPlan):
         def __init__(self, *args, **kwargs):
             built.append(args[2][0])  # the first switch [s]
             super().__init__(*args, **kwargs)
 
-    monkeypatch.setattr(walking, "DcmPlan", Counting)
+    monkeypatch.setattr(walking_plan, "DcmPlan", Counting)
     config = replace(CONFIG, replan_period_s=replan_period_s)
     walker, log, rows = _walk(tiny_biped, crouch, (0.15, 0.0, 0.0), 0.5, config)
     assert log.cycles == 250 and all(r[1] == "start" for r in rows)
     assert len(built) == plans and walker.velocity.vx_m_s == 0.15
     # the plan kept is the one a fresh build gives: the same reference at the last cycle
-    plan, _ = walker._plan(walker.gait, rows[-1][0])
-    again = walking.DcmPlan.__mro__[1](plan.omega, plan.vrps, plan.switch_times_s, plan.double_support_s,
+    plan, _ = walker.plans.plan(walker.gait, rows[-1][0], walker._steer)
+    again = walking_plan.DcmPlan.__mro__[1](plan.omega, plan.vrps, plan.switch_times_s, plan.double_support_s,
                                        plan.alpha, plan._initial)
     for t in (rows[-1][0], 0.55, 0.7, 1.2):
         np.testing.assert_array_equal(plan.at(t).xi, again.at(t).xi)
