@@ -63,7 +63,7 @@ FEASIBILITY_TOL = 1e-9
 DEFERRED_TOL = 1e-6
 
 # the ufuncs' reductions: ndarray.max and .min's Python wrappers left out (~0.3 us a call)
-_max, _min = np.maximum.reduce, np.minimum.reduce
+_max, _min, _all = np.maximum.reduce, np.minimum.reduce, np.logical_and.reduce
 
 #: Relative pivot [-] below which an equality row counts as dependent on the others (in the
 #: metric of ``E H^-1 E^T``).
@@ -169,8 +169,10 @@ class WholeBodyQP:
     def solve(self, m_eq: int) -> QPResult:
         """Solve with the first ``m_eq`` equality rows: the fast path, else daqp.
 
-        Contradictory bounds (a lower above its upper) are reported before any solve (status
-        :data:`~mbctl.control.qp.CONTRADICTORY`, one comparison over the contiguous bounds).
+        Contradictory bounds (a lower above its upper) are reported before daqp is called (status
+        :data:`~mbctl.control.qp.CONTRADICTORY`, one comparison over the contiguous bounds): the
+        fast path's point cannot satisfy them (it is accepted within :data:`FEASIBILITY_TOL` of every
+        bound, so only bounds crossed by less than twice that pass, as any point within it would).
         Linearly dependent equality rows (e.g. the feet of legs without a hip yaw, which cannot
         yaw relative to each other) are reduced to an independent subset (the pivots of
         ``E H^-1 E^T``), and the result says how many were dropped: the dropped rows hold only as
@@ -187,20 +189,23 @@ class WholeBodyQP:
             inequality is active (``iterations`` 0), ``dependent_rows`` the rows dropped.
         """
         t0 = time.perf_counter()
-        if (self._lo > self._up).any():
-            return QPResult(None, CONTRADICTORY, 0, 0.0)
-        free = self._free_f
-        np.copyto(free, self.force_free)
-        self._pinned = bool(_min(free) == 0.0)
+        pinned = not _all(self.force_free)
+        if pinned or self._pinned:  # (_free_f stays all ones while no force is pinned)
+            np.copyto(self._free_f, self.force_free)
+        self._pinned = pinned
         if self._skip_fast:
+            if (self._lo > self._up).any():
+                return QPResult(None, CONTRADICTORY, 0, 0.0)
             result, self._skip_fast = self._daqp(self._rows[:m_eq], 0)
             if result.x is not None:
                 return result
         x, rows = self._kkt(m_eq)
         dropped = m_eq - len(rows)
-        if x is not None and self._feasible(x):
+        if x is not None and self._feasible(x, xg=x.base):
             self._skip_fast = False
             return QPResult(x, OPTIMAL, 0, time.perf_counter() - t0, True, dropped)
+        if (self._lo > self._up).any():
+            return QPResult(None, CONTRADICTORY, 0, 0.0)
         result, active = self._daqp(rows, dropped)
         self._skip_fast = dropped == 0 and active
         return result
@@ -240,8 +245,9 @@ class WholeBodyQP:
         ``vdot = L^-T (Y_E y - Y_c)`` (a second solve, one column) and ``f = E_f^T y / w_f^2``.
 
         Returns:
-            ``(x, rows)``: x (n_x,) or None if H_vv is not positive definite; ``rows`` the indices
-            of a maximal independent subset of the equality rows (x satisfies those). Pinned forces
+            ``(x, rows)``: x (n_x,) or None if H_vv is not positive definite (x: the first n_x
+            entries of a new (n_x + m_in,) array, ``x.base``); ``rows`` the indices of a maximal
+            independent subset of the equality rows (x satisfies those). Pinned forces
             (``force_free`` False, as read by :meth:`solve`) are left out and zero.
         """
         nv, m_f = self.nv, min(self.m_force, m_eq)
@@ -269,15 +275,17 @@ class WholeBodyQP:
         # pivoted one, whose rank is E's and whose pivots pick independent rows
         scale = max(float(_max(S.diagonal())), 1e-300)
         Ls, y, info = dposv(S, rhs, lower=1)  # y = -lambda
+        # x in a new array's first n_x entries, G x to follow (the feasibility check's [x; G x])
+        x = np.empty(self.n_x + self.m_in)[:self.n_x]
         if info == 0 and float(_min(Ls.diagonal())) ** 2 > RANK_RTOL * scale:
             rows = all_rows
-            x = np.dot(Z[:, :m_eq], y)  # [Y_E y; E_f^T y / w_f]
+            np.dot(Z[:, :m_eq], y, out=x)  # [Y_E y; E_f^T y / w_f]
         else:
             _, piv, rank, _ = dpstrf(S, tol=RANK_RTOL * scale, lower=1)
             rows = np.sort(piv[:rank] - 1)
             Ls, _ = dpotrf(S[np.ix_(rows, rows)], lower=1)
             y, _ = dpotrs(Ls, rhs[rows], lower=1)
-            x = np.dot(Z[:, rows], y)
+            np.dot(Z[:, rows], y, out=x)
         # x = -H^-1 (c + E^T lambda): vdot = L^-T (Y_E y - Y_c), f = E_f^T y / w_f^2
         vdot = x[:nv]
         vdot -= Z_v[:, m_eq]
@@ -285,10 +293,18 @@ class WholeBodyQP:
         x[nv:] *= self._inv_wf
         return x, rows
 
-    def _feasible(self, x: np.ndarray, tol: float = FEASIBILITY_TOL) -> bool:
-        """Whether ``x`` satisfies every bound and inequality row to ``tol``."""
-        xg = self._xg
-        xg[:self.n_x] = x
+    def _feasible(self, x: np.ndarray, tol: float = FEASIBILITY_TOL, xg: np.ndarray | None = None) -> bool:
+        """Whether ``x`` satisfies every bound and inequality row to ``tol``.
+
+        Args:
+            x: (n_x,) the point.
+            tol: The largest violation allowed [problem units].
+            xg: (n_x + m_in,) an array whose first n_x entries are ``x`` (G x is written after
+                them), or None (a buffer of the QP's, x copied into it).
+        """
+        if xg is None:
+            xg = self._xg
+            xg[:self.n_x] = x
         np.dot(self.G, x, out=xg[self.n_x:])
         return bool(_max(np.subtract(self._lo, xg)) <= tol and _max(np.subtract(xg, self._up)) <= tol)
 

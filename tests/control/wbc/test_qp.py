@@ -89,6 +89,36 @@ def test_infeasible_problems_report_no_solution():
     assert result.x is None and not result.fast_path and result.status < 0
 
 
+def test_contradictory_bounds_are_reported_on_either_path():
+    """Checked after the fast path's point fails them, and before daqp when the fast path is skipped."""
+    qp = _problem(11, 0.2)
+    assert not qp.solve(M_EQ).fast_path  # an inequality active: the next solve skips the fast path
+    assert qp._skip_fast
+    qp.lb[2], qp.ub[2] = 1.0, 0.5
+    assert qp.solve(M_EQ) == QPResult(None, CONTRADICTORY, 0, 0.0, fast_path=False, dependent_rows=0)
+    qp = _problem(11, 0.0)
+    qp.lb[NV + 1], qp.ub[NV + 1] = 2.0, 1.0
+    assert qp.solve(M_EQ).status == CONTRADICTORY
+
+
+def test_forces_pinned_then_freed_give_a_fresh_problems_optimum():
+    """force_free is read at every solve: pinned, then freed again, the solve equals a fresh QP's."""
+    qp, fresh = _problem(21, 0.0), _problem(21, 0.0)
+    before = qp.solve(M_EQ).x
+    pinned = slice(NV + 3, NV + NF)
+    lb, ub = qp.lb[pinned].copy(), qp.ub[pinned].copy()
+    qp.lb[pinned] = qp.ub[pinned] = 0.0
+    qp.force_free[pinned.start - NV:] = False
+    assert np.abs(qp.solve(M_EQ).x[pinned]).max() == 0.0
+    qp.lb[pinned], qp.ub[pinned] = lb, ub
+    qp.force_free[:] = True
+    np.testing.assert_allclose(qp.solve(M_EQ).x, before, atol=1e-12)  # daqp first (a bound was active)
+    after = qp.solve(M_EQ)  # then the fast path again
+    assert after.fast_path and np.abs(after.x[pinned]).max() > 1e-3
+    np.testing.assert_array_equal(after.x, fresh.solve(M_EQ).x)
+    np.testing.assert_array_equal(after.x, before)
+
+
 @pytest.mark.filterwarnings("ignore:invalid value:RuntimeWarning")  # inf times 0 in G x
 @pytest.mark.parametrize("where", ["c_v", "e", "G"])
 @pytest.mark.parametrize("bad", [np.nan, np.inf])
