@@ -187,6 +187,7 @@ class WalkingController:
         self._posture_target = self.reference_q.copy()
         self._in_contact: dict[str, bool] = {}
         self._fids = {f: self.model.getFrameId(f) for f in self.feet}
+        self._sole_points = {f: self.wbc.contacts[f].contact.points_F.tolist() for f in self.feet}
         self._clamp = self.planner.clamp(VelocityCommand())
         self.status = WalkingStatus()
         #: The last cycle's time [s] in :meth:`compute`: planning and the whole-body QP layer.
@@ -334,16 +335,17 @@ class WalkingController:
         cmp = np.array(cmp_xy)
         cmp_c = support.clamp(cmp_xy, cfg.cmp_margin_m)
         z_ref, vz_ref, az_ref = gait.height(t)
-        cmp_com = cmp_c
+        (cx, cy, _), (vx, vy, _) = com.tolist(), vcom.tolist()
+        px, py = cmp_c.tolist()  # the CoM's CMP
         last = self.wbc.last
         if cfg.moment_feedforward and self.wbc.steps and last is not None and not last.fallback:
             moment, fz = last.moment_about_W(com)  # CoP = CMP + (-m_y, m_x) / f_z
             if fz > 0.0:
-                cmp_com = cmp_c + np.array([moment[1], -moment[0]]) / fz
-        ax, ay = (self.omega**2 * (com[:2] - cmp_com)).tolist()
-        acc = np.array([ax, ay, az_ref])
+                mx, my, _ = moment.tolist()
+                px, py = px + my / fz, py + -mx / fz
+        w2 = self.omega**2
+        acc = np.array([w2 * (cx - px), w2 * (cy - py), az_ref])
         # the CoM task: its horizontal error is zero by construction, so the acceleration is the DCM law's
-        (cx, cy, _), (vx, vy, _) = com.tolist(), vcom.tolist()
         self.standing.com.set_target([cx, cy, z_ref], [vx, vy, vz_ref], acc)
         self._orient(gait.heading(t))
         self._swing(gait, t)
@@ -365,11 +367,10 @@ class WalkingController:
         """
         points = []
         for f in self.feet:
-            contact = self.wbc.contacts[f]
-            if contact.active:
-                xs, ys, _ = (poses[f].rotation @ contact.contact.points_F.T).tolist()
-                ox, oy, _ = poses[f].translation.tolist()
-                points += [[x + ox, y + oy] for x, y in zip(xs, ys, strict=True)]
+            if self.wbc.contacts[f].active:  # R p + o for each point, on plain floats (a few per foot)
+                (r0, r1, r2, ox), (s0, s1, s2, oy) = poses[f].homogeneous[:2].tolist()
+                points += [[r0 * x + r1 * y + r2 * z + ox, s0 * x + s1 * y + s2 * z + oy]
+                           for x, y, z in self._sole_points[f]]
         if not (points and math.isfinite(sum(x + y for x, y in points))):
             return ConvexPolygon.of_points(points)  # raises
         return ConvexPolygon.of_finite_points(points)
