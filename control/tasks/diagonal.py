@@ -48,6 +48,14 @@ class DiagonalTask(Task):
         """``a_des`` (nv,) where ``mask`` is 1 (entries where it is 0 may hold anything)."""
         return self.desired_acceleration(state, self._jacobian)
 
+    def add_acceleration_term(self, state: DynamicsState, c: np.ndarray, tmp: np.ndarray) -> None:
+        """``c -= cost^2 mask a_des``: this task's part of the objective's linear term (tmp: (nv,) scratch).
+
+        Its rows ``W_t = diag(cost mask)``, ``r_t = cost mask a_des`` give ``c_t = -W_t^T r_t``.
+        """
+        np.multiply(self.cost2_mask(), self.masked_desired_acceleration(state), out=tmp)
+        c -= tmp
+
     def cost2_mask(self) -> np.ndarray:
         """``cost^2 mask`` (nv,): this task's contribution to H's diagonal (cached per cost)."""
         cached = self._cost2_mask

@@ -131,6 +131,19 @@ class PostureTask(DiagonalTask):
         a -= tmp
         return a
 
+    def add_acceleration_term(self, state: DynamicsState, c: np.ndarray, tmp: np.ndarray) -> None:
+        """``c += kp cost^2 mask e + kd cost^2 mask v`` (``a_des = -kp e - kd v``; products cached)."""
+        e = self.masked_error(state)
+        cached = self.__dict__.get("_acceleration_gains")
+        if cached is None or cached[0] is not self._cost or cached[1:3] != (self._kp, self._kd):
+            cost2_mask = self.cost2_mask()
+            cached = (self._cost, self._kp, self._kd, self._kp * cost2_mask, self._kd * cost2_mask)
+            self.__dict__["_acceleration_gains"] = cached
+        e *= cached[3]
+        np.multiply(state.v, cached[4], out=tmp)
+        e += tmp
+        c += e
+
     def residual(self, state: TaskState) -> TaskResidual:
         """Joint-space distance to the target [rad, or m for slide joints] (a regulariser's)."""
         return TaskResidual(deviation=float(np.linalg.norm(self.compute_error(state))))

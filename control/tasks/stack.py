@@ -219,8 +219,6 @@ class TaskStack:
             c.fill(0.0)
         diag = self._diagonal_of(H)
         diag += self._acc_diag
-        tmp = self._tmp
         for task in self._diagonal:
             # W_t = diag(cost mask), r_t = cost mask (a_des - 0)  =>  H += cost^2 mask, c -= cost^2 mask a_des
-            np.multiply(task.cost2_mask(), task.masked_desired_acceleration(state), out=tmp)
-            c -= tmp
+            task.add_acceleration_term(state, c, self._tmp)

@@ -138,3 +138,26 @@ def test_the_lm_term_is_lm_damping_times_the_squared_rows(model):
 def test_a_bad_target_is_named():
     with pytest.raises(TaskSetupError, match=r"posture: target must be a finite \(14,\) configuration"):
         PostureTask(FLOATING).set_target(np.zeros(13))
+
+
+def test_the_acceleration_term_equals_the_diagonal_tasks_generic_one():
+    """PostureTask's c term (kp cost^2 e + kd cost^2 v, products cached) against DiagonalTask's
+    (cost^2 mask times -a_des), also after the cost and the gains change."""
+    from mbctl.control.tasks.diagonal import DiagonalTask
+
+    rng = np.random.default_rng(23)
+    model = FLOATING_HINGES
+    task = PostureTask(model, rng.uniform(0.01, 0.2, model.nv), servo=AccelerationGains(6.0, 0.8))
+    task.set_target(random_q(model, rng))
+    for k in range(3):
+        if k == 1:
+            task.set_cost(0.3)
+        if k == 2:
+            task.servo = AccelerationGains(2.0, 1.5)
+        state = DynamicsState(model, random_q(model, rng), rng.standard_normal(model.nv))
+        c0 = rng.standard_normal(model.nv)
+        c_fast, c_generic, tmp = c0.copy(), c0.copy(), np.zeros(model.nv)
+        task.add_acceleration_term(state, c_fast, tmp)
+        DiagonalTask.add_acceleration_term(task, state, c_generic, tmp)
+        np.testing.assert_allclose(c_fast, c_generic, rtol=1e-14, atol=1e-14)
+        assert np.abs(c_fast - c0).max() > 1e-2
