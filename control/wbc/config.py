@@ -102,7 +102,7 @@ class WBCConfig:
                                 f"got {self.on_infeasible!r}")
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, init=False)
 class WBCSolution:
     """What the last cycle commanded and the QP predicted.
 
@@ -135,6 +135,15 @@ class WBCSolution:
     controller_time_s: float
     qp_time_s: float
     fallback: bool = False
+
+    def __init__(self, tau: np.ndarray, vdot: np.ndarray, forces: np.ndarray, force_slices: dict[str, slice],
+                 points_F: dict[str, np.ndarray], foot_poses_W: dict[str, pin.SE3], wrench_map: np.ndarray,
+                 controller_time_s: float, qp_time_s: float, fallback: bool = False) -> None:
+        # Hand-written (the fields in one dict update): one is made every control cycle, and the
+        # generated frozen __init__ sets each field through object.__setattr__ (~1.6 us against ~0.6)
+        self.__dict__.update(tau=tau, vdot=vdot, forces=forces, force_slices=force_slices, points_F=points_F,
+                             foot_poses_W=foot_poses_W, wrench_map=wrench_map,
+                             controller_time_s=controller_time_s, qp_time_s=qp_time_s, fallback=fallback)
 
     @functools.cached_property
     def forces_F(self) -> dict[str, np.ndarray]:

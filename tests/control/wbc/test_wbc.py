@@ -451,3 +451,22 @@ def test_centroidal_map_and_drift_equal_pinocchios(tiny_biped, fixed):
         fresh = DynamicsState(model, q, v)  # com_drift before centroidal_drift (its own path)
         np.testing.assert_allclose(fresh.com_drift(), data.acom[0], atol=1e-10)
         np.testing.assert_allclose(state.com_drift(), data.acom[0], atol=1e-10)
+
+
+def test_the_solution_is_a_frozen_dataclass_with_its_fields():
+    """WBCSolution's hand-written __init__ keeps the dataclass: fields, frozen, replace, equality."""
+    import dataclasses
+
+    from mbctl.control.wbc.config import WBCSolution
+
+    tau, vdot, forces = np.arange(3.0), np.arange(4.0), np.arange(6.0)
+    args = (tau, vdot, forces, {"l": slice(0, 6)}, {"l": np.zeros((2, 3))}, {"l": pin.SE3.Identity()},
+            np.eye(6), 1e-4, 5e-5)
+    sol = WBCSolution(*args)
+    assert [getattr(sol, f.name) for f in dataclasses.fields(sol)][:9] == list(args) and not sol.fallback
+    assert WBCSolution(*args, fallback=True).fallback
+    with pytest.raises(dataclasses.FrozenInstanceError):
+        sol.tau = tau  # type: ignore[misc]
+    later = dataclasses.replace(sol, qp_time_s=7e-5)
+    assert later.qp_time_s == 7e-5 and later.tau is tau and sol.qp_time_s == 5e-5
+    np.testing.assert_array_equal(sol.forces_F["l"], forces.reshape(2, 3))
