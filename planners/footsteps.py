@@ -227,6 +227,13 @@ class StepLimits:
         return min(max(width, self.min_width_m), self.nominal_width_m + self.max_outward_m)
 
     @cached_property
+    def _min_width_ceiling(self) -> float:
+        """Above min_width_for at any rotation, either side [m]: clearance + reach + the farthest point."""
+        farthest = max((math.hypot(x, y) for x, y in self.sole_xy_m), default=-math.inf)  # +1e-9: rounding
+        reach = max(c + r for c, r in self._sole_reach.values()) if self.sole_xy_m else 0.0
+        return max(self.min_width_m, reach + farthest) + 1e-9
+
+    @cached_property
     def _sole_reach(self) -> dict[int, tuple[float, float]]:
         """Per side (+1, -1): the clearance [m] and the sole's farthest point toward that side [m]."""
         return {side: self._reach_toward(side) for side in (1, -1)}
@@ -403,7 +410,9 @@ class FootstepPlanner:
         fwd_c = min(max(fwd, -lim.max_backward_m), lim.max_forward_m)
         dyaw_c = min(max(dyaw, -lim.max_yaw_rad), lim.max_yaw_rad)
         widest = lim.nominal_width_m + lim.max_outward_m
-        width_c = min(max(width, lim.min_width_for(dyaw_c, side)), widest)
+        wide = width > lim._min_width_ceiling and side in (1, -1)
+        floor = width if wide else lim.min_width_for(dyaw_c, side)
+        width_c = min(max(width, floor), widest)  # (most steps are wider than any rotation needs)
         if (fwd_c, width_c, dyaw_c) == (fwd, width, dyaw):
             return (step or Footstep(foot, side, np.array(position), yaw_rad)), False
         lat_c = side * width_c

@@ -112,7 +112,8 @@ class StepAdapter:
         self.planner, self.omega, self.tube_m = planner, float(omega_rad_s), tube
         self.nominal_weight = nominal_weight
         self._solver = QPSolver(2)
-        self._H = 2.0 * (1.0 + nominal_weight) * np.eye(2)
+        self._h = 2.0 * (1.0 + nominal_weight)  # H = h I
+        self._H = self._h * np.eye(2)
         lim = planner.limits
         angles = 2.0 * math.pi * np.arange(REACH_VERTICES) / REACH_VERTICES
         self._unit = np.column_stack([np.cos(angles), np.sin(angles)])
@@ -156,26 +157,30 @@ class StepAdapter:
         tube_fwd, tube_side = self.tube_m.tolist()
         if abs(fwd) - tube_fwd <= 0.0 and abs(side) - tube_side <= 0.0:  # in the tube (most cycles)
             return StepAdaptation(nominal, np.zeros(2), False, False, 0.0)
-        e_S = np.array([fwd, side])
-        out = np.sign(e_S) * np.maximum(np.abs(e_S) - self.tube_m, 0.0)
-        if not out.any():
+        # on plain floats from here too (the same operations as numpy's elementwise ones)
+        out = [(1.0 if v > 0 else -1.0 if v < 0 else 0.0) * max(abs(v) - tube, 0.0)  # np.sign: 0 at 0
+               for v, tube in ((fwd, tube_fwd), (side, tube_side))]
+        if out[0] == 0.0 and out[1] == 0.0:
             return StepAdaptation(nominal, np.zeros(2), False, False, 0.0)
-        d_nom = nominal.position[:2] - stance.position[:2]
-        x_nom = np.array([c * d_nom[0] + s * d_nom[1], -s * d_nom[0] + c * d_nom[1]])
-        x_des = x_nom + math.exp(self.omega * max(time_to_switch_s, 0.0)) * out
+        (nx, ny, nz), (sx, sy, _) = nominal.position.tolist(), stance.position.tolist()
+        dx, dy = nx - sx, ny - sy
+        x_nom = [c * dx + s * dy, -s * dx + c * dy]
+        gain = math.exp(self.omega * max(time_to_switch_s, 0.0))
+        x_des = [x_nom[0] + gain * out[0], x_nom[1] + gain * out[1]]
         lim, side = self.planner.limits, nominal.side
         dyaw = math.remainder(nominal.yaw_rad - stance.yaw_rad, 2.0 * math.pi)
-        widths = np.array([lim.min_width_for(dyaw, side), lim.nominal_width_m + lim.max_outward_m]) * side
-        lb = np.array([-lim.max_backward_m, widths.min()])
-        ub = np.array([lim.max_forward_m, widths.max()])
+        widths = (lim.min_width_for(dyaw, side) * side, (lim.nominal_width_m + lim.max_outward_m) * side)
+        lb = np.array([-lim.max_backward_m, min(widths)])
+        ub = np.array([lim.max_forward_m, max(widths)])
         G, h = self._reach_rows(side)
-        optimum = (x_des + self.nominal_weight * x_nom) / (1.0 + self.nominal_weight)  # H x* = -c
+        w = self.nominal_weight
+        optimum = [(x_des[0] + w * x_nom[0]) / (1.0 + w), (x_des[1] + w * x_nom[1]) / (1.0 + w)]  # H x* = -c
         t0 = time.perf_counter()
-        result = self._solver.solve(QPData(self._H, -(self._H @ optimum), lb, ub, G, h))
+        result = self._solver.solve(QPData(self._H, np.array([-self._h * optimum[0], -self._h * optimum[1]]),
+                                           lb, ub, G, h))
         solve_time = time.perf_counter() - t0
-        x = result.x if result.x is not None else x_nom  # (never None: the stance (0, s w) is feasible)
-        d = np.array([c * x[0] - s * x[1], s * x[0] + c * x[1]])
-        position = np.array([stance.position[0] + d[0], stance.position[1] + d[1], nominal.position[2]])
-        step = nominal._replace(position=position)
-        return StepAdaptation(step, position[:2] - nominal.position[:2], True,
-                              bool(np.abs(x - optimum).max() > 1e-9), solve_time)
+        x = result.x.tolist() if result.x is not None else x_nom  # (never None: (0, s w) is feasible)
+        px, py = sx + (c * x[0] - s * x[1]), sy + (s * x[0] + c * x[1])
+        step = nominal._replace(position=np.array([px, py, nz]))
+        return StepAdaptation(step, np.array([px - nx, py - ny]), True,
+                              max(abs(x[0] - optimum[0]), abs(x[1] - optimum[1])) > 1e-9, solve_time)
