@@ -1,9 +1,9 @@
 """The control loop: read state, compute, send, sync — against any RobotInterface.
 
 ``run`` works the same on the simulator and on a robot over DDS, because it only uses the
-:class:`~mbctl.robots.interface.RobotInterface` protocol. Every buffer (logs, the reference's
-samples, the figures' sums) is allocated before the first cycle; a cycle allocates only what the
-controller and the interface allocate themselves.
+:class:`~mbctl.robots.interface.RobotInterface` protocol. The log's arrays are allocated before
+the first cycle; a cycle keeps its own state, reference and command, written into them
+:data:`~mbctl.control.run_log.LOG_BATCH` cycles at a time (:class:`~mbctl.control.run_log.LogWriter`).
 
 Memory is bounded: the log keeps at most ``MAX_LOG_ROWS`` rows of q, v, command and reference
 (every ``stride``-th cycle and the last of a longer run), its times and ticks every cycle (16 bytes
@@ -19,13 +19,25 @@ from __future__ import annotations
 
 import time
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
 
 from mbctl.control.controller import Controller, JointReference, TaskReference
 from mbctl.control.exceptions import ControlError, ReferenceMismatch
+
+# the log's types, where the loop's callers have always found them
+from mbctl.control.run_log import (  # noqa: F401
+    LOG_BATCH,
+    MAX_LOG_ROWS,
+    ColumnStats,
+    LogWriter,
+    RunLog,
+    RunStats,
+    kept_cycles,
+    log_rows,
+    log_stride,
+)
 from mbctl.planners.trajectory import JointTrajectory
 from mbctl.robots.commands import Command
 from mbctl.robots.interface import RobotInterface, RobotState
@@ -34,170 +46,8 @@ Reference = JointReference | TaskReference
 ReferenceFn = Callable[[float], Reference]
 OnStep = Callable[[int, RobotState, Any, Command], "bool | None"]
 
-#: Rows of q, v, command and reference a RunLog keeps at most (the G1: about 1.3 kB a row, 0.13 GB):
-#: a longer run keeps every ``stride``-th cycle and its last (the same bound as the replay's samples,
-#: ``mbctl.sim.recorder.MAX_REPLAY_SAMPLES``). Its times, ticks and :class:`RunStats` cover every cycle.
-MAX_LOG_ROWS = 100_000
 #: Cycles of a JointTrajectory reference sampled at once (the G1: about 7 MB of q, v, a).
 SAMPLE_CHUNK = 10_000
-#: Cycles staged before :class:`RunStats` takes their sums (vectorised, off the per-cycle path).
-STATS_BLOCK = 512
-
-
-@dataclass(frozen=True)
-class ColumnStats:
-    """Per-column extremes and sums of a quantity over every cycle of a run.
-
-    Attributes:
-        count: Cycles summed.
-        min: Smallest value of each column (n,).
-        max: Largest value of each column (n,).
-        sum: Sum of each column (n,).
-        sum_sq: Sum of the squares of each column (n,).
-    """
-
-    count: int
-    min: np.ndarray
-    max: np.ndarray
-    sum: np.ndarray
-    sum_sq: np.ndarray
-
-    def max_abs(self, center: np.ndarray | float = 0.0) -> np.ndarray:
-        """Largest ``|x - center|`` of each column (n,) (``center`` (n,) or a scalar)."""
-        return np.maximum(self.max - center, center - self.min)
-
-    def rms(self) -> np.ndarray:
-        """Root mean square of each column (n,)."""
-        return np.sqrt(self.sum_sq / self.count)
-
-    def rms_all(self) -> float:
-        """Root mean square over every entry of every cycle."""
-        return float(np.sqrt(self.sum_sq.sum() / (self.count * self.sum_sq.size)))
-
-
-@dataclass(frozen=True)
-class RunStats:
-    """Exact figures of every cycle of a run, whatever rows its log kept.
-
-    Attributes:
-        q: Measured configurations (nq columns).
-        v: Measured velocities (nv columns).
-        command: Command values sent (m columns).
-        error: Joint tracking error ``q_ref - q`` [rad] in the controller's joint order, for a
-            JointReference and a controller with a ``joint_map``; else None.
-    """
-
-    q: ColumnStats
-    v: ColumnStats
-    command: ColumnStats
-    error: ColumnStats | None
-
-
-@dataclass(frozen=True)
-class RunLog:
-    """What one run measured (the state before each cycle's command).
-
-    The times and ticks cover every cycle. The rows (q, v, command, reference) are every cycle of
-    a run of at most ``MAX_LOG_ROWS`` cycles (``stride`` 1); a longer one keeps every
-    ``stride``-th cycle and the last, ``cycle`` naming each row's cycle. Figures over the whole run
-    come from ``stats``, which sums every cycle.
-
-    Attributes:
-        t_s: Every cycle's time (N,) [s] since the interface's clock started.
-        q: Measured configurations (R, nq), Pinocchio convention.
-        v: Measured velocities (R, nv).
-        command: Command values sent (R, m) ([N m] for torques, [rad] for position targets).
-        reference: Reference positions (R, k): joint q_ref [rad] or task p_ref [m].
-        reference_v: Reference velocities (R, k).
-        wall_time_s: Wall-clock time of the loop [s].
-        tick: The plant's tick of every cycle's state (N,) (``RobotState.tick``: aligns the run
-            with the plant's own logs, e.g. a bridge's truth log).
-        cycle: The cycle of each row (R,) (empty: every cycle, rows = cycles).
-        stride: Cycles between kept rows (1: every cycle kept).
-        stats: Sums over every cycle (None for a log made by hand).
-    """
-
-    t_s: np.ndarray
-    q: np.ndarray
-    v: np.ndarray
-    command: np.ndarray
-    reference: np.ndarray
-    reference_v: np.ndarray
-    wall_time_s: float
-    tick: np.ndarray = field(default_factory=lambda: np.empty(0, dtype=np.int64))
-    cycle: np.ndarray = field(default_factory=lambda: np.empty(0, dtype=np.int64))
-    stride: int = 1
-    stats: RunStats | None = None
-
-    def __post_init__(self) -> None:
-        if self.cycle.size == 0 and len(self.q):
-            object.__setattr__(self, "cycle", np.arange(len(self.q)))
-
-    @property
-    def cycles(self) -> int:
-        """Number of control cycles run."""
-        return int(self.t_s.size)
-
-    @property
-    def rows(self) -> int:
-        """Number of rows kept."""
-        return int(len(self.q))
-
-    @property
-    def row_time_s(self) -> np.ndarray:
-        """Each row's time (R,) [s]."""
-        return self.t_s[self.cycle]
-
-    @property
-    def row_tick(self) -> np.ndarray:
-        """Each row's tick (R,)."""
-        return self.tick[self.cycle]
-
-    def sums(self) -> RunStats:
-        """The sums over every cycle.
-
-        Raises:
-            ControlError: A log made by hand (no sums).
-        """
-        if self.stats is None:
-            raise ControlError("this RunLog has no sums over its cycles (a log made by hand, not by run())")
-        return self.stats
-
-    def error_sums(self) -> ColumnStats:
-        """The joint tracking error's sums over every cycle.
-
-        Raises:
-            ControlError: No error summed (the loop sums it for a joint reference and a controller
-                with a joint map).
-        """
-        error = self.sums().error
-        if error is None:
-            raise ControlError("the control loop summed no joint tracking error (a joint reference and a "
-                               "controller with a joint map are needed)")
-        return error
-
-
-def log_stride(n_cycles: int, max_rows: int) -> int:
-    """Cycles between kept rows so that every ``stride``-th cycle and the last fit ``max_rows``.
-
-    Args:
-        n_cycles: Cycles of the run.
-        max_rows: Rows at most (>= 2).
-    """
-    if max_rows < 2:
-        raise ControlError(f"max_rows must be >= 2 (the first and the last cycle); got {max_rows}")
-    return max(1, -(-(n_cycles - 1) // (max_rows - 1)))
-
-
-def log_rows(n_cycles: int, stride: int) -> int:
-    """Rows a log of ``n_cycles`` keeps at ``stride``: cycles 0, stride, 2 stride, ... and the last."""
-    return len(kept_cycles(n_cycles, stride)) if n_cycles > 0 else 0
-
-
-def kept_cycles(n_cycles: int, stride: int) -> np.ndarray:
-    """The cycles a log of ``n_cycles`` keeps at ``stride`` (0, stride, 2 stride, ... and the last)."""
-    cycles = np.arange(0, n_cycles, stride)
-    return np.append(cycles, n_cycles - 1) if n_cycles and (n_cycles - 1) % stride else cycles
 
 
 def presample(
@@ -278,47 +128,6 @@ class _Sampler:
         self.start = k
         self.refs = list(map(JointReference._make, zip(*sampled, strict=True)))  # row views
         return self.refs
-
-
-class _Sums:
-    """Stages each cycle's q, v, command (and joint error) and folds them into per-column sums."""
-
-    def __init__(self, nq: int, nv: int, m: int, idx_q: np.ndarray | None):
-        self.cols = np.cumsum([0, nq, nv, m, 0 if idx_q is None else idx_q.size])
-        self.idx_q = idx_q
-        width = int(self.cols[-1])
-        self.block = np.empty((STATS_BLOCK, width))
-        self.n = 0
-        self.count = 0
-        self.min = np.full(width, np.inf)
-        self.max = np.full(width, -np.inf)
-        self.sum = np.zeros(width)
-        self.sum_sq = np.zeros(width)
-        c = self.cols
-        self.q_, self.v_, self.cmd_, self.err_ = (slice(int(c[i]), int(c[i + 1])) for i in range(4))
-
-    def fold(self) -> None:
-        """Add the staged cycles to the sums."""
-        b = self.block[: self.n]
-        if self.idx_q is not None:  # the reference staged in the error's columns: q_ref - q
-            b[:, self.err_] -= b[:, self.q_][:, self.idx_q]
-        np.minimum(self.min, b.min(axis=0), out=self.min)
-        np.maximum(self.max, b.max(axis=0), out=self.max)
-        self.sum += b.sum(axis=0)
-        self.sum_sq += np.einsum("ij,ij->j", b, b)
-        self.count += self.n
-        self.n = 0
-
-    def stats(self) -> RunStats:
-        """The sums so far."""
-        self.fold()
-
-        def part(s: slice) -> ColumnStats:
-            return ColumnStats(self.count, self.min[s].copy(), self.max[s].copy(), self.sum[s].copy(),
-                               self.sum_sq[s].copy())
-
-        return RunStats(part(self.q_), part(self.v_), part(self.cmd_),
-                        None if self.idx_q is None else part(self.err_))
 
 
 def run(
@@ -409,17 +218,8 @@ def run(
     idx_q = (np.asarray(joint_map.idx_q, dtype=int)
              if isinstance(first, JointReference) and joint_map is not None
              and np.size(joint_map.idx_q) == k_ref else None)
-    stride = log_stride(n_cycles, MAX_LOG_ROWS)
-    n_rows = log_rows(n_cycles, stride)
-    log_t = np.empty(n_cycles)
-    log_tick = np.empty(n_cycles, dtype=np.int64)
-    log_cycle = np.empty(n_rows, dtype=np.int64)
-    log_q = np.empty((n_rows, robot.nq))
-    log_v = np.empty((n_rows, robot.nv))
-    log_ref = np.empty((n_rows, k_ref))
-    log_ref_v = np.empty((n_rows, k_ref))
-    log_cmd = np.empty((n_rows, 0))  # resized on the first command (its width is the controller's)
-    sums: _Sums | None = None
+    log = LogWriter(n_cycles, robot.nq, robot.nv, k_ref, idx_q, MAX_LOG_ROWS, LOG_BATCH)
+    keep = log.pending.append
     controller.reset()
     t0 = interface.time_s
     # bound methods looked up once: the loop body is the hot path
@@ -427,9 +227,6 @@ def run(
     send, sync = interface.send, interface.sync
     refs = sampler.refs if sampler is not None else None
     chunk0 = 0
-    log_refs = not no_reference
-    row = 0  # the row this cycle goes to: kept when k % stride == 0, else until the next kept cycle
-    n_run = 0
     wall0 = time.perf_counter()
     try:
         for k in range(n_cycles):
@@ -445,37 +242,16 @@ def run(
             command = compute(state, ref)
             send(command)
             sync()
-            if k == 0:
-                log_cmd = np.empty((n_rows, command.values.size))
-                sums = _Sums(robot.nq, robot.nv, command.values.size, idx_q)
-                block, s_q, s_v, s_cmd, s_err = sums.block, sums.q_, sums.v_, sums.cmd_, sums.err_
-            log_t[k] = state.time_s
-            log_tick[k] = state.tick
-            log_cycle[row] = k
-            log_q[row] = state.q
-            log_v[row] = state.v
-            log_cmd[row] = command.values
-            if log_refs:
-                log_ref[row] = ref[0]
-                log_ref_v[row] = ref[1]
-            b = block[sums.n]  # type: ignore[union-attr]
-            b[s_q] = state.q
-            b[s_v] = state.v
-            b[s_cmd] = command.values
-            if idx_q is not None:
-                b[s_err] = ref[0]
-            sums.n += 1  # type: ignore[union-attr]
-            if sums.n == STATS_BLOCK:  # type: ignore[union-attr]
-                sums.fold()  # type: ignore[union-attr]
-            if k % stride == 0:
-                row += 1
-            n_run = k + 1
+            # the cycle's own objects, written log.batch at a time; the caller's function may hand out
+            # its own buffers again: what the log reads of its reference is copied
+            keep((state, (np.array(ref[0]), np.array(ref[1])) if fn is not None else ref, command))
+            if len(log.pending) == log.batch:
+                log.write()
+                keep = log.pending.append
             if on_step is not None and on_step(k, state, ref, command):
                 break  # the callback ended the run (e.g. the robot fell)
     finally:  # however the loop ends, the plant keeps the robot safe from now on (the contract)
         interface.stop()
     wall = time.perf_counter() - wall0
-    kept = log_rows(n_run, stride)  # the last cycle run is kept too, when not a stride's
-    return RunLog(log_t[:n_run], log_q[:kept], log_v[:kept], log_cmd[:kept], log_ref[:kept],
-                  log_ref_v[:kept], wall, log_tick[:n_run], log_cycle[:kept], stride,
-                  sums.stats() if sums is not None else None)
+    log.write()
+    return log.log(wall)

@@ -9,7 +9,7 @@ from mbctl.control import loop
 from mbctl.control.controller import joint_reference
 from mbctl.control.exceptions import ControlError
 from mbctl.control.gains import gains_from_frequency
-from mbctl.control.loop import log_rows, log_stride, run
+from mbctl.control.loop import LOG_BATCH, log_rows, log_stride, run
 from mbctl.control.pd import JointPD
 from mbctl.planners.trajectory import JointTrajectory
 from mbctl.sim.simulator import Simulator
@@ -51,7 +51,7 @@ def test_a_capped_log_keeps_every_stride_th_cycle_and_the_last_and_exact_stats(t
 
     monkeypatch.setattr(loop, "MAX_LOG_ROWS", 50)
     monkeypatch.setattr(loop, "SAMPLE_CHUNK", 64)  # the trajectory sampled in 8 chunks
-    monkeypatch.setattr(loop, "STATS_BLOCK", 37)
+    monkeypatch.setattr(loop, "LOG_BATCH", 37)  # written 37 cycles at a time: not the stride's multiple
     capped, _ = _run(two_link_torque, _trajectory())
     assert capped.stride == 11 and capped.cycles == CYCLES  # ceil(500 / 49)
     expected = np.r_[np.arange(0, CYCLES, 11), CYCLES - 1]  # 0, 11, ..., 495, and the last, 500
@@ -102,3 +102,18 @@ def test_the_stride_keeps_at_most_max_rows(n):
 def test_a_row_cap_below_two_is_refused():
     with pytest.raises(ControlError, match="max_rows must be >= 2 .*got 1"):
         log_stride(10, 1)
+
+
+def test_a_reference_function_that_reuses_its_buffers_is_logged_cycle_by_cycle(two_link_torque):
+    """The log writes its cycles in batches: a reference handed out again and changed is copied first."""
+    q_ref, v_ref, a_ref = np.zeros(2), np.zeros(2), np.zeros(2)
+
+    def reference(t: float):
+        q_ref[:] = (0.3 * t, -0.2 * t)  # the same arrays every cycle, new values
+        v_ref[:] = (0.3, -0.2)
+        return joint_reference(q_ref, v_ref, a_ref)._replace(q=q_ref, v=v_ref)
+
+    log, _ = _run(two_link_torque, reference)
+    t = log.t_s - log.t_s[0]
+    np.testing.assert_array_equal(log.reference, np.column_stack([0.3 * t, -0.2 * t]))
+    assert log.cycles == CYCLES > LOG_BATCH
