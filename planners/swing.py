@@ -190,7 +190,7 @@ class SwingTrajectory:
         self.target_yaw_rad = float(self._plane_end()[2])
         half = 0.5 * self.duration_s
         apex = max(p0[2], p1[2]) + self.lift_height_m
-        self._cache: tuple[float, SwingSample] | None = None  # the last sample (a cycle asks for it again)
+        self._cache: tuple[float, tuple] | None = None  # the last sample's floats (a cycle asks for it again)
         self._plane_end_cache: list[float] | None = None  # x, y, yaw at the horizontal motion's end
         self._plane_cache: tuple[float, tuple[list[float], list[float], list[float]]] | None = None
         self._up = quintic_columns(float(p0[2]), 0.0, 0.0, float(apex), 0.0, 0.0, half)
@@ -237,20 +237,16 @@ class SwingTrajectory:
     def at(self, t_s: float) -> SwingSample:
         """The reference at time ``t_s`` [s] (held at the ends outside the swing; the caller may edit it)."""
         cached = self._cache
-        if cached is not None and cached[0] == t_s:
-            s = cached[1]
-            return s._replace(position=s.position.copy(), velocity=s.velocity.copy(),
-                              acceleration=s.acceleration.copy())
-        sample = self._at(t_s)
-        self._cache = (t_s, sample._replace(position=sample.position.copy(), velocity=sample.velocity.copy(),
-                                            acceleration=sample.acceleration.copy()))
-        return sample
+        if cached is None or cached[0] != t_s:
+            cached = self._cache = (t_s, self._at(t_s))
+        p, v, a, *rest = cached[1]  # new arrays each call: the caller may edit them
+        return SwingSample(np.array(p), np.array(v), np.array(a), *rest)
 
     def yaw_at(self, t_s: float) -> float:
         """The yaw reference [rad] at time ``t_s`` [s] (``at(t_s).yaw_rad``, without copying the sample)."""
         cached = self._cache
         if cached is not None and cached[0] == t_s:
-            return cached[1].yaw_rad
+            return cached[1][3]
         return self._plane_at(t_s)[0][2]
 
     def _plane_at(self, t_s: float) -> tuple[list[float], list[float], list[float]]:
@@ -266,7 +262,8 @@ class SwingTrajectory:
             cached = self._plane_cache = (t_s, quintic_columns_at(self._plane, tau))
         return cached[1]
 
-    def _at(self, t_s: float) -> SwingSample:
+    def _at(self, t_s: float) -> tuple:
+        """:meth:`at`'s fields as floats (position, velocity and acceleration as (x, y, z) lists)."""
         tau = min(max(t_s - self.t0_s, 0.0), self.duration_s)
         p, v, a = self._plane_at(t_s)
         half = 0.5 * self.duration_s
@@ -274,8 +271,7 @@ class SwingTrajectory:
                               else quintic_columns_at(self._down, tau - half))
         if t_s <= self.t0_s or t_s >= self.end_s:  # at rest outside the swing
             v, a, vz, az = [0.0] * 3, [0.0] * 3, 0.0, 0.0
-        return SwingSample(np.array([p[0], p[1], z]), np.array([v[0], v[1], vz]), np.array([a[0], a[1], az]),
-                           p[2], v[2], tau / self.duration_s, a[2])
+        return [p[0], p[1], z], [v[0], v[1], vz], [a[0], a[1], az], p[2], v[2], tau / self.duration_s, a[2]
 
 
 def _point(label: str, value: npt.ArrayLike) -> np.ndarray:

@@ -25,6 +25,7 @@ class SwingFootTask(FramePoseTask):
                          name=f"{frame} swing", servo=servo)
         self.yaw_rate_rad_s = 0.0
         self.yaw_acceleration_rad_s2 = 0.0
+        self._v_ref_F, self._a_ref_F = np.zeros(6), np.zeros(6)
 
     def set_swing_target(self, sample: SwingSample) -> None:
         """The target pose, velocity and acceleration from a swing path sample (a level foot at its yaw)."""
@@ -36,6 +37,9 @@ class SwingFootTask(FramePoseTask):
     def desired_acceleration(self, state: DynamicsState, J: np.ndarray) -> np.ndarray:
         """``a_ref + kp log6(X_FT) + kd (v_ref - J_F v)`` (6,) in F, with the yaw references."""
         R_FW = state.frame_pose(self.frame_id).rotation.T
-        v_ref = np.concatenate([R_FW @ self.v_ref_W, R_FW[:, 2] * self.yaw_rate_rad_s])
-        a_ref = np.concatenate([R_FW @ self.a_ref_W, R_FW[:, 2] * self.yaw_acceleration_rad_s2])
+        v_ref, a_ref = self._v_ref_F, self._a_ref_F  # written in place (no concatenation per cycle)
+        np.matmul(R_FW, self.v_ref_W, out=v_ref[:3])
+        np.multiply(R_FW[:, 2], self.yaw_rate_rad_s, out=v_ref[3:])
+        np.matmul(R_FW, self.a_ref_W, out=a_ref[:3])
+        np.multiply(R_FW[:, 2], self.yaw_acceleration_rad_s2, out=a_ref[3:])
         return a_ref + self._kp * self.compute_error(state) + self._kd * (v_ref - J @ state.v)
