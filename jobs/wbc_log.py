@@ -25,14 +25,13 @@ from typing import Any, NamedTuple
 import numpy as np
 
 from mbctl.control.loop import MAX_LOG_ROWS, kept_cycles, log_rows, log_stride
-from mbctl.control.wbc import Standing
+from mbctl.control.wbc import Standing, WBCSolution
 from mbctl.jobs.log_sums import CoMErrorSums, nan_max, nan_min, quantile
 from mbctl.jobs.runner import RunContext
-from mbctl.jobs.wbc_batch import plant_feet, qp_feet, slips
 from mbctl.robots.commands import Command
 from mbctl.robots.g1 import FEET
 from mbctl.robots.interface import RobotState
-from mbctl.sim.monitor import PlantMonitor
+from mbctl.sim.monitor import PlantMonitor, PlantSample
 from mbctl.sim.perturb import PushSchedule
 from mbctl.sim.simulator import Simulator
 
@@ -47,6 +46,8 @@ SETTLE_S = 0.05
 
 #: A foot's columns in the CSV (QP fz, ft, CoP x, y; MuJoCo's the same; slip).
 _PER_FOOT = 9
+#: A foot's MuJoCo columns and slip when the plant is not observed (over DDS).
+_NO_PLANT = (float("nan"),) * 5
 _NO_PUSH = (0.0, 0.0)
 #: Cycles :meth:`WBCLog.on_step` keeps before recording them (about 25 ms of the G1 job's wall time).
 BATCH = 64
@@ -157,7 +158,7 @@ class WBCLog:
         feet_at = header.index(f"{FEET[0]}_fz_qp_N")
         self._tau = slice(feet_at + _PER_FOOT * nf, feet_at + _PER_FOOT * nf + nt)
         self._q = slice(self._tau.stop, w)
-        self._width = w  # the CSV's columns
+        self._csv_row = np.zeros(w)
         kept = self._tau.start
         self.n, self.stride = n, log_stride(n, MAX_LOG_ROWS)
         rows = log_rows(n, self.stride)
@@ -165,6 +166,7 @@ class WBCLog:
         self._extra = {name: kept + i for i, name in enumerate(_EXTRA)}
         self._rows[:, self._extra["cycle_us"]] = np.nan  # the first cycle has no start
         self._feet = self._rows[:, feet_at:feet_at + _PER_FOOT * nf].reshape(rows, nf, _PER_FOOT)
+        self._row = 0  # the kept row this cycle goes to
         # every cycle's values for the medians and 95th percentiles (_QUANTILES), one store a cycle
         names = _QUANTILES if monitor is not None else _QUANTILES_DDS
         self._qcol = {name: i for i, name in enumerate(names)}
@@ -184,6 +186,8 @@ class WBCLog:
         self._pending: deque[tuple] = deque()  # cycles kept by on_step, not yet recorded
         self._foot_states = [ctrl.contacts[f] for f in FEET]
         self._home: dict[str, tuple[float, float]] = {}  # where each foot started to support
+        self._points_src: object = None  # the solution's contact points, as lists per foot (_qp_feet)
+        self._points: dict[str, list[list[float]]] = {}
         if monitor is not None:  # FEET's places among the monitor's contact groups and sites
             self._groups = [monitor.group_names.index(f) for f in FEET]
             self._sites = [monitor.site_names.index(f) for f in FEET]
@@ -215,14 +219,53 @@ class WBCLog:
         rows, x = self._rows[: self.rows], self._extra
         return rows[:, x["com_err_t"]], rows[:, x["com_err_m"]]
 
+    def _qp_feet(self, sol: WBCSolution) -> list[tuple[float, float, float, float]]:
+        """Per foot (FEET order), the QP's prediction: normal, tangential force [N], CoP x, y [m] in W.
+
+        ``sol.totals_and_cops_W`` in plain floats (the sum of the points' forces turned into W, the
+        CoP of their world-z forces at their positions moved to W; 4 points a foot): about half its
+        time, and this runs every cycle.
+        """
+        if sol.points_F is not self._points_src:
+            self._points_src = sol.points_F
+            self._points = {f: sol.points_F[f].tolist() for f in FEET}
+        forces = sol.forces.tolist()
+        out = []
+        for f in FEET:
+            pose = sol.foot_poses_W[f]
+            (r00, r01, r02), (r10, r11, r12), (r20, r21, r22) = pose.rotation.tolist()
+            sl = sol.force_slices[f]
+            F = forces[sl.start:sl.stop]
+            sx = sy = sz = mx = my = mz = 0.0
+            for j, (px, py, pz) in enumerate(self._points[f]):
+                fx, fy, fz = F[3 * j], F[3 * j + 1], F[3 * j + 2]
+                sx += fx
+                sy += fy
+                sz += fz
+                w = r20 * fx + r21 * fy + r22 * fz  # the point's force along W's z
+                mx += w * px
+                my += w * py
+                mz += w * pz
+            tx = r00 * sx + r01 * sy + r02 * sz
+            ty = r10 * sx + r11 * sy + r12 * sz
+            tz = r20 * sx + r21 * sy + r22 * sz
+            if tz > 1e-6:
+                ox, oy, _ = pose.translation.tolist()
+                cx = (r00 * mx + r01 * my + r02 * mz) / tz + ox
+                cy = (r10 * mx + r11 * my + r12 * mz) / tz + oy
+            else:
+                cx = cy = math.nan
+            out.append((tz, math.hypot(tx, ty), cx, cy))
+        return out
+
     def on_step(self, k: int, state: RobotState, reference: object, command: Command) -> bool:
         """Keep cycle ``k`` to record (the loop's ``on_step``); True once the robot has fallen (ends the run).
 
         A cycle's inputs are kept as they are (the state, command and solution are the cycle's own
-        objects; the plant's sample is immutable) and recorded :data:`BATCH` cycles at a time as
-        arrays (:mod:`mbctl.jobs.wbc_batch`), and by every reader (:meth:`record`, :meth:`values`):
-        recorded one by one, between a physics step and a solve that evict it from the CPU's caches,
-        a cycle cost about 30 us.
+        objects; the plant's sample is immutable) and recorded :data:`BATCH` cycles at a time, and by
+        every reader (:meth:`record`, :meth:`values`): the recording's Python work runs in one tight
+        loop, not between a physics step and a solve that evict it from the CPU's caches (about 2.5x
+        its cost there).
         """
         now = time.perf_counter()
         ctrl, mon = self.wb.controller, self.monitor
@@ -237,93 +280,103 @@ class WBCLog:
         return mon is not None and mon.fall_reason is not None
 
     def _drain(self) -> None:
-        """Record the cycles kept so far, in order, as one batch of arrays."""
-        if not self._pending:
-            return
-        batch = list(self._pending)
-        self._pending.clear()
-        ks, states, commands, sols, refs, pushes, feet, plants, nows = zip(*batch, strict=True)
-        mon, b, k0 = self.monitor, len(batch), ks[0]
-        t = np.array([s.time_s for s in states])
-        if self._t0 != self._t0:  # the first cycle's time: the settling period's start
-            self._t0 = float(t[0])
-        q = np.array([s.q for s in states])
-        ref = np.array(refs)
-        com = np.array([p.com_W for p in plants]) if mon is not None else np.array(plants)
-        qp = qp_feet(sols, FEET)  # (b, feet, 4)
-        flags = np.array(feet)  # (b, feet, 2): active, weight
-        supporting = (flags[:, :, 0] > 0.5) & (flags[:, :, 1] == 1.0)
-        fallback = np.array([s.fallback for s in sols])
-        stance = supporting.all(axis=1) & ~fallback
-        csv = np.empty((b, self._width))
-        csv[:, 0], csv[:, 1:4], csv[:, 4:7], csv[:, 7], csv[:, 8:10] = t, ref, com, q[:, 2], pushes
-        per_foot = csv[:, 10:self._tau.start].reshape(b, len(FEET), _PER_FOOT)
-        per_foot[:, :, :4] = qp
-        slip_max = np.zeros(b)
-        if mon is None:  # over DDS: the plant's forces and feet are not observed
-            per_foot[:, :, 4:] = np.nan
-            t_plant = t
-            self._com_ref[k0:k0 + b] = ref
-        else:
-            mj = plant_feet(np.array([p.contact_net for p in plants]), self._groups)  # (b, feet, 5)
-            sites = np.array([p.site_array_W for p in plants])[:, self._sites, :2]
-            per_foot[:, :, 4] = mj[:, :, 2]
-            per_foot[:, :, 5] = np.hypot(mj[:, :, 0], mj[:, :, 1])
-            per_foot[:, :, 6:8] = mj[:, :, 3:]
-            for i, f in enumerate(FEET):
-                counts = supporting[:, i] & (mj[:, i, 2] >= SUPPORT_FRACTION * self.mg)
-                per_foot[:, i, 8], self._home[f] = slips(counts, sites[:, i], self._home.get(f))
-            slip_max = per_foot[:, :, 8].max(axis=1)
-            t_plant = np.array([p.time_s for p in plants])
-        csv[:, self._tau] = [c.values for c in commands]
-        csv[:, self._q] = q
-        write = self.csv.write
-        for r in csv:
-            write(r)
-        # every cycle's sums (the CoM error waits for the reference at the plant's time) and extremes
-        sums_ = self.com_sums
-        err = np.empty((b, 2))
-        for i, (tt, rr, tp, cc) in enumerate(zip(t.tolist(), ref.tolist(), t_plant.tolist(), com.tolist(),
-                                                  strict=True)):
-            sums_.add(tt, rr, tp, cc)
-            err[i] = sums_.last
-        self._slip_max = nan_max(self._slip_max, float(slip_max.max()))
-        self._z_min = nan_min(self._z_min, float(q[:, 2].min()))
-        now = np.array(nows)
-        cycle_us = np.empty(b)
-        cycle_us[0] = (now[0] - self._last_cycle_end) * 1e6 if self._last_cycle_end is not None else np.nan
-        cycle_us[1:] = np.diff(now) * 1e6
-        self._last_cycle_end = float(now[-1])
-        ctrl_us = np.array([s.controller_time_s for s in sols]) * 1e6
-        qp_us = np.array([s.qp_time_s for s in sols]) * 1e6
-        physics_us = np.full(b, np.nan)
+        """Record the cycles kept so far, in order."""
+        pending, record = self._pending, self._record
+        while pending:
+            record(*pending.popleft())
+
+    def _record(self, k: int, state: RobotState, command: Command, sol: WBCSolution, ref_W: np.ndarray,
+                push: tuple[float, float], feet: list[tuple[bool, float]], plant: PlantSample | list[float],
+                now: float) -> None:
+        """Record cycle ``k`` from what :meth:`on_step` kept.
+
+        ``plant`` is the monitor's sample of the period, or over DDS the controller's CoM (3 floats).
+        """
+        mon = self.monitor
+        row, x = self._rows[self._row], self._extra
+        t = state.time_s
+        if not k:
+            self._t0 = t
+        # the row's first columns built as one list and stored in one assignment (a numpy store per
+        # value or slice costs more than the values' arithmetic)
+        # the plant's CoM in-process; over DDS the controller's (from the estimated state), replaced
+        # by the bridge's truth after the run when given (with_truth)
+        com = plant.com_W.tolist() if mon is not None else plant  # type: ignore[union-attr]
+        ref = ref_W.tolist()
+        z = float(state.q[2])
+        vals = [t, *ref, *com, z, *push]
+        stance = True
+        slip_max = 0.0
+        qp = self._qp_feet(sol)
+        fz_mj: list[float] = []
+        if mon is not None:  # the monitor's groups and sites in FEET order, as plain numbers
+            sums = mon.sums_of(plant)  # type: ignore[arg-type]
+            xyz = plant.site_array_W.tolist()  # type: ignore[union-attr]
+        for i, f in enumerate(FEET):
+            active, weight = feet[i]
+            supporting = active and weight == 1.0
+            stance = stance and supporting
+            if mon is None:  # over DDS: the plant's forces and feet are not observed
+                vals += (*qp[i], *_NO_PLANT)
+                continue
+            fx, fy, fz, mx, my, _ = sums[self._groups[i]]
+            mx, my = (mx / fz, my / fz) if fz > 1e-9 else (math.nan, math.nan)  # the CoP, as contacts'
+            px, py, _ = xyz[self._sites[i]]
+            if supporting and fz >= SUPPORT_FRACTION * self.mg:
+                hx, hy = self._home.setdefault(f, (px, py))
+                slip = math.hypot(px - hx, py - hy)
+                slip_max = max(slip_max, slip)
+            else:  # unloaded or swinging: slip counts from when it supports again
+                slip = 0.0
+                self._home[f] = (px, py)
+            fz_mj.append(fz)
+            vals += (*qp[i], fz, math.hypot(fx, fy), mx, my, slip)
+        csv_row, kept = self._csv_row, self._tau.start
+        csv_row[:kept] = vals
+        csv_row[self._tau] = command.values
+        csv_row[self._q] = state.q
+        self.csv.write(csv_row)
+        row[:kept] = csv_row[:kept]
+        t_plant = plant.time_s if mon is not None else t  # type: ignore[union-attr]
+        stance = stance and not sol.fallback
+        ctrl_us, qp_us = sol.controller_time_s * 1e6, sol.qp_time_s * 1e6
+        row[x["t_plant"]] = t_plant
+        row[x["stance"]] = stance
+        row[x["ctrl_us"]] = ctrl_us
+        row[x["qp_us"]] = qp_us
+        row[x["slip"]] = slip_max
+        # every cycle's sums and extremes (plain floats)
+        self._slip_max = nan_max(self._slip_max, slip_max)
+        self._z_min = nan_min(self._z_min, z)
         if mon is None:
-            self._quantiles[k0:k0 + b] = np.column_stack([ctrl_us, qp_us, cycle_us])
+            self._com_ref[k] = ref
+        sums_ = self.com_sums
+        sums_.add(t, ref, t_plant, com)  # type: ignore[arg-type]  # 3 floats each
+        row[x["com_err_t"]], row[x["com_err_m"]] = sums_.last
+        self.k = k + 1
+        cycle_us = math.nan
+        if self._last_cycle_end is not None:
+            cycle_us = (now - self._last_cycle_end) * 1e6
+            row[x["cycle_us"]] = cycle_us
+        self._last_cycle_end = now
+        if mon is None:
+            self._quantiles[k] = (ctrl_us, qp_us, cycle_us)
         else:
-            physics_us = np.array([p.physics_time_s for p in plants]) * 1e6
-            fz_qp, fz_mj = qp[:, :, 0], mj[:, :, 2]
-            rel = np.abs(fz_qp.sum(axis=1) - fz_mj.sum(axis=1)) / self.mg
-            settled = t >= self._t0 + SETTLE_S
-            counted = stance & settled
-            if counted.any():
-                self._rel_max = nan_max(self._rel_max, float(rel[counted].max()))
-            if not settled.all():
-                self._settling_max = nan_max(self._settling_max, float(rel[~settled].max()))
-            self._quantiles[k0:k0 + b] = np.column_stack(
-                [counted, rel, *(np.abs(fz_qp - fz_mj) / self.mg).T, ctrl_us, qp_us, cycle_us, physics_us])
-        # the kept rows: cycle k goes to row ceil(k / stride), kept when k is the stride's multiple and
-        # overwritten by the next cycle otherwise; the batch's last cycle is written (the run's last is kept)
-        cycles = np.arange(k0, k0 + b)
-        at = np.flatnonzero(cycles % self.stride == 0)
-        if not at.size or at[-1] != b - 1:
-            at = np.append(at, b - 1)
-        rows, x, kept = -(-cycles[at] // self.stride), self._extra, self._tau.start
-        self._rows[rows, :kept] = csv[at, :kept]
-        for name, values in (("t_plant", t_plant), ("stance", stance), ("ctrl_us", ctrl_us), ("qp_us", qp_us),
-                             ("slip", slip_max), ("cycle_us", cycle_us), ("physics_us", physics_us),
-                             ("com_err_t", err[:, 0]), ("com_err_m", err[:, 1])):
-            self._rows[rows, x[name]] = values[at]
-        self.k = k0 + b
+            physics_us = plant.physics_time_s * 1e6  # type: ignore[union-attr]
+            row[x["physics_us"]] = physics_us
+            mg = self.mg
+            rel = abs((qp[0][0] + qp[1][0]) - (fz_mj[0] + fz_mj[1])) / mg
+            if t >= self._t0 + SETTLE_S:
+                counted = stance
+                if counted:
+                    self._rel_max = nan_max(self._rel_max, rel)
+            else:
+                counted = False
+                self._settling_max = nan_max(self._settling_max, rel)
+            self._quantiles[k] = (counted, rel, abs(qp[0][0] - fz_mj[0]) / mg, abs(qp[1][0] - fz_mj[1]) / mg,
+                                  ctrl_us, qp_us, cycle_us, physics_us)
+        if k % self.stride == 0:
+            self._row += 1
 
     def with_truth(self, com_W: np.ndarray, fell: bool) -> dict[str, Any]:
         """Replace the CoM error and the fall verdict by the plant's truth (a DDS run's truth log).
