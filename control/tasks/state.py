@@ -175,7 +175,12 @@ class DynamicsState(TaskState):
     def __init__(self, model: pin.Model, q: npt.ArrayLike | None = None, v: npt.ArrayLike | None = None):
         """Create the state at ``(q, v)`` (defaults: the neutral configuration, at rest)."""
         super().__init__(model)
-        self.v = np.zeros(model.nv)
+        # q and v in one buffer: one product checks both for finiteness per update
+        self._qv = np.concatenate([self._q, np.zeros(model.nv)])
+        self._q = self._qv[:model.nq]
+        self._q_view = self._q.view()
+        self._q_view.setflags(write=False)
+        self.v = self._qv[model.nq:]
         self._M_buffer = np.zeros((model.nv, model.nv))
         self._lower = np.tril(np.ones((model.nv, model.nv), dtype=bool), -1)
         self._M_view = self._M_buffer.view()
@@ -203,17 +208,23 @@ class DynamicsState(TaskState):
         Raises:
             TaskSetupError: ``q`` or ``v`` of the wrong shape or not finite.
         """
-        q_new = self._set_q(q)
+        q_new, v_new = self._q, self.v
+        try:
+            q_new[:] = q
+        except (ValueError, TypeError) as exc:
+            raise TaskSetupError(f"q must be a finite vector of shape ({self.model.nq},); got {q!r}") from exc
         if v is None:
-            self.v[:] = 0.0
+            v_new[:] = 0.0
         else:
             try:
-                self.v[:] = v
+                v_new[:] = v
             except (ValueError, TypeError) as exc:
                 raise TaskSetupError(f"v must be a finite vector of shape ({self.model.nv},); "
                                      f"got {v!r}") from exc
-            if not math.isfinite(self.v @ self.v):
-                raise TaskSetupError(f"v must be finite; got {self.v.tolist()}")
+        if not math.isfinite(self._qv @ self._qv):  # any nan/inf in q or v (or an absurd magnitude)
+            self._set_q(q_new)  # raises for q
+            raise TaskSetupError(f"v must be finite (and of sane magnitude, |v| < 1e150); "
+                                 f"got {v_new.tolist()}")
         model, data = self.model, self.data
         pin.computeAllTerms(model, data, q_new, self.v)  # also A_g (data.Ag)
         pin.updateFramePlacements(model, data)

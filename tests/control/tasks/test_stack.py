@@ -165,3 +165,24 @@ def test_a_frame_on_the_free_root_has_a_constant_jacobian_and_no_drift():
         assert np.abs(drift).max() < 1e-15
         assert np.abs(state.frame_drift(hand, pin.LOCAL)).max() > 0.1  # the arm's is not zero
     assert not DynamicsState(ARM).on_free_root(ARM.getFrameId("tip"))  # a fixed base
+
+
+def test_a_dynamics_state_names_the_bad_input_and_keeps_q_and_v():
+    """q and v share one buffer (one finiteness check): the error still names the bad one."""
+    from mbctl.control.exceptions import TaskSetupError
+
+    rng = np.random.default_rng(18)
+    q, v = random_q(MODEL, rng), rng.standard_normal(MODEL.nv)
+    state = DynamicsState(MODEL, q, v)
+    np.testing.assert_array_equal(state.q, q)
+    np.testing.assert_array_equal(state.v, v)
+    bad_q, bad_v = q.copy(), v.copy()
+    bad_q[2], bad_v[1] = np.nan, np.inf
+    with pytest.raises(TaskSetupError, match="q must be finite"):
+        state.update(bad_q, v)
+    with pytest.raises(TaskSetupError, match=r"v must be finite .*got \[.*inf"):
+        state.update(q, bad_v)
+    with pytest.raises(TaskSetupError, match=rf"v must be a finite vector of shape \({MODEL.nv},\)"):
+        state.update(q, v[:-1])
+    state.update(q)  # v defaults to zero
+    assert not state.v.any() and not state.q.flags.writeable
