@@ -74,10 +74,16 @@ def scenario(name: str, wb: Standing, model: mujoco.MjModel, impulse_n_s: float 
     if name == "squat":
         w, A = 2 * np.pi * SQUAT_FREQUENCY_HZ, SQUAT_AMPLITUDE_M
 
+        hx, hy, hz = home.tolist()
+
         def squat(t: float, state: RobotState) -> None:
-            p, v, a = minimum_jerk_at(c0, home, t, 0.0, 1.0)  # x, y over the feet (new arrays)
             c, s = math.cos(w * t), math.sin(w * t)
-            p[2] -= A * (1 - c)  # down and up by A (1 - cos w t)
+            if t > 1.0:  # over the feet, at rest: down and up by A (1 - cos w t), on plain floats
+                wb.com.set_target([hx, hy, hz - A * (1 - c)], [0.0, 0.0, -(A * w * s)],
+                                  [0.0, 0.0, -(A * w * w * c)])
+                return
+            p, v, a = minimum_jerk_at(c0, home, t, 0.0, 1.0)  # x, y over the feet (new arrays)
+            p[2] -= A * (1 - c)
             v[2] -= A * w * s
             a[2] -= A * w * w * c
             wb.com.set_target(p, v, a)
