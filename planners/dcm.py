@@ -128,7 +128,6 @@ class DcmPlan:
                 nxt = [rk[0] + e * (nxt[0] - rk[0]), rk[1] + e * (nxt[1] - rk[1])]
             xi_switch[k] = nxt
         self._xi_switch = xi_switch
-        self.xi_switch = np.array(xi_switch).reshape(len(tl), 2)
         #: The double-support windows (start, end) [s] around the switches (the first from the initial
         #: time when given); each window's quintic is computed when first evaluated.
         self.windows: list[tuple[float, float]] = []
@@ -146,6 +145,11 @@ class DcmPlan:
                 self.windows.append((a, b))
                 self._window_switch.append(k)
         self._initial = initial
+
+    @functools.cached_property
+    def xi_switch(self) -> np.ndarray:
+        """The DCM at each switch (N, 2) [m] (the backward recursion's)."""
+        return np.array(self._xi_switch).reshape(len(self._switches), 2)
 
     def _window(self, i: int) -> list[tuple[float, ...]]:
         """Window ``i``'s quintic (x, y columns): the exponentials' (or the initial) states at its ends."""
@@ -187,9 +191,9 @@ class DcmPlan:
             _, xi0, xid0 = self._initial
             xi = np.asarray(xi0, dtype=float).copy()
             return DcmReference(xi, np.zeros(2), xi.copy())
-        x, xd, _ = self._exponential(self._segment(t_s), t_s)
+        p, v, _ = self._exponential(self._segment(t_s), t_s)
         w = self.omega
-        return DcmReference(np.array(x), np.array(xd), np.array([x[0] - xd[0] / w, x[1] - xd[1] / w]))
+        return DcmReference(np.array(p), np.array(v), np.array([p[0] - v[0] / w, p[1] - v[1] / w]))
 
 
 def dcm_feedback(xi_W: npt.ArrayLike, reference: DcmReference, omega_rad_s: float,
@@ -381,7 +385,7 @@ def _xy(point: npt.ArrayLike) -> tuple[float, float]:
     if type(point) is np.ndarray and point.dtype == np.float64 and point.ndim == 1:
         x, y = point[:2].tolist()
         return x, y
-    if type(point) in (list, tuple) and len(point) >= 2:
+    if isinstance(point, list | tuple) and len(point) >= 2:
         return float(point[0]), float(point[1])
     x, y = np.asarray(point, dtype=float)[:2].tolist()
     return x, y

@@ -77,7 +77,7 @@ def quintic_columns(p0: npt.ArrayLike, v0: npt.ArrayLike, a0: npt.ArrayLike, p1:
         raise InvalidPlanningInput(f"the end values must be scalars or vectors of one length (n,); got "
                                    f"shapes {shapes}")
     T2, T3, T4, T5 = T**2, 2.0 * T**3, 2.0 * T**4, 2.0 * T**5
-    columns = []
+    columns: list[tuple[float, ...]] = []
     for i in range(n):
         p, v, a, q, w, b = (e[0] if len(e) == 1 else e[i] for e in ends)
         dq = q - p

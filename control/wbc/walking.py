@@ -185,6 +185,7 @@ class WalkingController:
             raise WBCSetupError(f"arm_swing names joints the model does not have: {', '.join(missing)}")
         self._arm_swing = [(iq[arm], iq[leg]) for arm, leg in (arm_swing or {}).items()]
         self._posture_target = self.reference_q.copy()
+        self._reference_q_list = self.reference_q.tolist()
         self._in_contact: dict[str, bool] = {}
         self._fids = {f: self.model.getFrameId(f) for f in self.feet}
         self._sole_points = {f: self.wbc.contacts[f].contact.points_F.tolist() for f in self.feet}
@@ -321,7 +322,9 @@ class WalkingController:
         if event is not None and event.kind == "touchdown":
             self._correct_speed(t, gait)
         self._tell_contacts()
-        xi = com[:2] + vcom[:2] / self.omega
+        (cx, cy, _), (vx, vy, _) = com.tolist(), vcom.tolist()
+        ix, iy = cx + vx / self.omega, cy + vy / self.omega  # the DCM
+        xi = np.array([ix, iy])
         if replan or event is not None:
             if gait.retargetable(t):
                 gait.retarget(t, self._swing_footstep(gait, t, xi))
@@ -329,13 +332,12 @@ class WalkingController:
         plan, steps = self.plans.plan(gait, t, self._steer)
         ref = plan.at(t)
         support = self._support_polygon(poses)
-        (ix, iy), (rx, ry), (zx, zy) = xi.tolist(), ref.xi.tolist(), ref.vrp.tolist()
+        (rx, ry), (zx, zy) = ref.xi.tolist(), ref.vrp.tolist()
         gain = 1.0 + cfg.dcm_gain_1_s / self.omega  # dcm_feedback's law, on floats
         cmp_xy = [zx + gain * (ix - rx), zy + gain * (iy - ry)]
         cmp = np.array(cmp_xy)
         cmp_c = support.clamp(cmp_xy, cfg.cmp_margin_m)
         z_ref, vz_ref, az_ref = gait.height(t)
-        (cx, cy, _), (vx, vy, _) = com.tolist(), vcom.tolist()
         px, py = cmp_c.tolist()  # the CoM's CMP
         last = self.wbc.last
         if cfg.moment_feedforward and self.wbc.steps and last is not None and not last.fallback:
@@ -350,9 +352,9 @@ class WalkingController:
         self._orient(gait.heading(t))
         self._swing(gait, t)
         if self._arm_swing and cfg.arm_swing_gain:
-            target, q0 = self._posture_target, self.reference_q
+            target, q0, q = self._posture_target, self._reference_q_list, state.q.tolist()
             for arm, leg in self._arm_swing:
-                target[arm] = q0[arm] + cfg.arm_swing_gain * (state.q[leg] - q0[leg])
+                target[arm] = q0[arm] + cfg.arm_swing_gain * (q[leg] - q0[leg])
             self.standing.posture.set_target(target)
         self.status = WalkingStatus(t, gait.phase, gait.stance_name, xi, ref.xi, ref.vrp,
                                     support.margin((zx, zy)), cmp, support.margin(cmp_xy), cmp_c, acc,
