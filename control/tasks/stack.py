@@ -26,13 +26,16 @@ the whole stack; other tasks write their weighted rows whole (weight 1, no dampi
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 
 import numpy as np
 
 from mbctl.control.tasks.base import Task, dot_into, weights_epoch
 from mbctl.control.tasks.diagonal import DiagonalTask
 from mbctl.control.tasks.state import DynamicsState, TaskState
+
+#: A task's method that writes its rows at a state: (state, J_t or W_t, r_t) -> None
+_RowWriter = Callable[[DynamicsState, np.ndarray, np.ndarray], None]
 
 
 class TaskStack:
@@ -155,7 +158,8 @@ class TaskStack:
         self._WT = np.zeros((nv, n_rows))
         self._Jv = np.zeros(n_rows)
         self._rn = np.zeros(n_rows)
-        writers, col, kd_cost, row = [], [], [], 0
+        writers: list[tuple[_RowWriter, np.ndarray, np.ndarray]] = []
+        col, kd_cost, row = [], [], 0
         for t in dense:
             J_t, r_t = self._J[row:row + t.k], self._r[row:row + t.k]
             row += t.k
