@@ -442,8 +442,12 @@ class WholeBodyController:
                 raise error
             self.infeasible_at_s, self.infeasible_message = state.time_s, str(error)
             return self._fallback(state, t0)
-        tau = np.dot(self._T, x)
-        tau += b_a
+        Gx = qp.Gx if result.fast_path else None  # the fast path's G x: its first rows are T x
+        if Gx is not None:
+            tau = np.add(Gx[:len(b_a)], b_a)
+        else:
+            tau = np.dot(self._T, x)
+            tau += b_a
         if cfg.friction_feedforward:
             self._add_friction(tau, x[:nv], dt_s)
         self.steps += 1

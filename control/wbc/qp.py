@@ -151,6 +151,9 @@ class WholeBodyQP:
         self._L = np.zeros((nv, nv))  # H_vv's Cholesky factor, made in place
         self._pinned = False
         self._skip_fast = False  # the last solve was daqp's with an inequality active
+        #: (m_in,) G x at the last solve's x when the fast path gave it (its feasibility check
+        #: computed it; a view of a new array each solve), else None
+        self.Gx: np.ndarray | None = None
         #: Inequality rows (a slice of G's) that daqp first solves without: rows that are rarely
         #: active (the controller's torque limits), checked at the reduced QP's optimum
         self.deferred_rows: slice | None = None
@@ -189,6 +192,7 @@ class WholeBodyQP:
             inequality is active (``iterations`` 0), ``dependent_rows`` the rows dropped.
         """
         t0 = time.perf_counter()
+        self.Gx = None
         pinned = not _all(self.force_free)
         if pinned or self._pinned:  # (_free_f stays all ones while no force is pinned)
             np.copyto(self._free_f, self.force_free)
@@ -203,6 +207,7 @@ class WholeBodyQP:
         dropped = m_eq - len(rows)
         if x is not None and self._feasible(x, xg=x.base):
             self._skip_fast = False
+            self.Gx = x.base[self.n_x:]
             return QPResult(x, OPTIMAL, 0, time.perf_counter() - t0, True, dropped)
         if (self._lo > self._up).any():
             return QPResult(None, CONTRADICTORY, 0, 0.0)
@@ -406,6 +411,7 @@ class WholeBodyQP:
 
     def solve_with(self, solver: str, m_eq: int) -> QPResult:
         """Solve with another backend through qpsolvers (for comparison; no fast path)."""
+        self.Gx = None
         return solve_qpsolvers(self.data(m_eq), solver)
 
     def problem(self, m_eq: int) -> qpsolvers.Problem:

@@ -470,3 +470,24 @@ def test_the_solution_is_a_frozen_dataclass_with_its_fields():
     later = dataclasses.replace(sol, qp_time_s=7e-5)
     assert later.qp_time_s == 7e-5 and later.tau is tau and sol.qp_time_s == 5e-5
     np.testing.assert_array_equal(sol.forces_F["l"], forces.reshape(2, 3))
+
+
+def test_the_torques_from_the_fast_paths_rows_equal_t_x_plus_b(tiny_biped, crouch, monkeypatch):
+    """tau from the fast path's G x (its torque rows) against T x + b_a, and on the daqp path."""
+    wb, _ = _stance(tiny_biped, crouch)
+    ctrl = wb.controller
+    v = 0.02 * np.random.default_rng(9).normal(size=tiny_biped.nv)  # moving, no inequality active
+    state = RobotState(crouch(tiny_biped), v, 0.0)
+
+    def general(ctrl):
+        x = np.concatenate([ctrl.solution.vdot, ctrl.solution.forces])
+        return ctrl._T @ x + ctrl.state.b[ctrl._a]
+
+    ctrl.compute(state)
+    assert ctrl.fast_path_cycles == 1 and ctrl._qp.Gx is not None
+    np.testing.assert_allclose(ctrl.solution.tau, general(ctrl), rtol=0.0, atol=1e-12)
+    monkeypatch.setattr(ctrl._qp, "_kkt", lambda m_eq: (None, np.arange(m_eq)))  # daqp only
+    ctrl.compute(state)
+    assert ctrl.daqp_cycles == 1 and ctrl._qp.Gx is None
+    np.testing.assert_allclose(ctrl.solution.tau, general(ctrl), rtol=0.0, atol=1e-12)
+    assert np.abs(ctrl.solution.tau).max() > 1.0
