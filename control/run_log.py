@@ -9,7 +9,7 @@ a largest deviation) stays exact however long the run.
 cycle's own objects (the state, reference and command, none of which the loop changes afterwards)
 and writes them into the log's arrays :data:`LOG_BATCH` cycles at a time, one numpy call per field:
 a numpy store per field and cycle, between a physics step and a solve that evict it from the CPU's
-caches, cost the loop about 7 us a cycle on the G1.
+caches, cost the loop about 7 us a cycle on a 29-joint humanoid.
 """
 
 from __future__ import annotations
