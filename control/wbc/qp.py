@@ -37,6 +37,7 @@ Other QP backends (``proxqp``, ``osqp``...) go through ``qpsolvers`` on the same
 from __future__ import annotations
 
 import time
+from typing import cast
 
 import numpy as np
 import qpsolvers
@@ -205,9 +206,9 @@ class WholeBodyQP:
                 return result
         x, rows = self._kkt(m_eq)
         dropped = m_eq - len(rows)
-        if x is not None and self._feasible(x, xg=x.base):
+        if x is not None and self._feasible(x, xg=cast(np.ndarray, x.base)):
             self._skip_fast = False
-            self.Gx = x.base[self.n_x:]
+            self.Gx = cast(np.ndarray, x.base)[self.n_x:]
             return QPResult(x, OPTIMAL, 0, time.perf_counter() - t0, True, dropped)
         if (self._lo > self._up).any():
             return QPResult(None, CONTRADICTORY, 0, 0.0)
@@ -278,15 +279,15 @@ class WholeBodyQP:
         rhs += self.e[:m_eq]  # e + E H^-1 c
         # S: a plain Cholesky when E has full row rank (pivots well above round-off), else a
         # pivoted one, whose rank is E's and whose pivots pick independent rows
-        scale = max(float(_max(S.diagonal())), 1e-300)
-        Ls, y, info = dposv(S, rhs, lower=1)  # y = -lambda
+        scale = _max(S.diagonal())
+        Ls, y, info = dposv(S, rhs, lower=1)  # y = -lambda (info > 0 when S is not positive definite)
         # x in a new array's first n_x entries, G x to follow (the feasibility check's [x; G x])
         x = np.empty(self.n_x + self.m_in)[:self.n_x]
-        if info == 0 and float(_min(Ls.diagonal())) ** 2 > RANK_RTOL * scale:
+        if info == 0 and _min(Ls.diagonal()) ** 2 > RANK_RTOL * scale:
             rows = all_rows
             np.dot(Z[:, :m_eq], y, out=x)  # [Y_E y; E_f^T y / w_f]
         else:
-            _, piv, rank, _ = dpstrf(S, tol=RANK_RTOL * scale, lower=1)
+            _, piv, rank, _ = dpstrf(S, tol=RANK_RTOL * max(float(scale), 1e-300), lower=1)
             rows = np.sort(piv[:rank] - 1)
             Ls, _ = dpotrf(S[np.ix_(rows, rows)], lower=1)
             y, _ = dpotrs(Ls, rhs[rows], lower=1)
