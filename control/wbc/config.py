@@ -11,7 +11,6 @@ import pinocchio as pin
 import qpsolvers
 
 from mbctl.control.exceptions import WBCSetupError
-from mbctl.robots.commands import Command, CommandKind
 
 #: What the controller does when its QP has no solution.
 ON_INFEASIBLE = ("raise", "damp")
@@ -230,23 +229,3 @@ class WBCSolution:
     def cop_W(self) -> dict[str, np.ndarray]:
         """Centre of pressure (3,) [m] in W by foot name (NaN for a foot without normal force)."""
         return {name: tc[1] for name, tc in self.totals_and_cops_W.items()}
-
-
-_new, _set = object.__new__, object.__setattr__
-
-
-def torque_command(tau: np.ndarray, names: tuple[str, ...] | None) -> Command:
-    """``Command(CommandKind.TORQUE, tau, names)`` without its checks, for the QP's torques.
-
-    They hold by construction: the QP's point is finite (the fast path accepts a point only within
-    its bounds, NaN fails that, and daqp's points are finite or None), so are M, b and the
-    friction terms at a finite state, and ``tau`` has one entry per name. The same fields as
-    Command's own constructor (tested): a read-only copy of the values, the kind, the names.
-    """
-    values = tau.copy()
-    values.flags.writeable = False
-    command = _new(Command)
-    _set(command, "kind", CommandKind.TORQUE)
-    _set(command, "values", values)
-    _set(command, "names", names)
-    return command

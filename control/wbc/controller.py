@@ -63,7 +63,7 @@ from mbctl.control.qp import QPResult, infeasible_error
 from mbctl.control.tasks.base import Task
 from mbctl.control.tasks.stack import TaskStack
 from mbctl.control.tasks.state import DynamicsState
-from mbctl.control.wbc.config import WBCConfig, WBCSolution, torque_command
+from mbctl.control.wbc.config import WBCConfig, WBCSolution
 from mbctl.control.wbc.contacts import ContactState, FootContact
 from mbctl.control.wbc.qp import WholeBodyQP
 from mbctl.robots.commands import Command, CommandKind
@@ -453,7 +453,7 @@ class WholeBodyController:
         self.steps += 1
         self.last = WBCSolution(tau, x[:nv], x[nv:], self._force_slices, self._points_F, poses,
                                 self._G_blk.T, time.perf_counter() - t0, qp_time)
-        return torque_command(tau, self._command_names)
+        return Command(CommandKind.TORQUE, tau, self._command_names)
 
     def _solve(self, m_eq: int) -> QPResult:
         """The QP as filled, by the configured solver (counting fast-path and daqp cycles)."""

@@ -81,23 +81,3 @@ def test_the_torques_from_the_fast_paths_rows_equal_t_x_plus_b(tiny_biped, crouc
     np.testing.assert_allclose(ctrl.solution.tau, general(ctrl), rtol=0.0, atol=1e-12)
     assert np.abs(ctrl.solution.tau).max() > 1.0
 
-
-def test_the_controllers_command_is_commands_own(tiny_biped, crouch):
-    """torque_command (no checks: the torques are finite by construction) against Command's constructor."""
-    import dataclasses
-
-    from mbctl.control.wbc.config import torque_command
-    from mbctl.robots.commands import Command, CommandKind
-
-    wb, state = _stance(tiny_biped, crouch)
-    ctrl = wb.controller
-    fast = ctrl.compute(_moving_state(tiny_biped, crouch))
-    own = Command(CommandKind.TORQUE, ctrl.solution.tau, ctrl._command_names)
-    assert [f.name for f in dataclasses.fields(Command)] == ["kind", "values", "names"]
-    assert fast.kind is own.kind and fast.names == own.names and fast.key == own.key
-    np.testing.assert_array_equal(fast.values, own.values)
-    assert not fast.values.flags.writeable and not np.shares_memory(fast.values, ctrl.solution.tau)
-    tau = np.arange(3.0)
-    command = torque_command(tau, ("a", "b", "c"))
-    tau[0] = 7.0  # a copy
-    assert command.values.tolist() == [0.0, 1.0, 2.0] and command.kind is CommandKind.TORQUE
