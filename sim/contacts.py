@@ -33,7 +33,7 @@ class MeasuredContact:
 
     Attributes:
         force_W: Sum of the contact forces on the group (3,) [N] in W.
-        cop_W: Centre of pressure (3,) [m] in W (force-weighted contact positions; NaN without
+        cop_W: Centre of pressure (3,) [m] in W (see :class:`ContactSensor`; NaN without
             normal force).
         n_contacts: Number of active contacts.
     """

@@ -47,7 +47,7 @@ class PlantSample(NamedTuple):
         site_array_W: The sampled sites' positions (s, 3) [m].
         contact_net: The contact groups' net contacts, as read
             (:meth:`ContactSensor.net <mbctl.sim.contacts.ContactSensor.net>`; empty without groups).
-        physics_time_s: Wall time [s] of the period's physics (MuJoCo's steps).
+        physics_time_s: Wall time [s] of the period's physics (MuJoCo's steps; the last ``sync``'s).
     """
 
     time_s: float
@@ -93,8 +93,8 @@ class PlantMonitor:
             the body's origin, world axes.
         contacts_elsewhere: The number of contacts counted by ``count_elsewhere`` (0 without it).
         contact_sums: Per contact group, in ``contact_groups`` order, what ``contacts`` reports as
-            plain numbers: ``[fx, fy, fz, fz x, fz y, n]`` (force [N] in W, fz-weighted contact
-            positions [N m], count; :meth:`ContactSensor.sums <mbctl.sim.contacts.ContactSensor.sums>`),
+            plain numbers: ``[fx, fy, fz, fz x, fz y, n]`` (force [N] in W, fz times the centre of
+            pressure's x, y [N m], count; :meth:`ContactSensor.sums <mbctl.sim.contacts.ContactSensor.sums>`),
             for a loop that reads them every period without building ``contacts``.
         site_array_W: The sampled sites' positions (s, 3) [m] in ``sites`` order (a new array each
             period; ``site_positions_W`` is the same by name).
