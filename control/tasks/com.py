@@ -112,25 +112,6 @@ class ComTask(Task):
         """``a_ref - kp e + kd (v_ref - J_com v)`` (3,) [m/s^2] in W."""
         return self.a_ref - self._kp * self.compute_error(state) + self._kd * (self.v_ref - J @ state.v)
 
-    def write_acceleration_rows(self, state: DynamicsState, W_t: np.ndarray, r_t: np.ndarray) -> None:
-        """Fast path of ``Task.write_acceleration_rows`` (the same values, fewer temporaries)."""
-        if self._target is None:
-            raise self._no_target()
-        J = state.com_jacobian()
-        np.multiply(self._weights()[0], J, out=W_t)
-        # r = cost (kp (p* - p) + a_ref + kd (v_ref - J v) - Jdot v)
-        np.subtract(self._target, state.com(), out=r_t)
-        r_t *= self._kp
-        r_t += self.a_ref
-        # kd (v_ref - J v) in the task's buffer: np.dot with out, no temporaries (the same values)
-        tmp = self._acceleration_scratch()
-        np.dot(J, state.v, out=tmp)
-        np.subtract(self.v_ref, tmp, out=tmp)
-        tmp *= self._kd
-        r_t += tmp
-        r_t -= state.com_drift()
-        r_t *= self._cost
-
     stacked_acceleration = True
 
     def write_acceleration_terms(self, state: DynamicsState, J_t: np.ndarray, r_t: np.ndarray) -> None:
