@@ -103,7 +103,7 @@ class ContactSensor:
             data: Right after ``mj_step``.
             geoms: ``data.contact.geom.tolist()`` if the caller read it already (one read per period).
         """
-        if self.sensor_index is not None and not self.model.opt.disableflags & _SENSOR_OFF:
+        if self.from_sensors:
             return data.sensordata.take(self.sensor_index).tolist()
         return self.loop_net(data, geoms)
 

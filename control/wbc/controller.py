@@ -497,4 +497,3 @@ class WholeBodyController:
                                 self._force_slices, self._points_F, poses, self._G_blk.T,
                                 time.perf_counter() - t0, 0.0, fallback=True)
         return Command(CommandKind.TORQUE, tau, self._command_names)
-
