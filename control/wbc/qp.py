@@ -149,7 +149,8 @@ class WholeBodyQP:
         self._daqp_solver = QPSolver(self.n_x, "daqp")
         self._rows = np.arange(m_eq_max)
         self._Z: dict[int, np.ndarray] = {}  # the fast path's buffers, by number of equality rows
-        self._L = np.zeros((nv, nv))  # H_vv's Cholesky factor, made in place
+        # H_vv's Cholesky factor, made in place: Fortran order, or f2py copies it before LAPACK sees it
+        self._L = np.zeros((nv, nv), order="F")
         self._pinned = False
         self._skip_fast = False  # the last solve was daqp's with an inequality active
         #: (m_in,) G x at the last solve's x when the fast path gave it (its feasibility check
@@ -267,8 +268,10 @@ class WholeBodyQP:
         np.multiply(E[m_eq - m_f:, nv:].T, self._inv_wf, out=Z_f)
         if self._pinned:
             Z_f *= self._free_f[:, None]  # the pinned forces' columns left out (they stay at zero)
-        np.copyto(self._L, self.H_vv)  # (symmetric: its C order is the Fortran order LAPACK wants)
-        L, info = dpotrf(self._L, lower=1, overwrite_a=1)  # H_vv = L L^T, in place
+        np.copyto(self._L, self.H_vv)
+        # H_vv = L L^T in place (positional: lower, clean=0, overwrite_a; the upper triangle is left
+        # as it was, never read: every solve with L reads its lower one)
+        L, info = dpotrf(self._L, 1, 0, 1)
         if info != 0:
             return None, all_rows
         # Z_v^T (Fortran order) L^-T = (L^-1 Z_v)^T: solved in place
