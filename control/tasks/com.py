@@ -119,13 +119,15 @@ class ComTask(Task):
         if self._target is None:
             raise self._no_target()
         np.copyto(J_t, state.com_jacobian())
-        np.subtract(self._target, state.com(), out=r_t)
-        r_t *= self._kp
-        r_t += self.a_ref
-        tmp = self._acceleration_scratch()
-        np.multiply(self.v_ref, self._kd, out=tmp)
-        r_t += tmp
-        r_t -= state.com_drift()
+        # on plain floats: eight numpy calls on (3,) vectors cost ~4 us, these sums ~1 us with the reads
+        kp, kd = self._kp, self._kd
+        tx, ty, tz = self._target.tolist()
+        cx, cy, cz = state.com().tolist()
+        ax, ay, az = self.a_ref.tolist()
+        vx, vy, vz = self.v_ref.tolist()
+        dx, dy, dz = state.com_drift_xyz()
+        r_t[:] = (kp * (tx - cx) + ax + kd * vx - dx, kp * (ty - cy) + ay + kd * vy - dy,
+                  kp * (tz - cz) + az + kd * vz - dz)
 
     def residual(self, state: TaskState) -> TaskResidual:
         """Distance to the target over the weighted axes [m] (axes with zero cost are ignored)."""

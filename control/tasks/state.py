@@ -198,7 +198,7 @@ class DynamicsState(TaskState):
         # the model's gravity and 1/m (fixed, as the mass above)
         self._X_WB = self.data.oMi[1] if self._free_root else None
         self._nle_linear = self.data.nle[:3]
-        self._gravity = np.array(model.gravity.linear)
+        self._gravity_xyz = tuple(np.array(model.gravity.linear).tolist())
         self._inv_mass = 1.0 / self.mass if self.mass > 0.0 else math.inf
         self.update(self._q if q is None else q, v)
 
@@ -258,12 +258,23 @@ class DynamicsState(TaskState):
         With a free-flyer root, the linear rows of :meth:`centroidal_drift` alone: ``R_WB b_B[:3] / m
         + g`` (the CoM task needs no angular part: ~5 us less per cycle on a 35-dof humanoid).
         """
+        return np.array(self.com_drift_xyz())
+
+    def com_drift_xyz(self) -> tuple[float, float, float]:
+        """:meth:`com_drift` as three floats (x, y, z) [m/s^2] in W.
+
+        With a free-flyer root on plain floats: a 3 x 3 product and two (3,) operations in numpy
+        cost ~0.5 us a call, nine products and sums in Python ~0.3 us together.
+        """
         if self._X_WB is not None and self._centroidal_drift is None:
-            drift = np.dot(self._X_WB.rotation, self._nle_linear)
-            drift *= self._inv_mass
-            drift += self._gravity
-            return drift
-        return self.centroidal_drift()[:3] / self.mass
+            (r00, r01, r02), (r10, r11, r12), (r20, r21, r22) = self._X_WB.rotation.tolist()
+            bx, by, bz = self._nle_linear.tolist()
+            k = self._inv_mass
+            gx, gy, gz = self._gravity_xyz
+            return ((r00 * bx + r01 * by + r02 * bz) * k + gx, (r10 * bx + r11 * by + r12 * bz) * k + gy,
+                    (r20 * bx + r21 * by + r22 * bz) * k + gz)
+        x, y, z = (self.centroidal_drift()[:3] / self.mass).tolist()
+        return x, y, z
 
     def frame_drift(self, frame_id: int, reference: pin.ReferenceFrame) -> np.ndarray:
         """``d/dt(J_F) v`` (6,) in ``reference``: the frame's acceleration at zero vdot.
