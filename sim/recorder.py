@@ -41,6 +41,11 @@ class BoundedTrajectoryRecorder(TrajectoryRecorder):
     spaced in steps (the start and every ``stride``-th step), and ``close()`` adds the last state
     when it fell between two kept steps.
 
+    The samples go into rows of arrays allocated once (``max_samples`` rows, their memory touched
+    as they fill): a kept step is two stores, where a new array per step (``qpos.copy()``) cost a
+    job's control cycle 5-15 us more (its allocations, spread over the heap, evicted the loop's data
+    from the CPU's caches; ``bench/README.md``).
+
     Args:
         sim: The plant.
         folder: Where ``trajectory.npz`` and ``model.xml`` go.
@@ -57,31 +62,49 @@ class BoundedTrajectoryRecorder(TrajectoryRecorder):
         self.max_samples = max_samples
         self.stride = 1  #: observed steps per kept sample
         self.observed = 0  #: steps observed
+        self._data = sim.data
+        self._qpos_now = sim.data.qpos  # a view into MjData: what a step left, read when kept
+        self._times = np.empty(max_samples)
+        self._rows = np.empty((max_samples, sim.model.nq))
+        self._times[0], self._rows[0] = self._t[0], self._qpos[0]
+        self._n = 1
         self._last_t = float(sim.data.time)
         self._last_qpos = sim.data.qpos.copy()
 
     @property
     def samples(self) -> int:
         """Samples kept so far (the start included)."""
-        return len(self._t)
+        return self._n
 
     def __call__(self, sim: Simulator) -> None:
         """Observer hook: keep the state if this step is a multiple of the stride."""
         self.observed += 1
         if self.observed % self.stride:
-            self._last_t = float(sim.data.time)
-            np.copyto(self._last_qpos, sim.data.qpos)
+            self._last_t = float(self._data.time)
+            np.copyto(self._last_qpos, self._qpos_now)
             return
-        super().__call__(sim)
-        if len(self._t) >= self.max_samples:
-            self._t, self._qpos = self._t[::2], self._qpos[::2]
+        n = self._n
+        self._times[n] = self._data.time
+        self._rows[n] = self._qpos_now
+        n += 1
+        if n == self.max_samples:  # every other sample, from the first: the start stays
+            kept = (n + 1) // 2
+            self._times[:kept] = self._times[:n:2]
+            self._rows[:kept] = self._rows[:n:2]
+            n = kept
             self.stride *= 2
+        self._n = n
+
+    def _samples(self) -> tuple[np.ndarray, np.ndarray]:
+        n = self._n
+        return self._times[:n], self._rows[:n]
 
     def close(self) -> Path:
         """Keep the last state (if it fell between kept steps), then write ``trajectory.npz``."""
         if not self._closed and self.observed % self.stride:
-            self._t.append(self._last_t)
-            self._qpos.append(self._last_qpos.copy())
+            # room for it: the samples are below max_samples after every store
+            self._times[self._n], self._rows[self._n] = self._last_t, self._last_qpos
+            self._n += 1
         return super().close()
 
 

@@ -58,16 +58,20 @@ class TrajectoryRecorder:
         self._t.append(float(sim.data.time))
         self._qpos.append(sim.data.qpos.copy())
 
+    def _samples(self) -> tuple[np.ndarray, np.ndarray]:
+        """The samples kept: times (n,) [s] and plant qpos (n, nq)."""
+        return np.array(self._t), np.array(self._qpos)
+
     def close(self) -> Path:
         """Stop and write ``trajectory.npz`` (idempotent)."""
         if not self._closed:
             self._closed = True
             self.sim.remove_observer(self)
             robot = self.sim.robot
-            qpos = np.array(self._qpos)
+            t, qpos = self._samples()
             q = np.array([robot.robot_q(x) for x in qpos]) if len(qpos) else np.zeros((0, robot.nq))
             write_bytes_atomic(self.path, lambda f: np.savez_compressed(
-                f, time_s=np.array(self._t), qpos=qpos, q=q, robot=np.array(robot.name),
+                f, time_s=t, qpos=qpos, q=q, robot=np.array(robot.name),
                 model=np.array(MODEL_NAME), track_body=np.array(self.track_body),
                 model_name=np.array(model_name(self.sim.model)),
                 joints=np.array(joint_names(self.sim.model))))

@@ -22,6 +22,7 @@ from mbctl.jobs.runner import (
     check_output_dir,
     run_job,
 )
+from mbctl.robots.commands import Command, CommandKind
 from mbctl.sim.exceptions import SimulationDiverged
 from mbctl.sim.recorder import MAX_REPLAY_SAMPLES, BoundedTrajectoryRecorder, read_csv
 from mbctl.sim.simulator import Simulator
@@ -129,11 +130,16 @@ def test_a_long_run_keeps_a_bounded_replay_and_every_csv_row(tmp_path, two_link_
 def test_the_replay_keeps_the_last_state_between_kept_steps(tmp_path, two_link_torque):
     sim = Simulator(two_link_torque)
     rec = BoundedTrajectoryRecorder(sim, tmp_path, max_samples=8).attach()
+    sim.send(Command(CommandKind.TORQUE, np.array([0.3, -0.2])))
+    seen = [sim.data.qpos.copy()]
     for _ in range(21):  # 8 samples reached at step 7 (stride 2), at step 14 (stride 4): 0, 4, 8, ... 20
         sim.step()
+        seen.append(sim.data.qpos.copy())
     rec.close()
-    t = load_trajectory(tmp_path)[1]
+    t, qpos = load_trajectory(tmp_path)[1:3]
     np.testing.assert_allclose(t / sim.model.opt.timestep, [0, 4, 8, 12, 16, 20, 21], atol=1e-9)  # 21: end
+    np.testing.assert_array_equal(qpos, np.array(seen)[[0, 4, 8, 12, 16, 20, 21]])  # each step's own state
+    assert len(np.unique(qpos[:, 0])) == 7  # the arm moved: the rows are not one state repeated
     with pytest.raises(ValueError, match="max_samples must be >= 2"):
         BoundedTrajectoryRecorder(sim, tmp_path, max_samples=1)
 
