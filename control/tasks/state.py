@@ -169,6 +169,8 @@ class DynamicsState(TaskState):
 
     Attributes:
         v: Velocity (nv,), Pinocchio convention (base twist in the base frame).
+        qv: ``[q; v]`` (nq + nv,): the buffer ``q`` and ``v`` are views of (read-only; one product
+            reads both, e.g. a linear map of the state).
         mass: Total mass [kg].
     """
 
@@ -181,6 +183,8 @@ class DynamicsState(TaskState):
         self._q_view = self._q.view()
         self._q_view.setflags(write=False)
         self.v = self._qv[model.nq:]
+        self.qv = self._qv.view()
+        self.qv.setflags(write=False)
         self._M_buffer = np.zeros((model.nv, model.nv))
         self._lower = np.tril(np.ones((model.nv, model.nv), dtype=bool), -1)
         self._M_view = self._M_buffer.view()

@@ -174,21 +174,21 @@ class WholeBodyController:
         # one product whose rows are the dynamics' and the torque rows' force columns
         self._JcT_neg = np.zeros((nv, n_f))
         self._JF = qp.E[:n_feet_rows, :nv]  # every foot's LOCAL Jacobian, stacked: its rows of E
-        self._foot_err = qp.e[:n_feet_rows]  # log6(X_FF0) of each foot, then its row's target
-        self._foot_drift = np.zeros(n_feet_rows)  # Jdot_F v of each foot
+        self._foot_err = qp.e[:n_feet_rows]  # each foot's row targets (see compute)
         self._packed = False  # a foot's rows were moved over another's (their force columns to clear)
         self._G_blk = np.zeros((n_f, n_feet_rows))  # Jc = blockdiag(G_F) J_F, one product
         for i, cs in enumerate(self.contacts.values()):
             self._G_blk[cs.cols.start - nv:cs.cols.stop - nv, 6 * i:6 * i + 6] = cs.G_F
         # each foot's rows of J_F, its error and its drift: views made once (no slices per cycle)
-        self._foot_rows = tuple((name, cs, self._JF[6 * i:6 * i + 6], self._foot_err[6 * i:6 * i + 6],
-                                 self._foot_drift[6 * i:6 * i + 6])
+        self._foot_rows = tuple((name, cs, self._JF[6 * i:6 * i + 6], self._foot_err[6 * i:6 * i + 6])
                                 for i, (name, cs) in enumerate(self.contacts.items()))
         self._GT_neg = -self._G_blk.T  # (negation is exact: the same products as -(G_blk J_F))
+        self._wrench_map = self._G_blk.T  # the solutions' (a read-only view, made once)
+        self._wrench_map.setflags(write=False)
         self._foot_v = np.zeros(n_feet_rows)  # J_F v of each foot
         self._limits = self._joint_limits()
         self._n_limits = len(self._limits[0])
-        self._limit_iv, self._limit_iq = as_slice(self._limits[0]), as_slice(self._limits[1])
+        self._limit_iv = as_slice(self._limits[0])
         self.config = self._config  # the setter derives the config's terms
         self._stack = TaskStack(nv)
         self.last: WBCSolution | None = None
@@ -220,13 +220,20 @@ class WholeBodyController:
         #: the weight each foot's force bounds were last written with (None: rewrite them)
         self._bound_weight: dict[str, float | None] = dict.fromkeys(self.contacts)
         # joint limits: (q_lim -+ margin) 2 / Th^2, the fixed part of the acceleration bounds
-        _, _, q_lo, q_hi = self._limits
-        scale = 2.0 / config.joint_limit_horizon_s**2
+        iv, iq, q_lo, q_hi = self._limits
+        Th = config.joint_limit_horizon_s
+        scale = 2.0 / Th**2
         self._limit_lo = (q_lo + config.joint_limit_margin_rad) * scale
         self._limit_hi = (q_hi - config.joint_limit_margin_rad) * scale
+        # the reach's part, -(q + v Th) 2 / Th^2, as one product with the state's [q; v] (one call
+        # instead of three on slices)
+        nq = self.model.nq
+        self._limit_reach = np.zeros((len(iv), nq + self.model.nv))
+        self._limit_reach[np.arange(len(iv)), iq] = -scale
+        self._limit_reach[np.arange(len(iv)), nq + iv] = -scale * Th
+        self._limit_shift = np.zeros(len(iv))
         # the feet's slip feedback: kp on each foot's x, y and yaw rows, 0 on z, roll and pitch
-        self._foot_gain = np.tile([1.0, 1.0, 0.0, 0.0, 0.0, 1.0], len(self.contacts)) \
-            * config.contact_omega_rad_s**2
+        self._foot_gain = np.array([1.0, 1.0, 0.0, 0.0, 0.0, 1.0]) * config.contact_omega_rad_s**2
 
     @property
     def tasks(self) -> tuple[Task, ...]:
@@ -342,11 +349,11 @@ class WholeBodyController:
 
         # contact points' Jacobians, in their foot frame F: J_P = G_F J_F (J_F LOCAL)
         lb, ub = qp.lb, qp.ub
-        JF, err, drift = self._JF, self._foot_err, self._foot_drift
+        JF, err, gain = self._JF, self._foot_err, self._foot_gain
         poses = {}
         all_active = True
         LOCAL = pin.LOCAL
-        for name, cs, JF_rows, err_rows, drift_rows in self._foot_rows:
+        for name, cs, JF_rows, err_rows in self._foot_rows:
             X_WF = s.frame_pose(cs.fid)
             poses[name] = X_WF.copy()  # the state's is overwritten by the next update (~0.6 us < SE3(X))
             JF_rows[:] = s.frame_jacobian(cs.fid, LOCAL)
@@ -356,23 +363,19 @@ class WholeBodyController:
                 # a foot at weight 0: its forces are pinned at zero (bounds [0, 0], the pyramid)
                 qp.force_free[cs.cols.start - nv:cs.cols.stop - nv] = cs.weight * cfg.f_max_n != 0.0
                 self._bound_weight[name] = cs.weight
-            if cs.active:
-                err_rows[:] = pin.log6(X_WF.actInv(cs.X_WF0)).vector
-                drift_rows[:] = s.frame_drift(cs.fid, LOCAL)
-            else:  # no row for this foot (zeros: err is scaled in place every cycle)
-                err_rows[:] = 0.0
-                drift_rows[:] = 0.0
+            if cs.active:  # kp S log6(X_FF0) - Jdot_F v (its - kd J_F v below, both feet in one product)
+                np.multiply(pin.log6(X_WF.actInv(cs.X_WF0)).vector, gain, out=err_rows)
+                err_rows -= s.frame_drift(cs.fid, LOCAL)
+            else:  # no row for this foot
                 all_active = False
         JcT_neg = self._JcT_neg
         np.dot(JF.T, self._GT_neg, out=JcT_neg)
         # each active foot's twist in F: J_F vdot + Jdot_F v = kp S log6(X_FF0) - kd J_F v, with S
         # keeping x, y and yaw (the ground sets height, roll and pitch; feedback corrects slip only)
-        err *= self._foot_gain
         foot_v = self._foot_v  # np.dot with out: no temporaries (~1 us less than the expression)
         np.dot(JF, s.v, out=foot_v)
         foot_v *= 2.0 * cfg.contact_omega_rad_s
         err -= foot_v
-        err -= drift
         # [M, -Jc^T]: its rows u are the base's dynamics rows M_u vdot - Jc_u^T f = -b_u (equalities),
         # its rows a the torque rows, tau = T x + b_a with T = [M_a, -Jc_a^T]; tau_min <= tau <= tau_max
         D, b = self._dyn, s.b
@@ -405,12 +408,10 @@ class WholeBodyController:
         # joint limits: q + v T + vdot T^2/2 within [q_min + margin, q_max - margin]: a joint heading
         # for a limit must decelerate (the bound turns positive), at most by the accel cap A, so
         # that lb <= ub and the bounds stay feasible under the torque limits
-        iv, iq, lo_scaled, hi_scaled = self._limit_iv, self._limit_iq, self._limit_lo, self._limit_hi
+        iv, lo_scaled, hi_scaled = self._limit_iv, self._limit_lo, self._limit_hi
         if self._n_limits:
-            Th = cfg.joint_limit_horizon_s
-            shift = s.v[iv] * Th
-            shift += s.q[iq]  # where the joints coast to in Th
-            shift *= -2.0 / Th**2
+            shift = self._limit_shift  # -(q + v Th) 2 / Th^2: where the joints coast to in Th
+            np.dot(self._limit_reach, s.qv, out=shift)
             cap = cfg.joint_limit_max_accel_rad_s2
             # (q_lim -+ margin - reach) 2 / Th^2, capped
             if isinstance(iv, slice):  # views: written in place
@@ -452,7 +453,7 @@ class WholeBodyController:
             self._add_friction(tau, x[:nv], dt_s)
         self.steps += 1
         self.last = WBCSolution(tau, x[:nv], x[nv:], self._force_slices, self._points_F, poses,
-                                self._G_blk.T, time.perf_counter() - t0, qp_time)
+                                self._wrench_map, time.perf_counter() - t0, qp_time)
         return Command(CommandKind.TORQUE, tau, self._command_names)
 
     def _solve(self, m_eq: int) -> QPResult:
@@ -494,6 +495,6 @@ class WholeBodyController:
         poses = {name: pin.SE3(self.state.frame_pose(cs.fid)) for name, cs in self.contacts.items()}
         self.steps += 1
         self.last = WBCSolution(tau, np.full(self.model.nv, np.nan), np.zeros(self.n_x - self.model.nv),
-                                self._force_slices, self._points_F, poses, self._G_blk.T,
+                                self._force_slices, self._points_F, poses, self._wrench_map,
                                 time.perf_counter() - t0, 0.0, fallback=True)
         return Command(CommandKind.TORQUE, tau, self._command_names)

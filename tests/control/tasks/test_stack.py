@@ -186,3 +186,13 @@ def test_a_dynamics_state_names_the_bad_input_and_keeps_q_and_v():
         state.update(q, v[:-1])
     state.update(q)  # v defaults to zero
     assert not state.v.any() and not state.q.flags.writeable
+
+
+def test_a_dynamics_states_qv_is_q_then_v_and_read_only():
+    """``qv`` is the one buffer behind q and v (the WBC's joint-limit bounds read it by one product)."""
+    rng = np.random.default_rng(19)
+    q, v = random_q(MODEL, rng), rng.standard_normal(MODEL.nv)
+    state = DynamicsState(MODEL)
+    state.update(q, v)
+    np.testing.assert_array_equal(state.qv, np.concatenate([q, v]))
+    assert not state.qv.flags.writeable
