@@ -148,7 +148,8 @@ class WholeBodyQP:
         self._c = np.zeros(self.n_x)
         self._daqp_solver = QPSolver(self.n_x, "daqp")
         self._rows = np.arange(m_eq_max)
-        self._Z: dict[int, np.ndarray] = {}  # the fast path's buffers, by number of equality rows
+        # the fast path's buffers Z and [y; -1], by number of equality rows
+        self._Z: dict[int, tuple[np.ndarray, np.ndarray]] = {}
         # H_vv's Cholesky factor, made in place: Fortran order, or f2py copies it before LAPACK sees it
         self._L = np.zeros((nv, nv), order="F")
         self._pinned = False
@@ -236,12 +237,17 @@ class WholeBodyQP:
         out[self.n_x:] = G_v_zero & ~touches_free
         return out
 
-    def _schur_buffer(self, m_eq: int) -> np.ndarray:
-        """The (n_x, m_eq + 1) buffer ``Z`` of :meth:`_kkt` for ``m_eq`` rows (made once per count)."""
-        Z = self._Z.get(m_eq)
-        if Z is None:
-            Z = self._Z[m_eq] = np.zeros((self.n_x, m_eq + 1))  # C order: its top block is contiguous
-        return Z
+    def _schur_buffers(self, m_eq: int) -> tuple[np.ndarray, np.ndarray]:
+        """The buffers of :meth:`_kkt` for ``m_eq`` rows: ``Z`` (n_x, m_eq + 1) and ``[y; -1]`` (m_eq + 1,).
+
+        Made once per count. ``Z`` in C order: its top block is contiguous.
+        """
+        buffers = self._Z.get(m_eq)
+        if buffers is None:
+            y_ext = np.zeros(m_eq + 1)
+            y_ext[m_eq] = -1.0
+            buffers = self._Z[m_eq] = (np.zeros((self.n_x, m_eq + 1)), y_ext)
+        return buffers
 
     def _kkt(self, m_eq: int) -> tuple[np.ndarray | None, np.ndarray]:
         """The minimiser under the first ``m_eq`` equalities only (KKT by Schur complement).
@@ -249,7 +255,8 @@ class WholeBodyQP:
         With ``H_vv = L L^T``, one buffer ``Z = [L^-1 E_v^T, L^-1 c_v; E_f^T / w_f, 0]`` (one
         triangular solve, in place) gives ``Z^T Z = [S, E H^-1 c; ...]`` in one product:
         ``S = E H^-1 E^T = Y_E^T Y_E + E_f E_f^T / w_f^2``. Then ``y = -lambda = S^-1 (e + E H^-1 c)``,
-        ``vdot = L^-T (Y_E y - Y_c)`` (a second solve, one column) and ``f = E_f^T y / w_f^2``.
+        ``vdot = L^-T (Y_E y - Y_c)`` (a second solve, one column) and ``f = E_f^T y / w_f^2``: both
+        from ``Z [y; -1]`` (Z's force rows are 0 in its last column).
 
         Returns:
             ``(x, rows)``: x (n_x,) or None if H_vv is not positive definite (x: the first n_x
@@ -261,7 +268,7 @@ class WholeBodyQP:
         E = self.E[:m_eq]
         all_rows = self._rows[:m_eq]
         # LAPACK and BLAS directly: numpy.linalg's wrappers cost several us of Python per call here
-        Z = self._schur_buffer(m_eq)
+        Z, y_ext = self._schur_buffers(m_eq)
         Z_v, Z_f = Z[:nv], Z[nv:, m_eq - m_f:m_eq]  # (the force rows' other columns stay zero)
         Z_v[:, :m_eq] = E[:, :nv].T
         Z_v[:, m_eq] = self.c_v
@@ -278,26 +285,29 @@ class WholeBodyQP:
         dtrsm(1.0, L, Z_v.T, side=1, lower=1, trans_a=1, overwrite_b=1)
         P = np.dot(Z.T, Z)  # [S, E H^-1 c; ., .] (c_f = 0, H_ff = w_f^2 I)
         S = P[:m_eq, :m_eq]
-        rhs = P[:m_eq, m_eq]
-        rhs += self.e[:m_eq]  # e + E H^-1 c
+        y = y_ext[:m_eq]
+        np.add(P[:m_eq, m_eq], self.e[:m_eq], out=y)  # e + E H^-1 c
         # S: a plain Cholesky when E has full row rank (pivots well above round-off), else a
         # pivoted one, whose rank is E's and whose pivots pick independent rows
         scale = _max(S.diagonal())
-        Ls, y, info = dposv(S, rhs, lower=1)  # y = -lambda (info > 0 when S is not positive definite)
+        # y = -lambda in place (positional: lower, overwrite_a=0, overwrite_b; info > 0 when S is not
+        # positive definite)
+        Ls, _, info = dposv(S, y, 1, 0, 1)
         # x in a new array's first n_x entries, G x to follow (the feasibility check's [x; G x])
         x = np.empty(self.n_x + self.m_in)[:self.n_x]
         if info == 0 and _min(Ls.diagonal()) ** 2 > RANK_RTOL * scale:
             rows = all_rows
-            np.dot(Z[:, :m_eq], y, out=x)  # [Y_E y; E_f^T y / w_f]
+            np.dot(Z, y_ext, out=x)  # [Y_E y - Y_c; E_f^T y / w_f]: Z whole is contiguous (~1 us less)
         else:
+            rhs = P[:m_eq, m_eq] + self.e[:m_eq]  # (y holds what dposv left)
             _, piv, rank, _ = dpstrf(S, tol=RANK_RTOL * max(float(scale), 1e-300), lower=1)
             rows = np.sort(piv[:rank] - 1)
             Ls, _ = dpotrf(S[np.ix_(rows, rows)], lower=1)
-            y, _ = dpotrs(Ls, rhs[rows], lower=1)
-            np.dot(Z[:, rows], y, out=x)
+            y_rows, _ = dpotrs(Ls, rhs[rows], lower=1)
+            np.dot(Z[:, rows], y_rows, out=x)
+            x[:nv] -= Z_v[:, m_eq]
         # x = -H^-1 (c + E^T lambda): vdot = L^-T (Y_E y - Y_c), f = E_f^T y / w_f^2
         vdot = x[:nv]
-        vdot -= Z_v[:, m_eq]
         dtrsv(L, vdot, lower=1, trans=1, overwrite_x=1)  # in place (vdot is contiguous)
         x[nv:] *= self._inv_wf
         return x, rows

@@ -148,6 +148,23 @@ def test_dependent_equality_rows_are_dropped_and_counted(consistent):
     assert any(max(abs(residual[0]), abs(residual[1])) == pytest.approx(v, abs=1e-9) for v in expected)
 
 
+def test_dependent_rows_on_the_fast_path_give_the_optimum_without_them():
+    """The fast path's pivoted branch: the KKT point of the QP with the dependent row left out."""
+    qp = _problem(7, 0.0)
+    qp.E[1] = 2.0 * qp.E[0]
+    qp.e[1] = 2.0 * qp.e[0]
+    for lower, upper in ((qp.g_lo, qp.g_up), (qp.lb, qp.ub)):  # no inequality: the fast path's point
+        lower[:], upper[:] = -np.inf, np.inf
+    result = qp.solve(M_EQ)
+    assert result.fast_path and result.dependent_rows == 1
+    problem = qp.problem(M_EQ)
+    keep = [0, *range(2, M_EQ)]
+    E, e, n = qp.E[keep], qp.e[keep], NV + NF
+    kkt = np.block([[problem.P, E.T], [E, np.zeros((len(keep), len(keep)))]])
+    expected = np.linalg.solve(kkt, np.concatenate([-problem.q, e]))[:n]
+    np.testing.assert_allclose(result.x, expected, atol=1e-9 * max(1.0, np.abs(expected).max()))
+
+
 def test_problem_export_round_trips_the_two_sided_rows():
     # a hand-sized case, the expected matrices written out: nv = 2, n_f = 1, w_f = 0.5
     qp = WholeBodyQP(2, 1, 2, 2, force_weight=0.5)
