@@ -111,7 +111,9 @@ class FallRule:
         """
         if base_z_m < self.base_min_z_m:
             return f"{self.base_name} at {base_z_m:.3f} m (below {self.base_min_z_m:g} m)"
-        others = sorted(set(floor_bodies) - set(self.support_bodies))
+        if not floor_bodies:
+            return None
+        others = sorted({b for b in floor_bodies if b not in self.support_bodies})
         if others:
             return f"{', '.join(others)} touched the floor"
         return None

@@ -77,6 +77,7 @@ class ContactSensor:
 
     def __init__(self, model: mujoco.MjModel, groups: Mapping[str, Iterable[int]]):
         self.model = model
+        self._opt = model.opt  # a live view of the model's options, bound once (read every period)
         self.names = tuple(groups)
         self._owner = np.full(model.ngeom, -1, dtype=int)  # group index of each geom, -1: none
         for k, geoms in enumerate(groups.values()):
@@ -89,7 +90,7 @@ class ContactSensor:
     @property
     def from_sensors(self) -> bool:
         """Whether the sums come from MuJoCo's contact sensors (now: sensors not disabled)."""
-        return self.sensor_index is not None and not self.model.opt.disableflags & _SENSOR_OFF
+        return self.sensor_index is not None and not self._opt.disableflags & _SENSOR_OFF
 
     def net(self, data: mujoco.MjData, geoms: list[list[int]] | None = None) -> list[float]:
         """Each group's net contact, 10 plain numbers a group in ``names`` order (MuJoCo's sensor layout).

@@ -126,6 +126,10 @@ class PlantMonitor:
             raise SimError(f"a fall rule needs a floating base; {robot.name!r} has a fixed base")
         self._fall_rule = fall_rule
         self._period_s = sim.control_period_s
+        # views into MjData read every period, bound once (MjData's arrays stay where they are)
+        self._root_com = sim.data.subtree_com[self._roots[0]]
+        self._root_pos = sim.data.xpos[self._roots[0]]
+        self._site_xpos = sim.data.site_xpos
         # before the first period: zero sums, no contacts nor sites by name
         self.sample = PlantSample(float(sim.data.time), np.zeros(3), np.zeros((len(self.site_names), 3)),
                                   [], 0.0)
@@ -205,19 +209,20 @@ class PlantMonitor:
         # the contacts' geom pairs read once for the groups and the floor (the per-period hot path:
         # plain lists, no numpy temporaries, nothing converted before the caller reads it)
         geoms = d.contact.geom.tolist() if d.ncon else []
-        self.sample = PlantSample(
-            float(d.time) - self._period_s,
-            d.subtree_com[self._roots[0]].copy() if self._subtree_com else self._com(d),
-            d.site_xpos.take(self._site_index, 0),  # take: half a fancy index's time
+        # built as tuple.__new__ does it, without the NamedTuple's Python-level __new__ (per period)
+        self.sample = tuple.__new__(PlantSample, (
+            d.time - self._period_s,
+            self._root_com.copy() if self._subtree_com else self._com(d),
+            self._site_xpos.take(self._site_index, 0),  # take: half a fancy index's time
             self._sensor.net(d, geoms) if self._sensor is not None else [],
-            sim.physics_time_s)
+            sim.physics_time_s))
         self._sums = self._contacts = self._sites = None
         if geoms != self._floor_geoms:  # the bodies on the floor follow from the geom pairs alone
             self.floor_bodies = tuple(self._floor.bodies(d, geoms))
             self._floor_geoms = geoms
         if self._fall_rule is not None and self.fall_reason is None:
             # the base height at the step's start: the free joint sits at the root body's origin
-            self.base_z_m = float(d.xpos[self._roots[0], 2])
+            self.base_z_m = float(self._root_pos[2])
             reason = self._fall_rule(self.base_z_m, self.floor_bodies)
             if reason is not None:
                 self.fall_reason, self.fall_time_s = reason, self.sample.time_s

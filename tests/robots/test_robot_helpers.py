@@ -308,3 +308,13 @@ def test_standalone_xml_loads_from_any_folder(two_link_torque, tmp_path, monkeyp
     monkeypatch.chdir(tmp_path)
     robot = load_robot(path)
     assert robot.mj_model.body_mass[robot.body_id("payload_ee_body")] == 0.2  # its inertial survived
+
+
+def test_the_fall_rule_names_each_other_body_on_the_floor_once_sorted():
+    from mbctl.robots.g1 import FallRule
+
+    rule = FallRule(0.3, ("left_foot", "right_foot"), "pelvis")
+    assert rule.reason(0.7, ()) is None
+    assert rule.reason(0.7, ("right_foot", "left_foot")) is None
+    assert rule.reason(0.7, ("torso", "left_foot", "knee", "torso")) == "knee, torso touched the floor"
+    assert rule.reason(0.29, ("left_foot",)) == "pelvis at 0.290 m (below 0.3 m)"
