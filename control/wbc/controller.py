@@ -65,6 +65,7 @@ from mbctl.control.tasks.stack import TaskStack
 from mbctl.control.tasks.state import DynamicsState
 from mbctl.control.wbc.config import WBCConfig, WBCSolution
 from mbctl.control.wbc.contacts import ContactState, FootContact
+from mbctl.control.wbc.joint_limits import JointLimitBounds
 from mbctl.control.wbc.qp import WholeBodyQP
 from mbctl.robots.commands import Command, CommandKind
 from mbctl.robots.indexing import as_slice
@@ -173,22 +174,22 @@ class WholeBodyController:
         # the points' Jacobians in their foot frames, transposed and negated: -Jc^T = J_F^T (-G_blk^T),
         # one product whose rows are the dynamics' and the torque rows' force columns
         self._JcT_neg = np.zeros((nv, n_f))
-        self._JF = qp.E[:n_feet_rows, :nv]  # every foot's LOCAL Jacobian, stacked: its rows of E
+        # every foot's LOCAL Jacobian, stacked, copied into its rows of E (a buffer of its own: np.dot
+        # copies a strided operand first, ~1.4 us more for the two products with J_F)
+        self._JF, self._JF_E = np.zeros((n_feet_rows, nv)), qp.E[:n_feet_rows, :nv]
         self._foot_err = qp.e[:n_feet_rows]  # each foot's row targets (see compute)
         self._packed = False  # a foot's rows were moved over another's (their force columns to clear)
         self._G_blk = np.zeros((n_f, n_feet_rows))  # Jc = blockdiag(G_F) J_F, one product
         for i, cs in enumerate(self.contacts.values()):
             self._G_blk[cs.cols.start - nv:cs.cols.stop - nv, 6 * i:6 * i + 6] = cs.G_F
-        # each foot's rows of J_F, its error and its drift: views made once (no slices per cycle)
+        # each foot's rows of J_F and its row targets: views made once (no slices per cycle)
         self._foot_rows = tuple((name, cs, self._JF[6 * i:6 * i + 6], self._foot_err[6 * i:6 * i + 6])
                                 for i, (name, cs) in enumerate(self.contacts.items()))
         self._GT_neg = -self._G_blk.T  # (negation is exact: the same products as -(G_blk J_F))
         self._wrench_map = self._G_blk.T  # the solutions' (a read-only view, made once)
         self._wrench_map.setflags(write=False)
         self._foot_v = np.zeros(n_feet_rows)  # J_F v of each foot
-        self._limits = self._joint_limits()
-        self._n_limits = len(self._limits[0])
-        self._limit_iv = as_slice(self._limits[0])
+        self._limits = JointLimitBounds(self.model, self._act)
         self.config = self._config  # the setter derives the config's terms
         self._stack = TaskStack(nv)
         self.last: WBCSolution | None = None
@@ -219,19 +220,7 @@ class WholeBodyController:
                 G[row:row + 2, fz] = -config.torsion_m
         #: the weight each foot's force bounds were last written with (None: rewrite them)
         self._bound_weight: dict[str, float | None] = dict.fromkeys(self.contacts)
-        # joint limits: (q_lim -+ margin) 2 / Th^2, the fixed part of the acceleration bounds
-        iv, iq, q_lo, q_hi = self._limits
-        Th = config.joint_limit_horizon_s
-        scale = 2.0 / Th**2
-        self._limit_lo = (q_lo + config.joint_limit_margin_rad) * scale
-        self._limit_hi = (q_hi - config.joint_limit_margin_rad) * scale
-        # the reach's part, -(q + v Th) 2 / Th^2, as one product with the state's [q; v] (one call
-        # instead of three on slices)
-        nq = self.model.nq
-        self._limit_reach = np.zeros((len(iv), nq + self.model.nv))
-        self._limit_reach[np.arange(len(iv)), iq] = -scale
-        self._limit_reach[np.arange(len(iv)), nq + iv] = -scale * Th
-        self._limit_shift = np.zeros(len(iv))
+        self._limits.configure(config)
         # the feet's slip feedback: kp on each foot's x, y and yaw rows, 0 on z, roll and pitch
         self._foot_gain = np.array([1.0, 1.0, 0.0, 0.0, 0.0, 1.0]) * config.contact_omega_rad_s**2
 
@@ -257,22 +246,6 @@ class WholeBodyController:
         return self.infeasible_at_s is not None
 
     # ------------------------------------------------------------------ setup
-    def _joint_limits(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-        """(v index, q index, q_min, q_max) of actuated 1-dof joints with finite limits."""
-        iv, iq, lo, hi = [], [], [], []
-        for j in range(1, self.model.njoints):
-            joint = self.model.joints[j]
-            if joint.nv != 1 or joint.nq != 1 or joint.idx_v not in self._act:
-                continue
-            q_lo = self.model.lowerPositionLimit[joint.idx_q]
-            q_hi = self.model.upperPositionLimit[joint.idx_q]
-            if np.isfinite(q_lo) and np.isfinite(q_hi) and q_hi > q_lo:
-                iv.append(joint.idx_v)
-                iq.append(joint.idx_q)
-                lo.append(q_lo)
-                hi.append(q_hi)
-        return np.array(iv, dtype=int), np.array(iq, dtype=int), np.array(lo), np.array(hi)
-
     def add_task(self, task: Task) -> Task:
         """Add a task (kept until ``remove_task``); returns it.
 
@@ -370,6 +343,7 @@ class WholeBodyController:
                 all_active = False
         JcT_neg = self._JcT_neg
         np.dot(JF.T, self._GT_neg, out=JcT_neg)
+        np.copyto(self._JF_E, JF)
         # each active foot's twist in F: J_F vdot + Jdot_F v = kp S log6(X_FF0) - kd J_F v, with S
         # keeping x, y and yaw (the ground sets height, roll and pitch; feedback corrects slip only)
         foot_v = self._foot_v  # np.dot with out: no temporaries (~1 us less than the expression)
@@ -405,30 +379,18 @@ class WholeBodyController:
             E[6 * k:6 * k + n_u], e[6 * k:6 * k + n_u] = E[n_feet_rows:m_eq], e[n_feet_rows:m_eq]
             m_eq = 6 * k + n_u
             self._packed = True
-        # joint limits: q + v T + vdot T^2/2 within [q_min + margin, q_max - margin]: a joint heading
-        # for a limit must decelerate (the bound turns positive), at most by the accel cap A, so
-        # that lb <= ub and the bounds stay feasible under the torque limits
-        iv, lo_scaled, hi_scaled = self._limit_iv, self._limit_lo, self._limit_hi
-        if self._n_limits:
-            shift = self._limit_shift  # -(q + v Th) 2 / Th^2: where the joints coast to in Th
-            np.dot(self._limit_reach, s.qv, out=shift)
-            cap = cfg.joint_limit_max_accel_rad_s2
-            # (q_lim -+ margin - reach) 2 / Th^2, capped
-            if isinstance(iv, slice):  # views: written in place
-                lo, hi = lb[iv], ub[iv]
-                np.minimum(np.add(lo_scaled, shift, out=lo), cap, out=lo)
-                np.maximum(np.add(hi_scaled, shift, out=hi), -cap, out=hi)
-            else:
-                lb[iv] = np.minimum(lo_scaled + shift, cap)
-                ub[iv] = np.maximum(hi_scaled + shift, -cap)
+        # joint limits: q + v T + vdot T^2/2 within [q_min + margin, q_max - margin] (joint_limits.py)
+        n_limits = len(self._limits)
+        if n_limits:
+            self._limits.write(s.qv, lb, ub)
         t_qp = time.perf_counter()
         result = self._solve(m_eq)
-        if result.x is None and cfg.relax_joint_limits and self._n_limits:
+        if result.x is None and cfg.relax_joint_limits and n_limits:
             result = self._solve_relaxed(m_eq)
         qp_time = time.perf_counter() - t_qp
         x = result.x
         if x is None:  # (the floor gives a finite x or None)
-            relaxed = cfg.relax_joint_limits and self._n_limits
+            relaxed = cfg.relax_joint_limits and n_limits
             what = (
                 f"whole-body QP infeasible at step {self.steps} (solver {cfg.solver}"
                 + (", also without the joint-limit bounds" if relaxed else "")
@@ -470,7 +432,7 @@ class WholeBodyController:
 
     def _solve_relaxed(self, m_eq: int) -> QPResult:
         """The QP again without the joint-limit acceleration bounds (restored after); counted if solved."""
-        iv, lb, ub = self._limit_iv, self._qp.lb, self._qp.ub
+        iv, lb, ub = self._limits.index, self._qp.lb, self._qp.ub
         saved = lb[iv].copy(), ub[iv].copy()
         lb[iv], ub[iv] = -np.inf, np.inf
         result = self._solve(m_eq)

@@ -203,9 +203,10 @@ def test_an_infeasible_qp_is_solved_again_without_the_joint_limit_bounds(tiny_bi
     tau = command.values
     assert np.all(tau <= ctrl.tau_high + 1e-6) and np.all(tau >= ctrl.tau_low - 1e-6)
     # the solution leaves the joint-limit bounds (that is what the relaxation allowed)...
-    iv = ctrl._limits[0]
-    lo = np.minimum((ctrl._limit_lo - 2.0 * (state.q[ctrl._limits[1]]) / 0.1**2), 50.0)
-    hi = np.maximum((ctrl._limit_hi - 2.0 * (state.q[ctrl._limits[1]]) / 0.1**2), -50.0)
+    limits = ctrl._limits
+    iv = limits.iv
+    lo = np.minimum((limits.lower_scaled - 2.0 * (state.q[limits.iq]) / 0.1**2), 50.0)
+    hi = np.maximum((limits.upper_scaled - 2.0 * (state.q[limits.iq]) / 0.1**2), -50.0)
     assert np.any((sol.vdot[iv] < lo - 1e-6) | (sol.vdot[iv] > hi + 1e-6))
     # ... and keeps every force bound: 100 N per point at least
     assert np.all(np.vstack(list(sol.forces_W.values()))[:, 2] >= 100.0 - 1e-6)
