@@ -41,7 +41,7 @@ from typing import cast
 
 import numpy as np
 import qpsolvers
-from scipy.linalg.blas import dtrsm, dtrsv
+from scipy.linalg.blas import dgemm, dtrsm, dtrsv
 from scipy.linalg.lapack import dposv, dpotrf, dpotrs, dpstrf
 
 from mbctl.control.qp import (
@@ -148,8 +148,8 @@ class WholeBodyQP:
         self._c = np.zeros(self.n_x)
         self._daqp_solver = QPSolver(self.n_x, "daqp")
         self._rows = np.arange(m_eq_max)
-        # the fast path's buffers Z and [y; -1], by number of equality rows
-        self._Z: dict[int, tuple[np.ndarray, np.ndarray]] = {}
+        # the fast path's buffers Z, [y; -1] and Z^T Z, by number of equality rows
+        self._Z: dict[int, tuple[np.ndarray, np.ndarray, np.ndarray]] = {}
         # H_vv's Cholesky factor, made in place: Fortran order, or f2py copies it before LAPACK sees it
         self._L = np.zeros((nv, nv), order="F")
         self._pinned = False
@@ -237,16 +237,18 @@ class WholeBodyQP:
         out[self.n_x:] = G_v_zero & ~touches_free
         return out
 
-    def _schur_buffers(self, m_eq: int) -> tuple[np.ndarray, np.ndarray]:
-        """The buffers of :meth:`_kkt` for ``m_eq`` rows: ``Z`` (n_x, m_eq + 1) and ``[y; -1]`` (m_eq + 1,).
+    def _schur_buffers(self, m_eq: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """The buffers of :meth:`_kkt` for ``m_eq`` rows, made once per count.
 
-        Made once per count. ``Z`` in C order: its top block is contiguous.
+        ``Z`` (n_x, m_eq + 1) in C order (its top block is contiguous), ``[y; -1]`` (m_eq + 1,) and
+        ``Z^T Z`` (m_eq + 1, m_eq + 1) in Fortran order (BLAS writes it in place).
         """
         buffers = self._Z.get(m_eq)
         if buffers is None:
             y_ext = np.zeros(m_eq + 1)
             y_ext[m_eq] = -1.0
-            buffers = self._Z[m_eq] = (np.zeros((self.n_x, m_eq + 1)), y_ext)
+            buffers = self._Z[m_eq] = (np.zeros((self.n_x, m_eq + 1)), y_ext,
+                                       np.zeros((m_eq + 1, m_eq + 1), order="F"))
         return buffers
 
     def _kkt(self, m_eq: int) -> tuple[np.ndarray | None, np.ndarray]:
@@ -268,7 +270,7 @@ class WholeBodyQP:
         E = self.E[:m_eq]
         all_rows = self._rows[:m_eq]
         # LAPACK and BLAS directly: numpy.linalg's wrappers cost several us of Python per call here
-        Z, y_ext = self._schur_buffers(m_eq)
+        Z, y_ext, ZtZ = self._schur_buffers(m_eq)
         Z_v, Z_f = Z[:nv], Z[nv:, m_eq - m_f:m_eq]  # (the force rows' other columns stay zero)
         Z_v[:, :m_eq] = E[:, :nv].T
         Z_v[:, m_eq] = self.c_v
@@ -283,7 +285,9 @@ class WholeBodyQP:
             return None, all_rows
         # Z_v^T (Fortran order) L^-T = (L^-1 Z_v)^T: solved in place
         dtrsm(1.0, L, Z_v.T, side=1, lower=1, trans_a=1, overwrite_b=1)
-        P = np.dot(Z.T, Z)  # [S, E H^-1 c; ., .] (c_f = 0, H_ff = w_f^2 I)
+        # [S, E H^-1 c; ., .] (c_f = 0, H_ff = w_f^2 I) by BLAS's gemm, Z^T (Z^T)^T, in place (positional:
+        # beta, c, trans_a, trans_b, overwrite_c): ~0.9 us less than np.dot's syrk and its mirror
+        P = dgemm(1.0, Z.T, Z.T, 0.0, ZtZ, 0, 1, 1)
         S = P[:m_eq, :m_eq]
         y = y_ext[:m_eq]
         np.add(P[:m_eq, m_eq], self.e[:m_eq], out=y)  # e + E H^-1 c
