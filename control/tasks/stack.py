@@ -29,6 +29,7 @@ from __future__ import annotations
 from collections.abc import Callable, Sequence
 
 import numpy as np
+from scipy.linalg.blas import dgemm
 
 from mbctl.control.tasks.base import Task, dot_into, weights_epoch
 from mbctl.control.tasks.diagonal import DiagonalTask
@@ -36,6 +37,19 @@ from mbctl.control.tasks.state import DynamicsState, TaskState
 
 #: A task's method that writes its rows at a state: (state, J_t or W_t, r_t) -> None
 _RowWriter = Callable[[DynamicsState, np.ndarray, np.ndarray], None]
+
+
+def _gram_into(W: np.ndarray, H: np.ndarray) -> None:
+    """``H[:] = W^T W`` (nv, nv) for the rows ``W`` (m, nv), C-contiguous.
+
+    By BLAS's gemm, ``W^T (W^T)^T``, written in place into ``H.T`` (Fortran-contiguous when H is
+    C-contiguous; W^T is, with no copy): ~1.1 us against 1.8 for a copy of W^T and np.dot's gemm at
+    the WBC's sizes (np.matmul(W.T, W) calls syrk and mirrors, slower still).
+    """
+    if H.flags.c_contiguous:
+        dgemm(1.0, W.T, W.T, 0.0, H.T, 0, 1, 1)  # positional: beta, c, trans_a, trans_b, overwrite_c
+    else:
+        H[:] = W.T @ W
 
 
 class TaskStack:
@@ -155,7 +169,6 @@ class TaskStack:
         dense = [t for t in self.tasks if t not in self._diagonal]
         n_rows, nv = self._W.shape
         self._J = np.zeros((n_rows, nv))
-        self._WT = np.zeros((nv, n_rows))
         self._Jv = np.zeros(n_rows)
         self._rn = np.zeros(n_rows)
         writers: list[tuple[_RowWriter, np.ndarray, np.ndarray]] = []
@@ -212,11 +225,7 @@ class TaskStack:
                 np.dot(J, state.v, out=Jv)
                 Jv *= self._acc_kd_cost
                 r_neg += Jv
-            # W^T copied to its own buffer: a gemm, ~1 us less than the syrk np.matmul(W.T, W) calls
-            # at these sizes (as in velocity_objective)
-            WT = self._WT
-            np.copyto(WT, W.T)
-            np.dot(WT, W, out=H)
+            _gram_into(W, H)
             np.dot(r_neg, W, out=c)  # c = -W^T r (~0.4 us less than np.matmul, the same product)
         else:
             H.fill(0.0)
