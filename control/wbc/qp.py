@@ -284,7 +284,9 @@ class WholeBodyQP:
         if info != 0:
             return None, all_rows
         # Z_v^T (Fortran order) L^-T = (L^-1 Z_v)^T: solved in place
-        dtrsm(1.0, L, Z_v.T, side=1, lower=1, trans_a=1, overwrite_b=1)
+        # (positional: side=1, lower=1, trans_a=1, diag=0, overwrite_b=1; f2py's keyword parsing cost
+        # 0.6-0.8 us a call, measured on this and the dtrsv below)
+        dtrsm(1.0, L, Z_v.T, 1, 1, 1, 0, 1)
         # [S, E H^-1 c; ., .] (c_f = 0, H_ff = w_f^2 I) by BLAS's gemm, Z^T (Z^T)^T, in place (positional:
         # beta, c, trans_a, trans_b, overwrite_c): ~0.9 us less than np.dot's syrk and its mirror
         P = dgemm(1.0, Z.T, Z.T, 0.0, ZtZ, 0, 1, 1)
@@ -312,7 +314,8 @@ class WholeBodyQP:
             x[:nv] -= Z_v[:, m_eq]
         # x = -H^-1 (c + E^T lambda): vdot = L^-T (Y_E y - Y_c), f = E_f^T y / w_f^2
         vdot = x[:nv]
-        dtrsv(L, vdot, lower=1, trans=1, overwrite_x=1)  # in place (vdot is contiguous)
+        # in place (vdot is contiguous); positional: incx=1, offx=0, lower=1, trans=1, diag=0, overwrite_x=1
+        dtrsv(L, vdot, 1, 0, 1, 1, 0, 1)
         x[nv:] *= self._inv_wf
         return x, rows
 
