@@ -95,6 +95,31 @@ class _Reduction:
         self.sense[k + r:] = DAQP_EQUALITY
 
 
+class _Schur:
+    """The fast path's buffers for ``m_eq`` equality rows, and the views of them and of E it reads.
+
+    Made once per count (no slicing per solve). ``Z`` (n_x, m_eq + 1) in C order (its top block is
+    contiguous), ``[y; -1]`` (m_eq + 1,) and ``Z^T Z`` (m_eq + 1, m_eq + 1) in Fortran order (BLAS
+    writes it in place); see :meth:`WholeBodyQP._kkt`.
+    """
+
+    def __init__(self, qp: WholeBodyQP, m_eq: int):
+        nv, m_f = qp.nv, min(qp.m_force, m_eq)
+        self.Z = np.zeros((qp.n_x, m_eq + 1))
+        self.ZT = self.Z.T
+        self.Z_vT = self.Z[:nv].T  # Fortran-contiguous: solved in place
+        self.Z_vE, self.Z_c = self.Z[:nv, :m_eq], self.Z[:nv, m_eq]
+        self.Z_f = self.Z[nv:, m_eq - m_f:m_eq]  # (the force rows' other columns stay zero)
+        self.E_vT, self.E_fT = qp.E[:m_eq, :nv].T, qp.E[m_eq - m_f:m_eq, nv:].T
+        self.e, self.rows = qp.e[:m_eq], qp._rows[:m_eq]
+        self.y_ext = np.zeros(m_eq + 1)
+        self.y_ext[m_eq] = -1.0
+        self.y = self.y_ext[:m_eq]
+        self.ZtZ = np.zeros((m_eq + 1, m_eq + 1), order="F")
+        self.S, self.EHc = self.ZtZ[:m_eq, :m_eq], self.ZtZ[:m_eq, m_eq]
+        self.S_diagonal = self.S.diagonal()
+
+
 class WholeBodyQP:
     """Buffers and solver for the whole-body QP of a fixed size (see the module docstring).
 
@@ -148,8 +173,7 @@ class WholeBodyQP:
         self._c = np.zeros(self.n_x)
         self._daqp_solver = QPSolver(self.n_x, "daqp")
         self._rows = np.arange(m_eq_max)
-        # the fast path's buffers Z, [y; -1] and Z^T Z, by number of equality rows
-        self._Z: dict[int, tuple[np.ndarray, np.ndarray, np.ndarray]] = {}
+        self._schur: dict[int, _Schur] = {}  # the fast path's buffers, by number of equality rows
         # H_vv's Cholesky factor, made in place: Fortran order, or f2py copies it before LAPACK sees it
         self._L = np.zeros((nv, nv), order="F")
         self._pinned = False
@@ -237,20 +261,6 @@ class WholeBodyQP:
         out[self.n_x:] = G_v_zero & ~touches_free
         return out
 
-    def _schur_buffers(self, m_eq: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """The buffers of :meth:`_kkt` for ``m_eq`` rows, made once per count.
-
-        ``Z`` (n_x, m_eq + 1) in C order (its top block is contiguous), ``[y; -1]`` (m_eq + 1,) and
-        ``Z^T Z`` (m_eq + 1, m_eq + 1) in Fortran order (BLAS writes it in place).
-        """
-        buffers = self._Z.get(m_eq)
-        if buffers is None:
-            y_ext = np.zeros(m_eq + 1)
-            y_ext[m_eq] = -1.0
-            buffers = self._Z[m_eq] = (np.zeros((self.n_x, m_eq + 1)), y_ext,
-                                       np.zeros((m_eq + 1, m_eq + 1), order="F"))
-        return buffers
-
     def _kkt(self, m_eq: int) -> tuple[np.ndarray | None, np.ndarray]:
         """The minimiser under the first ``m_eq`` equalities only (KKT by Schur complement).
 
@@ -266,17 +276,17 @@ class WholeBodyQP:
             independent subset of the equality rows (x satisfies those). Pinned forces
             (``force_free`` False, as read by :meth:`solve`) are left out and zero.
         """
-        nv, m_f = self.nv, min(self.m_force, m_eq)
-        E = self.E[:m_eq]
-        all_rows = self._rows[:m_eq]
+        nv = self.nv
+        b = self._schur.get(m_eq)
+        if b is None:
+            b = self._schur[m_eq] = _Schur(self, m_eq)
+        all_rows = b.rows
         # LAPACK and BLAS directly: numpy.linalg's wrappers cost several us of Python per call here
-        Z, y_ext, ZtZ = self._schur_buffers(m_eq)
-        Z_v, Z_f = Z[:nv], Z[nv:, m_eq - m_f:m_eq]  # (the force rows' other columns stay zero)
-        Z_v[:, :m_eq] = E[:, :nv].T
-        Z_v[:, m_eq] = self.c_v
-        np.multiply(E[m_eq - m_f:, nv:].T, self._inv_wf, out=Z_f)
+        np.copyto(b.Z_vE, b.E_vT)
+        np.copyto(b.Z_c, self.c_v)
+        np.multiply(b.E_fT, self._inv_wf, out=b.Z_f)
         if self._pinned:
-            Z_f *= self._free_f[:, None]  # the pinned forces' columns left out (they stay at zero)
+            b.Z_f *= self._free_f[:, None]  # the pinned forces' columns left out (they stay at zero)
         np.copyto(self._L, self.H_vv)
         # H_vv = L L^T in place (positional: lower, clean=0, overwrite_a; the upper triangle is left
         # as it was, never read: every solve with L reads its lower one)
@@ -286,32 +296,31 @@ class WholeBodyQP:
         # Z_v^T (Fortran order) L^-T = (L^-1 Z_v)^T: solved in place
         # (positional: side=1, lower=1, trans_a=1, diag=0, overwrite_b=1; f2py's keyword parsing cost
         # 0.6-0.8 us a call, measured on this and the dtrsv below)
-        dtrsm(1.0, L, Z_v.T, 1, 1, 1, 0, 1)
+        dtrsm(1.0, L, b.Z_vT, 1, 1, 1, 0, 1)
         # [S, E H^-1 c; ., .] (c_f = 0, H_ff = w_f^2 I) by BLAS's gemm, Z^T (Z^T)^T, in place (positional:
         # beta, c, trans_a, trans_b, overwrite_c): ~0.9 us less than np.dot's syrk and its mirror
-        P = dgemm(1.0, Z.T, Z.T, 0.0, ZtZ, 0, 1, 1)
-        S = P[:m_eq, :m_eq]
-        y = y_ext[:m_eq]
-        np.add(P[:m_eq, m_eq], self.e[:m_eq], out=y)  # e + E H^-1 c
+        dgemm(1.0, b.ZT, b.ZT, 0.0, b.ZtZ, 0, 1, 1)
+        S = b.S
+        np.add(b.EHc, b.e, out=b.y)  # e + E H^-1 c
         # S: a plain Cholesky when E has full row rank (pivots well above round-off), else a
         # pivoted one, whose rank is E's and whose pivots pick independent rows
-        scale = _max(S.diagonal())
+        scale = _max(b.S_diagonal)
         # y = -lambda in place (positional: lower, overwrite_a=0, overwrite_b; info > 0 when S is not
         # positive definite)
-        Ls, _, info = dposv(S, y, 1, 0, 1)
+        Ls, _, info = dposv(S, b.y, 1, 0, 1)
         # x in a new array's first n_x entries, G x to follow (the feasibility check's [x; G x])
         x = np.empty(self.n_x + self.m_in)[:self.n_x]
         if info == 0 and _min(Ls.diagonal()) ** 2 > RANK_RTOL * scale:
             rows = all_rows
-            np.dot(Z, y_ext, out=x)  # [Y_E y - Y_c; E_f^T y / w_f]: Z whole is contiguous (~1 us less)
+            np.dot(b.Z, b.y_ext, out=x)  # [Y_E y - Y_c; E_f^T y / w_f]: Z whole is contiguous (~1 us less)
         else:
-            rhs = P[:m_eq, m_eq] + self.e[:m_eq]  # (y holds what dposv left)
+            rhs = b.EHc + b.e  # (y holds what dposv left)
             _, piv, rank, _ = dpstrf(S, tol=RANK_RTOL * max(float(scale), 1e-300), lower=1)
             rows = np.sort(piv[:rank] - 1)
             Ls, _ = dpotrf(S[np.ix_(rows, rows)], lower=1)
             y_rows, _ = dpotrs(Ls, rhs[rows], lower=1)
-            np.dot(Z[:, rows], y_rows, out=x)
-            x[:nv] -= Z_v[:, m_eq]
+            np.dot(b.Z[:, rows], y_rows, out=x)
+            x[:nv] -= b.Z_c
         # x = -H^-1 (c + E^T lambda): vdot = L^-T (Y_E y - Y_c), f = E_f^T y / w_f^2
         vdot = x[:nv]
         # in place (vdot is contiguous); positional: incx=1, offx=0, lower=1, trans=1, diag=0, overwrite_x=1
