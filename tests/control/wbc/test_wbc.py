@@ -381,6 +381,14 @@ def test_mass_matrix_is_symmetric_and_matches_crba(tiny_biped, crouch):
     M = np.triu(M) + np.triu(M, 1).T
     np.testing.assert_allclose(s.M, M, atol=1e-10)
     assert not s.M.flags.writeable
+    # the state copies data.M whole: Pinocchio's binding mirrors its upper triangle at every update,
+    # whatever the lower one held
+    s.data.M[np.tril_indices(model.nv, -1)] = 7.0
+    q2 = pin.integrate(model, q, 0.1 * np.ones(model.nv))
+    s.update(q2, np.ones(model.nv))
+    M2 = pin.crba(model, model.createData(), q2)
+    np.testing.assert_allclose(s.M, np.triu(M2) + np.triu(M2, 1).T, atol=1e-10)
+    np.testing.assert_array_equal(s.M, s.M.T)
 
 
 def test_a_joint_heading_for_its_limit_is_made_to_decelerate(tiny_biped, crouch):
