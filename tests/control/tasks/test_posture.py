@@ -140,20 +140,36 @@ def test_a_bad_target_is_named():
         PostureTask(FLOATING).set_target(np.zeros(13))
 
 
-def test_the_acceleration_term_equals_the_diagonal_tasks_generic_one():
-    """PostureTask's c term (kp cost^2 e + kd cost^2 v, products cached) against DiagonalTask's
-    (cost^2 mask times -a_des), also after the cost and the gains change."""
+def _floating_unbounded_hinge() -> pin.Model:
+    """A free flyer and an unbounded hinge (nq 2, nv 1: its q ⊖ q_target is no difference of coordinates)."""
+    model = pin.Model()
+    root = model.addJoint(0, pin.JointModelFreeFlyer(), pin.SE3.Identity(), "root")
+    model.appendBodyToJoint(root, pin.Inertia.FromBox(2.0, 0.2, 0.2, 0.2), pin.SE3.Identity())
+    hinge = model.addJoint(root, pin.JointModelRUBY(), pin.SE3(np.eye(3), np.array([0.0, 0.1, 0.0])), "hinge")
+    model.appendBodyToJoint(hinge, pin.Inertia.FromBox(1.0, 0.1, 0.1, 0.3), pin.SE3.Identity())
+    return model
+
+
+@pytest.mark.parametrize("model", [FLOATING_HINGES, _floating_unbounded_hinge()], ids=["hinges", "unbounded"])
+def test_the_acceleration_term_equals_the_diagonal_tasks_generic_one(model):
+    """PostureTask's c term (kp cost^2 e + kd cost^2 v, products cached; with coordinate joints one
+    linear map of [q; v]) against DiagonalTask's (cost^2 mask times -a_des), also after the cost, the
+    gains and the target change."""
     from mbctl.control.tasks.diagonal import DiagonalTask
 
     rng = np.random.default_rng(23)
-    model = FLOATING_HINGES
     task = PostureTask(model, rng.uniform(0.01, 0.2, model.nv), servo=AccelerationGains(6.0, 0.8))
+    assert task.is_diagonal and (task._coordinates is None) == (model is not FLOATING_HINGES)  # both paths
+    with pytest.raises(TaskSetupError, match="no target"):
+        task.add_acceleration_term(DynamicsState(model), np.zeros(model.nv), np.zeros(model.nv))
     task.set_target(random_q(model, rng))
-    for k in range(3):
+    for k in range(4):
         if k == 1:
             task.set_cost(0.3)
         if k == 2:
             task.servo = AccelerationGains(2.0, 1.5)
+        if k == 3:
+            task.set_target(random_q(model, rng))
         state = DynamicsState(model, random_q(model, rng), rng.standard_normal(model.nv))
         c0 = rng.standard_normal(model.nv)
         c_fast, c_generic, tmp = c0.copy(), c0.copy(), np.zeros(model.nv)
