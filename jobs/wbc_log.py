@@ -269,19 +269,21 @@ class WBCLog:
         """
         now = time.perf_counter()
         ctrl, mon = self.wb.controller, self.monitor
+        left, right = self._foot_states
         self._pending.append((
-            k, state, command, ctrl.solution, self.wb.com.target,
+            k, state, command, ctrl.last, self.wb.com.target,
             self.pushes.force_W[:2].tolist() if self.pushes is not None else _NO_PUSH,
-            [(cs.active, cs.weight) for cs in self._foot_states],
+            ((left.active, left.weight), (right.active, right.weight)),
             mon.sample if mon is not None else ctrl.state.com().tolist(), now))
         if len(self._pending) >= BATCH:
             self._drain()
-        self.ctx.progress.advance()
         return mon is not None and mon.fall_reason is not None
 
     def _drain(self) -> None:
-        """Record the cycles kept so far, in order."""
+        """Record the cycles kept so far, in order (the progress bar advances by them)."""
         pending, record = self._pending, self._record
+        if pending:
+            self.ctx.progress.advance(len(pending))
         while pending:
             record(*pending.popleft())
 

@@ -111,11 +111,11 @@ class FallRule:
         """
         if base_z_m < self.base_min_z_m:
             return f"{self.base_name} at {base_z_m:.3f} m (below {self.base_min_z_m:g} m)"
-        if not floor_bodies:
-            return None
-        others = sorted({b for b in floor_bodies if b not in self.support_bodies})
-        if others:
-            return f"{', '.join(others)} touched the floor"
+        support = self.support_bodies
+        for body in floor_bodies:  # checked every control period: no set built while only feet touch
+            if body not in support:
+                others = sorted({b for b in floor_bodies if b not in support})
+                return f"{', '.join(others)} touched the floor"
         return None
 
 
