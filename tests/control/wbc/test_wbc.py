@@ -411,9 +411,9 @@ def test_a_joint_heading_for_its_limit_is_made_to_decelerate(tiny_biped, crouch)
 
 @pytest.mark.parametrize("fixed", [False, True])
 def test_centroidal_map_and_drift_equal_pinocchios(tiny_biped, fixed):
-    """A_g from computeAllTerms and dA_g v from the root's bias wrench (free flyer) or Pinocchio's pass."""
+    """A_g and dA_g v from computeAllTerms' pass against computeCentroidalMapTimeVariation's."""
     model = tiny_biped.pin_model
-    if fixed:  # a fixed-base robot: the root's rows are not the momentum balance; Pinocchio's pass
+    if fixed:  # a fixed-base robot (the CoM drift's float path needs a free-flyer root)
         model = pin.buildReducedModel(model, [1], pin.neutral(model))
     rng = np.random.default_rng(5)
     for _ in range(5):
