@@ -150,6 +150,13 @@ class WholeBodyController:
         in_order = isinstance(self._u, slice) and isinstance(self._a, slice) \
             and (self._u.start, self._u.stop, self._a.start, self._a.stop) == (0, n_u, n_u, nv)
         self._dyn_rows = None if in_order else np.concatenate([self._unact, self._act])
+        # views made once (no slices per cycle): M's block of [M, -Jc^T], the base rows' targets, the
+        # torque rows' bounds and, where the dofs are slices, the bias forces' rows u and a
+        self._D_M, self._e_dyn = self._dyn[:, :nv], qp.e[n_feet_rows:n_feet_rows + n_u]
+        self._tau_up, self._tau_lo = qp.g_up[:n_a], qp.g_lo[:n_a]
+        b = self.state.b  # (Pinocchio writes data.nle in place)
+        self._b_u_a = (b[self._u], b[self._a]) if isinstance(self._u, slice) and isinstance(self._a, slice) \
+            else None
         row = n_a
         for cs in self.contacts.values():  # friction pyramid rows: |f_x|, |f_y| <= mu / sqrt(2) f_z
             mu = cs.contact.mu / np.sqrt(2.0)
@@ -353,9 +360,9 @@ class WholeBodyController:
         err -= foot_v
         # [M, -Jc^T]: its rows u are the base's dynamics rows M_u vdot - Jc_u^T f = -b_u (equalities),
         # its rows a the torque rows, tau = T x + b_a with T = [M_a, -Jc_a^T]; tau_min <= tau <= tau_max
-        D, b = self._dyn, s.b
+        D = self._dyn
         if self._dyn_rows is None:
-            s.mass_matrix_into(D[:, :nv])
+            s.mass_matrix_into(self._D_M)
             D[:, nv:] = JcT_neg
         else:
             D[:, :nv] = s.M[self._dyn_rows]
@@ -363,10 +370,10 @@ class WholeBodyController:
         n_u, n_feet_rows = self._n_unact, self._n_feet_rows
         m_eq = n_feet_rows + n_u
         E, e = qp.E, qp.e
-        np.negative(b[self._u], out=e[n_feet_rows:m_eq])
-        b_a = b[self._a]
-        np.subtract(self.tau_high, b_a, out=qp.g_up[:len(b_a)])
-        np.subtract(self.tau_low, b_a, out=qp.g_lo[:len(b_a)])
+        b_u, b_a = self._b_u_a or (s.b[self._u], s.b[self._a])
+        np.negative(b_u, out=self._e_dyn)
+        np.subtract(self.tau_high, b_a, out=self._tau_up)
+        np.subtract(self.tau_low, b_a, out=self._tau_lo)
         if self._packed:  # rows the last cycle moved: the feet's rows have no force columns
             E[:n_feet_rows, nv:] = 0.0
             self._packed = False

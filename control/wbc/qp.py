@@ -163,6 +163,7 @@ class WholeBodyQP:
         self.lb, self.g_lo = self._lo[:self.n_x], self._lo[self.n_x:]
         self.ub, self.g_up = self._up[:self.n_x], self._up[self.n_x:]
         self._xg = np.zeros(self.n_x + m_in)  # [x; G x]
+        self._excess = np.zeros(self.n_x + m_in)  # the feasibility check's violations
         #: (n_f,) False for a force variable the caller has pinned at zero (its bounds [0, 0], or a
         #: tangential force whose pyramid's normal force is pinned): the fast path leaves it out
         self.force_free = np.ones(n_f, dtype=bool)
@@ -341,7 +342,9 @@ class WholeBodyQP:
             xg = self._xg
             xg[:self.n_x] = x
         np.dot(self.G, x, out=xg[self.n_x:])
-        return bool(_max(np.subtract(self._lo, xg)) <= tol and _max(np.subtract(xg, self._up)) <= tol)
+        excess = self._excess  # (a held buffer: no allocation per check)
+        return bool(_max(np.subtract(self._lo, xg, out=excess)) <= tol
+                    and _max(np.subtract(xg, self._up, out=excess)) <= tol)
 
     def _daqp(self, eq_rows: np.ndarray, dropped: int) -> tuple[QPResult, bool]:
         """The QP by daqp, with the equality rows ``eq_rows`` (the first ones if ``dropped`` is 0).
