@@ -151,7 +151,7 @@ class WholeBodyQP:
         self.nv, self.n_f, self.n_x = nv, n_f, nv + n_f
         self.m_force = m_eq_max if m_force is None else m_force
         self.m_in, self.m_eq_max = m_in, m_eq_max
-        self.H_vv = np.zeros((nv, nv))
+        self.H_vv = np.zeros((nv, nv), order="F")  # Fortran order: copied as is into the Cholesky factor's
         self.c_v = np.zeros(nv)
         # E and G in one buffer: a caller may write a block that spans both (e.g. [M, -Jc^T]'s rows)
         self.rows = np.zeros((m_eq_max + m_in, self.n_x))

@@ -141,8 +141,8 @@ def test_the_acceleration_stack_equals_every_task_written_whole():
             tasks[0].set_cost(0.7)
             tasks[1].servo = AccelerationGains(9.0, 0.3)
             tasks[4].set_cost(0.2)
-        # H contiguous (W^T W written in place by gemm), or on odd k a strided block (the fallback)
-        H = np.full((MODEL.nv, MODEL.nv + 3 * (k % 2)), np.nan)[:, :MODEL.nv]
+        # H in C order, a strided block (the fallback), in Fortran order (gemm writes H^T or H in place)
+        H = np.full((MODEL.nv, MODEL.nv + 3 * (k % 2)), np.nan, order="F" if k == 2 else "C")[:, :MODEL.nv]
         c = np.full(MODEL.nv, np.nan)
         stack.acceleration_objective(state, H, c, 1e-4)
         H_ref, c_ref = _generic_acceleration_objective(tasks, state, 1e-4)
