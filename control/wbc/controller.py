@@ -56,6 +56,7 @@ from collections.abc import Sequence
 
 import numpy as np
 import pinocchio as pin
+from scipy.linalg.blas import dgemv
 
 from mbctl.control.controller import JointMap
 from mbctl.control.exceptions import WBCInfeasible, WBCSetupError
@@ -195,7 +196,6 @@ class WholeBodyController:
         self._GT_neg = -self._G_blk.T  # (negation is exact: the same products as -(G_blk J_F))
         self._wrench_map = self._G_blk.T  # the solutions' (a read-only view, made once)
         self._wrench_map.setflags(write=False)
-        self._foot_v = np.zeros(n_feet_rows)  # J_F v of each foot
         self._limits = JointLimitBounds(self.model, self._act)
         self.config = self._config  # the setter derives the config's terms
         self._stack = TaskStack(nv)
@@ -354,10 +354,10 @@ class WholeBodyController:
         np.copyto(self._JF_E, JF)
         # each active foot's twist in F: J_F vdot + Jdot_F v = kp S log6(X_FF0) - kd J_F v, with S
         # keeping x, y and yaw (the ground sets height, roll and pitch; feedback corrects slip only)
-        foot_v = self._foot_v  # np.dot with out: no temporaries (~1 us less than the expression)
-        np.dot(JF, s.v, out=foot_v)
-        foot_v *= 2.0 * cfg.contact_omega_rad_s
-        err -= foot_v
+        # err -= kd J_F v in place by one BLAS call, y = alpha A x + beta y (positional: beta, y, offx,
+        # incx, offy, incy, trans, overwrite_y; J_F^T is Fortran-contiguous): np.dot, a scaling and a
+        # subtraction cost ~1.7 us more
+        dgemv(-2.0 * cfg.contact_omega_rad_s, JF.T, s.v, 1.0, err, 0, 1, 0, 1, 1, 1)
         # [M, -Jc^T]: its rows u are the base's dynamics rows M_u vdot - Jc_u^T f = -b_u (equalities),
         # its rows a the torque rows, tau = T x + b_a with T = [M_a, -Jc_a^T]; tau_min <= tau <= tau_max
         D = self._dyn
