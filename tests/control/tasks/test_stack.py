@@ -151,6 +151,23 @@ def test_the_acceleration_stack_equals_every_task_written_whole():
         assert np.abs(c).max() > 1.0  # a real test: the terms are not all zero
 
 
+def test_stacked_rows_with_one_gain_are_damped_by_one_product():
+    """Every dense row stacked with one kd (and a posture): kd W v by one BLAS call, one objective."""
+    rng = np.random.default_rng(17)
+    state = DynamicsState(MODEL, random_q(MODEL, rng), rng.standard_normal(MODEL.nv))
+    com, chest, hand, _, posture, _ = _acceleration_tasks(state, rng)
+    for task in (com, chest, hand):
+        task.servo = AccelerationGains(6.0, 0.8)
+    tasks = [com, chest, hand, posture]
+    stack = TaskStack(MODEL.nv, tasks)
+    H, c = np.full((MODEL.nv, MODEL.nv), np.nan), np.full(MODEL.nv, np.nan)
+    stack.acceleration_objective(state, H, c, 1e-4)
+    assert stack._acc_kd_uniform == pytest.approx(9.6)
+    H_ref, c_ref = _generic_acceleration_objective(tasks, state, 1e-4)
+    np.testing.assert_allclose(H, H_ref, rtol=1e-13, atol=1e-12)
+    np.testing.assert_allclose(c, c_ref, rtol=1e-13, atol=1e-11)
+
+
 def test_a_frame_on_the_free_root_has_a_constant_jacobian_and_no_drift():
     rng = np.random.default_rng(17)
     chest, hand = MODEL.getFrameId("chest"), MODEL.getFrameId("hand")
