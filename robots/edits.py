@@ -357,17 +357,7 @@ def add_contact_sensors(robot: Robot, bodies: Iterable[str]) -> Robot:
         UnknownNameError: A body that is not the robot's.
         RobotError: A sensor of another kind holds the name :func:`contact_sensor_name` gives.
     """
-    m = robot.mj_model
-    new = []
-    for body in bodies:
-        robot.body_id(body)  # UnknownNameError with close matches
-        name = contact_sensor_name(body)
-        sid = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_SENSOR, name)
-        if sid >= 0:
-            if int(m.sensor_type[sid]) != int(mujoco.mjtSensor.mjSENS_CONTACT):
-                raise RobotError(f"{robot.name!r} has a sensor called {name!r} that is not a contact sensor")
-            continue
-        new.append(body)
+    new = _without_contact_sensor(robot, bodies, contact_sensor_name)
     if not new:
         return robot
     fields = sum(1 << contact_data_bit(f) for f in CONTACT_SENSOR_DATA)
@@ -384,6 +374,81 @@ def add_contact_sensors(robot: Robot, bodies: Iterable[str]) -> Robot:
             sensor.intprm[2] = 1  # one slot
 
     return robot.with_edits(f"contact sensors (net force) on {', '.join(new)} (MjSpec add_sensor)", mj_edit)
+
+
+def floor_sensor_name(body: str | None) -> str:
+    """The name :func:`add_floor_sensors` gives the floor contacts' count of ``body`` (None: the robot's)."""
+    return "robot_floor_contacts" if body is None else f"{body}_floor_contacts"
+
+
+def add_floor_sensors(robot: Robot, bodies: Iterable[str]) -> Robot:
+    """Count the robot's contacts with the floor every step: all of them, and each of ``bodies``'.
+
+    The floor is the world body's geoms. One MuJoCo contact sensor (``<contact subtree1=ROOT
+    body2="world" data="found"/>``) counts the contacts between the robot and the floor, and one per
+    body (``body1=BODY body2="world"``) that body's. Where the bodies' counts add up to the
+    robot's, no other body of the robot touches the floor: a plant monitor
+    (:class:`mbctl.sim.monitor.PlantMonitor`, whose fall rule checks the bodies on the floor every
+    control period) then names them from these numbers, read with the feet's contact sensors,
+    instead of reading every contact's geom pair. The physics is unchanged; Pinocchio's model too.
+
+    Args:
+        robot: A robot that is one tree (a floating base with its limbs; unchanged).
+        bodies: Robot bodies that stand on the floor (e.g. the feet); idempotent.
+
+    Returns:
+        A new Robot whose ``source.edits`` records the sensors (the same robot if none is new).
+
+    Raises:
+        UnknownNameError: A body that is not the robot's.
+        RobotError: A robot of several trees, or a sensor of another kind under the names
+            :func:`floor_sensor_name` gives.
+    """
+    if robot.tree_root_id is None:
+        raise RobotError(f"floor sensors count the contacts of one tree of bodies; {robot.name!r} has more")
+    root = mujoco.mj_id2name(robot.mj_model, mujoco.mjtObj.mjOBJ_BODY, robot.tree_root_id)
+    new = _without_contact_sensor(robot, [root, *bodies],
+                                  lambda b: floor_sensor_name(None if b == root else b))
+    if not new:
+        return robot
+    found = 1 << contact_data_bit("found")
+
+    def mj_edit(spec: mujoco.MjSpec) -> None:
+        for body in new:
+            sensor = spec.add_sensor()
+            sensor.name = floor_sensor_name(None if body == root else body)
+            sensor.type = mujoco.mjtSensor.mjSENS_CONTACT
+            # the root's whole subtree (MuJoCo's "subtree1"), or the body alone
+            sensor.objtype = mujoco.mjtObj.mjOBJ_XBODY if body == root else mujoco.mjtObj.mjOBJ_BODY
+            sensor.objname = body
+            sensor.reftype = mujoco.mjtObj.mjOBJ_BODY
+            sensor.refname = "world"
+            sensor.intprm[0] = found  # the number of matching contacts alone
+            sensor.intprm[2] = 1  # one slot
+
+    named = ", ".join("the robot" if b == root else b for b in new)
+    return robot.with_edits(f"floor contact counts on {named} (MjSpec add_sensor)", mj_edit)
+
+
+def _without_contact_sensor(robot: Robot, bodies: Iterable[str], name_of) -> list[str]:
+    """The bodies that have no contact sensor named ``name_of(body)`` yet (checked: robot bodies).
+
+    Raises:
+        UnknownNameError: A body that is not the robot's.
+        RobotError: A sensor of another kind holds one of those names.
+    """
+    m = robot.mj_model
+    new = []
+    for body in bodies:
+        robot.body_id(body)  # UnknownNameError with close matches
+        name = name_of(body)
+        sid = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_SENSOR, name)
+        if sid >= 0:
+            if int(m.sensor_type[sid]) != int(mujoco.mjtSensor.mjSENS_CONTACT):
+                raise RobotError(f"{robot.name!r} has a sensor called {name!r} that is not a contact sensor")
+            continue
+        new.append(body)
+    return new
 
 
 def standalone_xml(robot: Robot, spec: mujoco.MjSpec | None = None) -> str:

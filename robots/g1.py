@@ -25,7 +25,7 @@ from dataclasses import dataclass
 import numpy as np
 import pinocchio as pin
 
-from mbctl.robots.edits import add_contact_sensors, add_site, position_to_motor
+from mbctl.robots.edits import add_contact_sensors, add_floor_sensors, add_site, position_to_motor
 from mbctl.robots.interface import ImuSpec
 from mbctl.robots.model_pair import Robot
 
@@ -147,10 +147,12 @@ def with_palm_sites(robot: Robot) -> Robot:
 def whole_body_g1(robot: Robot) -> Robot:
     """The G1 as the whole-body jobs run it (a copy; idempotent).
 
-    Torque motors (force ranges kept), the palm sites, and a net-force contact sensor on each foot
-    (the plant monitor reads the feet's forces from MuJoCo).
+    Torque motors (force ranges kept), the palm sites, a net-force contact sensor on each foot and
+    the floor's contact counts, the robot's and each foot's (the plant monitor reads the feet's
+    forces and the bodies on the floor from MuJoCo).
     """
-    return add_contact_sensors(position_to_motor(with_palm_sites(robot)), FOOT_BODIES)
+    return add_floor_sensors(add_contact_sensors(position_to_motor(with_palm_sites(robot)), FOOT_BODIES),
+                             FOOT_BODIES)
 
 
 def limb_of(joint: str) -> str:

@@ -97,6 +97,10 @@ class Robot:
         #: MuJoCo ids of the robot's bodies and sites, in id order (parallel to bodies, sites).
         self.robot_body_ids: tuple[int, ...] = tuple(sorted(in_robot))
         self.robot_site_ids = tuple(s for s in range(m.nsite) if int(m.site_bodyid[s]) in in_robot)
+        roots = [b for b in self.robot_body_ids if int(m.body_parentid[b]) == 0]
+        #: MuJoCo id of the robot's one root body when the robot is one tree (that body's whole
+        #: subtree, e.g. a floating base with its limbs), else None.
+        self.tree_root_id: int | None = roots[0] if len(roots) == 1 else None
         # None: the analytic model is built from the compiled plant (see robots/pin_from_mj.py)
         self.pin_model = pin_model_from_mj(m, in_robot) if pin_model is None else pin_model
         self.pin_model.gravity = pin.Motion(np.array(m.opt.gravity), np.zeros(3))

@@ -22,7 +22,8 @@ import numpy as np
 from mbctl.robots.edits import CONTACT_SENSOR_DATA, NETFORCE, contact_data_bit
 
 _K = TypeVar("_K")
-_SENSOR_OFF = int(mujoco.mjtDisableBit.mjDSBL_SENSOR)
+#: MuJoCo's flag that switches every sensor off (``opt.disableflags``).
+SENSOR_OFF = int(mujoco.mjtDisableBit.mjDSBL_SENSOR)
 #: The sizes of a contact sensor's data fields, in MuJoCo's order (``mjtConDataField``).
 _FIELD_SIZES = (1, 3, 3, 1, 3, 3, 3)
 
@@ -90,7 +91,7 @@ class ContactSensor:
     @property
     def from_sensors(self) -> bool:
         """Whether the sums come from MuJoCo's contact sensors (now: sensors not disabled)."""
-        return self.sensor_index is not None and not self._opt.disableflags & _SENSOR_OFF
+        return self.sensor_index is not None and not self._opt.disableflags & SENSOR_OFF
 
     def net(self, data: mujoco.MjData, geoms: list[list[int]] | None = None) -> list[float]:
         """Each group's net contact, 10 plain numbers a group in ``names`` order (MuJoCo's sensor layout).
@@ -239,6 +240,55 @@ def measured(names: Sequence[str], sums: Sequence[Sequence[float]]) -> dict[str,
         cop = np.array([mx / fz, my / fz, 0.0]) if fz > 1e-9 else np.full(3, np.nan)
         out[name] = MeasuredContact(np.array([fx, fy, fz]), cop, int(n))
     return out
+
+
+class FloorSensors:
+    """The robot's bodies on the floor from MuJoCo's counts (:func:`~mbctl.robots.edits.add_floor_sensors`).
+
+    Found in the model by what each sensor counts (its object, the world body on its other side,
+    the ``found`` field), not by name: the robot's whole tree's contacts with the floor, and some
+    bodies' own. ``index`` gives where those counts are in ``sensordata``: the robot's, then the
+    bodies' (``names``, sorted); :meth:`bodies` answers from them.
+
+    Args:
+        model: The compiled model.
+        root: The robot's one root body (its tree is the robot).
+        bodies: The robot's bodies (ids) whose own counts may be read.
+
+    Attributes:
+        index: Indices into ``sensordata`` (1 + k,), or None when the model lacks the robot's count
+            or every body's.
+        names: The bodies counted (k,), sorted by name.
+    """
+
+    def __init__(self, model: mujoco.MjModel, root: int, bodies: Iterable[int]):
+        found_bit = contact_data_bit("found")
+        counts: dict[int, int] = {}  # sensor object (-1 - root for the tree) -> its count's address
+        for s in np.flatnonzero(model.sensor_type == int(mujoco.mjtSensor.mjSENS_CONTACT)).tolist():
+            if not (int(model.sensor_intprm[s, 0]) >> found_bit & 1 and int(model.sensor_reftype[s])
+                    == int(mujoco.mjtObj.mjOBJ_BODY) and int(model.sensor_refid[s]) == 0
+                    and model.sensor_cutoff[s] == 0):
+                continue  # found is the first field of a slot: at the sensor's address
+            obj, kind = int(model.sensor_objid[s]), int(model.sensor_objtype[s])
+            if kind == int(mujoco.mjtObj.mjOBJ_XBODY) and obj == root:
+                counts[-1 - root] = int(model.sensor_adr[s])
+            elif kind == int(mujoco.mjtObj.mjOBJ_BODY):
+                counts[obj] = int(model.sensor_adr[s])
+        named = sorted((mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_BODY, b) or f"body {b}", b)
+                       for b in bodies if b in counts)
+        self.names: tuple[str, ...] = tuple(n for n, _ in named)
+        self.index = (np.array([counts[-1 - root], *(counts[b] for _, b in named)], dtype=int)
+                      if -1 - root in counts and named else None)
+
+    def bodies(self, counts: Sequence[float]) -> tuple[str, ...] | None:
+        """The bodies on the floor (sorted), from the counts read at ``index``; None if others touch it too.
+
+        Each contact between the robot and the floor is counted once by the robot's sensor and once
+        by its body's; where the bodies' counts add up to the robot's, no other body has one.
+        """
+        if counts[0] != sum(counts[1:]):
+            return None
+        return tuple(name for name, n in zip(self.names, counts[1:], strict=True) if n)
 
 
 class FloorContacts:

@@ -24,8 +24,10 @@ from mbctl.robots.collision import body_geoms
 from mbctl.robots.indexing import as_slice
 from mbctl.robots.scene import BodiesCom
 from mbctl.sim.contacts import (
+    SENSOR_OFF,
     ContactSensor,
     FloorContacts,
+    FloorSensors,
     MeasuredContact,
     contact_wrenches,
     contacts_elsewhere,
@@ -112,9 +114,7 @@ class PlantMonitor:
         self._roots = [b for b in robot.robot_body_ids if int(m.body_parentid[b]) == 0]
         self._com = BodiesCom(m, robot.robot_body_ids)
         # one root whose subtree is the robot: MuJoCo's step already computed its CoM (subtree_com)
-        tree = [self._roots[0]] if len(self._roots) == 1 else []
-        self._subtree_com = bool(tree) and set(robot.robot_body_ids) == {
-            int(b) for b in np.flatnonzero(m.body_rootid == tree[0])}
+        self._subtree_com = robot.tree_root_id is not None
         #: The robot's mass [kg] in the plant.
         self.mass_kg = self._com.mass_kg
         self._site_ids = {name: robot.site_id(name) for name in sites}
@@ -122,6 +122,16 @@ class PlantMonitor:
         self.site_names: tuple[str, ...] = tuple(self._site_ids)
         self._site_index = np.array(list(self._site_ids.values()), dtype=int)
         self._floor = FloorContacts(m, np.flatnonzero(m.geom_bodyid == 0), bodies=robot.robot_body_ids)
+        # where MuJoCo counts the floor's contacts (robots.edits.add_floor_sensors) and sums the groups'
+        # (or there are none), one read of sensordata gives both: no contact's geom pair read
+        floor = FloorSensors(m, robot.tree_root_id, robot.robot_body_ids) if self._subtree_com else None
+        nets = self._sensor.sensor_index if self._sensor is not None else np.zeros(0, dtype=int)
+        self._floor_sensors = floor if floor is not None and floor.index is not None else None
+        self._read = (np.concatenate([nets, floor.index]) if floor is not None and floor.index is not None
+                      and nets is not None else None)
+        self._n_net = 0 if nets is None else len(nets)
+        self._counts_seen: list[float] | None = None  # the last counts the sensors answered for
+        self._sensordata, self._opt = sim.data.sensordata, m.opt  # a view, and the options (live)
         if fall_rule is not None and not robot.has_floating_base:
             raise SimError(f"a fall rule needs a floating base; {robot.name!r} has a fixed base")
         self._fall_rule = fall_rule
@@ -137,7 +147,8 @@ class PlantMonitor:
         self._contacts: dict[str, MeasuredContact] | None = {}
         self._sites: dict[str, np.ndarray] | None = {}
         self.floor_bodies: tuple[str, ...] = ()
-        self._floor_geoms: list[list[int]] = []  # the contacts' geom pairs floor_bodies is from
+        # the contacts' geom pairs floor_bodies is from (None: from the floor sensors' counts)
+        self._floor_geoms: list[list[int]] | None = []
         self.fall_reason: str | None = None
         self.fall_time_s: float | None = None
         self.base_z_m = float("nan")
@@ -203,23 +214,41 @@ class PlantMonitor:
         self.sim.add_observer(self)
         return self
 
+    def _floor_bodies_now(self, d, geoms: list[list[int]] | None, counts: list[float] | None) -> None:
+        """``floor_bodies`` from the floor's contact counts, or else from the contacts' geom pairs."""
+        floor = self._floor_sensors.bodies(counts) if counts is not None else None  # type: ignore[union-attr]
+        if floor is not None:  # the counts name them: no other robot body is on the floor
+            self.floor_bodies, self._counts_seen, self._floor_geoms = floor, counts, None
+            return
+        self._counts_seen = None
+        if geoms is None:
+            geoms = d.contact.geom.tolist() if d.ncon else []
+        if geoms != self._floor_geoms:  # the bodies on the floor follow from the geom pairs alone
+            self.floor_bodies = tuple(self._floor.bodies(d, geoms))
+            self._floor_geoms = geoms
+
     def __call__(self, sim: Simulator) -> None:
         """Sample the period that just ran (the simulator calls this after every ``sync``/``step``)."""
         d = sim.data
-        # the contacts' geom pairs read once for the groups and the floor (the per-period hot path:
-        # plain lists, no numpy temporaries, nothing converted before the caller reads it)
-        geoms = d.contact.geom.tolist() if d.ncon else []
+        # the per-period hot path: plain lists, no numpy temporaries, nothing converted before the
+        # caller reads it; the contacts' geom pairs read at most once, for the groups and the floor
+        geoms: list[list[int]] | None = None
+        counts: list[float] | None = None
+        if self._read is not None and not self._opt.disableflags & SENSOR_OFF:
+            read = self._sensordata.take(self._read).tolist()
+            net, counts = read[:self._n_net], read[self._n_net:]
+        else:
+            geoms = d.contact.geom.tolist() if d.ncon else []
+            net = self._sensor.net(d, geoms) if self._sensor is not None else []
         # built as tuple.__new__ does it, without the NamedTuple's Python-level __new__ (per period)
         self.sample = tuple.__new__(PlantSample, (
             d.time - self._period_s,
             self._root_com.copy() if self._subtree_com else self._com(d),
             self._site_xpos.take(self._site_index, 0),  # take: half a fancy index's time
-            self._sensor.net(d, geoms) if self._sensor is not None else [],
-            sim.physics_time_s))
+            net, sim.physics_time_s))
         self._sums = self._contacts = self._sites = None
-        if geoms != self._floor_geoms:  # the bodies on the floor follow from the geom pairs alone
-            self.floor_bodies = tuple(self._floor.bodies(d, geoms))
-            self._floor_geoms = geoms
+        if counts is None or counts != self._counts_seen:
+            self._floor_bodies_now(d, geoms, counts)
         if self._fall_rule is not None and self.fall_reason is None:
             # the base height at the step's start: the free joint sits at the root body's origin
             self.base_z_m = float(self._root_pos[2])
