@@ -56,9 +56,9 @@ class ComTask(Task):
         Raises:
             TaskSetupError: Not finite (3,) vectors.
         """
-        p = world_vector(f"{self.name}: target position [m]", target_com)
-        self.v_ref[:] = world_vector(f"{self.name}: target velocity [m/s]", v)
-        self.a_ref[:] = world_vector(f"{self.name}: target acceleration [m/s^2]", a)
+        p = world_vector(target_com, self.name, "target position [m]")
+        self.v_ref[:] = world_vector(v, self.name, "target velocity [m/s]")
+        self.a_ref[:] = world_vector(a, self.name, "target acceleration [m/s^2]")
         self._target = p
 
     @property

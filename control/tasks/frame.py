@@ -22,15 +22,15 @@ def pin_model(state_or_model: TaskState | pin.Model) -> pin.Model:
     return state_or_model.model if isinstance(state_or_model, TaskState) else state_or_model
 
 
-def world_vector(label: str, value: npt.ArrayLike) -> np.ndarray:
-    """``value`` as a finite (3,) vector in W (a copy).
+def world_vector(value: npt.ArrayLike, task: str, what: str) -> np.ndarray:
+    """``value`` as a finite (3,) vector in W (a copy): ``what`` of the task named ``task``.
 
     Raises:
-        TaskSetupError: Not 3 finite numbers (the message names ``label``).
+        TaskSetupError: Not 3 finite numbers (the message names the task and ``what``).
     """
     arr = np.array(value, dtype=float)
-    if arr.shape != (3,) or not all_finite(arr.tolist()):  # targets are set every cycle
-        raise TaskSetupError(f"{label} must be a finite (3,) vector in the world frame; got {value!r}")
+    if arr.shape != (3,) or not all_finite(arr.tolist()):  # targets are set every cycle: no label built
+        raise TaskSetupError(f"{task}: {what} must be a finite (3,) vector in the world frame; got {value!r}")
     return arr
 
 
@@ -69,8 +69,8 @@ class FrameTask(Task):
         self.a_ref_W = np.zeros(3)
 
     def _set_pose(self, X_WT: pin.SE3, v: npt.ArrayLike, a: npt.ArrayLike) -> None:
-        v_W = world_vector(f"{self.name}: target velocity [m/s]", v)
-        a_W = world_vector(f"{self.name}: target acceleration [m/s^2]", a)
+        v_W = world_vector(v, self.name, "target velocity [m/s]")
+        a_W = world_vector(a, self.name, "target acceleration [m/s^2]")
         self._X_WT = pin.SE3(X_WT)
         self._X_TW = self._X_WT.inverse()
         self._R_TW = self._X_TW.rotation  # a numpy copy, made once (SE3.rotation copies per read)

@@ -59,7 +59,7 @@ class FramePositionTask(FrameTask):
             p = transform_target_to_world.translation.copy()
         else:
             try:
-                p = world_vector(f"{self.name}: target position [m]", transform_target_to_world)
+                p = world_vector(transform_target_to_world, self.name, "target position [m]")
             except TaskSetupError:
                 raise TaskSetupError(f"{self.name}: target must be a finite (3,) position [m]; "
                                      f"got {transform_target_to_world!r}") from None

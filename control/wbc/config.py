@@ -120,7 +120,7 @@ class WBCSolution:
         wrench_map: (6 n_feet, n_f): the foot with index k (in ``foot_poses_W``'s order) has the
             wrench ``[f; m]`` about its frame's origin, in F, of rows 6k to 6k + 6 times ``forces``
             (the points' Jacobian map ``blockdiag(G_F)`` transposed).
-        controller_time_s: Wall time of the whole ``compute`` [s].
+        controller_time_s: Wall time of the whole ``compute`` [s], its torque command's checks included.
         qp_time_s: Wall time of the QP solve alone [s].
         fallback: The torques are the damping fallback's, not the QP's.
     """

@@ -422,9 +422,11 @@ class WholeBodyController:
         if cfg.friction_feedforward:
             self._add_friction(tau, x[:nv], dt_s)
         self.steps += 1
+        command = Command(CommandKind.TORQUE, tau, self._command_names)
+        # the time of the whole compute, the command included (its record, ~1 us, after the stamp)
         self.last = WBCSolution(tau, x[:nv], x[nv:], self._force_slices, self._points_F, poses,
                                 self._wrench_map, time.perf_counter() - t0, qp_time)
-        return Command(CommandKind.TORQUE, tau, self._command_names)
+        return command
 
     def _solve(self, m_eq: int) -> QPResult:
         """The QP as filled, by the configured solver (counting fast-path and daqp cycles)."""
@@ -464,7 +466,8 @@ class WholeBodyController:
         np.minimum(tau, self.tau_high, out=tau)
         poses = {name: pin.SE3(self.state.frame_pose(cs.fid)) for name, cs in self.contacts.items()}
         self.steps += 1
+        command = Command(CommandKind.TORQUE, tau, self._command_names)
         self.last = WBCSolution(tau, np.full(self.model.nv, np.nan), np.zeros(self.n_x - self.model.nv),
                                 self._force_slices, self._points_F, poses, self._wrench_map,
                                 time.perf_counter() - t0, 0.0, fallback=True)
-        return Command(CommandKind.TORQUE, tau, self._command_names)
+        return command
