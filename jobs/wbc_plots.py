@@ -71,6 +71,6 @@ def wbc_plots(ctx: RunContext, log: WBCLog, params: Any, values: dict[str, Any])
             ax.set_xlabel("time (s)")
         a_t.legend(fontsize=8, loc="upper right")
         a_c.legend(fontsize=8, loc="upper left", bbox_to_anchor=(1.01, 1.0))
-    fig.suptitle("contact forces predicted by the QP (dashed) and measured in MuJoCo (solid, "
-                 "mj_contactForce on the foot geoms)" + note)
+    fig.suptitle("contact forces predicted by the QP (dashed) and measured in MuJoCo (solid: the forces "
+                 "its constraint solver applied on the foot geoms)" + note)
     ctx.save_figure(fig, "g1_wbc_contacts.png")
