@@ -124,7 +124,8 @@ class PlantMonitor:
         self._floor = FloorContacts(m, np.flatnonzero(m.geom_bodyid == 0), bodies=robot.robot_body_ids)
         # where MuJoCo counts the floor's contacts (robots.edits.add_floor_sensors) and sums the groups'
         # (or there are none), one read of sensordata gives both: no contact's geom pair read
-        floor = FloorSensors(m, robot.tree_root_id, robot.robot_body_ids) if self._subtree_com else None
+        root = robot.tree_root_id
+        floor = FloorSensors(m, root, robot.robot_body_ids) if root is not None else None
         nets = self._sensor.sensor_index if self._sensor is not None else np.zeros(0, dtype=int)
         self._floor_sensors = floor if floor is not None and floor.index is not None else None
         self._read = (np.concatenate([nets, floor.index]) if floor is not None and floor.index is not None
