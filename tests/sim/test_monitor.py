@@ -1,4 +1,4 @@
-"""The plant monitor on a three-legged stool built in code: CoM, joint torques, foot wrenches, falls."""
+"""The plant monitor on a stool built in code: CoM, joint torques, foot wrenches, falls, floor counts."""
 
 from __future__ import annotations
 
@@ -8,10 +8,11 @@ import pytest
 
 from mbctl.robots import load_robot
 from mbctl.robots.commands import torque
-from mbctl.robots.exceptions import UnknownNameError
+from mbctl.robots.edits import add_floor_sensors, floor_sensor_name
+from mbctl.robots.exceptions import RobotError, UnknownNameError
 from mbctl.robots.g1 import FallRule
 from mbctl.robots.scene import bodies_com
-from mbctl.sim.contacts import contact_wrenches
+from mbctl.sim.contacts import FloorContacts, FloorSensors, contact_wrenches
 from mbctl.sim.exceptions import SimError
 from mbctl.sim.monitor import PlantMonitor
 from mbctl.sim.simulator import Simulator
@@ -190,3 +191,79 @@ def test_the_monitors_foot_sums_are_mujocos_contact_forces_on_the_g1(g1, lift_ra
     np.testing.assert_array_equal(monitor.site_array_W, sim.data.site_xpos[[g1.site_id(f) for f in G1_FEET]])
     np.testing.assert_array_equal(monitor.site_positions_W["right_foot"], monitor.site_array_W[1])
     np.testing.assert_allclose(monitor.com_W, bodies_com(m, sim.data, g1.robot_body_ids), rtol=1e-12)
+
+
+def test_add_floor_sensors_counts_the_robots_and_each_bodys_floor_contacts(stool):
+    counted = add_floor_sensors(stool, FEET)
+    assert add_floor_sensors(counted, FEET[:2]) is counted  # idempotent
+    m = counted.mj_model
+    assert m.nsensor == 4 and stool.mj_model.nsensor == 0  # the original is unchanged
+    assert {m.sensor(i).name for i in range(4)} == {floor_sensor_name(None), *map(floor_sensor_name, FEET)}
+    assert "floor contact counts on the robot, foot_a, foot_b, foot_c" in counted.source.edits[-1]
+    sensors = FloorSensors(m, counted.tree_root_id, counted.robot_body_ids)
+    assert sensors.names == FEET and sensors.index is not None
+    assert FloorSensors(stool.mj_model, stool.tree_root_id, stool.robot_body_ids).index is None
+    with pytest.raises(UnknownNameError, match="nope"):
+        add_floor_sensors(stool, ["nope"])
+
+
+def test_floor_sensors_need_one_tree_and_their_names_free(tmp_path, stool):
+    two = tmp_path / "two.xml"
+    two.write_text("""<mujoco><worldbody><geom type="plane" size="1 1 0.1"/>
+      <body name="a" pos="0 0 0.5"><freejoint/><geom type="sphere" size="0.1"/></body>
+      <body name="b" pos="1 0 0.5"><freejoint/><geom type="sphere" size="0.1"/></body>
+      </worldbody></mujoco>""")
+    pair = load_robot(two, roots=("a", "b"))
+    assert pair.tree_root_id is None and stool.tree_root_id == stool.body_id("seat")
+    with pytest.raises(RobotError, match="one tree of bodies"):
+        add_floor_sensors(pair, ["a"])
+    clash = tmp_path / "clash.xml"
+    clash.write_text(STOOL.replace("</actuator>", '</actuator><sensor><framepos name="foot_a_floor_contacts" '
+                                                  'objtype="body" objname="foot_a"/></sensor>'))
+    with pytest.raises(RobotError, match="'foot_a_floor_contacts' that is not a contact sensor"):
+        add_floor_sensors(load_robot(clash), FEET)
+
+
+def test_the_monitor_names_the_bodies_on_the_floor_as_the_geom_pairs_do(stool):
+    """Standing, folding onto its seat, sensors off a while: equal to the geom pairs' answer every step."""
+    counted = add_floor_sensors(stool, FEET)
+    sim = Simulator(counted)
+    monitor = PlantMonitor(sim).attach()
+    assert monitor._read is not None  # the counts serve this robot
+    m, d = sim.model, sim.data
+    pairs = FloorContacts(m, np.flatnonzero(m.geom_bodyid == 0), bodies=counted.robot_body_ids)
+    seen, from_pairs = set(), 0
+    sim.send(torque([0.0, 0.0, 0.0]))
+    for k in range(900):
+        if k == 150:  # the hips fold: the seat reaches the floor (from step ~485)
+            sim.send(torque([150.0, 150.0, 150.0]))
+        if k == 300:
+            m.opt.disableflags |= mujoco.mjtDisableBit.mjDSBL_SENSOR  # off at run time: the pairs serve
+        if k == 400:
+            m.opt.disableflags &= ~int(mujoco.mjtDisableBit.mjDSBL_SENSOR)
+        sim.step()
+        expected = tuple(pairs.bodies(d))
+        assert monitor.floor_bodies == expected, k
+        seen.add(expected)
+        from_pairs += monitor._floor_geoms is not None
+    assert ("foot_a", "foot_b", "foot_c") in seen  # standing: the counts alone answer
+    assert {("foot_b", "foot_c", "seat"), ("seat",)} <= seen  # the counts disagree: the pairs answer
+    assert 100 + 300 <= from_pairs < 900  # the 100 steps without sensors, and most steps after ~480
+
+
+def test_the_g1_falling_names_the_bodies_on_the_floor_as_the_geom_pairs_do(g1_torque):
+    """The whole-body jobs' G1, limp from standing until it lies on the floor: the same bodies every step."""
+    from mbctl.robots.g1 import FOOT_BODIES, KEYFRAME
+
+    sim = Simulator(g1_torque)
+    sim.reset(KEYFRAME)
+    monitor = PlantMonitor(sim).attach()
+    assert monitor._floor_sensors is not None and monitor._floor_sensors.names == tuple(sorted(FOOT_BODIES))
+    m, d = sim.model, sim.data
+    pairs = FloorContacts(m, np.flatnonzero(m.geom_bodyid == 0), bodies=g1_torque.robot_body_ids)
+    seen = set()
+    for _ in range(1000):  # 2 s without torques
+        sim.step()
+        assert monitor.floor_bodies == tuple(pairs.bodies(d))
+        seen.add(monitor.floor_bodies)
+    assert tuple(sorted(FOOT_BODIES)) in seen and any(set(s) - set(FOOT_BODIES) for s in seen)
