@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from collections.abc import Iterable
+from collections.abc import Callable, Iterable
 
 import mujoco
 import numpy as np
@@ -430,7 +430,7 @@ def add_floor_sensors(robot: Robot, bodies: Iterable[str]) -> Robot:
     return robot.with_edits(f"floor contact counts on {named} (MjSpec add_sensor)", mj_edit)
 
 
-def _without_contact_sensor(robot: Robot, bodies: Iterable[str], name_of) -> list[str]:
+def _without_contact_sensor(robot: Robot, bodies: Iterable[str], name_of: Callable[[str], str]) -> list[str]:
     """The bodies that have no contact sensor named ``name_of(body)`` yet (checked: robot bodies).
 
     Raises:

@@ -18,6 +18,7 @@ from __future__ import annotations
 from collections.abc import Callable, Iterable, Mapping, Sequence
 from typing import NamedTuple
 
+import mujoco
 import numpy as np
 
 from mbctl.robots.collision import body_geoms
@@ -215,7 +216,8 @@ class PlantMonitor:
         self.sim.add_observer(self)
         return self
 
-    def _floor_bodies_now(self, d, geoms: list[list[int]] | None, counts: list[float] | None) -> None:
+    def _floor_bodies_now(self, d: mujoco.MjData, geoms: list[list[int]] | None,
+                          counts: list[float] | None) -> None:
         """``floor_bodies`` from the floor's contact counts, or else from the contacts' geom pairs."""
         floor = self._floor_sensors.bodies(counts) if counts is not None else None  # type: ignore[union-attr]
         if floor is not None:  # the counts name them: no other robot body is on the floor
