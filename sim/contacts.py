@@ -22,8 +22,12 @@ import numpy as np
 from mbctl.robots.edits import CONTACT_SENSOR_DATA, NETFORCE, contact_data_bit
 
 _K = TypeVar("_K")
-#: MuJoCo's flag that switches every sensor off (``opt.disableflags``).
-SENSOR_OFF = int(mujoco.mjtDisableBit.mjDSBL_SENSOR)
+_SENSOR_OFF = int(mujoco.mjtDisableBit.mjDSBL_SENSOR)
+
+
+def sensors_on(options: mujoco.MjOption) -> bool:
+    """Whether MuJoCo computes its sensors now (``options``: a model's ``opt``, read live)."""
+    return not options.disableflags & _SENSOR_OFF
 #: The sizes of a contact sensor's data fields, in MuJoCo's order (``mjtConDataField``).
 _FIELD_SIZES = (1, 3, 3, 1, 3, 3, 3)
 
@@ -91,7 +95,7 @@ class ContactSensor:
     @property
     def from_sensors(self) -> bool:
         """Whether the sums come from MuJoCo's contact sensors (now: sensors not disabled)."""
-        return self.sensor_index is not None and not self._opt.disableflags & SENSOR_OFF
+        return self.sensor_index is not None and sensors_on(self._opt)
 
     def net(self, data: mujoco.MjData, geoms: list[list[int]] | None = None) -> list[float]:
         """Each group's net contact, 10 plain numbers a group in ``names`` order (MuJoCo's sensor layout).

@@ -25,7 +25,6 @@ from mbctl.robots.collision import body_geoms
 from mbctl.robots.indexing import as_slice
 from mbctl.robots.scene import BodiesCom
 from mbctl.sim.contacts import (
-    SENSOR_OFF,
     ContactSensor,
     FloorContacts,
     FloorSensors,
@@ -33,6 +32,7 @@ from mbctl.sim.contacts import (
     contact_wrenches,
     contacts_elsewhere,
     measured,
+    sensors_on,
 )
 from mbctl.sim.exceptions import SimError
 from mbctl.sim.simulator import Simulator
@@ -237,7 +237,7 @@ class PlantMonitor:
         # caller reads it; the contacts' geom pairs read at most once, for the groups and the floor
         geoms: list[list[int]] | None = None
         counts: list[float] | None = None
-        if self._read is not None and not self._opt.disableflags & SENSOR_OFF:
+        if self._read is not None and sensors_on(self._opt):
             read = self._sensordata.take(self._read).tolist()
             net, counts = read[:self._n_net], read[self._n_net:]
         else:

@@ -31,8 +31,6 @@ from mbctl.sim.trajectory import TrajectoryRecorder
 #: every 32nd step, 64 ms apart: smooth at any replay speed up to real time); the CSV keeps every
 #: control cycle.
 MAX_REPLAY_SAMPLES = 100_000
-#: Rows of one block of a :class:`BoundedTrajectoryRecorder`'s samples (the G1's: 1.2 MB).
-_BLOCK_ROWS = 4096
 
 
 class BoundedTrajectoryRecorder(TrajectoryRecorder):
@@ -42,11 +40,6 @@ class BoundedTrajectoryRecorder(TrajectoryRecorder):
     reach ``max_samples`` it drops every other one and doubles ``stride``. The samples stay evenly
     spaced in steps (the start and every ``stride``-th step), and ``close()`` adds the last state
     when it fell between two kept steps.
-
-    The samples go into rows of blocks of :data:`_BLOCK_ROWS` rows (a new block when one is full,
-    none copied until ``close()``): a kept step is two stores, where a new array per step
-    (``qpos.copy()``) cost a job's control cycle 5-15 us more (its allocations, spread over the heap,
-    evicted the loop's data from the CPU's caches; ``bench/README.md``).
 
     Args:
         sim: The plant.
@@ -64,20 +57,8 @@ class BoundedTrajectoryRecorder(TrajectoryRecorder):
         self.max_samples = max_samples
         self.stride = 1  #: observed steps per kept sample
         self.observed = 0  #: steps observed
-        self._data = sim.data
-        self._qpos_now = sim.data.qpos  # a view into MjData: what a step left, read when kept
-        self._kept: list[tuple[np.ndarray, np.ndarray]] = []  # filled blocks (times, rows)
-        self._block_t, self._block_q = self._new_block()
-        self._block_t[0], self._block_q[0] = self._t[0], self._qpos[0]
-        self._i = 1  # the next row of the current block
-        self._n = 1
         self._last_t = float(sim.data.time)
         self._last_qpos = sim.data.qpos.copy()
-
-    @property
-    def samples(self) -> int:
-        """Samples kept so far (the start included)."""
-        return self._n
 
     def __call__(self, sim: Simulator) -> None:
         """Observer hook: keep the state if this step is a multiple of the stride."""
@@ -89,27 +70,8 @@ class BoundedTrajectoryRecorder(TrajectoryRecorder):
         self._keep(self._data.time, self._qpos_now)
         if self._n == self.max_samples:  # every other sample, from the first: the start stays
             t, q = self._samples()
-            self._kept = [(t[::2].copy(), q[::2].copy())]
-            self._i, self._n = 0, len(self._kept[0][0])
+            self._replace_samples(t[::2].copy(), q[::2].copy())
             self.stride *= 2
-
-    def _keep(self, t: float, qpos: np.ndarray) -> None:
-        i = self._i
-        if i == _BLOCK_ROWS:  # the block is full: a new one (the filled ones are never copied)
-            self._kept.append((self._block_t, self._block_q))
-            self._block_t, self._block_q = self._new_block()
-            i = 0
-        self._block_t[i] = t
-        self._block_q[i] = qpos
-        self._i, self._n = i + 1, self._n + 1
-
-    def _new_block(self) -> tuple[np.ndarray, np.ndarray]:
-        return np.empty(_BLOCK_ROWS), np.empty((_BLOCK_ROWS, self.sim.model.nq))
-
-    def _samples(self) -> tuple[np.ndarray, np.ndarray]:
-        i = self._i
-        blocks = [*self._kept, (self._block_t[:i], self._block_q[:i])]
-        return np.concatenate([t for t, _ in blocks]), np.concatenate([q for _, q in blocks])
 
     def close(self) -> Path:
         """Keep the last state (if it fell between kept steps), then write ``trajectory.npz``."""

@@ -24,6 +24,8 @@ from mbctl.sim.simulator import Simulator
 
 TRAJECTORY_NAME = "trajectory.npz"
 MODEL_NAME = "model.xml"
+#: Rows of one block of a recorder's samples (the G1's: 1.2 MB), allocated when the last one is full.
+BLOCK_ROWS = 4096
 
 
 def plant_xml(robot: Robot) -> str:
@@ -39,8 +41,12 @@ class TrajectoryRecorder:
         self.model_path = self.folder / MODEL_NAME
         self.path = self.folder / TRAJECTORY_NAME
         write_text_atomic(self.model_path, plant_xml(sim.robot))
-        self._t: list[float] = [float(sim.data.time)]
-        self._qpos: list[np.ndarray] = [sim.data.qpos.copy()]
+        self._data = sim.data
+        self._qpos_now = sim.data.qpos  # a view into MjData: what a step left, read when kept
+        self._kept: list[tuple[np.ndarray, np.ndarray]] = []  # filled blocks (times, rows)
+        self._block_t, self._block_q = self._new_block()
+        self._i = self._n = 0  # the next row of the current block; the samples kept
+        self._keep(float(sim.data.time), self._qpos_now)
         self._closed = False
         #: MuJoCo id of the floating base a camera follows in replays (-1: fixed base).
         self.track_body = -1
@@ -53,14 +59,43 @@ class TrajectoryRecorder:
         self.sim.add_observer(self)
         return self
 
+    @property
+    def samples(self) -> int:
+        """Samples kept so far (the start included)."""
+        return self._n
+
     def __call__(self, sim: Simulator) -> None:
         """Observer hook: keep the current time and qpos."""
-        self._t.append(float(sim.data.time))
-        self._qpos.append(sim.data.qpos.copy())
+        self._keep(self._data.time, self._qpos_now)
+
+    def _keep(self, t: float, qpos: np.ndarray) -> None:
+        """Store one sample: two stores into the current block (a new block when it is full).
+
+        Rows of blocks allocated as they fill, none copied until ``close()``: a new array per step
+        (``qpos.copy()``) cost a job's control cycle 5-15 us more (its allocations, spread over the
+        heap, evicted the loop's data from the CPU's caches; ``bench/README.md``).
+        """
+        i = self._i
+        if i == BLOCK_ROWS:
+            self._kept.append((self._block_t, self._block_q))
+            self._block_t, self._block_q = self._new_block()
+            i = 0
+        self._block_t[i] = t
+        self._block_q[i] = qpos
+        self._i, self._n = i + 1, self._n + 1
+
+    def _new_block(self) -> tuple[np.ndarray, np.ndarray]:
+        return np.empty(BLOCK_ROWS), np.empty((BLOCK_ROWS, self.sim.model.nq))
 
     def _samples(self) -> tuple[np.ndarray, np.ndarray]:
         """The samples kept: times (n,) [s] and plant qpos (n, nq)."""
-        return np.array(self._t), np.array(self._qpos)
+        i = self._i
+        blocks = [*self._kept, (self._block_t[:i], self._block_q[:i])]
+        return np.concatenate([t for t, _ in blocks]), np.concatenate([q for _, q in blocks])
+
+    def _replace_samples(self, t: np.ndarray, qpos: np.ndarray) -> None:
+        """Keep these samples (n,), (n, nq) instead of those kept so far."""
+        self._kept, self._i, self._n = [(t, qpos)], 0, len(t)
 
     def close(self) -> Path:
         """Stop and write ``trajectory.npz`` (idempotent)."""

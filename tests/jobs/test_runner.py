@@ -130,7 +130,7 @@ def test_a_long_run_keeps_a_bounded_replay_and_every_csv_row(tmp_path, two_link_
 @pytest.mark.parametrize("block_rows", [3, 4096])
 def test_the_replay_keeps_the_last_state_between_kept_steps(tmp_path, two_link_torque, monkeypatch,
                                                             block_rows):
-    monkeypatch.setattr("mbctl.sim.recorder._BLOCK_ROWS", block_rows)  # 3: samples across blocks
+    monkeypatch.setattr("mbctl.sim.trajectory.BLOCK_ROWS", block_rows)  # 3: samples across blocks
     sim = Simulator(two_link_torque)
     rec = BoundedTrajectoryRecorder(sim, tmp_path, max_samples=8).attach()
     sim.send(Command(CommandKind.TORQUE, np.array([0.3, -0.2])))
