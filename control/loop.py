@@ -34,6 +34,7 @@ from mbctl.control.run_log import (  # noqa: F401
     LogWriter,
     RunLog,
     RunStats,
+    batch_rows,
     kept_cycles,
     log_rows,
     log_stride,
@@ -138,6 +139,7 @@ def run(
     on_step: OnStep | None = None,
     *,
     hold_q: np.ndarray | None = None,
+    log_batch: int = LOG_BATCH,
 ) -> RunLog:
     """Run ``controller`` on ``interface`` for ``duration_s`` and log it (see :class:`RunLog`).
 
@@ -161,6 +163,8 @@ def run(
             fell); the log then holds the cycles run.
         hold_q: For a trajectory that covers only some of the controller's joints: positions
             (n,) [rad] the others hold.
+        log_batch: Cycles the log keeps before it writes them (one stall of the loop each time; a
+            plant without deadlines, in-process, can take larger batches at a lower cost a cycle).
 
     Returns:
         The RunLog: at most ``MAX_LOG_ROWS`` rows, times, ticks and stats of every cycle.
@@ -218,7 +222,7 @@ def run(
     idx_q = (np.asarray(joint_map.idx_q, dtype=int)
              if isinstance(first, JointReference) and joint_map is not None
              and np.size(joint_map.idx_q) == k_ref else None)
-    log = LogWriter(n_cycles, robot.nq, robot.nv, k_ref, idx_q, MAX_LOG_ROWS, LOG_BATCH)
+    log = LogWriter(n_cycles, robot.nq, robot.nv, k_ref, idx_q, MAX_LOG_ROWS, log_batch)
     keep = log.pending.append
     controller.reset()
     t0 = interface.time_s

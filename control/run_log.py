@@ -186,6 +186,23 @@ def kept_cycles(n_cycles: int, stride: int) -> np.ndarray:
     return np.append(cycles, n_cycles - 1) if n_cycles and (n_cycles - 1) % stride else cycles
 
 
+def batch_rows(k0: int, b: int, stride: int) -> tuple[np.ndarray, np.ndarray]:
+    """Where a batch of cycles ``k0 .. k0 + b - 1`` goes in a log kept at ``stride``.
+
+    Cycle k goes to row ceil(k / stride): kept when k is a multiple of the stride, overwritten by the
+    next cycle otherwise. The batch's last cycle is written too (the run's last cycle is always kept:
+    a later batch overwrites it when it is not).
+
+    Returns:
+        The batch's entries to write (indices into the batch, increasing) and their rows (unique).
+    """
+    cycles = np.arange(k0, k0 + b)
+    at = np.flatnonzero(cycles % stride == 0)
+    if b and (not at.size or at[-1] != b - 1):
+        at = np.append(at, b - 1)
+    return at, -(-cycles[at] // stride)
+
+
 class _Sums:
     """Per-column sums of q, v, command (and the joint error ``q_ref - q``) over blocks of cycles."""
 
@@ -274,15 +291,8 @@ class LogWriter:
         cmd = np.array([c.values for c in commands])
         logged = self.ref.shape[1] > 0
         ref = np.array([r[0] for r in refs]) if logged else None  # type: ignore[index]
-        # the rows: cycle k goes to row ceil(k / stride), kept when k is a multiple of the stride and
-        # overwritten by the next cycle otherwise; the batch's last cycle is written (the run's last
-        # cycle is always kept: a later batch overwrites it when it is not)
-        cycles = np.arange(k0, k0 + b)
-        at = np.flatnonzero(cycles % self.stride == 0)
-        if not at.size or at[-1] != b - 1:
-            at = np.append(at, b - 1)
-        rows = -(-cycles[at] // self.stride)
-        self.cycle[rows] = cycles[at]
+        at, rows = batch_rows(k0, b, self.stride)
+        self.cycle[rows] = k0 + at
         self.q[rows] = q[at]
         self.v[rows] = v[at]
         self.cmd[rows] = cmd[at]

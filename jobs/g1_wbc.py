@@ -36,7 +36,7 @@ from mbctl.jobs.plant import Plant, PlantOptions, dry_run, plant_lines, prepare_
 from mbctl.jobs.recording import q_columns
 from mbctl.jobs.runner import Job, Outcome, RunContext, Work
 from mbctl.jobs.truth import truth_com
-from mbctl.jobs.wbc_log import WBCLog
+from mbctl.jobs.wbc_log import BATCH, BATCH_IN_PROCESS, WBCLog
 from mbctl.jobs.wbc_scenarios import PUSH_PERIOD_S, scenario
 from mbctl.robots.edits import scale_masses
 from mbctl.robots.g1 import FEET, G1_FALL, KEYFRAME, PELVIS, TORSO, crouched_start, whole_body_g1
@@ -208,14 +208,16 @@ def _run(ctx: RunContext, params: WBCParams, robot: Robot, pin_model: pin.Model 
     n = max(1, int(round(params.duration_s / iface.control_period_s)))
     # the plant's weight m g [N]: the robot's true mass, whatever the controller's model says
     mass_kg = monitor.mass_kg if monitor is not None else float(robot.mj_model.body_subtreemass[1])
+    batch = BATCH_IN_PROCESS if sim is not None else BATCH  # over DDS, each stall within a period
     log = WBCLog(ctx, wb, monitor, pushes, n, mass_kg * float(np.linalg.norm(robot.mj_model.opt.gravity)),
-                 q_columns(robot))
+                 q_columns(robot), batch)
     ctx.sections["inputs"] = {"scenario": params.scenario, "keyframe": KEYFRAME,
                               "controller": "whole-body inverse dynamics QP (control/wbc)",
                               "model_error_pct": params.model_error,
                               "tasks": [t.name for t in wb.controller.tasks]}
     ctx.progress.start(n, f"g1-wbc {params.scenario}")
-    run_log = run(iface, Scheduled(wb.controller, schedule), None, params.duration_s, on_step=log.on_step)
+    run_log = run(iface, Scheduled(wb.controller, schedule), None, params.duration_s, on_step=log.on_step,
+                  log_batch=batch)
     values = log.values(sim)
     truth_fell = report_plant(ctx, p, run_log, G1_FALL.base_min_z_m)
     if p.options.truth is not None:

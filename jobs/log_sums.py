@@ -57,6 +57,33 @@ class CoMErrorSums:
                 self._compare(tp, c, self._reference_at(tp, t, ref, first))
         self._prev = (t, ref)
 
+    def add_block(self, t: np.ndarray, ref: np.ndarray, t_plant: np.ndarray, com: np.ndarray) -> np.ndarray:
+        """:meth:`add` for b cycles in order: times (b,) [s], references and CoMs (b, 3) [m].
+
+        Returns:
+            After each cycle, :attr:`last` (b, 2): the last sample compared, its time [s] and error [m].
+        """
+        b = len(t)
+        if not b:
+            return np.empty((0, 2))
+        if self._pending or not np.array_equal(t_plant, t):  # behind a latency: cycle by cycle
+            out = np.empty((b, 2))
+            for i, (ti, ri, tpi, ci) in enumerate(zip(t.tolist(), ref.tolist(), t_plant.tolist(),
+                                                      com.tolist(), strict=True)):
+                self.add(ti, ri, tpi, ci)
+                out[i] = self.last
+            return out
+        # no latency: each cycle's plant sample against its own reference
+        if self._first is None:
+            self._first = (float(t[0]), tuple(ref[0].tolist()))  # type: ignore[assignment]
+        sq = np.sum((com - ref) ** 2, axis=1)
+        e = np.sqrt(sq)
+        self.count += b
+        self.sum_sq += float(sq.sum())
+        self.last = (float(t[-1]), float(e[-1]))
+        self._prev = (float(t[-1]), tuple(ref[-1].tolist()))  # type: ignore[assignment]
+        return np.column_stack((t, e))
+
     def _reference_at(self, tp: float, t: float, ref: Vec3, first: tuple[float, Vec3]) -> Vec3:
         """The reference at ``tp`` <= ``t`` (the newest reference time; ``first``: the first) as np.interp."""
         prev = self._prev

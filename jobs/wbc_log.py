@@ -24,14 +24,15 @@ from typing import Any, NamedTuple
 
 import numpy as np
 
-from mbctl.control.loop import MAX_LOG_ROWS, kept_cycles, log_rows, log_stride
+from mbctl.control.loop import MAX_LOG_ROWS, batch_rows, kept_cycles, log_rows, log_stride
 from mbctl.control.wbc import Standing, WBCSolution
+from mbctl.control.wbc.config import foot_totals_and_cops_W
 from mbctl.jobs.log_sums import CoMErrorSums, nan_max, nan_min, quantile
 from mbctl.jobs.runner import RunContext
 from mbctl.robots.commands import Command
 from mbctl.robots.g1 import FEET
 from mbctl.robots.interface import RobotState
-from mbctl.sim.monitor import PlantMonitor, PlantSample
+from mbctl.sim.monitor import PlantMonitor
 from mbctl.sim.perturb import PushSchedule
 from mbctl.sim.simulator import Simulator
 
@@ -49,8 +50,13 @@ _PER_FOOT = 9
 #: A foot's MuJoCo columns and slip when the plant is not observed (over DDS).
 _NO_PLANT = (float("nan"),) * 5
 _NO_PUSH = (0.0, 0.0)
-#: Cycles :meth:`WBCLog.on_step` keeps before recording them (about 25 ms of the G1 job's wall time).
+#: Cycles :meth:`WBCLog.on_step` keeps before recording them over a link with deadlines (about 1 ms of
+#: recording at once, within the G1's 2 ms period beside its cycle).
 BATCH = 64
+#: The same in-process, where no deadline waits (about 4 ms of recording at once, twice a second of the
+#: G1 job's wall time): a batch's recording has a fixed part (numpy calls per field, ~0.3 ms) that
+#: larger batches share out (overhead mean 65 -> 50 us a cycle; see bench/README).
+BATCH_IN_PROCESS = 256
 #: What each kept row holds after the CSV's columns (the record's other fields, and the CoM error
 #: of the last plant sample compared: its plant time [s] and norm [m]).
 _EXTRA = ("t_plant", "stance", "ctrl_us", "qp_us", "slip", "cycle_us", "physics_us", "com_err_t", "com_err_m")
@@ -136,11 +142,13 @@ class WBCLog:
         n: Cycles of the run (the arrays are preallocated for them).
         mg_n: The plant's weight m g [N].
         q_names: The CSV's columns of q.
+        batch: Cycles kept before they are recorded (:data:`BATCH`, :data:`BATCH_IN_PROCESS`).
     """
 
     def __init__(self, ctx: RunContext, wb: Standing, monitor: PlantMonitor | None,
-                 pushes: PushSchedule | None, n: int, mg_n: float, q_names: list[str]):
+                 pushes: PushSchedule | None, n: int, mg_n: float, q_names: list[str], batch: int = BATCH):
         self.ctx, self.wb, self.monitor, self.pushes, self.mg = ctx, wb, monitor, pushes, mg_n
+        self.batch = batch
         ctx.values_at_end(self.values)  # an interrupted or failed run's figures, after the loop
         ctrl = wb.controller
         header = ["time_s", "com_ref_x_m", "com_ref_y_m", "com_ref_z_m", "com_x_m", "com_y_m", "com_z_m",
@@ -186,8 +194,6 @@ class WBCLog:
         self._pending: deque[tuple] = deque()  # cycles kept by on_step, not yet recorded
         self._foot_states = [ctrl.contacts[f] for f in FEET]
         self._home: dict[str, tuple[float, float]] = {}  # where each foot started to support
-        self._points_src: object = None  # the solution's contact points, as lists per foot (_qp_feet)
-        self._points: dict[str, list[list[float]]] = {}
         if monitor is not None:  # FEET's places among the monitor's contact groups and sites
             self._groups = [monitor.group_names.index(f) for f in FEET]
             self._sites = [monitor.site_names.index(f) for f in FEET]
@@ -219,50 +225,38 @@ class WBCLog:
         rows, x = self._rows[: self.rows], self._extra
         return rows[:, x["com_err_t"]], rows[:, x["com_err_m"]]
 
-    def _qp_feet(self, sol: WBCSolution) -> list[tuple[float, float, float, float]]:
-        """Per foot (FEET order), the QP's prediction: normal, tangential force [N], CoP x, y [m] in W.
+    def _qp_feet(self, sols: tuple[WBCSolution, ...]) -> np.ndarray:
+        """Per cycle and foot (FEET order), the QP's prediction (b, n_feet, 4).
 
-        ``sol.totals_and_cops_W`` in plain floats (the sum of the points' forces turned into W, the
-        CoP of their world-z forces at their positions moved to W; 4 points a foot): about half its
-        time, and this runs every cycle.
+        The normal and tangential force [N] and the CoP's x, y [m] in W
+        (:func:`~mbctl.control.wbc.config.foot_totals_and_cops_W` over the batch).
         """
-        if sol.points_F is not self._points_src:
-            self._points_src = sol.points_F
-            self._points = {f: sol.points_F[f].tolist() for f in FEET}
-        forces = sol.forces.tolist()
-        out = []
-        for f in FEET:
-            pose = sol.foot_poses_W[f]
-            (r00, r01, r02), (r10, r11, r12), (r20, r21, r22) = pose.rotation.tolist()
-            sl = sol.force_slices[f]
-            F = forces[sl.start:sl.stop]
-            sx = sy = sz = mx = my = mz = 0.0
-            for j, (px, py, pz) in enumerate(self._points[f]):
-                fx, fy, fz = F[3 * j], F[3 * j + 1], F[3 * j + 2]
-                sx += fx
-                sy += fy
-                sz += fz
-                w = r20 * fx + r21 * fy + r22 * fz  # the point's force along W's z
-                mx += w * px
-                my += w * py
-                mz += w * pz
-            tx = r00 * sx + r01 * sy + r02 * sz
-            ty = r10 * sx + r11 * sy + r12 * sz
-            tz = r20 * sx + r21 * sy + r22 * sz
-            if tz > 1e-6:
-                ox, oy, _ = pose.translation.tolist()
-                cx = (r00 * mx + r01 * my + r02 * mz) / tz + ox
-                cy = (r10 * mx + r11 * my + r12 * mz) / tz + oy
-            else:
-                cx = cy = math.nan
-            out.append((tz, math.hypot(tx, ty), cx, cy))
+        out = np.empty((len(sols), len(FEET), 4))
+        i0 = 0
+        while i0 < len(sols):  # runs of solutions sharing their contacts' layout (a whole batch, as a rule)
+            first = sols[i0]
+            i1 = i0 + 1
+            while i1 < len(sols) and (sols[i1].force_slices is first.force_slices
+                                      and sols[i1].points_F is first.points_F):
+                i1 += 1
+            run = sols[i0:i1]
+            forces = np.array([sol.forces for sol in run])
+            for j, f in enumerate(FEET):
+                sl = first.force_slices[f]
+                X = np.array([sol.foot_poses_W[f].homogeneous for sol in run])
+                total, cop = foot_totals_and_cops_W(forces[:, sl].reshape(len(run), -1, 3), X,
+                                                    first.points_F[f])
+                out[i0:i1, j, 0] = total[:, 2]
+                out[i0:i1, j, 1] = np.hypot(total[:, 0], total[:, 1])
+                out[i0:i1, j, 2:] = cop[:, :2]
+            i0 = i1
         return out
 
     def on_step(self, k: int, state: RobotState, reference: object, command: Command) -> bool:
         """Keep cycle ``k`` to record (the loop's ``on_step``); True once the robot has fallen (ends the run).
 
         A cycle's inputs are kept as they are (the state, command and solution are the cycle's own
-        objects; the plant's sample is immutable) and recorded :data:`BATCH` cycles at a time, and by
+        objects; the plant's sample is immutable) and recorded ``batch`` cycles at a time, and by
         every reader (:meth:`record`, :meth:`values`): the recording's Python work runs in one tight
         loop, not between a physics step and a solve that evict it from the CPU's caches (about 2.5x
         its cost there).
@@ -275,110 +269,120 @@ class WBCLog:
             self.pushes.force_W[:2].tolist() if self.pushes is not None else _NO_PUSH,
             ((left.active, left.weight), (right.active, right.weight)),
             mon.sample if mon is not None else ctrl.state.com().tolist(), now))
-        if len(self._pending) >= BATCH:
+        if len(self._pending) >= self.batch:
             self._drain()
         return mon is not None and mon.fall_reason is not None
 
     def _drain(self) -> None:
         """Record the cycles kept so far, in order (the progress bar advances by them)."""
-        pending, record = self._pending, self._record
-        if pending:
-            self.ctx.progress.advance(len(pending))
-        while pending:
-            record(*pending.popleft())
+        if self._pending:
+            batch, self._pending = self._pending, deque()
+            self.ctx.progress.advance(len(batch))
+            self._record(batch)
 
-    def _record(self, k: int, state: RobotState, command: Command, sol: WBCSolution, ref_W: np.ndarray,
-                push: tuple[float, float], feet: list[tuple[bool, float]], plant: PlantSample | list[float],
-                now: float) -> None:
-        """Record cycle ``k`` from what :meth:`on_step` kept.
+    def _record(self, batch: deque[tuple]) -> None:
+        """Record the cycles :meth:`on_step` kept, as arrays over the batch.
 
-        ``plant`` is the monitor's sample of the period, or over DDS the controller's CoM (3 floats).
+        Each entry's ``plant`` is the monitor's sample of the period, or over DDS the controller's CoM
+        (3 floats).
         """
-        mon = self.monitor
-        row, x = self._rows[self._row], self._extra
-        t = state.time_s
-        if not k:
-            self._t0 = t
-        # the row's first columns built as one list and stored in one assignment (a numpy store per
-        # value or slice costs more than the values' arithmetic)
+        ks, states, commands, sols, refs, pushes, feet, plants, nows = zip(*batch, strict=True)
+        mon, x, b, k0 = self.monitor, self._extra, len(batch), ks[0]
+        t = np.array([s.time_s for s in states])
+        q = np.array([s.q for s in states])
+        ref = np.array(refs)
         # the plant's CoM in-process; over DDS the controller's (from the estimated state), replaced
         # by the bridge's truth after the run when given (with_truth)
-        com = plant.com_W.tolist() if mon is not None else plant  # type: ignore[union-attr]
-        ref = ref_W.tolist()
-        z = float(state.q[2])
-        vals = [t, *ref, *com, z, *push]
-        stance = True
-        slip_max = 0.0
-        qp = self._qp_feet(sol)
-        fz_mj: list[float] = []
-        if mon is not None:  # the monitor's groups and sites in FEET order, as plain numbers
-            sums = mon.sums_of(plant)  # type: ignore[arg-type]
-            xyz = plant.site_array_W.tolist()  # type: ignore[union-attr]
-        for i, f in enumerate(FEET):
-            active, weight = feet[i]
-            supporting = active and weight == 1.0
-            stance = stance and supporting
-            if mon is None:  # over DDS: the plant's forces and feet are not observed
-                vals += (*qp[i], *_NO_PLANT)
-                continue
-            fx, fy, fz, mx, my, _ = sums[self._groups[i]]
-            mx, my = (mx / fz, my / fz) if fz > 1e-9 else (math.nan, math.nan)  # the CoP, as contacts'
-            px, py, _ = xyz[self._sites[i]]
-            if supporting and fz >= SUPPORT_FRACTION * self.mg:
-                hx, hy = self._home.setdefault(f, (px, py))
-                slip = math.hypot(px - hx, py - hy)
-                slip_max = max(slip_max, slip)
-            else:  # unloaded or swinging: slip counts from when it supports again
-                slip = 0.0
-                self._home[f] = (px, py)
-            fz_mj.append(fz)
-            vals += (*qp[i], fz, math.hypot(fx, fy), mx, my, slip)
-        csv_row, kept = self._csv_row, self._tau.start
-        csv_row[:kept] = vals
-        csv_row[self._tau] = command.values
-        csv_row[self._q] = state.q
-        self.csv.write(csv_row)
-        row[:kept] = csv_row[:kept]
-        t_plant = plant.time_s if mon is not None else t  # type: ignore[union-attr]
-        stance = stance and not sol.fallback
-        ctrl_us, qp_us = sol.controller_time_s * 1e6, sol.qp_time_s * 1e6
-        row[x["t_plant"]] = t_plant
-        row[x["stance"]] = stance
-        row[x["ctrl_us"]] = ctrl_us
-        row[x["qp_us"]] = qp_us
-        row[x["slip"]] = slip_max
-        # every cycle's sums and extremes (plain floats)
-        self._slip_max = nan_max(self._slip_max, slip_max)
-        self._z_min = nan_min(self._z_min, z)
+        com = np.array([p.com_W for p in plants]) if mon is not None else np.array(plants)
+        if not k0:
+            self._t0 = float(t[0])
+        block = np.empty((b, len(self._csv_row)))  # the CSV's rows
+        block[:, 0], block[:, 1:4], block[:, 4:7], block[:, 7], block[:, 8:10] = t, ref, com, q[:, 2], pushes
+        at_feet = self._tau.start - _PER_FOOT * len(FEET)
+        cols = block[:, at_feet:self._tau.start].reshape(b, len(FEET), _PER_FOOT)
+        qp = cols[:, :, :4]
+        qp[:] = self._qp_feet(sols)
+        state_feet = np.array(feet)  # (b, n_feet, 2): active, weight
+        supporting = (state_feet[:, :, 0] > 0.5) & (state_feet[:, :, 1] == 1.0)
+        stance = supporting.all(axis=1) & ~np.array([sol.fallback for sol in sols])
+        if mon is None:  # over DDS: the plant's forces and feet are not observed
+            cols[:, :, 4:] = _NO_PLANT
+            slip = np.zeros((b, len(FEET)))
+        else:  # the monitor's groups and sites in FEET order
+            sums = mon.sums_of_samples(plants)[:, self._groups]  # (b, n_feet, 6)
+            fz = sums[:, :, 2]
+            with np.errstate(divide="ignore", invalid="ignore"):  # the CoP, as contacts'
+                cols[:, :, 6:8] = np.where((fz > 1e-9)[:, :, None], sums[:, :, 3:5] / fz[:, :, None], np.nan)
+            cols[:, :, 4] = fz
+            cols[:, :, 5] = np.hypot(sums[:, :, 0], sums[:, :, 1])
+            xy = np.array([p.site_array_W for p in plants])[:, self._sites, :2]
+            slip = cols[:, :, 8]
+            slip[:] = self._slips(supporting & (fz >= SUPPORT_FRACTION * self.mg), xy)
+        block[:, self._tau] = [c.values for c in commands]
+        block[:, self._q] = q
+        self.csv.write_rows(block)
+        # the kept rows: the CSV's columns, then the record's others
+        at, rows = batch_rows(k0, b, self.stride)
+        kept = self._rows[rows]
+        kept[:, :self._tau.start] = block[at, :self._tau.start]
+        t_plant = np.array([p.time_s for p in plants]) if mon is not None else t
+        ctrl_us = np.array([sol.controller_time_s for sol in sols]) * 1e6
+        qp_us = np.array([sol.qp_time_s for sol in sols]) * 1e6
+        slip_max = slip.max(axis=1)
+        last = self._last_cycle_end
+        cycle_us = np.diff(np.array((math.nan if last is None else last, *nows))) * 1e6
+        self._last_cycle_end = nows[-1]
+        com_err = self.com_sums.add_block(t, ref, t_plant, com)
+        for name, values in (("t_plant", t_plant), ("stance", stance), ("ctrl_us", ctrl_us), ("qp_us", qp_us),
+                             ("slip", slip_max), ("cycle_us", cycle_us), ("com_err_t", com_err[:, 0]),
+                             ("com_err_m", com_err[:, 1])):
+            kept[:, x[name]] = values[at]
+        # every cycle's extremes (NaN-propagating, as nan_max and nan_min)
+        self._slip_max = nan_max(self._slip_max, float(slip_max.max()))
+        self._z_min = nan_min(self._z_min, float(q[:, 2].min()))
+        quantiles = self._quantiles[k0:k0 + b]
         if mon is None:
-            self._com_ref[k] = ref
-        sums_ = self.com_sums
-        sums_.add(t, ref, t_plant, com)  # type: ignore[arg-type]  # 3 floats each
-        row[x["com_err_t"]], row[x["com_err_m"]] = sums_.last
-        self.k = k + 1
-        cycle_us = math.nan
-        if self._last_cycle_end is not None:
-            cycle_us = (now - self._last_cycle_end) * 1e6
-            row[x["cycle_us"]] = cycle_us
-        self._last_cycle_end = now
-        if mon is None:
-            self._quantiles[k] = (ctrl_us, qp_us, cycle_us)
+            self._com_ref[k0:k0 + b] = ref
+            quantiles[:] = np.column_stack((ctrl_us, qp_us, cycle_us))
         else:
-            physics_us = plant.physics_time_s * 1e6  # type: ignore[union-attr]
-            row[x["physics_us"]] = physics_us
-            mg = self.mg
-            rel = abs((qp[0][0] + qp[1][0]) - (fz_mj[0] + fz_mj[1])) / mg
-            if t >= self._t0 + SETTLE_S:
-                counted = stance
-                if counted:
-                    self._rel_max = nan_max(self._rel_max, rel)
-            else:
-                counted = False
-                self._settling_max = nan_max(self._settling_max, rel)
-            self._quantiles[k] = (counted, rel, abs(qp[0][0] - fz_mj[0]) / mg, abs(qp[1][0] - fz_mj[1]) / mg,
-                                  ctrl_us, qp_us, cycle_us, physics_us)
-        if k % self.stride == 0:
-            self._row += 1
+            physics_us = np.array([p.physics_time_s for p in plants]) * 1e6
+            kept[:, x["physics_us"]] = physics_us[at]
+            fz_qp, fz_mj = qp[:, :, 0], cols[:, :, 4]
+            rel = np.abs(fz_qp.sum(axis=1) - fz_mj.sum(axis=1)) / self.mg
+            settled = t >= self._t0 + SETTLE_S
+            counted = stance & settled
+            if counted.any():
+                self._rel_max = nan_max(self._rel_max, float(rel[counted].max()))
+            if not settled.all():
+                self._settling_max = nan_max(self._settling_max, float(rel[~settled].max()))
+            quantiles[:] = np.column_stack((counted, rel, *(np.abs(fz_qp - fz_mj) / self.mg).T, ctrl_us,
+                                            qp_us, cycle_us, physics_us))
+        self._rows[rows] = kept
+        self.k = k0 + b
+        self._row = -(-self.k // self.stride)
+
+    def _slips(self, loaded: np.ndarray, xy: np.ndarray) -> np.ndarray:
+        """Each foot's slip [m] over a batch: how far its site moved while it supports (0 otherwise).
+
+        A foot's slip counts from where it was when it last did not support (or, supporting since
+        the run began, where it first did).
+
+        Args:
+            loaded: (b, n_feet) the foot supports at full weight and MuJoCo measures >= 10 % of m g on it.
+            xy: (b, n_feet, 2) its site's x, y [m] in W.
+        """
+        b = len(loaded)
+        slip = np.zeros(loaded.shape)
+        for j, f in enumerate(FEET):
+            # each cycle's home: the site at the last cycle not supporting (-1: none in this batch)
+            last = np.maximum.accumulate(np.where(loaded[:, j], -1, np.arange(b)))
+            home = xy[np.maximum(last, 0), j]
+            carried = self._home.get(f, tuple(xy[0, j].tolist()))
+            home[last < 0] = carried
+            d = xy[:, j] - home
+            slip[:, j] = np.where(loaded[:, j], np.hypot(d[:, 0], d[:, 1]), 0.0)
+            self._home[f] = tuple(home[-1].tolist()) if last[-1] < 0 else tuple(xy[last[-1], j].tolist())
+        return slip
 
     def with_truth(self, com_W: np.ndarray, fell: bool) -> dict[str, Any]:
         """Replace the CoM error and the fall verdict by the plant's truth (a DDS run's truth log).
@@ -448,7 +452,7 @@ class WBCLog:
             # the cycle beyond its controller and its physics step (targets, state, command, plant
             # monitor, this record and its CSV row, the loop), per cycle; in-process only
             "cycle_overhead_median_us": quantile(overhead[np.isfinite(overhead)]) if mon is not None else nan,
-            # its mean: the recording's batches (BATCH cycles at once) and the CSV's flushes included
+            # its mean: the recording's batches (``batch`` cycles at once) and the CSV's flushes included
             "cycle_overhead_mean_us": _mean(overhead[np.isfinite(overhead)]) if mon is not None else nan,
             "qp_fast_path_fraction": ctrl.fast_path_cycles / max(1, ctrl.fast_path_cycles + ctrl.daqp_cycles),
             "contact_normal_rel_error_per_foot": per_foot,

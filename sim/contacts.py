@@ -25,6 +25,24 @@ _K = TypeVar("_K")
 _SENSOR_OFF = int(mujoco.mjtDisableBit.mjDSBL_SENSOR)
 
 
+def sums_block(nets: np.ndarray) -> np.ndarray:
+    """:meth:`ContactSensor.sums` of many periods at once: (b, 10 G) nets -> (b, G, 6) sums.
+
+    Each row is a period's :meth:`ContactSensor.net` (G groups); each group's sums are ``[fx, fy,
+    fz, fz x, fz y, n]``: the force on the group [N] in W, fz times its centre of pressure [N m] and
+    the number of contacts (a float here).
+    """
+    a = nets.reshape(len(nets), -1, 10)
+    out = np.empty((*a.shape[:2], 6))
+    fz = a[..., 3]
+    out[..., :3] = -a[..., 1:4]  # what the group exerts, turned into what acts on it
+    # fz * CoP = fz p + (horizontal moment about p) x z
+    out[..., 3] = a[..., 5] - fz * a[..., 7]
+    out[..., 4] = -a[..., 4] - fz * a[..., 8]
+    out[..., 5] = a[..., 0]
+    return out
+
+
 def sensors_on(options: mujoco.MjOption) -> bool:
     """Whether MuJoCo computes its sensors now (``options``: a model's ``opt``, read live)."""
     return not options.disableflags & _SENSOR_OFF
@@ -128,12 +146,7 @@ class ContactSensor:
 
     def sums_from(self, net: Sequence[float]) -> list[list[float]]:
         """:meth:`sums` from a period's :meth:`net` (read then, converted now)."""
-        out = []
-        for k in range(0, len(net), 10):
-            # fz * CoP = fz p + (horizontal moment about p) x z, from what the group exerts
-            n, fx, fy, fz, nx, ny, _, px, py, _ = net[k:k + 10]
-            out.append([-fx, -fy, -fz, ny - fz * px, -nx - fz * py, int(n)])
-        return out
+        return [[*g[:5], int(g[5])] for g in sums_block(np.asarray(net, dtype=float)[None])[0].tolist()]
 
     def sums(self, data: mujoco.MjData, geoms: list[list[int]] | None = None) -> list[list[float]]:
         """Per group, in ``names`` order: ``[fx, fy, fz, fz x, fz y, n]``, plain Python numbers.

@@ -208,6 +208,32 @@ class CsvStream:
             if self._write_through:
                 self._flush_locked()
 
+    def write_rows(self, block: np.ndarray) -> None:
+        """Append the rows of ``block`` (b, columns), copied, in one step: all of them or none.
+
+        Raises:
+            ValueError: ``block`` is not (b, columns), or the stream is closed.
+            OSError: An earlier flush failed (e.g. the disk is full).
+        """
+        if block.ndim != 2 or block.shape[1] != self._width:
+            raise ValueError(f"rows of {self.path.name} have {self._width} values; got a block of shape "
+                             f"{block.shape}")
+        if self._error is not None:
+            raise self._error
+        b = len(block)
+        with self._lock:
+            if self._closed:
+                raise ValueError(f"{self.path.name} is closed; no row can be written")
+            n, on_disk, size, last = self._cursor
+            while n + b > len(self._block) and (n or len(self._block) < self._max_rows):
+                n, on_disk, size, last = self._make_room()
+            if n + b > len(self._block):  # larger than the largest block: a block of its own
+                self._block = np.empty((b, self._width))
+            self._block[n:n + b] = block
+            self._cursor = (n + b, on_disk, size, last)
+            if self._write_through:
+                self._flush_locked()
+
     def flush(self) -> None:
         """Write every accepted row to the file now (the thread does it every interval)."""
         with self._lock:

@@ -102,6 +102,32 @@ class WBCConfig:
                                 f"got {self.on_infeasible!r}")
 
 
+def foot_totals_and_cops_W(forces_F: np.ndarray, X_WF: np.ndarray,
+                           points_F: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """A foot's total contact force and centre of pressure in W, over b solutions at once.
+
+    With the point forces in W ``f_P = R_WF f_FP``: the total is ``sum_P f_P``; the CoP is
+    ``sum_P fz_P p_P / sum_P fz_P`` with ``p_P = R_WF p_FP + p_WF``, so the points are averaged in F
+    and moved to W once (NaN where the total normal force is not above 1e-6 N).
+
+    Args:
+        forces_F: The points' forces (b, n_points, 3) [N] in F.
+        X_WF: The foot frame's poses (b, 4, 4), homogeneous.
+        points_F: The points (n_points, 3) [m] in F.
+
+    Returns:
+        The totals (b, 3) [N] and the CoPs (b, 3) [m], in W.
+    """
+    R = X_WF[:, :3, :3]
+    total = np.einsum("bij,bj->bi", R, forces_F.sum(axis=1))
+    fz_W = np.einsum("bpj,bj->bp", forces_F, R[:, 2])  # each point's force along W's z
+    fz = total[:, 2:]
+    loaded = fz > 1e-6
+    with np.errstate(divide="ignore", invalid="ignore"):
+        cop = np.einsum("bij,bj->bi", R, fz_W @ points_F) / np.where(loaded, fz, np.nan) + X_WF[:, :3, 3]
+    return total, cop
+
+
 @dataclass(frozen=True, init=False)
 class WBCSolution:
     """What the last cycle commanded and the QP predicted.
@@ -210,14 +236,8 @@ class WBCSolution:
         out = {}
         for name, F in self.forces_F.items():
             X = self.foot_poses_W[name]
-            R = X.rotation
-            f_W = F @ R.T
-            total = f_W.sum(0)
-            fz = total[2]
-            if fz > 1e-6:
-                out[name] = (total, R @ (f_W[:, 2] @ self.points_F[name]) / fz + X.translation)
-            else:
-                out[name] = (total, np.full(3, np.nan))
+            total, cop = foot_totals_and_cops_W(F[None], X.homogeneous[None], self.points_F[name])
+            out[name] = (total[0], cop[0])
         return out
 
     @property

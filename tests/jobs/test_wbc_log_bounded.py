@@ -143,8 +143,8 @@ def test_with_truth_compares_every_cycles_truth_with_its_reference_in_a_capped_l
     logs = []
     init = WBCLog.__init__
 
-    def unobserved(self, ctx, wb, monitor, pushes, n, mg_n, q_names):
-        init(self, ctx, wb, None, pushes, n, mg_n, q_names)
+    def unobserved(self, ctx, wb, monitor, pushes, n, mg_n, q_names, batch):
+        init(self, ctx, wb, None, pushes, n, mg_n, q_names, batch)
         logs.append(self)
 
     monkeypatch.setattr(WBCLog, "__init__", unobserved)
@@ -165,3 +165,52 @@ def test_with_truth_compares_every_cycles_truth_with_its_reference_in_a_capped_l
                                                       rel=1e-12)
     assert np.array_equal(log.record().com, truth[log.row_cycles()])  # the plots' rows
     assert np.allclose(log.com_error_rows()[1], np.linalg.norm(truth - ref, axis=1)[log.row_cycles()])
+
+
+@pytest.mark.parametrize("latency", [False, True])
+def test_com_error_sums_in_blocks_equal_them_cycle_by_cycle(latency):
+    rng = np.random.default_rng(4)
+    n = 300
+    t = np.arange(n) * 0.002
+    t_plant = t + (0.005 if latency else 0.0)
+    ref = np.column_stack([np.sin(3 * t), np.cos(2 * t), 0.7 + 0.01 * t])
+    com = ref + rng.normal(0, 1e-3, (n, 3))
+    one, blocks = CoMErrorSums(), CoMErrorSums()
+    last = []
+    for k in range(n):
+        one.add(float(t[k]), tuple(ref[k].tolist()), float(t_plant[k]), tuple(com[k].tolist()))
+        last.append(one.last)
+    out, at = [], 0
+    for b in (1, 64, 0, 7, 128, 100):
+        out.append(blocks.add_block(t[at:at + b], ref[at:at + b], t_plant[at:at + b], com[at:at + b]))
+        at += b
+    assert at == n and blocks.count == one.count == n - (3 if latency else 0)
+    assert blocks.sum_sq == pytest.approx(one.sum_sq, rel=1e-13) and blocks.last == one.last
+    np.testing.assert_allclose(np.vstack(out), np.array(last), rtol=1e-13, equal_nan=True)
+
+
+def test_slips_over_batches_equal_the_cycle_by_cycle_rule():
+    """A foot's slip counts from where it last did not support (or where it first did)."""
+    rng = np.random.default_rng(5)
+    n, feet = 500, len(wbc_log.FEET)
+    loaded = rng.random((n, feet)) < 0.9
+    loaded[:40] = True  # supporting from the start: from where it first did
+    xy = np.cumsum(rng.normal(0, 1e-3, (n, feet, 2)), axis=0)
+    home: dict[int, tuple[float, float]] = {}
+    expected = np.zeros((n, feet))
+    for k in range(n):  # the rule, cycle by cycle
+        for j in range(feet):
+            x, y = xy[k, j]
+            if loaded[k, j]:
+                hx, hy = home.setdefault(j, (x, y))
+                expected[k, j] = math.hypot(x - hx, y - hy)
+            else:
+                home[j] = (x, y)
+    log = WBCLog.__new__(WBCLog)
+    log._home = {}
+    got, at = [], 0
+    for b in (3, 64, 1, 256, 176):
+        got.append(log._slips(loaded[at:at + b], xy[at:at + b]))
+        at += b
+    np.testing.assert_allclose(np.vstack(got), expected, rtol=0, atol=1e-15)
+    assert expected[:40].max() > 1e-3 and (expected[~loaded] == 0).all()

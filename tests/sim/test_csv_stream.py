@@ -228,3 +228,21 @@ def test_a_failed_flush_in_the_thread_is_raised_by_the_next_write(tmp_path, monk
     with pytest.raises(OSError, match="No space left"):
         stream.close()
     assert stream.closed
+
+
+def test_blocks_of_rows_are_kept_exactly_however_they_fit_the_buffer(tmp_path, monkeypatch):
+    monkeypatch.setattr(csv_stream, "_BLOCK_MAX_BYTES", 8 * 3 * 100)  # at most 100 rows of 3 buffered
+    rng = np.random.default_rng(1)
+    rows = rng.standard_normal((1000, 3))
+    rows[7, 1] = np.nan
+    path = tmp_path / "blocks.csv"
+    with CsvStream(path, ["a", "b", "c"], flush_interval_s=10.0) as stream:  # no flush by the thread
+        at = 0
+        for b in (1, 255, 2, 300, 99, 1, 0, 342):  # within a block, growing it, past its largest
+            stream.write_rows(rows[at:at + b])
+            at += b
+        assert stream.rows == at == 1000 and np.array_equal(stream.last, rows[-1])
+        with pytest.raises(ValueError, match=r"have 3 values; got a block of shape \(2, 4\)"):
+            stream.write_rows(np.zeros((2, 4)))
+    data = read_csv(path)
+    np.testing.assert_array_equal(np.column_stack([data[c] for c in "abc"]), rows)

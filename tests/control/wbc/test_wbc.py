@@ -430,3 +430,25 @@ def test_centroidal_map_and_drift_equal_pinocchios(tiny_biped, fixed):
         fresh = DynamicsState(model, q, v)  # com_drift before centroidal_drift (its own path)
         np.testing.assert_allclose(fresh.com_drift(), data.acom[0], atol=1e-10)
         np.testing.assert_allclose(state.com_drift(), data.acom[0], atol=1e-10)
+
+
+def test_foot_totals_and_cops_over_a_batch_are_each_solutions_own():
+    from mbctl.control.wbc.config import foot_totals_and_cops_W
+
+    rng = np.random.default_rng(6)
+    points = rng.normal(0, 0.05, (4, 3))
+    poses = [pin.SE3.Random() for _ in range(5)]
+    forces_W = rng.normal(0, 20, (5, 4, 3)) + [0.0, 0.0, 60.0]  # pushing up, each point
+    forces_W[1, :, 2] *= -1.0  # a foot pulled off the ground
+    forces_W[3] = 0.0  # an unloaded one: neither has a centre of pressure
+    forces = np.array([F @ X.rotation for F, X in zip(forces_W, poses, strict=True)])  # in F
+    total, cop = foot_totals_and_cops_W(forces, np.array([X.homogeneous for X in poses]), points)
+    for i, X in enumerate(poses):
+        f_W = forces[i] @ X.rotation.T
+        p_W = points @ X.rotation.T + X.translation
+        np.testing.assert_allclose(total[i], f_W.sum(0), atol=1e-12)
+        if f_W[:, 2].sum() <= 1e-6:  # a foot pulled off or unloaded (3)
+            assert np.isnan(cop[i]).all()
+        else:  # the CoP of the points' world-z forces, where the total's z is not ~0
+            np.testing.assert_allclose(cop[i], f_W[:, 2] @ p_W / f_W[:, 2].sum(), rtol=1e-9, atol=1e-12)
+    assert np.isfinite(cop).all(axis=1).tolist() == [True, False, True, False, True]
