@@ -50,14 +50,15 @@ class PlantSample(NamedTuple):
         com_W: Robot CoM (3,) [m] at ``time_s``.
         site_array_W: The sampled sites' positions (s, 3) [m].
         contact_net: The contact groups' net contacts, as read
-            (:meth:`ContactSensor.net <mbctl.sim.contacts.ContactSensor.net>`; empty without groups).
+            (:meth:`ContactSensor.net <mbctl.sim.contacts.ContactSensor.net>`; empty without groups):
+            the array read from MuJoCo's sensors, or the list of the contacts' loop.
         physics_time_s: Wall time [s] of the period's physics (MuJoCo's steps; the last ``sync``'s).
     """
 
     time_s: float
     com_W: np.ndarray
     site_array_W: np.ndarray
-    contact_net: list[float]
+    contact_net: Sequence[float]
     physics_time_s: float
 
 
@@ -242,9 +243,12 @@ class PlantMonitor:
         # caller reads it; the contacts' geom pairs read at most once, for the groups and the floor
         geoms: list[list[int]] | None = None
         counts: list[float] | None = None
+        net: Sequence[float]
         if self._read is not None and sensors_on(self._opt):
-            read = self._sensordata.take(self._read).tolist()
-            net, counts = read[:self._n_net], read[self._n_net:]
+            taken = self._sensordata.take(self._read)
+            # the net contacts kept as the array read (a log stacks many periods' in one call), the
+            # counts as plain numbers for the floor's bodies below
+            net, counts = taken[:self._n_net], taken[self._n_net:].tolist()
         else:
             geoms = d.contact.geom.tolist() if d.ncon else []
             net = self._sensor.net(d, geoms) if self._sensor is not None else []
