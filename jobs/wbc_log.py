@@ -241,11 +241,12 @@ class WBCLog:
                 i1 += 1
             run = sols[i0:i1]
             forces = np.array([sol.forces for sol in run])
+            X = np.array([sol.foot_X_W for sol in run])  # (b, n_feet, 4, 4), force_slices' order
+            order = list(first.force_slices)
             for j, f in enumerate(FEET):
                 sl = first.force_slices[f]
-                X = np.array([sol.foot_poses_W[f].homogeneous for sol in run])
-                total, cop = foot_totals_and_cops_W(forces[:, sl].reshape(len(run), -1, 3), X,
-                                                    first.points_F[f])
+                total, cop = foot_totals_and_cops_W(forces[:, sl].reshape(len(run), -1, 3),
+                                                    X[:, order.index(f)], first.points_F[f])
                 out[i0:i1, j, 0] = total[:, 2]
                 out[i0:i1, j, 1] = np.hypot(total[:, 0], total[:, 1])
                 out[i0:i1, j, 2:] = cop[:, :2]

@@ -133,7 +133,8 @@ class WBCSolution:
     """What the last cycle commanded and the QP predicted.
 
     The QP's forces are in each foot's frame F; the world-frame views (``forces_W``, ``points_W``,
-    ``foot_origins_W``, ``wrenches_W``, ``cop_W``) are computed when first read.
+    ``foot_origins_W``, ``wrenches_W``, ``cop_W``) and the poses as Pinocchio objects
+    (``foot_poses_W``) are computed when first read.
 
     Attributes:
         tau: Joint torques (n_actuated,) [N m], actuator order.
@@ -142,8 +143,9 @@ class WBCSolution:
             the fallback); by foot in ``forces_F``.
         force_slices: Each foot's entries of ``forces``, by foot name.
         points_F: Contact points by foot name, (n_points, 3) [m] in F.
-        foot_poses_W: Foot frame poses ``X_WF`` by foot name (copies).
-        wrench_map: (6 n_feet, n_f): the foot with index k (in ``foot_poses_W``'s order) has the
+        foot_X_W: Foot frame poses ``X_WF``, homogeneous (4, 4) each, feet in ``force_slices``' order
+            (a log stacks many cycles' in one numpy call).
+        wrench_map: (6 n_feet, n_f): the foot with index k (in ``force_slices``' order) has the
             wrench ``[f; m]`` about its frame's origin, in F, of rows 6k to 6k + 6 times ``forces``
             (the points' Jacobian map ``blockdiag(G_F)`` transposed).
         controller_time_s: Wall time of the whole ``compute`` [s], its torque command's checks included.
@@ -156,19 +158,19 @@ class WBCSolution:
     forces: np.ndarray
     force_slices: dict[str, slice]
     points_F: dict[str, np.ndarray]
-    foot_poses_W: dict[str, pin.SE3]
+    foot_X_W: tuple[np.ndarray, ...]
     wrench_map: np.ndarray
     controller_time_s: float
     qp_time_s: float
     fallback: bool = False
 
     def __init__(self, tau: np.ndarray, vdot: np.ndarray, forces: np.ndarray, force_slices: dict[str, slice],
-                 points_F: dict[str, np.ndarray], foot_poses_W: dict[str, pin.SE3], wrench_map: np.ndarray,
+                 points_F: dict[str, np.ndarray], foot_X_W: tuple[np.ndarray, ...], wrench_map: np.ndarray,
                  controller_time_s: float, qp_time_s: float, fallback: bool = False) -> None:
         # Hand-written (the fields in one dict update): one is made every control cycle, and the
         # generated frozen __init__ sets each field through object.__setattr__ (~1.6 us against ~0.6)
         self.__dict__.update(tau=tau, vdot=vdot, forces=forces, force_slices=force_slices, points_F=points_F,
-                             foot_poses_W=foot_poses_W, wrench_map=wrench_map,
+                             foot_X_W=foot_X_W, wrench_map=wrench_map,
                              controller_time_s=controller_time_s, qp_time_s=qp_time_s, fallback=fallback)
 
     @functools.cached_property
@@ -177,34 +179,40 @@ class WBCSolution:
         return {name: self.forces[cols].reshape(-1, 3) for name, cols in self.force_slices.items()}
 
     @functools.cached_property
+    def foot_poses_W(self) -> dict[str, pin.SE3]:
+        """Foot frame poses ``X_WF`` by foot name (Pinocchio's, from ``foot_X_W``)."""
+        return {name: pin.SE3(X) for name, X in zip(self.force_slices, self.foot_X_W, strict=True)}
+
+    @functools.cached_property
     def forces_W(self) -> dict[str, np.ndarray]:
         """Contact point forces by foot name, (n_points, 3) [N] in W."""
-        return {name: F @ self.foot_poses_W[name].rotation.T for name, F in self.forces_F.items()}
+        return {name: F @ X[:3, :3].T
+                for (name, F), X in zip(self.forces_F.items(), self.foot_X_W, strict=True)}
 
     @functools.cached_property
     def points_W(self) -> dict[str, np.ndarray]:
         """Contact point positions by foot name, (n_points, 3) [m] in W."""
-        return {name: P @ self.foot_poses_W[name].rotation.T + self.foot_poses_W[name].translation
-                for name, P in self.points_F.items()}
+        return {name: self.points_F[name] @ X[:3, :3].T + X[:3, 3]
+                for name, X in zip(self.force_slices, self.foot_X_W, strict=True)}
 
     @functools.cached_property
     def foot_origins_W(self) -> dict[str, np.ndarray]:
         """Foot frame origins by foot name, (3,) [m] in W."""
-        return {name: X.translation.copy() for name, X in self.foot_poses_W.items()}
+        return {name: X[:3, 3].copy() for name, X in zip(self.force_slices, self.foot_X_W, strict=True)}
 
     @functools.cached_property
     def wrenches_F(self) -> np.ndarray:
         """Each foot's wrench [f, m] [N, N m] about its frame's origin, in F, (n_feet, 2, 3).
 
-        Feet in ``foot_poses_W``'s order; ``wrench_map`` times ``forces``.
+        Feet in ``force_slices``' order; ``wrench_map`` times ``forces``.
         """
         return (self.wrench_map @ self.forces).reshape(-1, 2, 3)
 
     @functools.cached_property
     def wrenches_W(self) -> dict[str, np.ndarray]:
         """Foot wrench about the foot frame origin, in W, [f; m] (6,) [N, N m], by foot name."""
-        return {name: (wrench @ X.rotation.T).ravel()
-                for (name, X), wrench in zip(self.foot_poses_W.items(), self.wrenches_F, strict=True)}
+        return {name: (wrench @ X[:3, :3].T).ravel()
+                for name, X, wrench in zip(self.force_slices, self.foot_X_W, self.wrenches_F, strict=True)}
 
     def moment_about_W(self, point_W: np.ndarray) -> tuple[np.ndarray, float]:
         """The contact forces' total moment (3,) [N m] about ``point_W`` (3,) [m] and their total z [N], in W.
@@ -215,9 +223,9 @@ class WBCSolution:
         """
         cx, cy, cz = point_W.tolist()
         mx = my = mz = fz = 0.0
-        for X, wrench in zip(self.foot_poses_W.values(), self.wrenches_F, strict=True):
-            (ax, bx), (ay, by), (az, bz) = (X.rotation @ wrench.T).tolist()  # columns: f, m in W
-            tx, ty, tz = X.translation.tolist()
+        for X, wrench in zip(self.foot_X_W, self.wrenches_F, strict=True):
+            (ax, bx), (ay, by), (az, bz) = (X[:3, :3] @ wrench.T).tolist()  # columns: f, m in W
+            tx, ty, tz = X[:3, 3].tolist()
             rx, ry, rz = tx - cx, ty - cy, tz - cz
             mx += bx + ry * az - rz * ay
             my += by + rz * ax - rx * az
@@ -234,9 +242,8 @@ class WBCSolution:
         in F and moved to W once.
         """
         out = {}
-        for name, F in self.forces_F.items():
-            X = self.foot_poses_W[name]
-            total, cop = foot_totals_and_cops_W(F[None], X.homogeneous[None], self.points_F[name])
+        for (name, F), X in zip(self.forces_F.items(), self.foot_X_W, strict=True):
+            total, cop = foot_totals_and_cops_W(F[None], X[None], self.points_F[name])
             out[name] = (total[0], cop[0])
         return out
 

@@ -49,11 +49,13 @@ def test_the_solution_is_a_frozen_dataclass_with_its_fields():
     from mbctl.control.wbc.config import WBCSolution
 
     tau, vdot, forces = np.arange(3.0), np.arange(4.0), np.arange(6.0)
-    args = (tau, vdot, forces, {"l": slice(0, 6)}, {"l": np.zeros((2, 3))}, {"l": pin.SE3.Identity()},
-            np.eye(6), 1e-4, 5e-5)
+    X = pin.SE3.Random()
+    args = (tau, vdot, forces, {"l": slice(0, 6)}, {"l": np.zeros((2, 3))}, (X.homogeneous,), np.eye(6),
+            1e-4, 5e-5)
     sol = WBCSolution(*args)
     assert [getattr(sol, f.name) for f in dataclasses.fields(sol)][:9] == list(args) and not sol.fallback
     assert WBCSolution(*args, fallback=True).fallback
+    assert sol.foot_poses_W["l"].isApprox(X, 1e-15)  # the poses as Pinocchio's, from the array
     with pytest.raises(dataclasses.FrozenInstanceError):
         sol.tau = tau  # type: ignore[misc]
     later = dataclasses.replace(sol, qp_time_s=7e-5)
