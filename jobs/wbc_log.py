@@ -160,13 +160,13 @@ class WBCLog:
         self.csv = ctx.open_csv(header)
         # The kept rows (every stride-th cycle and the last, for the plots): the CSV's columns up to
         # the torques, then what only the record keeps; the record's fields are views. The torques and
-        # q go to the CSV only (a scratch row). A cycle not kept is written to the next kept row's
-        # place and overwritten, as the control loop's log does: the run's last cycle is always kept.
+        # q go to the CSV only. A cycle not kept is written to the next kept row's place and
+        # overwritten, as the control loop's log does: the run's last cycle is always kept.
         w, nf, nt = len(header), len(FEET), len(ctrl.joints.actuators)
         feet_at = header.index(f"{FEET[0]}_fz_qp_N")
         self._tau = slice(feet_at + _PER_FOOT * nf, feet_at + _PER_FOOT * nf + nt)
         self._q = slice(self._tau.stop, w)
-        self._csv_row = np.zeros(w)
+        self._feet_at, self._width = feet_at, w
         kept = self._tau.start
         self.n, self.stride = n, log_stride(n, MAX_LOG_ROWS)
         rows = log_rows(n, self.stride)
@@ -275,14 +275,19 @@ class WBCLog:
         return mon is not None and mon.fall_reason is not None
 
     def _drain(self) -> None:
-        """Record the cycles kept so far, in order (the progress bar advances by them)."""
+        """Record the cycles kept so far, in order (the progress bar advances by them).
+
+        Interrupted (Ctrl-C) before the batch's CSV rows are written, the batch stays kept and the
+        next reader (the runner's :meth:`values` at the end) records it: every completed cycle's row
+        is kept. Nothing the batch changes is changed before its rows are written.
+        """
         if self._pending:
-            batch, self._pending = self._pending, deque()
-            self.ctx.progress.advance(len(batch))
-            self._record(batch)
+            n = len(self._pending)
+            self._record(self._pending)
+            self.ctx.progress.advance(n)
 
     def _record(self, batch: deque[tuple]) -> None:
-        """Record the cycles :meth:`on_step` kept, as arrays over the batch.
+        """Record the cycles :meth:`on_step` kept, as arrays over the batch (see :meth:`_drain`).
 
         Each entry's ``plant`` is the monitor's sample of the period, or over DDS the controller's CoM
         (3 floats).
@@ -297,10 +302,9 @@ class WBCLog:
         com = np.array([p.com_W for p in plants]) if mon is not None else np.array(plants)
         if not k0:
             self._t0 = float(t[0])
-        block = np.empty((b, len(self._csv_row)))  # the CSV's rows
+        block = np.empty((b, self._width))  # the CSV's rows
         block[:, 0], block[:, 1:4], block[:, 4:7], block[:, 7], block[:, 8:10] = t, ref, com, q[:, 2], pushes
-        at_feet = self._tau.start - _PER_FOOT * len(FEET)
-        cols = block[:, at_feet:self._tau.start].reshape(b, len(FEET), _PER_FOOT)
+        cols = block[:, self._feet_at:self._tau.start].reshape(b, len(FEET), _PER_FOOT)  # a view of block
         qp = cols[:, :, :4]
         qp[:] = self._qp_feet(sols)
         state_feet = np.array(feet)  # (b, n_feet, 2): active, weight
@@ -318,10 +322,13 @@ class WBCLog:
             cols[:, :, 5] = np.hypot(sums[:, :, 0], sums[:, :, 1])
             xy = np.array([p.site_array_W for p in plants])[:, self._sites, :2]
             slip = cols[:, :, 8]
-            slip[:] = self._slips(supporting & (fz >= SUPPORT_FRACTION * self.mg), xy)
+            slip[:], homes = self._slips(supporting & (fz >= SUPPORT_FRACTION * self.mg), xy)
         block[:, self._tau] = [c.values for c in commands]
         block[:, self._q] = q
         self.csv.write_rows(block)
+        self._pending = deque()  # the batch is in the CSV: from here on it is never recorded again
+        if mon is not None:
+            self._home = homes
         # the kept rows: the CSV's columns, then the record's others
         at, rows = batch_rows(k0, b, self.stride)
         kept = self._rows[rows]
@@ -362,7 +369,7 @@ class WBCLog:
         self.k = k0 + b
         self._row = -(-self.k // self.stride)
 
-    def _slips(self, loaded: np.ndarray, xy: np.ndarray) -> np.ndarray:
+    def _slips(self, loaded: np.ndarray, xy: np.ndarray) -> tuple[np.ndarray, dict[str, tuple[float, float]]]:
         """Each foot's slip [m] over a batch: how far its site moved while it supports (0 otherwise).
 
         A foot's slip counts from where it was when it last did not support (or, supporting since
@@ -371,19 +378,24 @@ class WBCLog:
         Args:
             loaded: (b, n_feet) the foot supports at full weight and MuJoCo measures >= 10 % of m g on it.
             xy: (b, n_feet, 2) its site's x, y [m] in W.
+
+        Returns:
+            The slips (b, n_feet) and each foot's place to count from after the batch (the log's
+            ``_home`` is not changed here).
         """
         b = len(loaded)
         slip = np.zeros(loaded.shape)
+        homes = dict(self._home)
         for j, f in enumerate(FEET):
             # each cycle's home: the site at the last cycle not supporting (-1: none in this batch)
             last = np.maximum.accumulate(np.where(loaded[:, j], -1, np.arange(b)))
             home = xy[np.maximum(last, 0), j]
-            carried = self._home.get(f, tuple(xy[0, j].tolist()))
+            carried = homes.get(f, tuple(xy[0, j].tolist()))
             home[last < 0] = carried
             d = xy[:, j] - home
             slip[:, j] = np.where(loaded[:, j], np.hypot(d[:, 0], d[:, 1]), 0.0)
-            self._home[f] = tuple(home[-1].tolist()) if last[-1] < 0 else tuple(xy[last[-1], j].tolist())
-        return slip
+            homes[f] = tuple(home[-1].tolist()) if last[-1] < 0 else tuple(xy[last[-1], j].tolist())
+        return slip, homes
 
     def with_truth(self, com_W: np.ndarray, fell: bool) -> dict[str, Any]:
         """Replace the CoM error and the fall verdict by the plant's truth (a DDS run's truth log).

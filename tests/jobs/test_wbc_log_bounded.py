@@ -210,7 +210,33 @@ def test_slips_over_batches_equal_the_cycle_by_cycle_rule():
     log._home = {}
     got, at = [], 0
     for b in (3, 64, 1, 256, 176):
-        got.append(log._slips(loaded[at:at + b], xy[at:at + b]))
+        before = dict(log._home)
+        slip, homes = log._slips(loaded[at:at + b], xy[at:at + b])
+        assert log._home == before  # nothing changes before the batch's rows are written
+        got.append(slip)
+        log._home = homes
         at += b
     np.testing.assert_allclose(np.vstack(got), expected, rtol=0, atol=1e-15)
     assert expected[:40].max() > 1e-3 and (expected[~loaded] == 0).all()
+
+
+def test_ctrl_c_while_a_batch_is_recorded_keeps_every_cycles_row(g1, tmp_path, monkeypatch):
+    """Interrupted inside a batch's recording, before its CSV rows: the end of the run records it."""
+    sums = wbc_log.PlantMonitor.sums_of_samples
+    calls = []
+
+    def interrupted_once(self, samples):
+        calls.append(len(samples))
+        if len(calls) == 1:
+            raise KeyboardInterrupt
+        return sums(self, samples)
+
+    monkeypatch.setattr(wbc_log.PlantMonitor, "sums_of_samples", interrupted_once)
+    record = run_job(Job("g1-wbc", partial(prepare, robot=g1)), WBCParams(scenario="squat", duration=2.0),
+                     tmp_path)
+    batch = wbc_log.BATCH_IN_PROCESS
+    assert record.status == "interrupted" and calls == [batch, batch]  # the same batch, recorded at the end
+    c = _csv(record.files["csv"])
+    assert record.rows == len(c["time_s"]) == batch
+    np.testing.assert_allclose(np.diff(c["time_s"]), 0.002, rtol=1e-9)  # every cycle once, in order
+    assert c["left_foot_fz_mj_N"][-1] > 50.0 and np.isfinite(record.values["contact_force_rel_error"])
