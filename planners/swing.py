@@ -13,6 +13,9 @@ control cycle):
   over the horizontal time left, so the path stays twice differentiable; once less than
   ``MIN_RETARGET_S`` of it is left, the footstep is frozen (a late change would need an
   acceleration the leg cannot give).
+- **Timing**: the touchdown may come sooner (step timing adaptation): :meth:`SwingTrajectory.retime`
+  re-plans the horizontal motion and the height from the path's state to the same footstep over the
+  new swing, so a quicker swing still lands on its footstep, at rest, at its new end.
 - **Height**: up from the lift-off height ``z0`` to ``max(z0, z1) + h`` at ``T/2`` and down to the
   footstep's height ``z1`` at T, each half a quintic at rest at its ends, so the foot leaves and
   lands with zero velocity and zero acceleration and passes the apex with zero vertical velocity.
@@ -174,6 +177,7 @@ class SwingTrajectory:
             raise InvalidPlanningInput(f"lift_height_m must be finite and >= 0 [m]; got {lift_height_m!r}")
         if not (math.isfinite(horizontal_fraction) and 0.0 < horizontal_fraction <= 1.0):
             raise InvalidPlanningInput(f"horizontal_fraction must be in (0, 1]; got {horizontal_fraction!r}")
+        self.horizontal_fraction = float(horizontal_fraction)
         self.horizontal_end_s = float(t0_s) + horizontal_fraction * self.duration_s
         p0 = _point("start_position", start_position)
         p1 = _point("target_position", target_position)
@@ -193,8 +197,11 @@ class SwingTrajectory:
         self._cache: tuple[float, tuple] | None = None  # the last sample's floats (a cycle asks for it again)
         self._plane_end_cache: list[float] | None = None  # x, y, yaw at the horizontal motion's end
         self._plane_cache: tuple[float, tuple[list[float], list[float], list[float]]] | None = None
-        self._up = quintic_columns(float(p0[2]), 0.0, 0.0, float(apex), 0.0, 0.0, half)
-        self._down = quintic_columns(float(apex), 0.0, 0.0, float(p1[2]), 0.0, 0.0, half)
+        self._apex_m = float(apex)
+        #: The height's pieces (start [s], columns): each a quintic from its start to the next's (or the end).
+        z0, z1 = float(p0[2]), float(p1[2])
+        self._height = [(self.t0_s, quintic_columns(z0, 0.0, 0.0, self._apex_m, 0.0, 0.0, half)),
+                        (self.t0_s + half, quintic_columns(self._apex_m, 0.0, 0.0, z1, 0.0, 0.0, half))]
 
     @property
     def end_s(self) -> float:
@@ -234,6 +241,59 @@ class SwingTrajectory:
         self.target_yaw_rad = goal[2]
         return True
 
+    def retime(self, t_s: float, duration_s: float) -> bool:
+        """Touch down at ``t0_s + duration_s`` instead, from time ``t_s`` on, continuously.
+
+        The horizontal motion (to the same footstep) is re-planned from the path's state at ``t_s`` to
+        end at ``horizontal_fraction`` of the new swing (not before ``MIN_RETARGET_S`` from now), and the
+        height from its state at ``t_s`` to the apex at the new swing's half (if that is still ahead by
+        ``MIN_RETARGET_S``), then down to the footstep at the new end; a quicker swing so reaches its
+        footstep, at rest, at its new touchdown time.
+
+        Returns:
+            False (nothing changed) when the new end is less than ``2 MIN_RETARGET_S`` from ``t_s``
+            or the path has already touched down.
+
+        Raises:
+            InvalidPlanningInput: A non-positive or non-finite duration.
+        """
+        duration = check_time("duration_s", duration_s)
+        end = self.t0_s + duration
+        if end - t_s < 2.0 * MIN_RETARGET_S or t_s >= self.end_s:
+            return False
+        p, v, a = self._plane_at(t_s)
+        z, vz, az = self._height_at(max(t_s, self.t0_s))
+        fraction = self.horizontal_fraction
+        goal = [*self.target_position[:2].tolist(), self.target_yaw_rad]
+        horizontal_end = min(max(self.t0_s + fraction * duration, t_s + MIN_RETARGET_S), end)
+        if self.horizontal_end_s - t_s > 0.0:  # still moving: on from its state to the footstep
+            self._plane = quintic_columns(p, v, a, goal, 0.0, 0.0, horizontal_end - t_s)
+            self._plane_t0 = float(t_s)
+        else:  # already there: it stays
+            self._plane = quintic_columns(goal, 0.0, 0.0, goal, 0.0, 0.0, 1.0)
+            self._plane_t0 = horizontal_end - 1.0
+        self.horizontal_end_s = horizontal_end
+        z1 = float(self.target_position[2])
+        half = self.t0_s + 0.5 * duration
+        if half - t_s >= MIN_RETARGET_S:
+            self._height = [(t_s, quintic_columns(z, vz, az, self._apex_m, 0.0, 0.0, half - t_s)),
+                            (half, quintic_columns(self._apex_m, 0.0, 0.0, z1, 0.0, 0.0, end - half))]
+        else:
+            self._height = [(t_s, quintic_columns(z, vz, az, z1, 0.0, 0.0, end - t_s))]
+        self.duration_s = duration
+        self._cache = self._plane_end_cache = self._plane_cache = None
+        return True
+
+    def _height_at(self, t_s: float) -> tuple[float, float, float]:
+        """The height [m], its rate and acceleration on the height's pieces at ``t_s`` (within the swing)."""
+        start, columns = self._height[0]
+        for piece_start, piece in self._height[1:]:
+            if t_s < piece_start:
+                break
+            start, columns = piece_start, piece
+        (z,), (vz,), (az,) = quintic_columns_at(columns, t_s - start)
+        return z, vz, az
+
     def at(self, t_s: float) -> SwingSample:
         """The reference at time ``t_s`` [s] (held at the ends outside the swing; the caller may edit it)."""
         cached = self._cache
@@ -266,9 +326,7 @@ class SwingTrajectory:
         """:meth:`at`'s fields as floats (position, velocity and acceleration as (x, y, z) lists)."""
         tau = min(max(t_s - self.t0_s, 0.0), self.duration_s)
         p, v, a = self._plane_at(t_s)
-        half = 0.5 * self.duration_s
-        (z,), (vz,), (az,) = (quintic_columns_at(self._up, tau) if tau <= half
-                              else quintic_columns_at(self._down, tau - half))
+        z, vz, az = self._height_at(self.t0_s + tau)
         if t_s <= self.t0_s or t_s >= self.end_s:  # at rest outside the swing
             v, a, vz, az = [0.0] * 3, [0.0] * 3, 0.0, 0.0
         return [p[0], p[1], z], [v[0], v[1], vz], [a[0], a[1], az], p[2], v[2], tau / self.duration_s, a[2]

@@ -10,7 +10,7 @@ from mbctl.control.wbc.contacts import ContactState, FootContact, foot_contact_f
 from mbctl.control.wbc.controller import WholeBodyController
 from mbctl.control.wbc.gait import GaitEvent
 from mbctl.control.wbc.standing import Scheduled, Standing, standing_controller
-from mbctl.control.wbc.step_adaptation import StepAdaptation, StepAdapter, dcm_tube
+from mbctl.control.wbc.step_adaptation import StepAdaptation, StepAdapter, StepTiming, dcm_tube
 from mbctl.control.wbc.swing_task import SwingFootTask
 from mbctl.control.wbc.walking import WalkingController, WalkingStatus
 from mbctl.control.wbc.walking_config import WalkingConfig
@@ -23,6 +23,7 @@ __all__ = [
     "Standing",
     "StepAdaptation",
     "StepAdapter",
+    "StepTiming",
     "SwingFootTask",
     "WBCConfig",
     "WBCSolution",

@@ -205,7 +205,7 @@ class Gait:
         """Touch down on contact (after ``early_touchdown_phase`` of the swing), or as a late descent ends."""
         cfg = self.config
         late_s = t - self.phase_end
-        contact = t - self.t_phase >= cfg.early_touchdown_phase * cfg.timing.single_support_s \
+        contact = t - self.t_phase >= cfg.early_touchdown_phase * swing.path.duration_s \
             and touching(swing.foot)
         if not (contact or late_s * cfg.late_descent_m_s >= cfg.late_extension_m):
             return None
@@ -223,14 +223,25 @@ class Gait:
 
     def retargetable(self, t: float) -> bool:
         """Whether the swing footstep may still move (single support, before ``retarget_until_phase``)."""
-        cfg = self.config
-        until = cfg.retarget_until_phase * cfg.timing.single_support_s
-        return self.swing is not None and t - self.t_phase < until
+        swing = self.swing
+        until = self.config.retarget_until_phase * swing.path.duration_s if swing is not None else 0.0
+        return swing is not None and t - self.t_phase < until
 
     def retarget(self, t: float, step: Footstep) -> None:
         """Move the swing footstep to ``step`` (x, y, yaw; the landing height stays)."""
         if self.swing is not None and self.swing.path.retarget(t, step.position, step.yaw_rad):
             self.revision += 1
+
+    def retime(self, t: float, end_s: float) -> None:
+        """Touch the swing foot down at ``end_s`` [s] instead (its path re-timed to reach its footstep)."""
+        swing = self.swing
+        if swing is not None and swing.path.retime(t, end_s - self.t_phase):
+            self.phase_end = self.t_phase + swing.path.duration_s
+            self.revision += 1
+
+    def swing_nominal_end_s(self) -> float:
+        """The touchdown time [s] the swing under way was planned with (before any re-timing)."""
+        return self.t_phase + self.config.timing.single_support_s
 
     def swing_sample(self, foot: str, t: float) -> SwingSample | None:
         """The swing foot's reference at ``t`` (lowered further while late); None for a foot not swinging."""

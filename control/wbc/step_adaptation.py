@@ -26,6 +26,21 @@ nominal one, and min_width(yaw) the narrowest stance at which its sole clears th
 (:meth:`~mbctl.planners.StepLimits.min_width_for`). The result says whether the DCM left its tube
 and whether a limit stopped the step from going all the way (``limited``: the robot then relies on
 the next step as well).
+
+**A quicker step** (:class:`StepTiming`, after Khadiv et al., "Walking control based on step timing
+adaptation", IEEE T-RO 2020). Where a limit holds the footstep ``timing_threshold_m`` or more short
+sideways (the side's reach is the shortest), the step's timing joins the QP. With the stance VRP r_s
+held, the DCM at the switch is ``r_s + tau (xi_e - r_s)``, ``tau = exp(omega (t1 - t))``, ``xi_e``
+the plan's DCM plus the error outside the tube; the footstep's VRP plus the plan's offset b_nom to it
+(the plan's DCM at the switch less the footstep's VRP: it does not depend on t1) should equal it::
+
+    min_(x, tau)  |r_s + tau (xi_e - r_s) - (x + c_u) - b_nom|^2 + w |x - x_nom|^2 + w_t (tau - tau_nom)^2
+    s.t.          the bounds on x above,  tau_min <= tau <= tau_now
+
+(c_u: the footstep's sole centre from its origin in S; w_t: ``timing_weight`` [m^2]; tau_nom: the
+step's planned timing, tau_now the plan's now, tau_min the quickest step's). At tau = tau_now it is the
+first QP; a quicker step lands before the DCM runs further, so its footstep needs less reach. The
+caller re-times the swing path to match (:meth:`~mbctl.planners.swing.SwingTrajectory.retime`).
 """
 
 from __future__ import annotations
@@ -44,6 +59,22 @@ from mbctl.planners.footsteps import Footstep, FootstepPlanner
 
 #: Vertices of the reach polygon [-].
 REACH_VERTICES = 8
+#: A quicker step still short of the DCM's need by more than this [m] counts as ``limited``.
+SHORT_M = 0.005
+
+
+class StepTiming(NamedTuple):
+    """The swing's timing for :meth:`StepAdapter.adapt` to adapt (times from now to the DCM plan's switch).
+
+    Attributes:
+        dcm_ref_W: The plan's DCM now (2,) [m] in W.
+        nominal_s: The time to the switch the step was planned with [s] (the longest allowed).
+        min_s: The time to the switch of the quickest step allowed [s].
+    """
+
+    dcm_ref_W: np.ndarray
+    nominal_s: float
+    min_s: float
 
 
 class StepAdaptation(NamedTuple):
@@ -55,6 +86,7 @@ class StepAdaptation(NamedTuple):
         outside_tube: The measured DCM was outside its tube (else the nominal footstep is kept).
         limited: A step limit stopped the footstep short of where the DCM needed it.
         solve_time_s: The QP's solve time [s] (0 when the DCM was inside its tube).
+        time_to_switch_s: The adapted time from now to the switch [s] (None: the timing was not adapted).
     """
 
     footstep: Footstep
@@ -62,6 +94,7 @@ class StepAdaptation(NamedTuple):
     outside_tube: bool
     limited: bool
     solve_time_s: float
+    time_to_switch_s: float | None = None
 
 
 def dcm_tube(sole_points_F: npt.ArrayLike, margin_m: float, gain_1_s: float, omega_rad_s: float,
@@ -97,21 +130,31 @@ class StepAdapter:
         omega_rad_s: ``sqrt(g / z_c)`` [rad/s].
         tube_m: The DCM tube's half-widths (forward, sideways) [m].
         nominal_weight: w [-] (> 0): how much the footstep prefers the nominal one.
+        sole_centre_xy: The sole centre (x, y) [m] in the foot frame (a footstep's VRP).
+        timing_weight: w_t [m^2] (> 0): how much the step's timing prefers the planned one.
+        timing_threshold_m: The timing is adapted once a limit holds the footstep this far [m] short
+            sideways (the side's reach is the shortest; walking sideways at the limit, small DCM errors
+            are left to the next step).
 
     Raises:
         WBCSetupError: A non-positive omega or weight, or a tube that is not 2 finite values >= 0.
     """
 
     def __init__(self, planner: FootstepPlanner, omega_rad_s: float, tube_m: npt.ArrayLike,
-                 nominal_weight: float = 0.01):
+                 nominal_weight: float = 0.01, sole_centre_xy: tuple[float, float] = (0.0, 0.0),
+                 timing_weight: float = 0.001, timing_threshold_m: float = 0.05):
         tube = np.asarray(tube_m, dtype=float)
-        if not (omega_rad_s > 0 and nominal_weight > 0 and tube.shape == (2,) and np.all(np.isfinite(tube))
-                and np.all(tube >= 0)):
-            raise WBCSetupError(f"step adaptation needs omega > 0, nominal_weight > 0 and a tube of 2 values "
-                                f">= 0; got {omega_rad_s!r}, {nominal_weight!r}, {tube_m!r}")
+        if not (omega_rad_s > 0 and nominal_weight > 0 and timing_weight > 0 and tube.shape == (2,)
+                and np.all(np.isfinite(tube)) and np.all(tube >= 0)):
+            raise WBCSetupError(f"step adaptation needs omega > 0, nominal_weight > 0, timing_weight > 0 "
+                                f"and a tube of 2 values >= 0; got {omega_rad_s!r}, {nominal_weight!r}, "
+                                f"{timing_weight!r}, {tube_m!r}")
         self.planner, self.omega, self.tube_m = planner, float(omega_rad_s), tube
-        self.nominal_weight = nominal_weight
+        self.nominal_weight, self.timing_weight = nominal_weight, float(timing_weight)
+        self.timing_threshold_m = float(timing_threshold_m)
+        self.sole_centre_xy = (float(sole_centre_xy[0]), float(sole_centre_xy[1]))
         self._solver = QPSolver(2)
+        self._timed_solver = QPSolver(3)
         self._h = 2.0 * (1.0 + nominal_weight)  # H = h I
         self._H = self._h * np.eye(2)
         lim = planner.limits
@@ -141,14 +184,15 @@ class StepAdapter:
         return normal, (normal * vertices).sum(axis=1)
 
     def adapt(self, stance: Footstep, nominal: Footstep, dcm_error_W: npt.ArrayLike,
-              time_to_switch_s: float) -> StepAdaptation:
+              time_to_switch_s: float, timing: StepTiming | None = None) -> StepAdaptation:
         """The swing footstep for a DCM error measured ``time_to_switch_s`` [s] before the next switch.
 
         Args:
             stance: The stance footstep.
             nominal: The command's footstep for the swing foot.
             dcm_error_W: ``xi - xi_ref`` (2,) [m] in W, the reference being the plan through ``nominal``.
-            time_to_switch_s: ``t1 - t`` [s] (>= 0).
+            time_to_switch_s: ``t1 - t`` [s] (>= 0) in the plan.
+            timing: Adapt the step's timing too, within these (None: the plan's timing stays).
         """
         c, s = math.cos(stance.yaw_rad), math.sin(stance.yaw_rad)
         e = np.asarray(dcm_error_W, dtype=float)
@@ -181,6 +225,52 @@ class StepAdapter:
         solve_time = time.perf_counter() - t0
         x = result.x.tolist() if result.x is not None else x_nom  # (never None: (0, s w) is feasible)
         px, py = sx + (c * x[0] - s * x[1]), sy + (s * x[0] + c * x[1])
+        limited = max(abs(x[0] - optimum[0]), abs(x[1] - optimum[1])) > 1e-9
+        if (timing is not None and abs(x[1] - optimum[1]) > self.timing_threshold_m
+                and timing.min_s < time_to_switch_s - 1e-6):
+            # held short: the quicker step's QP (at the plan's timing it is the same QP, so it does no worse)
+            timed = self._adapt_timed(stance, nominal, timing, (c, s), x_nom, out, time_to_switch_s, lb, ub,
+                                      (G, h))
+            return timed._replace(solve_time_s=timed.solve_time_s + solve_time)
         step = nominal._replace(position=np.array([px, py, nz]))
-        return StepAdaptation(step, np.array([px - nx, py - ny]), True,
-                              max(abs(x[0] - optimum[0]), abs(x[1] - optimum[1])) > 1e-9, solve_time)
+        return StepAdaptation(step, np.array([px - nx, py - ny]), True, limited, solve_time)
+
+    def _adapt_timed(self, stance: Footstep, nominal: Footstep, timing: StepTiming, cs: tuple[float, float],
+                     x_nom: list[float], out: list[float], time_to_switch_s: float, lb: np.ndarray,
+                     ub: np.ndarray, reach: tuple[np.ndarray, np.ndarray]) -> StepAdaptation:
+        """:meth:`adapt` with the step's timing (the module docstring's second QP), in S about the stance."""
+        c, s = cs
+        (sx, sy, _), (nx, ny, nz) = stance.position.tolist(), nominal.position.tolist()
+        rx, ry = timing.dcm_ref_W.tolist()
+        xi_ref = np.array([c * (rx - sx) + s * (ry - sy), -s * (rx - sx) + c * (ry - sy)])
+        r_s = np.array(self.sole_centre_xy)
+        dyaw = nominal.yaw_rad - stance.yaw_rad
+        cu, su = math.cos(dyaw), math.sin(dyaw)
+        c_u = np.array([cu * r_s[0] - su * r_s[1], su * r_s[0] + cu * r_s[1]])
+        x0 = np.array(x_nom)
+        omega = self.omega
+        b_nom = r_s + math.exp(omega * max(time_to_switch_s, 0.0)) * (xi_ref - r_s) - x0 - c_u
+        a = xi_ref + np.array(out) - r_s
+        k = r_s - c_u - b_nom
+        w, w_t = self.nominal_weight, self.timing_weight
+        tau_nom = math.exp(omega * max(timing.nominal_s, 0.0))
+        tau_min = math.exp(omega * max(timing.min_s, 0.0))
+        tau_max = math.exp(omega * max(time_to_switch_s, 0.0))  # quicker only
+        H = np.zeros((3, 3))
+        H[:2, :2] = 2.0 * (1.0 + w) * np.eye(2)
+        H[:2, 2] = H[2, :2] = -2.0 * a
+        H[2, 2] = 2.0 * (float(a @ a) + w_t)
+        q = np.concatenate([-2.0 * k - 2.0 * w * x0, [2.0 * float(a @ k) - 2.0 * w_t * tau_nom]])
+        G, h = reach
+        t0 = time.perf_counter()
+        result = self._timed_solver.solve(QPData(H, q, np.append(lb, tau_min), np.append(ub, tau_max),
+                                                 np.column_stack([G, np.zeros(len(G))]), h))
+        solve_time = time.perf_counter() - t0
+        if result.x is None:  # (never: the nominal step at its timing is feasible)
+            return StepAdaptation(nominal, np.zeros(2), True, True, solve_time)
+        x = result.x
+        short = float(np.linalg.norm(x[2] * a - x[:2] + k))  # the DCM's offset from b_nom at the switch
+        px, py = sx + (c * x[0] - s * x[1]), sy + (s * x[0] + c * x[1])
+        step = nominal._replace(position=np.array([px, py, nz]))
+        return StepAdaptation(step, np.array([px - nx, py - ny]), True, short > SHORT_M, solve_time,
+                              math.log(max(float(x[2]), 1.0)) / omega)

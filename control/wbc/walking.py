@@ -22,7 +22,10 @@ Each cycle:
    yaw rate also corrects the heading error (the heading reference integrates the yaw-rate
    command), and their speed the measured speed's error over the last step (the speed loop). The
    swing footstep follows the command until ``retarget_until_phase`` of the swing, moved by the
-   step-adaptation QP when the measured DCM leaves its tube (:mod:`mbctl.control.wbc.step_adaptation`).
+   step-adaptation QP when the measured DCM leaves its tube (:mod:`mbctl.control.wbc.step_adaptation`);
+   where a limit holds that footstep far short sideways, the QP shortens the swing as well
+   (``timing_adaptation``: no quicker than ``min_single_support_s``, ``min_swing_left_s`` from now,
+   nor than the foot's way to its footstep at ``max_swing_speed_m_s``), and the swing path is re-timed.
    The footsteps are planned every ``replan_period_s`` and at every contact event; steps 3 and 4
    run every cycle, on the plan in force.
 3. **DCM** (:mod:`mbctl.planners.dcm`): the plan through the footsteps' sole centres, the measured
@@ -55,7 +58,7 @@ from mbctl.control.wbc.config import WBCConfig
 from mbctl.control.wbc.contacts import foot_contact_from_model
 from mbctl.control.wbc.gait import Gait, GaitEvent
 from mbctl.control.wbc.standing import Standing, standing_controller
-from mbctl.control.wbc.step_adaptation import StepAdaptation, StepAdapter, dcm_tube
+from mbctl.control.wbc.step_adaptation import StepAdaptation, StepAdapter, StepTiming, dcm_tube
 from mbctl.control.wbc.swing_task import SwingFootTask
 from mbctl.control.wbc.walking_config import WalkingConfig
 from mbctl.planners.dcm import ConvexPolygon, dcm_omega
@@ -72,6 +75,9 @@ from mbctl.robots.model_pair import Robot
 
 #: ``contact_force(foot) -> normal force [N]`` measured on a foot (None: not measured).
 ContactForce = Callable[[str], "float | None"]
+
+#: The swing is re-timed when the adapted touchdown moves by more than this [s].
+RETIME_TOLERANCE_S = 0.002
 
 
 
@@ -172,7 +178,9 @@ class WalkingController:
         self.planner = FootstepPlanner(self.limits, cfg.timing, self.feet)
         self.omega = dcm_omega(cfg.com_height_m, float(np.linalg.norm(self.model.gravity.linear)))
         tube = dcm_tube(points, cfg.cmp_margin_m, cfg.dcm_gain_1_s, self.omega, cfg.dcm_tube_fraction)
-        self.adapter = StepAdapter(self.planner, self.omega, tube)
+        self.adapter = StepAdapter(self.planner, self.omega, tube, sole_centre_xy=(
+            float(self.sole_centre_F[0]), float(self.sole_centre_F[1])), timing_weight=cfg.timing_weight,
+            timing_threshold_m=cfg.timing_threshold_m)
         self.plans = WalkPlans(self.planner, cfg, self.omega)
         self.swing_tasks = {f: SwingFootTask(f, self.model, cfg.swing_cost, cfg.swing_gains,
                                              cfg.swing_orientation_cost) for f in self.feet}
@@ -414,8 +422,36 @@ class WalkingController:
         if not self.config.step_adaptation:
             return nominal
         plan, _ = self.plans.plan(gait, t, self._steer, nominal)
-        self._adaptation = self.adapter.adapt(stance, nominal, xi - plan.at(t).xi, plan.switch_times_s[0] - t)
-        return self._adaptation.footstep
+        ref = plan.at(t).xi
+        t1 = float(plan.switch_times_s[0])
+        timing = self._step_timing(gait, t, t1, ref)
+        adaptation = self.adapter.adapt(stance, nominal, xi - ref, t1 - t, timing)
+        self._adaptation = adaptation
+        if adaptation.time_to_switch_s is not None:  # the switch moved: so does the touchdown
+            end = t + adaptation.time_to_switch_s - (t1 - gait.phase_end)
+            if abs(end - gait.phase_end) > RETIME_TOLERANCE_S:
+                gait.retime(t, end)
+        return adaptation.footstep
+
+    def _step_timing(self, gait: Gait, t: float, t1: float, dcm_ref: np.ndarray) -> StepTiming | None:
+        """The swing's timing for the adaptation QP (None: timing adaptation off, or no time left)."""
+        cfg = self.config
+        if not cfg.timing_adaptation:
+            return None
+        after = t1 - gait.phase_end  # the switch after the touchdown (within the double support)
+        path = gait.swing.path if gait.swing is not None else None
+        if path is None:
+            return None
+        # the foot's way to its footstep at no more than max_swing_speed_m_s, within the horizontal fraction
+        x, y, _ = path.at(t).position.tolist()
+        tx, ty, _ = path.target_position.tolist()
+        reach_s = math.hypot(tx - x, ty - y) / cfg.max_swing_speed_m_s
+        earliest = max(gait.t_phase + cfg.min_single_support_s, t + cfg.min_swing_left_s,
+                       gait.t_phase + (t - gait.t_phase + reach_s) / path.horizontal_fraction)
+        nominal = gait.swing_nominal_end_s()
+        if earliest >= nominal:
+            return None
+        return StepTiming(dcm_ref, nominal + after - t, earliest + after - t)
 
     def _orient(self, yaw: float) -> None:
         """Pelvis and torso upright, heading ``yaw`` [rad]."""

@@ -24,6 +24,16 @@ class WalkingConfig:
             down on time although it lags its reference a little (it lands at rest on the path).
         step_adaptation: Move the swing footstep to absorb the DCM error outside its tube
             (:mod:`mbctl.control.wbc.step_adaptation`).
+        timing_adaptation: With step adaptation, adapt the swing's timing too (a quicker step where a
+            limit holds the footstep short; :class:`~mbctl.control.wbc.step_adaptation.StepTiming`); the
+            swing path is re-timed to reach its footstep at the new touchdown time.
+        min_single_support_s: The quickest swing timing adaptation may ask for [s].
+        min_swing_left_s: ... and the least swing time it leaves from now [s].
+        timing_weight: The timing's weight w_t in the adaptation QP [m^2].
+        timing_threshold_m: The timing is adapted once a limit holds the footstep this far short
+            sideways [m].
+        max_swing_speed_m_s: A re-timed swing leaves the foot at least its distance to its footstep
+            over this [m/s] of horizontal motion (a quicker swing the leg cannot follow lands short).
         dcm_tube_fraction: The DCM tube, as a fraction of the error the CMP feedback can correct
             within the sole: errors beyond it are stepped away.
         dcm_gain_1_s: DCM feedback gain k [1/s] (the error decays as exp(-k t)).
@@ -81,6 +91,12 @@ class WalkingConfig:
     lift_height_m: float = 0.07
     landing_depth_m: float = 0.005
     step_adaptation: bool = True
+    timing_adaptation: bool = True
+    min_single_support_s: float = 0.3
+    min_swing_left_s: float = 0.15
+    timing_weight: float = 0.001
+    timing_threshold_m: float = 0.05
+    max_swing_speed_m_s: float = 1.5
     dcm_tube_fraction: float = 0.5
     dcm_gain_1_s: float = 3.0
     cmp_margin_m: float = 0.01
@@ -117,7 +133,11 @@ class WalkingConfig:
             "swing_horizontal_fraction": 0 < self.swing_horizontal_fraction <= 1,
             "dcm_gain_1_s": self.dcm_gain_1_s > 0, "cmp_margin_m": self.cmp_margin_m >= 0,
             "friction_fraction": 0 < self.friction_fraction <= 1,
-            "dcm_tube_fraction": 0 <= self.dcm_tube_fraction <= 1, "preview_steps": self.preview_steps >= 1,
+            "dcm_tube_fraction": 0 <= self.dcm_tube_fraction <= 1,
+            "min_single_support_s": 0 < self.min_single_support_s <= self.timing.single_support_s,
+            "min_swing_left_s": self.min_swing_left_s > 0, "timing_weight": self.timing_weight > 0,
+            "timing_threshold_m": self.timing_threshold_m >= 0,
+            "max_swing_speed_m_s": self.max_swing_speed_m_s > 0, "preview_steps": self.preview_steps >= 1,
             "ramp_s": 0 < self.ramp_s <= self.timing.double_support_s, "swing_cost": self.swing_cost > 0,
             "swing_orientation_cost": self.swing_orientation_cost > 0,
             "com_cost": self.com_cost > 0, "momentum_cost": self.momentum_cost >= 0,

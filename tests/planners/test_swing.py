@@ -107,6 +107,28 @@ def test_retarget_keeps_the_path_twice_differentiable_and_lands_on_the_new_foots
     np.testing.assert_allclose(s.at(2.5).position[:2], [0.30, 0.14], atol=1e-12)
 
 
+@pytest.mark.parametrize("t", [2.08, 2.2])  # before the new apex, and after it (straight down)
+def test_a_retimed_swing_reaches_its_footstep_at_rest_at_its_new_touchdown(t):
+    s = _swing(horizontal_fraction=0.8)
+    before = s.at(t)
+    assert s.retime(t, 0.32) is True
+    assert s.end_s == pytest.approx(2.32, abs=1e-12) and s.duration_s == pytest.approx(0.32, abs=1e-12)
+    after = s.at(t)  # continuous: position, velocity and acceleration
+    np.testing.assert_allclose(after.position, before.position, atol=1e-12)
+    np.testing.assert_allclose(after.velocity, before.velocity, atol=1e-10)
+    np.testing.assert_allclose(after.acceleration, before.acceleration, atol=1e-8)
+    # the horizontal motion ends at 0.8 of the new swing; the foot is down on its footstep at its end, at rest
+    np.testing.assert_allclose(s.at(2.0 + 0.8 * 0.32).position[:2], TARGET[:2], atol=1e-12)
+    end = s.at(2.32 - 1e-9)
+    np.testing.assert_allclose(end.position, TARGET, atol=1e-9)
+    assert np.abs(end.velocity).max() < 1e-6 and end.phase == pytest.approx(1.0)
+    # above the footstep's height all the way (no dip through the ground)
+    heights = [s.at(u).position[2] for u in np.linspace(t, 2.32, 50)]
+    assert min(heights) >= TARGET[2] - 1e-12
+    # too late to re-time: unchanged
+    assert s.retime(2.3, 0.35) is False and s.end_s == pytest.approx(2.32)
+
+
 def test_yaw_goes_the_short_way():
     s = _swing(start_yaw_rad=3.0, target_yaw_rad=-3.0)  # 0.28 rad through pi, not 6 rad back
     assert s.at(2.5).yaw_rad == pytest.approx(-3.0 + 2 * math.pi, abs=1e-12)

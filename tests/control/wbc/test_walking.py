@@ -18,6 +18,7 @@ from mbctl.control.exceptions import WBCSetupError
 from mbctl.control.tasks import AccelerationGains, DynamicsState
 from mbctl.control.wbc import (
     StepAdapter,
+    StepTiming,
     SwingFootTask,
     WalkingConfig,
     WalkingController,
@@ -233,6 +234,34 @@ def test_step_adaptation_moves_the_footstep_by_the_error_outside_the_tube():
     assert crossing.limited
     d = crossing.footstep.position - stance.position
     assert -d[0] == pytest.approx(LIMITS.min_width_m, abs=1e-9)  # the width toward its side (-x here)
+
+
+def test_a_footstep_held_short_sideways_lands_sooner_with_timing_adaptation():
+    adapter, tube = _adapter()
+    stance = Footstep("right", -1, np.array([0.0, 0.0, 0.0]), 0.0)
+    nominal = Footstep("left", 1, np.array([0.1, 0.24, 0.0]), 0.0)
+    dcm_ref = np.array([0.05, 0.05])
+    error = [0.0, 0.08]  # a push to the swing side, 0.4 s before the switch: beyond the outward limit
+    timing = StepTiming(dcm_ref, 0.4, 0.15)
+    fixed = adapter.adapt(stance, nominal, error, 0.4)
+    timed = adapter.adapt(stance, nominal, error, 0.4, timing)
+    assert fixed.limited and fixed.time_to_switch_s is None
+    assert timed.time_to_switch_s is not None and 0.15 - 1e-9 <= timed.time_to_switch_s < 0.4 - 0.05
+
+    def shortfall(adaptation, time_to_switch_s):  # the DCM at the switch against the plan's offset
+        r_s, e_out = np.array([0.035, 0.0]), np.array([0.0, error[1] - tube[1]])
+        xi_switch = r_s + math.exp(OMEGA * time_to_switch_s) * (dcm_ref + e_out - r_s)
+        b_nom = r_s + math.exp(OMEGA * 0.4) * (dcm_ref - r_s) - (nominal.position[:2] + r_s)
+        return np.linalg.norm(xi_switch - (adaptation.footstep.position[:2] + r_s) - b_nom)
+
+    adapter.sole_centre_xy = (0.035, 0.0)
+    timed = adapter.adapt(stance, nominal, error, 0.4, timing)
+    assert shortfall(timed, timed.time_to_switch_s) < 0.5 * shortfall(fixed, 0.4)
+    # the footstep stays within its limits
+    assert timed.footstep.position[1] <= LIMITS.nominal_width_m + LIMITS.max_outward_m + 1e-9
+    # not held short: the timing stays the plan's
+    moved = adapter.adapt(stance, nominal, [tube[0] + 0.01, 0.0], 0.4, timing)
+    assert moved.outside_tube and not moved.limited and moved.time_to_switch_s is None
 
 
 def test_the_swing_task_feeds_the_yaw_rate_and_acceleration_forward(tiny_biped, crouch):
