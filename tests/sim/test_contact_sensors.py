@@ -9,7 +9,7 @@ import pytest
 from mbctl.robots import load_robot
 from mbctl.robots.edits import add_contact_sensors, contact_sensor_name
 from mbctl.robots.exceptions import RobotError, UnknownNameError
-from mbctl.sim.contacts import ContactSensor
+from mbctl.sim.contacts import ContactSensor, sums_block
 
 SENSOR = '<contact name="{0}_contact" body1="{0}" reduce="netforce" data="found force torque pos"/>'
 
@@ -58,17 +58,23 @@ def test_sensor_sums_equal_the_loop_over_the_contacts_while_pushed():
     sensor = ContactSensor(m, _groups(m))
     assert sensor.from_sensors
     checked = 0
+    nets, sums = [], []
     for k in range(600):
         d.xfrc_applied[m.body("foot").id, :2] = (8 * np.sin(k / 40), 6 * np.cos(k / 55))
         mujoco.mj_step(m, d)
         fast = sensor.sums(d)
         loop = sensor.sums_from(sensor.loop_net(d))
+        nets.append(sensor.net(d))
+        sums.append(fast)
         for a, b in zip(fast, loop, strict=True):
             assert a[5] == b[5]  # contacts
             scale = max(1.0, abs(b[2]))
             np.testing.assert_allclose(a[:5], b[:5], atol=1e-9 * scale)
         checked += fast[0][5] > 0 and fast[1][5] > 0
     assert checked > 500  # the load stayed on the foot: contacts on both sides of the foot's geoms
+    # the same sums for every period at once (a log's batch), and from an array as from a list
+    np.testing.assert_array_equal(sums_block(np.array(nets)), np.array(sums, dtype=float))
+    assert sensor.sums_from(np.array(nets[-1])) == sums[-1]
     load = sensor.measure(d)["load"]
     assert load.normal_n == pytest.approx(2 * 9.81, rel=0.05)  # roughly its weight, the foot moving
 
