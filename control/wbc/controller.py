@@ -330,7 +330,7 @@ class WholeBodyController:
         # contact points' Jacobians, in their foot frame F: J_P = G_F J_F (J_F LOCAL)
         lb, ub = qp.lb, qp.ub
         JF, err, gain = self._JF, self._foot_err, self._foot_gain
-        poses: list[np.ndarray] = []  # the solution's X_WF, homogeneous (the state's are overwritten by the next update)
+        poses: list[np.ndarray] = []  # the solution's X_WF (the state's are overwritten by the next update)
         all_active = True
         # Pinocchio's getters on the state's data directly (the state's wrappers add ~0.7 us for both feet)
         LOCAL, model, data, placements = pin.LOCAL, s.model, s.data, s.frame_placements
