@@ -1,8 +1,9 @@
 """Every-cycle figures of the jobs' bounded logs: extremes, the CoM tracking error and quantiles.
 
 A long run keeps its plots' rows decimated (:func:`mbctl.control.loop.log_stride`); its figures
-stay over every cycle: extremes and sums in plain floats updated each cycle (a few float
-operations, no numpy store), and the medians and percentiles from every cycle's value kept as float32.
+stay over every cycle: extremes and sums updated each cycle in plain floats (a few float operations,
+no numpy store) or a batch of cycles at a time as arrays, and the medians and percentiles from every
+cycle's value kept as float32.
 """
 
 from __future__ import annotations

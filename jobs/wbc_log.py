@@ -258,9 +258,9 @@ class WBCLog:
 
         A cycle's inputs are kept as they are (the state, command and solution are the cycle's own
         objects; the plant's sample is immutable) and recorded ``batch`` cycles at a time, and by
-        every reader (:meth:`record`, :meth:`values`): the recording's Python work runs in one tight
-        loop, not between a physics step and a solve that evict it from the CPU's caches (about 2.5x
-        its cost there).
+        every reader (:meth:`record`, :meth:`values`), as arrays with one numpy call per quantity:
+        not between a physics step and a solve that evict it from the CPU's caches (about 2.5x its
+        cost there), and the calls' fixed cost shared by the batch's cycles.
         """
         now = time.perf_counter()
         ctrl, mon = self.wb.controller, self.monitor
