@@ -351,17 +351,18 @@ class ConvexPolygon:
 
         The shrunk polygon is the set of points at least ``margin_m`` inside every edge line; if the
         margin leaves nothing (a polygon narrower than twice the margin) the margin is reduced to what
-        fits. The projection is exact, in one pass: a point outside projects onto an edge line or a
-        vertex of the shrunk polygon, so the nearest of the feasible candidates (each edge line's
-        foot of the perpendicular, each pair of lines' intersection) is it; a candidate counts as
-        feasible within ``1e-9 (1 + max_i |c_i|)`` m of every shrunk edge line ``n_i . x <= c_i``.
-        (Dykstra's alternating projections, used before, took up to 100 rounds, 3 ms, for a point far
-        outside near a vertex.)
+        fits. A negative margin grows the polygon instead (its edge lines moved out by ``-margin_m``: a
+        point may lie that far outside). The projection is exact, in one pass: a point outside projects
+        onto an edge line or a vertex of the shrunk polygon, so the nearest of the feasible candidates
+        (each edge line's foot of the perpendicular, each pair of lines' intersection) is it; a
+        candidate counts as feasible within ``1e-9 (1 + max_i |c_i|)`` m of every shrunk edge line
+        ``n_i . x <= c_i``. (Dykstra's alternating projections, used before, took up to 100 rounds, 3
+        ms, for a point far outside near a vertex.)
         """
         px, py = _xy(point)
         if len(self._vertices) < 3:
             return _nearest_on_chain(np.array([px, py]), self.hull)
-        shrink = min(max(margin_m, 0.0), 0.999 * self.depth)
+        shrink = min(margin_m, 0.999 * self.depth)  # < 0: grown
         if self._excess(px, py, shrink) <= 1e-12:
             return np.array([px, py])
         p, n = np.array([px, py]), self._normals

@@ -30,7 +30,9 @@ Each cycle:
    run every cycle, on the plan in force.
 3. **DCM** (:mod:`mbctl.planners.dcm`): the plan through the footsteps' sole centres, the measured
    DCM ``xi = x + xdot / omega`` (CoM from the state), the feedback law's desired CMP, clamped into
-   the support polygon (the active feet's contact points) less ``cmp_margin_m``,
+   the support polygon (the active feet's contact points) less ``cmp_margin_m``; with the DCM more
+   than ``cmp_outside_after_m`` from its plan (a push), grown by ``cmp_outside_m`` instead (the
+   angular momentum makes the difference: the hip strategy),
    and the CoM task's acceleration ``xddot = omega^2 (x - p_cmp)`` (horizontal; the height is a
    PD on ``z_c`` above the ground).
 4. **Tasks**: the swing foot as a pose task (:mod:`mbctl.planners.swing`: lift, land at rest),
@@ -94,7 +96,8 @@ class WalkingStatus:
         zmp_ref: The plan's VRP (the ZMP reference) (2,) [m].
         zmp_ref_margin_m: Its margin in the support polygon [m] (> 0 inside).
         cmp: Desired CMP from the feedback law, before the clamp (2,) [m].
-        cmp_margin_m: Its margin in the support polygon [m] (< 0: the clamp moved it).
+        cmp_margin_m: Its margin in the support polygon [m] (< 0: outside; below -cmp_outside_m the
+            clamp moved it).
         cmp_clamped: The CMP given to the CoM (2,) [m].
         com_acceleration: The CoM acceleration asked of the QP (3,) [m/s^2].
         footsteps: The footsteps planned (the swing foot's first).
@@ -344,7 +347,8 @@ class WalkingController:
         gain = 1.0 + cfg.dcm_gain_1_s / self.omega  # dcm_feedback's law, on floats
         cmp_xy = [zx + gain * (ix - rx), zy + gain * (iy - ry)]
         cmp = np.array(cmp_xy)
-        cmp_c = support.clamp(cmp_xy, cfg.cmp_margin_m)
+        pushed = cfg.cmp_outside_m > 0 and math.hypot(ix - rx, iy - ry) > cfg.cmp_outside_after_m
+        cmp_c = support.clamp(cmp_xy, -cfg.cmp_outside_m if pushed else cfg.cmp_margin_m)
         z_ref, vz_ref, az_ref = gait.height(t)
         px, py = cmp_c.tolist()  # the CoM's CMP
         last = self.wbc.last

@@ -37,7 +37,13 @@ class WalkingConfig:
         dcm_tube_fraction: The DCM tube, as a fraction of the error the CMP feedback can correct
             within the sole: errors beyond it are stepped away.
         dcm_gain_1_s: DCM feedback gain k [1/s] (the error decays as exp(-k t)).
-        cmp_margin_m: The desired CMP stays this far inside the support polygon [m].
+        cmp_margin_m: The desired CMP stays this far inside the support polygon [m] (with
+            ``cmp_outside_m`` 0; it also sets the DCM tube).
+        cmp_outside_m: The desired CMP may leave the support polygon by up to this [m] instead (it is
+            clamped to the polygon grown by it): the QP makes the difference with the centroidal
+            angular momentum (the hip strategy), as a pushed robot's DCM passes the sole's edge ...
+        cmp_outside_after_m: ... once the DCM is this far [m] from its plan (a push: walking undisturbed
+            keeps the CMP ``cmp_margin_m`` inside).
         preview_steps: Footsteps planned ahead of the swing foot's (>= 1).
         ramp_s: Contact force ramp [s] (<= the double support time).
         swing_horizontal_fraction: The swing foot reaches its footstep's x, y and yaw at this
@@ -100,6 +106,8 @@ class WalkingConfig:
     dcm_tube_fraction: float = 0.5
     dcm_gain_1_s: float = 3.0
     cmp_margin_m: float = 0.01
+    cmp_outside_m: float = 0.02
+    cmp_outside_after_m: float = 0.03
     preview_steps: int = 3
     ramp_s: float = 0.05
     swing_horizontal_fraction: float = 0.8
@@ -132,6 +140,7 @@ class WalkingConfig:
             "lift_height_m": self.lift_height_m >= 0, "landing_depth_m": self.landing_depth_m >= 0,
             "swing_horizontal_fraction": 0 < self.swing_horizontal_fraction <= 1,
             "dcm_gain_1_s": self.dcm_gain_1_s > 0, "cmp_margin_m": self.cmp_margin_m >= 0,
+            "cmp_outside_m": self.cmp_outside_m >= 0, "cmp_outside_after_m": self.cmp_outside_after_m >= 0,
             "friction_fraction": 0 < self.friction_fraction <= 1,
             "dcm_tube_fraction": 0 <= self.dcm_tube_fraction <= 1,
             "min_single_support_s": 0 < self.min_single_support_s <= self.timing.single_support_s,

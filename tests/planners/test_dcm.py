@@ -165,10 +165,15 @@ def test_hull_margin_and_clamp_on_a_square():
     np.testing.assert_allclose(clamp_to_polygon([0.3, 0.4], hull, 0.1), [0.3, 0.4], atol=0)  # inside: kept
     # a margin wider than the polygon shrinks to what fits: the centre
     np.testing.assert_allclose(clamp_to_polygon([5.0, 0.5], hull, 0.7), [0.5005, 0.5], atol=1e-6)
+    # a negative margin grows it (the walker's CMP beyond the soles: the hip strategy), corners sharp
+    np.testing.assert_allclose(clamp_to_polygon([2.0, 0.5], hull, -0.1), [1.1, 0.5], atol=1e-9)
+    np.testing.assert_allclose(clamp_to_polygon([2.0, 3.0], hull, -0.1), [1.1, 1.1], atol=1e-9)
+    np.testing.assert_allclose(clamp_to_polygon([1.05, -0.05], hull, -0.1), [1.05, -0.05], atol=0)
 
 
 @given(st.lists(st.tuples(st.floats(-0.2, 0.2), st.floats(-0.2, 0.2)), min_size=3, max_size=10),
-       st.floats(-3.0, 3.0), st.floats(-3.0, 3.0), st.one_of(st.just(0.0), st.floats(1e-4, 0.05)))
+       st.floats(-3.0, 3.0), st.floats(-3.0, 3.0),
+       st.one_of(st.just(0.0), st.floats(1e-4, 0.05), st.floats(-0.05, -1e-4)))
 @settings(max_examples=300, deadline=None)
 def test_clamp_is_the_exact_projection_onto_the_shrunk_polygon(points, px, py, margin):
     hull = convex_hull(np.array(points))
