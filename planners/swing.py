@@ -198,10 +198,10 @@ class SwingTrajectory:
         self._plane_end_cache: list[float] | None = None  # x, y, yaw at the horizontal motion's end
         self._plane_cache: tuple[float, tuple[list[float], list[float], list[float]]] | None = None
         self._apex_m = float(apex)
-        #: The height's pieces (start [s], columns): each a quintic from its start to the next's (or the end).
+        #: The height's pieces (start [s] after lift-off, columns): each a quintic from its start on.
         z0, z1 = float(p0[2]), float(p1[2])
-        self._height = [(self.t0_s, quintic_columns(z0, 0.0, 0.0, self._apex_m, 0.0, 0.0, half)),
-                        (self.t0_s + half, quintic_columns(self._apex_m, 0.0, 0.0, z1, 0.0, 0.0, half))]
+        self._height = [(0.0, quintic_columns(z0, 0.0, 0.0, self._apex_m, 0.0, 0.0, half)),
+                        (half, quintic_columns(self._apex_m, 0.0, 0.0, z1, 0.0, 0.0, half))]
 
     @property
     def end_s(self) -> float:
@@ -262,7 +262,8 @@ class SwingTrajectory:
         if end - t_s < 2.0 * MIN_RETARGET_S or t_s >= self.end_s:
             return False
         p, v, a = self._plane_at(t_s)
-        z, vz, az = self._height_at(max(t_s, self.t0_s))
+        tau = max(t_s - self.t0_s, 0.0)
+        z, vz, az = self._height_at(tau)
         fraction = self.horizontal_fraction
         goal = [*self.target_position[:2].tolist(), self.target_yaw_rad]
         horizontal_end = min(max(self.t0_s + fraction * duration, t_s + MIN_RETARGET_S), end)
@@ -274,24 +275,24 @@ class SwingTrajectory:
             self._plane_t0 = horizontal_end - 1.0
         self.horizontal_end_s = horizontal_end
         z1 = float(self.target_position[2])
-        half = self.t0_s + 0.5 * duration
-        if half - t_s >= MIN_RETARGET_S:
-            self._height = [(t_s, quintic_columns(z, vz, az, self._apex_m, 0.0, 0.0, half - t_s)),
-                            (half, quintic_columns(self._apex_m, 0.0, 0.0, z1, 0.0, 0.0, end - half))]
+        half = 0.5 * duration
+        if half - tau >= MIN_RETARGET_S:
+            self._height = [(tau, quintic_columns(z, vz, az, self._apex_m, 0.0, 0.0, half - tau)),
+                            (half, quintic_columns(self._apex_m, 0.0, 0.0, z1, 0.0, 0.0, duration - half))]
         else:
-            self._height = [(t_s, quintic_columns(z, vz, az, z1, 0.0, 0.0, end - t_s))]
+            self._height = [(tau, quintic_columns(z, vz, az, z1, 0.0, 0.0, duration - tau))]
         self.duration_s = duration
         self._cache = self._plane_end_cache = self._plane_cache = None
         return True
 
-    def _height_at(self, t_s: float) -> tuple[float, float, float]:
-        """The height [m], its rate and acceleration on the height's pieces at ``t_s`` (within the swing)."""
+    def _height_at(self, tau_s: float) -> tuple[float, float, float]:
+        """The height [m], its rate and acceleration ``tau_s`` [s] after lift-off (on its pieces)."""
         start, columns = self._height[0]
         for piece_start, piece in self._height[1:]:
-            if t_s < piece_start:
+            if tau_s <= piece_start:
                 break
             start, columns = piece_start, piece
-        (z,), (vz,), (az,) = quintic_columns_at(columns, t_s - start)
+        (z,), (vz,), (az,) = quintic_columns_at(columns, tau_s - start)
         return z, vz, az
 
     def at(self, t_s: float) -> SwingSample:
@@ -326,7 +327,7 @@ class SwingTrajectory:
         """:meth:`at`'s fields as floats (position, velocity and acceleration as (x, y, z) lists)."""
         tau = min(max(t_s - self.t0_s, 0.0), self.duration_s)
         p, v, a = self._plane_at(t_s)
-        z, vz, az = self._height_at(self.t0_s + tau)
+        z, vz, az = self._height_at(tau)
         if t_s <= self.t0_s or t_s >= self.end_s:  # at rest outside the swing
             v, a, vz, az = [0.0] * 3, [0.0] * 3, 0.0, 0.0
         return [p[0], p[1], z], [v[0], v[1], vz], [a[0], a[1], az], p[2], v[2], tau / self.duration_s, a[2]
