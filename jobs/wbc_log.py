@@ -229,28 +229,20 @@ class WBCLog:
         """Per cycle and foot (FEET order), the QP's prediction (b, n_feet, 4).
 
         The normal and tangential force [N] and the CoP's x, y [m] in W
-        (:func:`~mbctl.control.wbc.config.foot_totals_and_cops_W` over the batch).
+        (:func:`~mbctl.control.wbc.config.foot_totals_and_cops_W` over the batch). Every solution
+        has its controller's layout (``force_slices``, ``points_F``: built once with it).
         """
+        first = sols[0]
+        forces = np.array([sol.forces for sol in sols])
+        X = np.array([sol.foot_X_W for sol in sols])  # (b, n_feet, 4, 4), force_slices' order
+        order = list(first.force_slices)
         out = np.empty((len(sols), len(FEET), 4))
-        i0 = 0
-        while i0 < len(sols):  # runs of solutions sharing their contacts' layout (a whole batch, as a rule)
-            first = sols[i0]
-            i1 = i0 + 1
-            while i1 < len(sols) and (sols[i1].force_slices is first.force_slices
-                                      and sols[i1].points_F is first.points_F):
-                i1 += 1
-            run = sols[i0:i1]
-            forces = np.array([sol.forces for sol in run])
-            X = np.array([sol.foot_X_W for sol in run])  # (b, n_feet, 4, 4), force_slices' order
-            order = list(first.force_slices)
-            for j, f in enumerate(FEET):
-                sl = first.force_slices[f]
-                total, cop = foot_totals_and_cops_W(forces[:, sl].reshape(len(run), -1, 3),
-                                                    X[:, order.index(f)], first.points_F[f])
-                out[i0:i1, j, 0] = total[:, 2]
-                out[i0:i1, j, 1] = np.hypot(total[:, 0], total[:, 1])
-                out[i0:i1, j, 2:] = cop[:, :2]
-            i0 = i1
+        for j, f in enumerate(FEET):
+            total, cop = foot_totals_and_cops_W(forces[:, first.force_slices[f]].reshape(len(sols), -1, 3),
+                                                X[:, order.index(f)], first.points_F[f])
+            out[:, j, 0] = total[:, 2]
+            out[:, j, 1] = np.hypot(total[:, 0], total[:, 1])
+            out[:, j, 2:] = cop[:, :2]
         return out
 
     def on_step(self, k: int, state: RobotState, reference: object, command: Command) -> bool:
