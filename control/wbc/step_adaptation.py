@@ -47,6 +47,7 @@ from __future__ import annotations
 
 import math
 import time
+from collections.abc import Callable
 from typing import NamedTuple
 
 import numpy as np
@@ -184,7 +185,8 @@ class StepAdapter:
         return normal, (normal * vertices).sum(axis=1)
 
     def adapt(self, stance: Footstep, nominal: Footstep, dcm_error_W: npt.ArrayLike,
-              time_to_switch_s: float, timing: StepTiming | None = None) -> StepAdaptation:
+              time_to_switch_s: float,
+              timing: StepTiming | Callable[[], StepTiming | None] | None = None) -> StepAdaptation:
         """The swing footstep for a DCM error measured ``time_to_switch_s`` [s] before the next switch.
 
         Args:
@@ -192,7 +194,9 @@ class StepAdapter:
             nominal: The command's footstep for the swing foot.
             dcm_error_W: ``xi - xi_ref`` (2,) [m] in W, the reference being the plan through ``nominal``.
             time_to_switch_s: ``t1 - t`` [s] (>= 0) in the plan.
-            timing: Adapt the step's timing too, within these (None: the plan's timing stays).
+            timing: Adapt the step's timing too, within these (None: the plan's timing stays), or a
+                function giving them, called only when a limit holds the footstep short (most cycles
+                need no timing: the DCM is in its tube).
         """
         c, s = math.cos(stance.yaw_rad), math.sin(stance.yaw_rad)
         e = np.asarray(dcm_error_W, dtype=float)
@@ -226,10 +230,11 @@ class StepAdapter:
         x = result.x.tolist() if result.x is not None else x_nom  # (never None: (0, s w) is feasible)
         px, py = sx + (c * x[0] - s * x[1]), sy + (s * x[0] + c * x[1])
         limited = max(abs(x[0] - optimum[0]), abs(x[1] - optimum[1])) > 1e-9
-        if (timing is not None and abs(x[1] - optimum[1]) > self.timing_threshold_m
-                and timing.min_s < time_to_switch_s - 1e-6):
+        held = timing is not None and abs(x[1] - optimum[1]) > self.timing_threshold_m
+        given = (timing() if callable(timing) else timing) if held else None
+        if given is not None and given.min_s < time_to_switch_s - 1e-6:
             # held short: the quicker step's QP (at the plan's timing it is the same QP, so it does no worse)
-            timed = self._adapt_timed(stance, nominal, timing, (c, s), x_nom, out, time_to_switch_s, lb, ub,
+            timed = self._adapt_timed(stance, nominal, given, (c, s), x_nom, out, time_to_switch_s, lb, ub,
                                       (G, h))
             return timed._replace(solve_time_s=timed.solve_time_s + solve_time)
         step = nominal._replace(position=np.array([px, py, nz]))

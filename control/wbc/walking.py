@@ -428,8 +428,9 @@ class WalkingController:
         plan, _ = self.plans.plan(gait, t, self._steer, nominal)
         ref = plan.at(t).xi
         t1 = float(plan.switch_times_s[0])
-        timing = self._step_timing(gait, t, t1, ref)
-        adaptation = self.adapter.adapt(stance, nominal, xi - ref, t1 - t, timing)
+        # the swing's timing only where the QP needs it (a swing sample: not on the cycles in the tube)
+        adaptation = self.adapter.adapt(stance, nominal, xi - ref, t1 - t,
+                                        lambda: self._step_timing(gait, t, t1, ref))
         self._adaptation = adaptation
         if adaptation.time_to_switch_s is not None:  # the switch moved: so does the touchdown
             end = t + adaptation.time_to_switch_s - (t1 - gait.phase_end)
