@@ -413,7 +413,7 @@ class WholeBodyController:
                 raise error
             self.infeasible_at_s, self.infeasible_message = state.time_s, str(error)
             return self._fallback(state, t0)
-        Gx = qp.Gx if result.fast_path else None  # the fast path's G x: its first rows are T x
+        Gx = qp.Gx  # G x when the solve computed it (its check): its first rows are T x
         if Gx is not None:
             tau = np.add(Gx[:len(b_a)], b_a)
         else:

@@ -7,7 +7,7 @@ The controller's problem over ``x = [vdot (nv); f (n_f)]``::
          g_lo <= G x <= g_up                  (friction pyramids, torque limits)
          lb <= x <= ub                        (joint-limit accelerations, normal forces)
 
-Solved in two ways, the first tried first:
+Solved in three ways, tried in this order:
 
 * **Equality-constrained fast path.** The optimum of the QP without its inequalities comes from
   the KKT system, by the Schur complement on the equalities: with ``H_vv = L L^T``,
@@ -23,9 +23,14 @@ Solved in two ways, the first tried first:
   of the Schur complement and set to zero: fixing them is the QP's own constraint, so the point is
   still the optimum when it satisfies every other inequality, and single support (one foot
   released) stays on this path too.
-* **daqp** (the dual active-set solver) on the whole problem, through the control layer's QP
-  floor (:mod:`mbctl.control.qp`: daqp called directly, its buffers reused, two-sided torque rows
-  instead of qpsolvers' two one-sided rows each), whenever an inequality would be violated or E is
+* **The QP in the free forces alone** (:mod:`.force_space`): vdot eliminated through the
+  equalities, daqp on the forces with the rows over them alone (friction, torsion), the point
+  kept when it satisfies every bound and row (it is then the optimum). Not tried while the last
+  point had a bound on vdot or a row with vdot in it binding (:data:`ACTIVE_TOL`).
+* **daqp** (the dual active-set solver) on the QP without its pinned forces and deferred rows
+  (:mod:`.reduced_qp`), else on the whole problem, through the control layer's QP floor
+  (:mod:`mbctl.control.qp`: daqp called directly, its buffers reused, two-sided torque rows
+  instead of qpsolvers' two one-sided rows each), whenever the ways above fail or E is
   rank-deficient. Calling ``daqp.solve`` directly instead of through ``qpsolvers.solve_problem``
   saves the wrapper's conversions (~17 us per solve, measured).
 
@@ -46,22 +51,18 @@ from scipy.linalg.lapack import dposv, dpotrf, dpotrs, dpstrf
 
 from mbctl.control.qp import (
     CONTRADICTORY,
-    DAQP_EQUALITY,
     OPTIMAL,
     QPData,
     QPResult,
     QPSolver,
-    solve_packed,
     solve_qpsolvers,
 )
+from mbctl.control.wbc.force_space import ForceSpace
+from mbctl.control.wbc.reduced_qp import DEFERRED_TOL, ReducedQP
 
 #: Largest violation [problem units: rad/s^2, N, N m] of an inequality or bound that the fast
 #: path's point may have and still count as feasible (daqp's own primal tolerance is 1e-6).
 FEASIBILITY_TOL = 1e-9
-
-#: Largest violation [problem units] of a deferred row that the reduced QP's optimum may have and
-#: still count as the whole QP's (daqp's own primal tolerance).
-DEFERRED_TOL = 1e-6
 
 # the ufuncs' reductions: ndarray.max and .min's Python wrappers left out (~0.3 us a call)
 _max, _min, _all = np.maximum.reduce, np.minimum.reduce, np.logical_and.reduce
@@ -70,29 +71,9 @@ _max, _min, _all = np.maximum.reduce, np.minimum.reduce, np.logical_and.reduce
 #: metric of ``E H^-1 E^T``).
 RANK_RTOL = 1e-10
 
-
-class _Reduction:
-    """The reduced QP's kept variables and rows, and its daqp packing (:meth:`WholeBodyQP._daqp_reduced`).
-
-    ``upper`` and ``lower`` bound the kept variables, then the kept rows, then the equalities;
-    ``A`` holds the kept rows, then the equalities, over the kept variables.
-    """
-
-    def __init__(self, keep: np.ndarray, rows: np.ndarray, pinned_rows: np.ndarray, n_x: int, m_eq_max: int,
-                 force_weight: float):
-        self.keep, self.rows = keep, rows
-        #: (n_x + m_in,) the bounds and rows that involve pinned forces only
-        self.pinned_rows = pinned_rows
-        k, r = len(keep), len(rows)
-        self.bounds_at = np.concatenate([keep, n_x + rows])  # in [x; G x]
-        self.H = np.zeros((k, k))
-        self.force_weight = force_weight
-        self.c = np.zeros(k)
-        self.A = np.zeros((r + m_eq_max, k))
-        self.upper = np.zeros(k + r + m_eq_max)
-        self.lower = np.zeros(k + r + m_eq_max)
-        self.sense = np.zeros(k + r + m_eq_max, dtype=np.intc)
-        self.sense[k + r:] = DAQP_EQUALITY
+#: Distance [problem units] from its bound within which a bound or row counts as active when no
+#: duals tell (the skip of the force-space QP, :attr:`WholeBodyQP.use_force_space`).
+ACTIVE_TOL = 1e-7
 
 
 class _Schur:
@@ -185,7 +166,12 @@ class WholeBodyQP:
         #: Inequality rows (a slice of G's) that daqp first solves without: rows that are rarely
         #: active (the controller's torque limits), checked at the reduced QP's optimum
         self.deferred_rows: slice | None = None
-        self._reductions: dict[tuple, _Reduction] = {}
+        self._reduced = ReducedQP(self)  # daqp without the pinned forces and the deferred rows
+        #: Whether daqp first solves the QP in the free forces alone (:mod:`.force_space`)
+        self.use_force_space = True
+        self._force = ForceSpace(nv, self.E, self.e, self.G, self._lo, self._up, self.m_force)
+        self._skip_force = False  # the last point had an acceleration bound or a row with vdot active
+        self._v_ineq: np.ndarray | None = None  # those bounds' and rows' indices in [x; G x]
 
     @property
     def force_weight(self) -> float:
@@ -228,7 +214,7 @@ class WholeBodyQP:
         if self._skip_fast:
             if (self._lo > self._up).any():
                 return QPResult(None, CONTRADICTORY, 0, 0.0)
-            result, self._skip_fast = self._daqp(self._rows[:m_eq], 0)
+            result, self._skip_fast = self._daqp(self._rows[:m_eq], 0, False)
             if result.x is not None:
                 return result
         x, rows = self._kkt(m_eq)
@@ -239,7 +225,7 @@ class WholeBodyQP:
             return QPResult(x, OPTIMAL, 0, time.perf_counter() - t0, True, dropped)
         if (self._lo > self._up).any():
             return QPResult(None, CONTRADICTORY, 0, 0.0)
-        result, active = self._daqp(rows, dropped)
+        result, active = self._daqp(rows, dropped, x is not None)
         self._skip_fast = dropped == 0 and active
         return result
 
@@ -250,17 +236,31 @@ class WholeBodyQP:
         lam = result.duals[:self.n_x + self.m_in]
         if not self._pinned:
             return bool(lam.any())
-        return bool(np.any((lam != 0.0) & ~self._reduction().pinned_rows))
+        return bool(np.any((lam != 0.0) & ~self._reduced.reduction().pinned_rows))
 
-    def _pinned_rows(self) -> np.ndarray:
-        """(n_x + m_in,) whether a bound or row involves pinned forces only (at G's present pattern)."""
-        pinned_f = self._free_f == 0.0
-        out = np.zeros(self.n_x + self.m_in, dtype=bool)
-        out[self.nv:self.n_x] = pinned_f
-        G_v_zero = ~self.G[:, :self.nv].any(axis=1)
-        touches_free = (self.G[:, self.nv:] != 0.0) @ ~pinned_f
-        out[self.n_x:] = G_v_zero & ~touches_free
-        return out
+    def _factor(self, m_eq: int) -> _Schur | None:
+        """``H_vv = L L^T`` (in ``_L``) and Z's rows of vdot, ``[L^-1 E_v^T, L^-1 c_v]``, for ``m_eq`` rows.
+
+        Returns:
+            The buffers of ``m_eq`` rows, or None if H_vv is not positive definite.
+        """
+        b = self._schur.get(m_eq)
+        if b is None:
+            b = self._schur[m_eq] = _Schur(self, m_eq)
+        # LAPACK and BLAS directly: numpy.linalg's wrappers cost several us of Python per call here
+        np.copyto(b.Z_vE, b.E_vT)
+        np.copyto(b.Z_c, self.c_v)
+        np.copyto(self._L, self.H_vv)
+        # H_vv = L L^T in place (positional: lower, clean=0, overwrite_a; the upper triangle is left
+        # as it was, never read: every solve with L reads its lower one)
+        L, info = dpotrf(self._L, 1, 0, 1)
+        if info != 0:
+            return None
+        # Z_v^T (Fortran order) L^-T = (L^-1 Z_v)^T: solved in place
+        # (positional: side=1, lower=1, trans_a=1, diag=0, overwrite_b=1; f2py's keyword parsing cost
+        # 0.6-0.8 us a call, measured on this and the dtrsv below)
+        dtrsm(1.0, L, b.Z_vT, 1, 1, 1, 0, 1)
+        return b
 
     def _kkt(self, m_eq: int) -> tuple[np.ndarray | None, np.ndarray]:
         """The minimiser under the first ``m_eq`` equalities only (KKT by Schur complement).
@@ -278,26 +278,13 @@ class WholeBodyQP:
             (``force_free`` False, as read by :meth:`solve`) are left out and zero.
         """
         nv = self.nv
-        b = self._schur.get(m_eq)
+        b = self._factor(m_eq)
         if b is None:
-            b = self._schur[m_eq] = _Schur(self, m_eq)
-        all_rows = b.rows
-        # LAPACK and BLAS directly: numpy.linalg's wrappers cost several us of Python per call here
-        np.copyto(b.Z_vE, b.E_vT)
-        np.copyto(b.Z_c, self.c_v)
+            return None, self._rows[:m_eq]
+        all_rows, L = b.rows, self._L
         np.multiply(b.E_fT, self._inv_wf, out=b.Z_f)
         if self._pinned:
             b.Z_f *= self._free_f[:, None]  # the pinned forces' columns left out (they stay at zero)
-        np.copyto(self._L, self.H_vv)
-        # H_vv = L L^T in place (positional: lower, clean=0, overwrite_a; the upper triangle is left
-        # as it was, never read: every solve with L reads its lower one)
-        L, info = dpotrf(self._L, 1, 0, 1)
-        if info != 0:
-            return None, all_rows
-        # Z_v^T (Fortran order) L^-T = (L^-1 Z_v)^T: solved in place
-        # (positional: side=1, lower=1, trans_a=1, diag=0, overwrite_b=1; f2py's keyword parsing cost
-        # 0.6-0.8 us a call, measured on this and the dtrsv below)
-        dtrsm(1.0, L, b.Z_vT, 1, 1, 1, 0, 1)
         # [S, E H^-1 c; ., .] (c_f = 0, H_ff = w_f^2 I) by BLAS's gemm, Z^T (Z^T)^T, in place (positional:
         # beta, c, trans_a, trans_b, overwrite_c): ~0.9 us less than np.dot's syrk and its mirror
         dgemm(1.0, b.ZT, b.ZT, 0.0, b.ZtZ, 0, 1, 1)
@@ -346,82 +333,75 @@ class WholeBodyQP:
         return bool(_max(np.subtract(self._lo, xg, out=excess)) <= tol
                     and _max(np.subtract(xg, self._up, out=excess)) <= tol)
 
-    def _daqp(self, eq_rows: np.ndarray, dropped: int) -> tuple[QPResult, bool]:
+    def _daqp(self, eq_rows: np.ndarray, dropped: int, factored: bool) -> tuple[QPResult, bool]:
         """The QP by daqp, with the equality rows ``eq_rows`` (the first ones if ``dropped`` is 0).
 
-        First the reduced QP when there is something to leave out (:meth:`_daqp_reduced`), else or
-        when that fails, the whole one.
+        First the QP in the free forces alone (:meth:`_solve_forces`; not while the last point had
+        an acceleration bound or a row with vdot in it active, where it would fail its check again),
+        then the reduced QP when there is something to leave out (:mod:`.reduced_qp`), else or
+        when those fail, the whole one.
+
+        Args:
+            eq_rows: The equality rows' indices.
+            dropped: How many rows the fast path dropped as dependent (0: ``eq_rows`` are the first).
+            factored: The fast path has just factored ``H_vv`` for these rows (:meth:`_factor`).
 
         Returns:
             The result and whether an inequality or bound (other than a pinned force's) is active.
         """
+        if dropped == 0 and self.use_force_space and not self._skip_force:
+            solved = self._solve_forces(len(eq_rows), factored)
+            if solved is not None:
+                return solved
         if self._pinned or self.deferred_rows is not None:
-            reduced = self._daqp_reduced(eq_rows, dropped == 0)
+            reduced = self._reduced.solve(eq_rows, dropped == 0)
             if reduced is not None:
+                self._note_acceleration_limits(reduced[0])
                 return reduced[0]._replace(dependent_rows=dropped), reduced[1]
         result = self._daqp_solver.solve(self.data(eq_rows, dropped == 0))
+        self._note_acceleration_limits(result)
         return result._replace(dependent_rows=dropped), self._inequality_active(result)
 
-    def _reduction(self) -> _Reduction:
-        """The variables and rows of the reduced QP for the present pins (made once per pattern).
-
-        Made with G's pattern of non-zeros at the time, taken as fixed while the pins stay. It
-        decides which rows the reduced QP leaves out and whether the next solve tries the fast path
-        first, never what the solution is: the reduced QP's point is checked against every row, so
-        a stale pattern would cost a solve of the whole QP, not a wrong point.
-        """
-        d = self.deferred_rows
-        key = (self._free_f.tobytes(), None if d is None else (d.start, d.stop, d.step))
-        red = self._reductions.get(key)
-        if red is None:
-            keep = np.concatenate([np.arange(self.nv), self.nv + np.flatnonzero(self._free_f)])
-            pinned_rows = self._pinned_rows()
-            left_out = pinned_rows[self.n_x:].copy()
-            if d is not None:
-                left_out[d] = True
-            red = _Reduction(keep, np.flatnonzero(~left_out), pinned_rows, self.n_x, self.m_eq_max, np.nan)
-            self._reductions[key] = red
-        if red.force_weight != self._w_f:
-            np.einsum("ii->i", red.H)[self.nv:] = self._w_f * self._w_f
-            red.force_weight = self._w_f
-        return red
-
-    def _daqp_reduced(self, eq_rows: np.ndarray, consecutive: bool) -> tuple[QPResult, bool] | None:
-        """Solve by daqp without the pinned forces and the deferred rows, if that is the whole QP's optimum.
-
-        Pinned forces are zero in every feasible point, so leaving them out (with the rows that
-        only involve them) changes nothing; leaving out the deferred rows relaxes the QP, so its
-        optimum is the whole QP's when it satisfies every bound and row of the whole QP (checked,
-        to daqp's own primal tolerance, 1e-6). The reduced QP (e.g. the G1's in single support)
-        has 47 variables and 28 rows against 59 and 73, and daqp's setup, redone every call,
-        grows with n^2 m: ~60 us against ~125 us (measured on walking cycles).
+    def _solve_forces(self, m_eq: int, factored: bool) -> tuple[QPResult, bool] | None:
+        """The QP over the free forces (:mod:`.force_space`), if its point satisfies every bound and row.
 
         Returns:
-            ``(result, active)``: the result (its ``duals`` None: they are the reduced QP's) and
-            whether an inequality or bound is active at it; None when a deferred row is violated
-            or the reduced QP has no solution (the whole one then decides).
+            ``(result, active)`` as :meth:`_daqp`'s (``Gx`` set, as the fast path's), or None: the
+            equality rows dependent, no solution, or a bound or row with vdot in it violated (then
+            the next solves skip it until a point has none of those active).
         """
-        red = self._reduction()
-        nv, k, r, m = self.nv, len(red.keep), len(red.rows), len(eq_rows)
-        red.H[:nv, :nv] = self.H_vv
-        red.c[:nv] = self.c_v
-        upper, lower, A = red.upper[:k + r + m], red.lower[:k + r + m], red.A[:r + m]
-        np.take(self._up, red.bounds_at, out=upper[:k + r])
-        np.take(self._lo, red.bounds_at, out=lower[:k + r])
-        e = self.e[:m] if consecutive else self.e[eq_rows]
-        upper[k + r:] = e
-        lower[k + r:] = e
-        np.take(self.G[red.rows], red.keep, axis=1, out=A[:r])
-        np.take(self.E[:m] if consecutive else self.E[eq_rows], red.keep, axis=1, out=A[r:])
-        result = solve_packed(red.H, red.c, A, upper, lower, red.sense[:k + r + m])
-        if result.x is None or result.duals is None:
+        t0 = time.perf_counter()
+        b = self._schur[m_eq] if factored else self._factor(m_eq)
+        if b is None or not self._free_f.any():
             return None
-        x = np.zeros(self.n_x)
-        x[red.keep] = result.x
-        # every bound and row checked, the left-out ones included (the pinned forces' are met at zero)
-        if not self._feasible(x, DEFERRED_TOL):
+        xg = np.empty(self.n_x + self.m_in)
+        x = xg[:self.n_x]
+        solved = self._force.solve(b.Z, self._L, m_eq, self._free_f, self._w_f, x)
+        if solved is None:
             return None
-        return result._replace(x=x, duals=None), bool(result.duals[:k + r].any())
+        if not self._feasible(x, DEFERRED_TOL, xg=xg):
+            self._skip_force = True
+            return None
+        self.Gx = xg[self.n_x:]
+        iterations, duals = solved
+        return QPResult(x, OPTIMAL, iterations, time.perf_counter() - t0), bool(duals.any())
+
+    def _note_acceleration_limits(self, result: QPResult) -> None:
+        """Skip the force-space QP next time exactly when a bound or row with vdot in it binds at ``result``.
+
+        Binding: within :data:`ACTIVE_TOL` of its limit (daqp's duals are the reduced QP's, or absent).
+        """
+        if not self.use_force_space or result.x is None:
+            return
+        if self._v_ineq is None:  # (G's pattern at the first daqp solve: its rows are filled by then)
+            rows_v = np.flatnonzero(self.G[:, :self.nv].any(axis=1))
+            self._v_ineq = np.concatenate([np.arange(self.nv), self.n_x + rows_v])
+        xg = self._xg
+        xg[:self.n_x] = result.x
+        np.dot(self.G, result.x, out=xg[self.n_x:])
+        at = self._v_ineq
+        gap = np.minimum(xg[at] - self._lo[at], self._up[at] - xg[at])
+        self._skip_force = bool(_min(gap) <= ACTIVE_TOL)
 
     def data(self, eq_rows: np.ndarray | int, consecutive: bool = True) -> QPData:
         """The whole QP for the floor: views of the buffers, H and c assembled in reused buffers.

@@ -64,7 +64,7 @@ def test_the_solution_is_a_frozen_dataclass_with_its_fields():
 
 
 def test_the_torques_from_the_fast_paths_rows_equal_t_x_plus_b(tiny_biped, crouch, monkeypatch):
-    """tau from the fast path's G x (its torque rows) against T x + b_a, and on the daqp path."""
+    """tau from the fast path's G x (its torque rows) against T x + b_a, and on the other paths."""
     wb, _ = _stance(tiny_biped, crouch)
     ctrl = wb.controller
     v = 0.02 * np.random.default_rng(9).normal(size=tiny_biped.nv)  # moving, no inequality active
@@ -77,9 +77,16 @@ def test_the_torques_from_the_fast_paths_rows_equal_t_x_plus_b(tiny_biped, crouc
     ctrl.compute(state)
     assert ctrl.fast_path_cycles == 1 and ctrl._qp.Gx is not None
     np.testing.assert_allclose(ctrl.solution.tau, general(ctrl), rtol=0.0, atol=1e-12)
-    monkeypatch.setattr(ctrl._qp, "_kkt", lambda m_eq: (None, np.arange(m_eq)))  # daqp only
-    ctrl.compute(state)
-    assert ctrl.daqp_cycles == 1 and ctrl._qp.Gx is None
+    fast = ctrl.solution.tau
+    monkeypatch.setattr(ctrl._qp, "_kkt", lambda m_eq: (None, np.arange(m_eq)))  # no fast path
+    ctrl.compute(state)  # the QP in the forces alone (control/wbc/force_space.py): its check's G x
+    assert ctrl.daqp_cycles == 1 and ctrl._qp.Gx is not None
     np.testing.assert_allclose(ctrl.solution.tau, general(ctrl), rtol=0.0, atol=1e-12)
+    np.testing.assert_allclose(ctrl.solution.tau, fast, rtol=0.0, atol=1e-5)  # (daqp tolerance)
+    ctrl._qp.use_force_space = False  # daqp on the whole QP
+    ctrl.compute(state)
+    assert ctrl.daqp_cycles == 2 and ctrl._qp.Gx is None
+    np.testing.assert_allclose(ctrl.solution.tau, general(ctrl), rtol=0.0, atol=1e-12)
+    np.testing.assert_allclose(ctrl.solution.tau, fast, rtol=0.0, atol=1e-5)  # (daqp tolerance)
     assert np.abs(ctrl.solution.tau).max() > 1.0
 
