@@ -6,8 +6,11 @@ coupling at rotation errors below 1e-5 rad, where it tests ``theta^2 < 1e-10``; 
 is exact: tests/control/ik/test_g1_ik.py shows the first steps differing by percents there).
 
 Acceleration level (TSID): ``J = J_F`` (LOCAL), drift ``Jdot_F v`` (the spatial acceleration of F
-at zero vdot), ``a_des = a_ref + kp log6(X_FT) + kd (v_ref - J_F v)``, with the linear references
-rotated from W into F and zero angular references.
+at zero vdot), ``a_des = a_ref + kp log6(X_FT) + kd (v_ref - J_F v)``, with the references (linear
+from :meth:`~mbctl.control.tasks.frame.FrameTask.set_target`, angular from
+:meth:`FramePoseTask.set_angular_reference`, zero unless set) rotated from W into F. The task's
+terms are stacked (:meth:`FramePoseTask.write_acceleration_terms`) unless a subclass has its own
+law (``desired_acceleration``).
 """
 
 from __future__ import annotations
@@ -17,7 +20,7 @@ import numpy.typing as npt
 import pinocchio as pin
 
 from mbctl.control.tasks.base import AccelerationGains, dot_into
-from mbctl.control.tasks.frame import FrameTask, pose_cost
+from mbctl.control.tasks.frame import FrameTask, pose_cost, world_vector
 from mbctl.control.tasks.residuals import TaskResidual
 from mbctl.control.tasks.state import DynamicsState, TaskState
 
@@ -54,6 +57,38 @@ class FramePoseTask(FrameTask):
         """
         cost = pose_cost(frame, position_cost, orientation_cost)
         super().__init__(name or f"{frame} pose", frame, model, 6, cost, gain, lm_damping, servo)
+        # the references in W, linear then angular: velocities [m/s; rad/s], accelerations [m/s^2;
+        # rad/s^2] (v_ref_W and a_ref_W are their first rows: set_target writes into them)
+        self._vel_W, self._acc_W = np.zeros((2, 3)), np.zeros((2, 3))
+        self.v_ref_W, self.a_ref_W = self._vel_W[0], self._acc_W[0]
+        self._ff_W = np.zeros((2, 3))  # a_ref + kd v_ref, per row (written per cycle)
+
+    def __init_subclass__(cls, **kwargs: object) -> None:
+        super().__init_subclass__(**kwargs)
+        # a subclass with a law of its own writes its rows whole (its desired_acceleration), unless it says
+        if cls.desired_acceleration is not FramePoseTask.desired_acceleration and "stacked_acceleration" \
+                not in cls.__dict__:
+            cls.stacked_acceleration = False
+
+    @property
+    def w_ref_W(self) -> np.ndarray:
+        """Target angular velocity (3,) [rad/s] in W (acceleration level; a view)."""
+        return self._vel_W[1]
+
+    @property
+    def alpha_ref_W(self) -> np.ndarray:
+        """Target angular acceleration (3,) [rad/s^2] in W (acceleration level; a view)."""
+        return self._acc_W[1]
+
+    def set_angular_reference(self, w: npt.ArrayLike = (0.0, 0.0, 0.0),
+                              alpha: npt.ArrayLike = (0.0, 0.0, 0.0)) -> None:
+        """The target's angular velocity [rad/s] and acceleration [rad/s^2] in W (kept until set again).
+
+        Raises:
+            TaskSetupError: Not 3 finite numbers each.
+        """
+        self._vel_W[1] = world_vector(w, self.name, "target angular velocity [rad/s]")
+        self._acc_W[1] = world_vector(alpha, self.name, "target angular acceleration [rad/s^2]")
 
     def compute_error(self, state: TaskState) -> np.ndarray:
         """``log6(X_FT)`` (6,) [m, rad]: the twist from F to the target, in F."""
@@ -108,9 +143,27 @@ class FramePoseTask(FrameTask):
     def desired_acceleration(self, state: DynamicsState, J: np.ndarray) -> np.ndarray:
         """``a_ref + kp log6(X_FT) + kd (v_ref - J_F v)`` (6,) in F."""
         R_FW = state.frame_pose(self.frame_id).rotation.T
-        v_ref = np.concatenate([R_FW @ self.v_ref_W, np.zeros(3)])
-        a_ref = np.concatenate([R_FW @ self.a_ref_W, np.zeros(3)])
+        v_ref = np.concatenate([R_FW @ self._vel_W[0], R_FW @ self._vel_W[1]])
+        a_ref = np.concatenate([R_FW @ self._acc_W[0], R_FW @ self._acc_W[1]])
         return a_ref + self._kp * self.compute_error(state) + self._kd * (v_ref - J @ state.v)
+
+    stacked_acceleration = True
+
+    def write_acceleration_terms(self, state: DynamicsState, J_t: np.ndarray, r_t: np.ndarray) -> None:
+        """``J_F`` and ``kp log6(X_FT) + R_FW (a_ref + kd v_ref) - Jdot_F v`` (see the base class)."""
+        if self._X_WT is None:
+            raise self._no_target()
+        fid = self.frame_id
+        X_WF = state.frame_placements[fid]
+        # log6(X_FT) = -log6(X_TF), X_TF = X_WT^-1 X_WF by one binding call
+        np.multiply(pin.log6(self._X_WT.actInv(X_WF)).vector, -self._kp, out=r_t)
+        ff = self._ff_W
+        np.multiply(self._vel_W, self._kd, out=ff)
+        ff += self._acc_W
+        # R_FW u for both rows at once: (u^T R_WF)^T, i.e. the rows of ff R_WF ([linear; angular] in F)
+        r_t += np.dot(ff, X_WF.rotation).reshape(6)
+        r_t -= pin.getFrameAcceleration(state.model, state.data, fid, pin.LOCAL).vector
+        J_t[:] = state.frame_jacobian(fid, pin.LOCAL)
 
     def residual(self, state: TaskState) -> TaskResidual:
         """Distance [m] and rotation angle [rad] to the target; a part with zero cost is left out."""

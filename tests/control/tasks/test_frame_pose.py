@@ -163,3 +163,49 @@ def test_bad_costs_are_named():
         FramePoseTask("tip", ARM, position_cost=[1.0, 1.0])
     with pytest.raises(TaskSetupError, match=r"gain must be in \[0, 1\]"):
         FramePoseTask("tip", ARM, gain=1.5)
+
+
+@pytest.mark.parametrize(("model", "frame"), CASES, ids=IDS)
+def test_angular_references_are_fed_forward_in_the_stacked_terms_and_the_whole_rows(model, frame):
+    rng = np.random.default_rng(21)
+    q, v = random_q(model, rng), rng.standard_normal(model.nv)
+    task = FramePoseTask(frame, model, 2.0, 0.7, servo=AccelerationGains(5.0, 0.8))
+    dyn = DynamicsState(model, q, v)
+    v_W, a_W, w_W, alpha_W = (rng.standard_normal(3) for _ in range(4))
+    task.set_target(_target_moved_by(dyn, frame, rng.uniform(-0.3, 0.3, 6)), v=v_W, a=a_W)
+    task.set_angular_reference(w_W, alpha_W)
+    np.testing.assert_array_equal(task.w_ref_W, w_W)
+    np.testing.assert_array_equal(task.alpha_ref_W, alpha_W)
+    J_a, drift = task.jacobian_and_drift(dyn)
+    R_FW = dyn.frame_pose(task.frame_id).rotation.T
+    kp, kd = 25.0, 2 * 0.8 * 5.0
+    a_des = (np.r_[R_FW @ a_W, R_FW @ alpha_W] + kp * task.compute_error(dyn)
+             + kd * (np.r_[R_FW @ v_W, R_FW @ w_W] - J_a @ v))
+    np.testing.assert_allclose(task.desired_acceleration(dyn, J_a), a_des, atol=1e-12)
+    J_t, r_t = np.full((6, model.nv), np.nan), np.full(6, np.nan)
+    task.write_acceleration_terms(dyn, J_t, r_t)  # the stack's: a_des + kd J v - Jdot v
+    np.testing.assert_array_equal(J_t, J_a)
+    np.testing.assert_allclose(r_t, a_des + kd * J_a @ v - drift, atol=1e-12)
+    H, c = acceleration_objective(task, dyn)
+    H_ref, c_ref = expected_acceleration_objective(task, J_a, drift, a_des)
+    np.testing.assert_allclose(H, H_ref, atol=1e-12)
+    np.testing.assert_allclose(c, c_ref, atol=1e-10)
+    with pytest.raises(TaskSetupError, match="target angular velocity"):
+        task.set_angular_reference([0.0, np.nan, 0.0])
+
+
+def test_a_subclass_with_a_law_of_its_own_writes_its_rows_whole():
+    class OwnLaw(FramePoseTask):
+        def desired_acceleration(self, state, J):
+            return np.full(6, 7.0)
+
+    assert FramePoseTask.stacked_acceleration and not OwnLaw.stacked_acceleration
+    rng = np.random.default_rng(22)
+    dyn = DynamicsState(FLOATING, random_q(FLOATING, rng), rng.standard_normal(FLOATING.nv))
+    task = OwnLaw("hand", FLOATING, 1.5, 0.5, servo=AccelerationGains(4.0, 1.0))
+    task.set_target(dyn.frame_pose(task.frame_id))
+    J_a, drift = task.jacobian_and_drift(dyn)
+    H, c = acceleration_objective(task, dyn)  # its own a_des, not the pose law's
+    H_ref, c_ref = expected_acceleration_objective(task, J_a, drift, np.full(6, 7.0))
+    np.testing.assert_allclose(H, H_ref, atol=1e-12)
+    np.testing.assert_allclose(c, c_ref, atol=1e-10)

@@ -96,7 +96,7 @@ def test_weights_changed_between_solves_are_read_again():
 
 
 def _acceleration_tasks(state: DynamicsState, rng: np.random.Generator) -> list:
-    """Stacked tasks (CoM, an orientation on the root and one on the arm) and tasks written whole."""
+    """Stacked tasks (CoM, orientations on the root and on the arm, a moving pose) and tasks written whole."""
     com = ComTask([1.0, 2.0, 0.5], servo=AccelerationGains(7.0, 0.9))
     com.set_target(state.com() + 0.05 * rng.standard_normal(3), rng.standard_normal(3),
                    rng.standard_normal(3))
@@ -108,7 +108,9 @@ def _acceleration_tasks(state: DynamicsState, rng: np.random.Generator) -> list:
         tasks.append(task)
     pose = FramePoseTask("foot", MODEL, 2.0, 0.5, servo=AccelerationGains(6.0, 1.0))
     X_WF = state.frame_pose(state.frame_id("foot"))
-    pose.set_target(X_WF * pin.exp6(pin.Motion(0.2 * rng.standard_normal(6))))
+    pose.set_target(X_WF * pin.exp6(pin.Motion(0.2 * rng.standard_normal(6))), rng.standard_normal(3),
+                    rng.standard_normal(3))
+    pose.set_angular_reference(rng.standard_normal(3), rng.standard_normal(3))
     posture = PostureTask(MODEL, rng.uniform(0.01, 0.1, MODEL.nv), servo=AccelerationGains(4.0, 1.0))
     posture.set_target(random_q(MODEL, rng))
     return [*tasks, pose, posture, AngularMomentumTask(0.3, servo=AccelerationGains(3.0, 1.0))]
@@ -136,7 +138,7 @@ def test_the_acceleration_stack_equals_every_task_written_whole():
         if stack is None:
             tasks = _acceleration_tasks(state, rng)
             stack = TaskStack(MODEL.nv, tasks)
-            assert [t.stacked_acceleration for t in tasks] == [True, True, True, False, False, False]
+            assert [t.stacked_acceleration for t in tasks] == [True, True, True, True, False, False]
         if k == 2:
             tasks[0].set_cost(0.7)
             tasks[1].servo = AccelerationGains(9.0, 0.3)

@@ -277,6 +277,12 @@ def test_the_swing_task_feeds_the_yaw_rate_and_acceleration_forward(tiny_biped, 
     R_FW = X.rotation.T
     np.testing.assert_allclose(a[3:], R_FW[:, 2] * (2.0 + 30.0 * 0.8), atol=1e-9)
     np.testing.assert_allclose(a[:3], 0.0, atol=1e-9)
+    assert task.yaw_rate_rad_s == 0.8 and task.yaw_acceleration_rad_s2 == 2.0
+    # the stack's terms (a_des + kd J v - Jdot v, at rest a_des - Jdot v): the same law
+    assert task.stacked_acceleration
+    J_t, r_t = np.zeros_like(J), np.zeros(6)
+    task.write_acceleration_terms(state, J_t, r_t)
+    np.testing.assert_allclose(r_t, a - task.jacobian_and_drift(state)[1], atol=1e-9)
 
 
 @pytest.mark.parametrize(("replan_period_s", "plans"), [(0.0, 76), (0.008, 20)])
