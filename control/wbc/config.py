@@ -218,14 +218,20 @@ class WBCSolution:
         """The contact forces' total moment (3,) [N m] about ``point_W`` (3,) [m] and their total z [N], in W.
 
         About the CoM the moment is the rate of the centroidal angular momentum the QP planned.
-        Each foot: ``R m_F + (t - point) x R f_F`` from ``wrenches_F``, in plain floats (a controller
-        reads it every cycle; ``np.cross`` costs ~10 us a call at this size).
+        Each foot: ``R m_F + (t - point) x R f_F`` from the wrenches in F (one product), on plain floats
+        (a walker reads it every cycle: ~4 us warm against ~8 with a 3 x 3 product per foot, and
+        ``np.cross`` costs ~10 us a call at this size).
         """
         cx, cy, cz = point_W.tolist()
+        wrenches = (self.wrench_map @ self.forces).tolist()  # [f_F; m_F] per foot
         mx = my = mz = fz = 0.0
-        for X, wrench in zip(self.foot_X_W, self.wrenches_F, strict=True):
-            (ax, bx), (ay, by), (az, bz) = (X[:3, :3] @ wrench.T).tolist()  # columns: f, m in W
-            tx, ty, tz = X[:3, 3].tolist()
+        for k, X in enumerate(self.foot_X_W):
+            (r00, r01, r02, tx), (r10, r11, r12, ty), (r20, r21, r22, tz), _ = X.tolist()
+            fx, fy, fz_F, ux, uy, uz = wrenches[6 * k:6 * k + 6]
+            ax, ay, az = (r00 * fx + r01 * fy + r02 * fz_F, r10 * fx + r11 * fy + r12 * fz_F,
+                          r20 * fx + r21 * fy + r22 * fz_F)  # R f_F
+            bx, by, bz = (r00 * ux + r01 * uy + r02 * uz, r10 * ux + r11 * uy + r12 * uz,
+                          r20 * ux + r21 * uy + r22 * uz)  # R m_F
             rx, ry, rz = tx - cx, ty - cy, tz - cz
             mx += bx + ry * az - rz * ay
             my += by + rz * ax - rx * az
