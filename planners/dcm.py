@@ -100,15 +100,55 @@ class DcmPlan:
                  initial: tuple[float, npt.ArrayLike, npt.ArrayLike] | None = None):
         r = np.array(vrps, dtype=float)
         t = np.atleast_1d(np.array(switch_times_s, dtype=float))
-        # plain floats below (a few VRPs; the plan is rebuilt whenever a footstep or the command changes)
-        rl, tl = r.tolist(), t.tolist()
-        if not (math.isfinite(omega_rad_s) and omega_rad_s > 0):
-            raise InvalidPlanningInput(f"omega_rad_s must be finite and > 0; got {omega_rad_s!r}")
-        if r.ndim != 2 or r.shape[1] != 2 or len(r) < 1 or not all(map(math.isfinite, r.ravel().tolist())):
+        if r.ndim != 2 or r.shape[1] != 2 or len(r) < 1:
             raise InvalidPlanningInput(f"vrps must be a finite (N + 1, 2) array [m]; got shape {r.shape}")
-        if t.shape != (len(r) - 1,) or not all(map(math.isfinite, tl)):
+        if t.shape != (len(r) - 1,):
             raise InvalidPlanningInput(f"switch_times_s must be finite, one per VRP after the first: "
                                        f"shape ({len(r) - 1},); got {t.shape}")
+        self.__dict__.update(vrps=r, switch_times_s=t)  # (the cached properties' values)
+        self._build(omega_rad_s, r.tolist(), t.tolist(), double_support_s, alpha, initial)
+
+    @classmethod
+    def of_lists(cls, omega_rad_s: float, vrps: list[list[float]], switch_times_s: list[float],
+                 double_support_s: float, alpha: float = 0.5,
+                 initial: tuple[float, npt.ArrayLike, npt.ArrayLike] | None = None) -> DcmPlan:
+        """The plan of VRPs given as ``[x, y]`` float pairs and switches as floats (N + 1 and N of them).
+
+        The same checks as the constructor's, on plain floats (a walker plans every few cycles:
+        numpy's per-call costs were most of a plan's ~25 us), and the arrays ``vrps`` and
+        ``switch_times_s`` made when first read.
+
+        Raises:
+            InvalidPlanningInput: As the constructor.
+        """
+        if not (vrps and all(len(v) == 2 for v in vrps)):
+            raise InvalidPlanningInput(f"vrps must be a finite (N + 1, 2) list of [x, y] [m]; got {vrps!r}")
+        if len(switch_times_s) != len(vrps) - 1:
+            raise InvalidPlanningInput(f"switch_times_s must be finite, one per VRP after the first: "
+                                       f"{len(vrps) - 1}; got {len(switch_times_s)}")
+        plan = cls.__new__(cls)
+        plan._build(omega_rad_s, vrps, list(switch_times_s), double_support_s, alpha, initial)
+        return plan
+
+    @functools.cached_property
+    def vrps(self) -> np.ndarray:
+        """The VRPs (N + 1, 2) [m] in W."""
+        return np.array(self._vrps, dtype=float).reshape(-1, 2)
+
+    @functools.cached_property
+    def switch_times_s(self) -> np.ndarray:
+        """The switch times (N,) [s]."""
+        return np.array(self._switches, dtype=float)
+
+    def _build(self, omega_rad_s: float, rl: list[list[float]], tl: list[float], double_support_s: float,
+               alpha: float, initial: tuple[float, npt.ArrayLike, npt.ArrayLike] | None) -> None:
+        """Check the inputs (plain floats) and run the backward recursion; the windows."""
+        if not (math.isfinite(omega_rad_s) and omega_rad_s > 0):
+            raise InvalidPlanningInput(f"omega_rad_s must be finite and > 0; got {omega_rad_s!r}")
+        if not all(math.isfinite(x) and math.isfinite(y) for x, y in rl):
+            raise InvalidPlanningInput(f"vrps must be a finite (N + 1, 2) array [m]; got {rl!r}")
+        if not all(map(math.isfinite, tl)):
+            raise InvalidPlanningInput(f"switch_times_s must be finite, one per VRP after the first: {tl}")
         if not (math.isfinite(double_support_s) and double_support_s >= 0 and 0.0 <= alpha <= 1.0):
             raise InvalidPlanningInput(f"double_support_s must be >= 0 [s] and alpha in [0, 1]; got "
                                        f"{double_support_s!r}, {alpha!r}")
@@ -116,7 +156,6 @@ class DcmPlan:
             raise InvalidPlanningInput(f"switch times must increase by more than T_ds = {double_support_s} "
                                        f"s; got {tl}")
         self.omega = float(omega_rad_s)
-        self.vrps, self.switch_times_s = r, t
         self._vrps, self._switches = rl, tl
         self.double_support_s, self.alpha = float(double_support_s), float(alpha)
         # backward recursion: xi at each switch (xi_eos)
@@ -133,9 +172,9 @@ class DcmPlan:
         self.windows: list[tuple[float, float]] = []
         self._window_switch: list[int] = []
         self._coefficients: dict[int, list[tuple[float, ...]]] = {}
+        before, after = self.alpha * self.double_support_s, (1.0 - self.alpha) * self.double_support_s
         for k, tk in enumerate(tl):
-            a = tk - self.alpha * self.double_support_s
-            b = tk + (1.0 - self.alpha) * self.double_support_s
+            a, b = tk - before, tk + after
             if k == 0 and initial is not None:
                 if initial[0] > b:
                     raise InvalidPlanningInput(f"initial time {initial[0]} s is after the first window's end "

@@ -85,19 +85,21 @@ class WalkPlans:
             return memo[1]
         # the plan depends on these only (on t through t1): a cycle planning through the same footsteps
         # at the same command as an earlier one (double support, a swing footstep no longer moving) reuses it
+        vrp_list = [v.tolist() for v in vrps]  # (x, y) [m] pairs
         inputs = (first_key, first_key if stance is first else _step_key(stance),
-                  tuple(tuple(v.tolist()) for v in vrps), t1,
+                  tuple(map(tuple, vrp_list)), t1,
                   None if initial is None else (initial[0], *initial[1].tolist(), *initial[2].tolist()),
                   command)
         plan = self._plans.get(inputs)
         if plan is None:
             steps = [first] if first is not None else []
             steps += self.planner.plan(stance, command, cfg.preview_steps)
-            vrps += [gait.vrp(s) for s in steps]
-            before_last = vrps[-2] if len(steps) > 1 else gait.vrp(stance)
-            vrps.append(0.5 * (vrps[-1] + before_last))  # the stop: between the last two footsteps
-            switches = [t1 + cfg.timing.step_s * k for k in range(len(vrps) - 1)]  # (as t1 + T arange(n))
-            plan = DcmPlan(self.omega, vrps, switches, cfg.timing.double_support_s, DS_ALPHA, initial), steps
+            vrp_list += [gait.vrp(s).tolist() for s in steps]
+            (lx, ly), (bx, by) = vrp_list[-1], vrp_list[-2] if len(steps) > 1 else gait.vrp(stance).tolist()
+            vrp_list.append([0.5 * (lx + bx), 0.5 * (ly + by)])  # the stop: between the last two footsteps
+            switches = [t1 + cfg.timing.step_s * k for k in range(len(vrp_list) - 1)]  # (as t1 + T arange(n))
+            plan = DcmPlan.of_lists(self.omega, vrp_list, switches, cfg.timing.double_support_s, DS_ALPHA,
+                                    initial), steps
             if len(self._plans) >= PLANS_KEPT:
                 del self._plans[next(iter(self._plans))]  # the oldest
             self._plans[inputs] = plan

@@ -255,3 +255,24 @@ def test_polygon_of_bad_points():
         ConvexPolygon.of_points([[0.0, 0.0], [1.0, math.nan]])
     with pytest.raises(InvalidPlanningInput, match=r"shape \(0,\)"):
         ConvexPolygon.of_points([])
+
+
+def test_a_plan_of_float_lists_is_the_plan_of_arrays():
+    rng = np.random.default_rng(3)
+    vrps = rng.uniform(-0.3, 0.3, (5, 2))
+    switches = 0.2 + 0.5 * np.arange(4)
+    initial = (0.05, rng.uniform(-0.1, 0.1, 2), rng.uniform(-0.1, 0.1, 2))
+    arrays = DcmPlan(OMEGA, vrps, switches, 0.1, 0.4, initial)
+    lists = DcmPlan.of_lists(OMEGA, vrps.tolist(), switches.tolist(), 0.1, 0.4, initial)
+    np.testing.assert_array_equal(lists.vrps, arrays.vrps)
+    np.testing.assert_array_equal(lists.switch_times_s, arrays.switch_times_s)
+    for t in np.linspace(0.0, 2.5, 41):
+        a, b = arrays.at(t), lists.at(t)
+        np.testing.assert_array_equal(b.xi, a.xi)
+        np.testing.assert_array_equal(b.vrp, a.vrp)
+    with pytest.raises(InvalidPlanningInput, match="vrps must be a finite"):
+        DcmPlan.of_lists(OMEGA, [[0.0, 0.0], [np.nan, 0.0]], [1.0], 0.1)
+    with pytest.raises(InvalidPlanningInput, match="one per VRP after the first: 1; got 2"):
+        DcmPlan.of_lists(OMEGA, [[0.0, 0.0], [1.0, 0.0]], [1.0, 2.0], 0.1)
+    with pytest.raises(InvalidPlanningInput, match="increase by more than"):
+        DcmPlan.of_lists(OMEGA, [[0, 0], [1, 0], [2, 0]], [1.0, 1.05], 0.1)

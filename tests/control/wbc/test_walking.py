@@ -297,9 +297,9 @@ def test_a_plan_is_reused_while_its_footsteps_and_command_stay(tiny_biped, crouc
     built = []
 
     class Counting(walking_plan.DcmPlan):
-        def __init__(self, *args, **kwargs):
-            built.append(args[2][0])  # the first switch [s]
-            super().__init__(*args, **kwargs)
+        def _build(self, omega, vrps, switches, *args):
+            built.append(switches[0])  # the first switch [s]
+            super()._build(omega, vrps, switches, *args)
 
     monkeypatch.setattr(walking_plan, "DcmPlan", Counting)
     config = replace(CONFIG, replan_period_s=replan_period_s)
