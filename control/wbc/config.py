@@ -214,6 +214,21 @@ class WBCSolution:
         return {name: (wrench @ X[:3, :3].T).ravel()
                 for name, X, wrench in zip(self.force_slices, self.foot_X_W, self.wrenches_F, strict=True)}
 
+    @functools.cached_property
+    def _wrench_list(self) -> list[float]:
+        """``wrenches_F`` flat, on plain floats: ``[f_F; m_F]`` per foot (one product)."""
+        return (self.wrench_map @ self.forces).tolist()
+
+    @property
+    def normal_forces_W(self) -> list[float]:
+        """Each foot's total contact force's z [N] in W, feet in ``force_slices``' order (plain floats)."""
+        w = self._wrench_list
+        out = []
+        for k, X in enumerate(self.foot_X_W):
+            r20, r21, r22, _ = X[2].tolist()
+            out.append(r20 * w[6 * k] + r21 * w[6 * k + 1] + r22 * w[6 * k + 2])
+        return out
+
     def moment_about_W(self, point_W: np.ndarray) -> tuple[np.ndarray, float]:
         """The contact forces' total moment (3,) [N m] about ``point_W`` (3,) [m] and their total z [N], in W.
 
@@ -223,7 +238,7 @@ class WBCSolution:
         ``np.cross`` costs ~10 us a call at this size).
         """
         cx, cy, cz = point_W.tolist()
-        wrenches = (self.wrench_map @ self.forces).tolist()  # [f_F; m_F] per foot
+        wrenches = self._wrench_list  # [f_F; m_F] per foot
         mx = my = mz = fz = 0.0
         for k, X in enumerate(self.foot_X_W):
             (r00, r01, r02, tx), (r10, r11, r12, ty), (r20, r21, r22, tz), _ = X.tolist()
