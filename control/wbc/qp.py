@@ -338,8 +338,9 @@ class WholeBodyQP:
 
         First the QP in the free forces alone (:meth:`_solve_forces`; not while the last point had
         an acceleration bound or a row with vdot in it active, where it would fail its check again),
-        then the reduced QP when there is something to leave out (:mod:`.reduced_qp`), else or
-        when those fail, the whole one.
+        then the reduced QP when there is something to leave out (:mod:`.reduced_qp`: without the
+        deferred rows and the pinned forces, then with the pins, without the pinned forces only),
+        else or when those fail, the whole one.
 
         Args:
             eq_rows: The equality rows' indices.
@@ -353,8 +354,13 @@ class WholeBodyQP:
             solved = self._solve_forces(len(eq_rows), factored)
             if solved is not None:
                 return solved
-        if self._pinned or self.deferred_rows is not None:
-            reduced = self._reduced.solve(eq_rows, dropped == 0)
+        # without the deferred rows (and the pinned forces), then without the pinned forces alone: daqp
+        # can fail on the whole QP's degenerate vertex of a released foot's pinned forces (ReducedQP.solve)
+        defers = [True] if self.deferred_rows is not None else []
+        if self._pinned:
+            defers.append(False)
+        for defer in defers:
+            reduced = self._reduced.solve(eq_rows, dropped == 0, defer)
             if reduced is not None:
                 self._note_acceleration_limits(reduced[0])
                 return reduced[0]._replace(dependent_rows=dropped), reduced[1]

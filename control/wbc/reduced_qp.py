@@ -69,8 +69,11 @@ class ReducedQP:
         out[qp.n_x:] = G_v_zero & ~touches_free
         return out
 
-    def reduction(self) -> _Reduction:
+    def reduction(self, defer: bool = True) -> _Reduction:
         """The variables and rows of the reduced QP for the present pins (made once per pattern).
+
+        Args:
+            defer: Leave out the deferred rows too (else only what involves pinned forces alone).
 
         Made with G's pattern of non-zeros at the time, taken as fixed while the pins stay. It
         decides which rows the reduced QP leaves out and whether the next solve tries the fast path
@@ -78,7 +81,7 @@ class ReducedQP:
         a stale pattern would cost a solve of the whole QP, not a wrong point.
         """
         qp = self._qp
-        d = qp.deferred_rows
+        d = qp.deferred_rows if defer else None
         key = (qp._free_f.tobytes(), None if d is None else (d.start, d.stop, d.step))
         red = self._reductions.get(key)
         if red is None:
@@ -94,8 +97,9 @@ class ReducedQP:
             red.force_weight = qp._w_f
         return red
 
-    def solve(self, eq_rows: np.ndarray, consecutive: bool) -> tuple[QPResult, bool] | None:
-        """Solve by daqp without the pinned forces and the deferred rows, if that is the whole QP's optimum.
+    def solve(self, eq_rows: np.ndarray, consecutive: bool,
+              defer: bool = True) -> tuple[QPResult, bool] | None:
+        """Solve by daqp without the pinned forces (and the deferred rows), if that is the whole QP's optimum.
 
         Pinned forces are zero in every feasible point, so leaving them out (with the rows that
         only involve them) changes nothing; leaving out the deferred rows relaxes the QP, so its
@@ -104,13 +108,25 @@ class ReducedQP:
         has 47 variables and 28 rows against 59 and 73, and daqp's setup, redone every call,
         grows with n^2 m: ~60 us against ~125 us (measured on walking cycles).
 
+        Without the deferred rows left out (``defer`` False) it is the whole QP's optimum whenever
+        it has one: pinned forces are zero in every feasible point. daqp on the whole QP instead can
+        report no solution where there is one: a released foot's normal forces pinned by equal bounds
+        and its tangential ones by the friction rows at zero make a degenerate vertex (e.g. after a
+        push while walking: the whole QP infeasible for daqp, exit -1, feasible for HiGHS' LP, and
+        solved by daqp with the foot's forces left out).
+
+        Args:
+            eq_rows: The equality rows' indices.
+            consecutive: They are the first ``len(eq_rows)`` rows.
+            defer: Leave out the deferred rows too.
+
         Returns:
             ``(result, active)``: the result (its ``duals`` None: they are the reduced QP's) and
             whether an inequality or bound is active at it; None when a deferred row is violated
             or the reduced QP has no solution (the whole one then decides).
         """
         qp = self._qp
-        red = self.reduction()
+        red = self.reduction(defer)
         nv, k, r, m = qp.nv, len(red.keep), len(red.rows), len(eq_rows)
         red.H[:nv, :nv] = qp.H_vv
         red.c[:nv] = qp.c_v

@@ -294,7 +294,9 @@ def test_the_reduced_qp_gives_the_whole_qps_optimum(seed, deferred, pin):
     qp.g_lo[:], qp.g_up[:] = lo, up
     g = qp.G[deferred] @ relaxed
     violated = bool((g > up[deferred] + 1e-5).any() or (g < lo[deferred] - 1e-5).any())
-    assert whole == ([1] if violated else [])
+    # with forces pinned, the QP without them alone (every row in) comes before the whole one: it is
+    # the whole QP's optimum whenever there is one
+    assert whole == ([1] if violated and not pin else [])
 
 
 def test_deferred_rows_cut_at_the_optimum_send_the_solve_to_the_whole_qp():
@@ -324,3 +326,24 @@ def test_the_reduced_qps_point_is_checked_against_every_left_out_row():
     qp.g_lo[4], qp.g_up[4] = 1.0, 2.0
     result = qp.solve(M_EQ)
     assert result.x is None and result.status < 0
+
+
+def test_with_forces_pinned_the_qp_without_them_answers_where_daqp_fails_on_the_whole_qp():
+    """daqp can report no solution on the whole QP where there is one (a released foot's pinned forces
+    make a degenerate vertex: seen after pushes while walking); the QP without the pinned forces, every
+    row kept, is the whole QP's and is solved before it."""
+    qp = _problem(4, 0.2)
+    qp.deferred_rows = slice(0, 3)  # the cut rows: the first reduced QP's point violates them
+    qp.lb[NV + 3:] = qp.ub[NV + 3:] = 0.0
+    qp.force_free[3:] = False
+    qp.use_force_space = False
+    whole, reduced = [], []
+    qp._daqp_solver.solve = lambda data: whole.append(1) or QPResult(None, -1, 0, 0.0)  # as daqp did
+    solve = qp._reduced.solve
+    qp._reduced.solve = lambda *args: reduced.append(args[-1]) or solve(*args)
+    result = qp.solve(M_EQ)
+    reference = _reference(qp, M_EQ)
+    # the deferred rows cut the first reduced QP's point: the second (every row) gives the optimum
+    assert reference is not None and reduced == [True, False] and whole == [] and result.x is not None
+    np.testing.assert_allclose(result.x, reference, atol=1e-6 * max(1.0, np.abs(reference).max()))
+    np.testing.assert_array_equal(result.x[NV + 3:], 0.0)
