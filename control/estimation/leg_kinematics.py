@@ -45,7 +45,7 @@ import pinocchio as pin
 from scipy.linalg.lapack import dposv
 
 from mbctl.control.estimation.exceptions import EstimatorError
-from mbctl.robots.fastmath import cross3, quat_xyzw_to_matrix
+from mbctl.robots.fastmath import all_finite, cross3, quat_xyzw_to_matrix
 from mbctl.robots.interface import BASE_LINEAR_VELOCITY, BASE_POSITION, Proprioception
 from mbctl.robots.model_pair import Robot
 
@@ -118,6 +118,7 @@ class LegKinematicsEstimator:
         self.feet = tuple(feet)
         self._fids = [self.model.getFrameId(f) for f in self.feet]
         self._p_FP = [np.asarray(feet[f], dtype=float).reshape(3) for f in self.feet]
+        self._p_FP_list = [p.tolist() for p in self._p_FP]
         self.noise = noise or LegKinematicsNoise()
         self.start_xy_m = (float(start_xy_m[0]), float(start_xy_m[1]))
         self.ground_z_m = float(ground_z_m)
@@ -127,7 +128,8 @@ class LegKinematicsEstimator:
         pin.framesForwardKinematics(self.model, self.data, pin.neutral(self.model))
         X_BI = self.data.oMf[self.model.getFrameId(imu_site)]
         self._R_BI = X_BI.rotation.copy()
-        self._q_BI = pin.Quaternion(self._R_BI)
+        self._R_IB = self._R_BI.T.copy()
+        self._q_IB = pin.Quaternion(self._R_BI).inverse().coeffs().tolist()  # (x, y, z, w)
         n = len(self.feet)
         self._contact = np.ones(n, dtype=bool)
         self._q_fk = pin.neutral(self.model)
@@ -136,6 +138,7 @@ class LegKinematicsEstimator:
         self._P = np.eye(2 + n)  # the covariance of each column (the same for the three)
         self._t: float | None = None
         self._patterns: dict[bytes, tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]] = {}
+        self._leg_rows = np.zeros((2 * n, 3))  # each leg's p_BP, then each leg's base velocity
 
     @property
     def estimated(self) -> tuple[str, ...]:
@@ -154,36 +157,48 @@ class LegKinematicsEstimator:
             self._contact[self.feet.index(foot)] = bool(flag)
 
     # ------------------------------------------------------------------ kinematics
-    def _orientation(self, reading: Proprioception) -> tuple[np.ndarray, np.ndarray, pin.Quaternion]:
-        """R_WI, R_WB and q_WB from the IMU's quaternion."""
-        w, x, y, z = reading.imu.quat_wxyz
-        R_WI = quat_xyzw_to_matrix([x, y, z, w])
-        R_WB = R_WI @ self._R_BI.T
-        q_WB = pin.Quaternion(float(w), float(x), float(y), float(z)) * self._q_BI.inverse()
-        return R_WI, R_WB, q_WB
+    def _orientation(self, reading: Proprioception) -> tuple[np.ndarray, list[float]]:
+        """R_WB and q_WB (x, y, z, w) from the IMU's quaternion: ``q_WB = q_WI q_IB`` (plain floats)."""
+        w, x, y, z = np.asarray(reading.imu.quat_wxyz, dtype=float).tolist()
+        bx, by, bz, bw = self._q_IB
+        q_WB = [w * bx + x * bw + y * bz - z * by, w * by - x * bz + y * bw + z * bx,
+                w * bz + x * by - y * bx + z * bw, w * bw - x * bx - y * by - z * bz]
+        return quat_xyzw_to_matrix(q_WB), q_WB
+
+    def _gyro_accel_B(self, reading: Proprioception) -> np.ndarray:
+        """(2, 3): the gyro's w_B [rad/s] and the accelerometer's specific force f_B [m/s^2], in B."""
+        return np.dot((reading.imu.gyro_I, reading.imu.accel_I), self._R_IB)  # rows: R_BI u = (u^T R_IB)^T
 
     def _legs(self, reading: Proprioception, w_B: list[float]) -> tuple[np.ndarray, np.ndarray]:
         """p_BP (n, 3) [m] and the base velocity each leg implies, in B (n, 3) [m/s]."""
         self._q_fk[7:] = reading.q_joints
         self._v_fk[6:] = reading.v_joints
         pin.forwardKinematics(self.model, self.data, self._q_fk, self._v_fk)
-        p_BP = np.empty((len(self.feet), 3))
-        v_B = np.empty((len(self.feet), 3))
+        n = len(self.feet)
+        p_BP, v_B = self._leg_rows[:n], self._leg_rows[n:]  # (written in place: copies when kept)
+        # on plain floats: a few 3-vectors per leg, where numpy's per-call cost was most of the work
         for i, fid in enumerate(self._fids):
             X_BF = pin.updateFramePlacement(self.model, self.data, fid)
-            p_FP_B = X_BF.rotation @ self._p_FP[i]
-            p_BP[i] = X_BF.translation + p_FP_B
+            (r00, r01, r02), (r10, r11, r12), (r20, r21, r22) = X_BF.rotation.tolist()
+            tx, ty, tz = X_BF.translation.tolist()
+            fx, fy, fz = self._p_FP_list[i]
+            r = (r00 * fx + r01 * fy + r02 * fz, r10 * fx + r11 * fy + r12 * fz,
+                 r20 * fx + r21 * fy + r22 * fz)  # p_FP in B's axes
+            p = (tx + r[0], ty + r[1], tz + r[2])  # p_BP
             vel = pin.getFrameVelocity(self.model, self.data, fid, pin.LOCAL_WORLD_ALIGNED)
             # the point's velocity relative to B, then the base's: -(v_BP + w_B x p_BP)
-            v_BP = vel.linear + cross3(vel.angular.tolist(), p_FP_B.tolist())
-            v_B[i] = -(v_BP + cross3(w_B, p_BP[i].tolist()))
+            (lx, ly, lz), (ax, ay, az) = vel.linear.tolist(), vel.angular.tolist()
+            (cx, cy, cz), (dx, dy, dz) = cross3((ax, ay, az), r), cross3(w_B, p)
+            p_BP[i] = p
+            v_B[i] = (-(lx + cx + dx), -(ly + cy + dy), -(lz + cz + dz))
         return p_BP, v_B
 
     def _pattern(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         """The terms of the feet in contact now (one axis), made once per contact pattern.
 
         Returns:
-            The feet in contact (indices), the measurement matrix of one axis (their positions
+            The rows of the feet in contact (their positions', then their velocities' in the legs'
+            rows), the measurement matrix of one axis (their positions
             relative to the base, then the base velocity through each), its noise variances, and
             the covariance's random-walk rates (zero for the base, each foot's variance rate).
         """
@@ -199,7 +214,8 @@ class LegKinematicsEstimator:
             r = np.concatenate([np.full(k, nz.kinematics_m**2), np.full(k, nz.leg_velocity_m_s**2)])
             rates = np.where(self._contact, nz.foot_slip_m_s, nz.foot_swing_m_s) ** 2
             walk = np.concatenate([[0.0, 0.0], rates])
-            terms = self._patterns[key] = (feet, H, r, walk)
+            rows = np.concatenate([feet, len(self.feet) + feet])  # the feet's rows of _leg_rows
+            terms = self._patterns[key] = (rows, H, r, walk)
         return terms
 
     @property
@@ -215,8 +231,8 @@ class LegKinematicsEstimator:
     # ------------------------------------------------------------------ filter
     def reset(self, reading: Proprioception) -> None:
         """Start at rest: base (x, y) at ``start_xy_m``, the lowest contact point on the ground."""
-        _, R_WB, _ = self._orientation(reading)
-        w_B = self._R_BI @ np.asarray(reading.imu.gyro_I, dtype=float)
+        R_WB, _ = self._orientation(reading)
+        w_B = self._gyro_accel_B(reading)[0]
         p_BP, _ = self._legs(reading, w_B.tolist())
         p_WP_rel = p_BP @ R_WB.T  # R_WB p_BP, per foot
         base = np.array([*self.start_xy_m, self.ground_z_m - p_WP_rel[:, 2].min()])
@@ -232,15 +248,15 @@ class LegKinematicsEstimator:
         """
         if self._t is None:
             raise EstimatorError("call reset(reading) with the first reading before update()")
-        R_WI, R_WB, q_WB = self._orientation(reading)
-        w_B = self._R_BI @ np.asarray(reading.imu.gyro_I, dtype=float)
+        R_WB, q_WB = self._orientation(reading)
+        w_B, f_B = self._gyro_accel_B(reading)
         dt = min(float(reading.time_s) - self._t, self.max_dt_s)
         self._t = float(reading.time_s)
         nz = self.noise
         X, P = self._X, self._P
-        feet, H, r_diag, walk = self._pattern()
+        rows, H, r_diag, walk = self._pattern()
         if dt > 0:
-            a_W = R_WI @ np.asarray(reading.imu.accel_I, dtype=float) + self._g_W
+            a_W = R_WB @ f_B + self._g_W
             X[0] += X[1] * dt + 0.5 * dt * dt * a_W
             X[1] += a_W * dt
             # F = I + dt [[0, 1], [0, 0]] on (p, v); feet unchanged
@@ -250,10 +266,10 @@ class LegKinematicsEstimator:
             q_diag[0] = (0.5 * nz.accel_m_s2 * dt * dt) ** 2
             q_diag[1] = nz.accel_m_s2**2 * dt
             P.flat[::len(P) + 1] += q_diag
-        p_BP, v_B_legs = self._legs(reading, w_B.tolist())
-        if len(feet):
+        self._legs(reading, w_B.tolist())
+        if len(rows):
             # each axis's measurements: rows (positions, then velocities) x columns (x, y, z)
-            Z = np.vstack([p_BP[feet], v_B_legs[feet]]) @ R_WB.T
+            Z = np.dot(self._leg_rows[rows], R_WB.T)
             PHt = P @ H.T
             S = H @ PHt
             S.flat[::len(S) + 1] += r_diag
@@ -265,10 +281,10 @@ class LegKinematicsEstimator:
             X += Kt.T @ (Z - H @ X)
             P -= Kt.T @ PHt.T
             P[:] = 0.5 * (P + P.T)
-        if not np.all(np.isfinite(X)):
+        if not all_finite(X.ravel().tolist()):
             raise EstimatorError(f"the estimate diverged at t={reading.time_s:.3f} s (non-finite "
                                  "readings or noise models); check the IMU and encoder values")
-        q_base = np.concatenate([X[0], q_WB.coeffs()])  # coeffs: (x, y, z, w)
+        q_base = np.concatenate([X[0], q_WB])  # (x, y, z, w)
         v_base = np.concatenate([R_WB.T @ X[1], w_B])
         return q_base, v_base
 

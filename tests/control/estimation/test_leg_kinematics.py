@@ -4,6 +4,7 @@ against the plant's truth is in tests/jobs/test_estimator_check.py; the 30 s run
 from __future__ import annotations
 
 import numpy as np
+import pinocchio as pin
 import pytest
 
 from mbctl.control.estimation import EstimatorError, LegKinematicsEstimator, LegKinematicsNoise
@@ -82,10 +83,15 @@ def test_the_per_axis_filter_is_the_full_kalman_filter(g1_torque):
                            v_joints=0.3 * rng.standard_normal(nj),
                            imu=first.imu._replace(accel_I=first.imu.accel_I + rng.standard_normal(3),
                                                   gyro_I=0.1 * rng.standard_normal(3)))
-        est.update(r)
+        q_base, _ = est.update(r)
         # the full filter: predict ...
-        R_WB = est._orientation(r)[1]
-        a_W = est._orientation(r)[0] @ r.imu.accel_I + est._g_W
+        w, qx, qy, qz = r.imu.quat_wxyz  # (R_WI from Pinocchio, R_WB = R_WI R_BI^T: not the estimator's)
+        R_WI = pin.Quaternion(float(w), float(qx), float(qy), float(qz)).normalized().toRotationMatrix()
+        R_WB = R_WI @ est._R_BI.T
+        np.testing.assert_allclose(est._orientation(r)[0], R_WB, rtol=0, atol=1e-14)
+        x_q, y_q, z_q, w_q = q_base[3:].tolist()  # the base's quaternion (x, y, z, w) is R_WB's
+        np.testing.assert_allclose(pin.Quaternion(w_q, x_q, y_q, z_q).toRotationMatrix(), R_WB, atol=1e-12)
+        a_W = R_WI @ r.imu.accel_I + est._g_W
         F = np.eye(6 + 3 * n)
         F[:3, 3:6] = 0.002 * I3
         x = F @ x
