@@ -128,6 +128,10 @@ class LowStateStream:
         self.check_crc = check_crc
         self.t0 = t0
         self._codec = low_state_codec()
+        # the fields read every state: views of the codec's buffer (decode fills it in place), made once
+        msg = self._codec.message
+        motors, imu = msg["motor_state"][:n_motors], msg["imu_state"]
+        self._fields = (imu["quaternion"], imu["gyroscope"], imu["accelerometer"], motors["q"], motors["dq"])
         self.counts = StreamCounts()
         self.order: str | None = None
         self.tick = 0
@@ -174,12 +178,11 @@ class LowStateStream:
                 c.bad_crc_zero += int(msg["crc"]) == 0
                 return False
             c.crc_unchecked += 1
-        motors, imu = msg["motor_state"][: self._n], msg["imu_state"]
-        quat = imu["quaternion"].astype(float)
-        finite = (np.isfinite(quat).all() and np.isfinite(imu["gyroscope"]).all()
-                  and np.isfinite(imu["accelerometer"]).all() and np.isfinite(motors["q"]).all()
-                  and np.isfinite(motors["dq"]).all())
-        if not finite or abs(float(np.linalg.norm(quat)) - 1.0) > QUAT_TOLERANCE:
+        quat, gyro, accel, q, dq = (f.astype(float) for f in self._fields)
+        # every value finite: their sum in float64 is (float32 values cannot overflow it)
+        finite = math.isfinite(quat.sum() + gyro.sum() + accel.sum() + q.sum() + dq.sum())
+        w, x, y, z = quat.tolist()
+        if not finite or abs(math.sqrt(w * w + x * x + y * y + z * z) - 1.0) > QUAT_TOLERANCE:
             c.bad_states += 1
             return False
         tick = int(msg["tick"])
@@ -195,9 +198,8 @@ class LowStateStream:
         if self._loop_rx is not None or self._loop_began:
             self._loop_rx = now
         self.tick, self.last_rx = tick, now
-        self.q = motors["q"].astype(float)
-        self.dq = motors["dq"].astype(float)
-        self.imu = ImuReading(quat, imu["gyroscope"].astype(float), imu["accelerometer"].astype(float))
+        self.q, self.dq = q, dq
+        self.imu = ImuReading(quat, gyro, accel)
         self.mode_machine = int(msg["mode_machine"])
         return True
 

@@ -158,6 +158,7 @@ class MotorCommandWriter:
         self.policy = MotorPolicy(robot, motors, gains)
         self.binder = CommandBinder(robot, self.policy)
         self._slots: dict[int, _Slots] = {}
+        self._fields: tuple[np.ndarray, dict[str, np.ndarray]] | None = None  # a motor_cmd's field views
 
     def _slots_of(self, binding: Binding) -> _Slots:
         found = self._slots.get(id(binding))
@@ -182,18 +183,22 @@ class MotorCommandWriter:
         values = self.binder.clamp(b, command.values)
         m = self._slots_of(b)
         s, kind = m.slots, command.kind
+        # the record's field views, made once per record (a field read of a structured array is ~0.5 us)
+        if self._fields is None or self._fields[0] is not motor_cmd:
+            self._fields = motor_cmd, {name: motor_cmd[name] for name in ("tau", "q", "dq", "kp", "kd")}
+        f = self._fields[1]
         if kind is CommandKind.TORQUE:
-            motor_cmd["tau"][s] = values
-            motor_cmd["q"][s] = motor_cmd["dq"][s] = motor_cmd["kp"][s] = motor_cmd["kd"][s] = 0.0
+            f["tau"][s] = values
+            f["q"][s] = f["dq"][s] = f["kp"][s] = f["kd"][s] = 0.0
         elif kind is CommandKind.POSITION:
-            motor_cmd["q"][s] = values
-            motor_cmd["kp"][s] = m.kp
-            motor_cmd["kd"][s] = m.kd
-            motor_cmd["dq"][s] = motor_cmd["tau"][s] = 0.0
+            f["q"][s] = values
+            f["kp"][s] = m.kp
+            f["kd"][s] = m.kd
+            f["dq"][s] = f["tau"][s] = 0.0
         else:
-            motor_cmd["dq"][s] = values
-            motor_cmd["kd"][s] = m.kd
-            motor_cmd["q"][s] = motor_cmd["kp"][s] = motor_cmd["tau"][s] = 0.0
+            f["dq"][s] = values
+            f["kd"][s] = m.kd
+            f["q"][s] = f["kp"][s] = f["tau"][s] = 0.0
 
     def saturations(self) -> dict[str, int]:
         """How many values were clamped, per actuator name (non-zero only)."""

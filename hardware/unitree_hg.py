@@ -128,6 +128,7 @@ class UnitreeHG:
         #: Gains lowered at connect for stability (``stable_gains``): joint -> {gain: (given, sent)}.
         self.gains_lowered: dict[str, dict[str, tuple[float, float]]] = {}
         self._cmd_codec = low_cmd_codec()
+        self._motor_cmd = self._cmd_codec.message["motor_cmd"]  # (a view of the codec's buffer, once)
         self._period = 1.0 / self.options.rate_hz if self.options.rate_hz else 0.002
         self._clock = CycleClock(self._period)
         self.stale = self.watchdog_events = 0
@@ -306,7 +307,7 @@ class UnitreeHG:
         writer = self._out
         if self._keeper is not None and self._keeper.running:
             self._keeper.stop()
-        self.commands.write(command, self._cmd_codec.message["motor_cmd"])
+        self.commands.write(command, self._motor_cmd)
         writer.write(self._cmd_codec.encode())
         self._commanded = True
 
