@@ -178,7 +178,8 @@ class LowStateStream:
                 c.bad_crc_zero += int(msg["crc"]) == 0
                 return False
             c.crc_unchecked += 1
-        quat, gyro, accel, q, dq = (f.astype(float) for f in self._fields)
+        # copies in float64 (the fields are views of the buffer the next state is decoded into)
+        quat, gyro, accel, q, dq = (np.array(f, dtype=float) for f in self._fields)
         # every value finite: their sum in float64 is (float32 values cannot overflow it)
         finite = math.isfinite(quat.sum() + gyro.sum() + accel.sum() + q.sum() + dq.sum())
         w, x, y, z = quat.tolist()

@@ -25,7 +25,8 @@ covariance and the state as a (2 + n) x 3 matrix (one column per axis): one gain
 axes, the same estimate as the full (6 + 3 n) filter (``P`` gives its covariance; the two agree to
 7e-13 over a humanoid's walk) on matrices a ninth of the size (69 against 75 us an update on a
 29-joint humanoid, replayed; numpy's per-call cost dominates at either size). The orientation and
-the legs' kinematics on plain floats took an update to 49.5 us (warm, the G1's readings replayed).
+the legs' kinematics on plain floats took an update to 49.5 us (warm, e.g. the G1's readings
+replayed).
 
 Position and yaw are unobservable: they stay where they started and drift only as much as the
 feet slip. The height is observable through the starting assumption that the contact points

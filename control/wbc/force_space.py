@@ -9,9 +9,10 @@ For fixed forces ``f`` the accelerations of :mod:`mbctl.control.wbc.qp`'s proble
     min  1/2 f^T (T^T T + w_f^2 I) f - (T^T t_0)^T f,    T = Ls^-1 E_f,  t_0 = Ls^-1 a_0
     s.t. the bounds on f and the rows over f alone (friction pyramids, each sole's torsion)
 
-has k variables (12 in the G1's single support, 24 in double) and no equality, against the whole
-QP's 47 or 59 variables with 12 or 18 equalities. It is a relaxation in one sense only: the bounds
-on vdot and the rows with vdot in them (joint-limit accelerations, torque limits) are left out, so
+has k variables (e.g. 12 in single support on a sole's four contact points, 24 in double) and no
+equality, against the whole QP's 47 or 59 variables with 12 or 18 equalities (e.g. on the G1).
+It is a relaxation in one sense only: the bounds on vdot and the rows with vdot in them
+(joint-limit accelerations, torque limits) are left out, so
 its point is the whole QP's optimum exactly when that point satisfies them too (the whole QP is
 convex; its optimum then solves the relaxation, whose optimum is unique) — the caller checks it
 against every bound and row. Only the last ``m_force`` equality rows have force columns (the base's
