@@ -239,6 +239,18 @@ class Gait:
             self.phase_end = self.t_phase + swing.path.duration_s
             self.revision += 1
 
+    def hurry(self, t: float) -> None:
+        """In double support after a touchdown: release the trailing foot at ``t`` (the next step sooner).
+
+        The double support then ends ``ramp_s`` from now, the landing foot's force ramp and the
+        trailing foot's overlapping; nothing changes in the other phases or once the release started.
+        """
+        if self.phase == DOUBLE and self.leading is not None and self.releasing is None:
+            end = t + self.config.ramp_s
+            if end < self.phase_end:
+                self.phase_end = end
+                self.revision += 1
+
     def swing_nominal_end_s(self) -> float:
         """The touchdown time [s] the swing under way was planned with (before any re-timing)."""
         return self.t_phase + self.config.timing.single_support_s

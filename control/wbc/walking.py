@@ -58,7 +58,7 @@ from mbctl.control.exceptions import WBCSetupError
 from mbctl.control.wbc._walking_plan import WalkPlans
 from mbctl.control.wbc.config import WBCConfig
 from mbctl.control.wbc.contacts import foot_contact_from_model
-from mbctl.control.wbc.gait import Gait, GaitEvent
+from mbctl.control.wbc.gait import DOUBLE, Gait, GaitEvent
 from mbctl.control.wbc.standing import Standing, standing_controller
 from mbctl.control.wbc.step_adaptation import StepAdaptation, StepAdapter, StepTiming, dcm_tube
 from mbctl.control.wbc.swing_task import SwingFootTask
@@ -344,10 +344,15 @@ class WalkingController:
         ref = plan.at(t)
         support = self._support_polygon(poses)
         (rx, ry), (zx, zy) = ref.xi.tolist(), ref.vrp.tolist()
-        gain = 1.0 + cfg.dcm_gain_1_s / self.omega  # dcm_feedback's law, on floats
+        error_m = math.hypot(ix - rx, iy - ry)
+        pushed = error_m > cfg.cmp_outside_after_m
+        k = cfg.pushed_double_gain_1_s if pushed and gait.phase == DOUBLE else cfg.dcm_gain_1_s
+        gain = 1.0 + k / self.omega  # dcm_feedback's law, on floats
         cmp_xy = [zx + gain * (ix - rx), zy + gain * (iy - ry)]
         cmp = np.array(cmp_xy)
-        pushed = cfg.cmp_outside_m > 0 and math.hypot(ix - rx, iy - ry) > cfg.cmp_outside_after_m
+        if error_m > cfg.hurry_after_m:
+            gait.hurry(t)
+        pushed = pushed and cfg.cmp_outside_m > 0
         cmp_c = support.clamp(cmp_xy, -cfg.cmp_outside_m if pushed else cfg.cmp_margin_m)
         z_ref, vz_ref, az_ref = gait.height(t)
         px, py = cmp_c.tolist()  # the CoM's CMP

@@ -44,6 +44,13 @@ class WalkingConfig:
             angular momentum (the hip strategy), as a pushed robot's DCM passes the sole's edge ...
         cmp_outside_after_m: ... once the DCM is this far [m] from its plan (a push: walking undisturbed
             keeps the CMP ``cmp_margin_m`` inside).
+        pushed_double_gain_1_s: The DCM feedback gain [1/s] in double support while the DCM is more than
+            ``cmp_outside_after_m`` from its plan (a push): the plan's VRP still moves from the trailing
+            foot to the leading one, and at ``dcm_gain_1_s`` the CMP stays near it, behind a DCM that may
+            already be over the leading foot; a stiffer law puts it under the DCM, on the leading foot.
+        hurry_after_m: In double support with the DCM more than this [m] from its plan, the trailing
+            foot is released at once (the next step starts a double support sooner, its force ramps
+            overlapping the landing foot's; ``inf``: never).
         preview_steps: Footsteps planned ahead of the swing foot's (>= 1).
         ramp_s: Contact force ramp [s] (<= the double support time).
         swing_horizontal_fraction: The swing foot reaches its footstep's x, y and yaw at this
@@ -108,6 +115,8 @@ class WalkingConfig:
     cmp_margin_m: float = 0.01
     cmp_outside_m: float = 0.02
     cmp_outside_after_m: float = 0.03
+    pushed_double_gain_1_s: float = 8.0
+    hurry_after_m: float = 0.05
     preview_steps: int = 3
     ramp_s: float = 0.05
     swing_horizontal_fraction: float = 0.8
@@ -141,6 +150,7 @@ class WalkingConfig:
             "swing_horizontal_fraction": 0 < self.swing_horizontal_fraction <= 1,
             "dcm_gain_1_s": self.dcm_gain_1_s > 0, "cmp_margin_m": self.cmp_margin_m >= 0,
             "cmp_outside_m": self.cmp_outside_m >= 0, "cmp_outside_after_m": self.cmp_outside_after_m >= 0,
+            "pushed_double_gain_1_s": self.pushed_double_gain_1_s > 0,
             "friction_fraction": 0 < self.friction_fraction <= 1,
             "dcm_tube_fraction": 0 <= self.dcm_tube_fraction <= 1,
             "min_single_support_s": 0 < self.min_single_support_s <= self.timing.single_support_s,
@@ -164,8 +174,10 @@ class WalkingConfig:
             value = getattr(self, name)
             if not (math.isfinite(value) and ok):
                 raise WBCSetupError(f"WalkingConfig.{name}={value!r} is out of range")
-        if not self.torsion_m > 0:
-            raise WBCSetupError(f"WalkingConfig.torsion_m={self.torsion_m!r} is out of range (> 0 m, or inf)")
+        for name in ("hurry_after_m", "torsion_m"):  # (inf allowed: never, unbounded)
+            value = getattr(self, name)
+            if not value > 0:
+                raise WBCSetupError(f"WalkingConfig.{name}={value!r} is out of range (> 0 m, or inf)")
         if len(self.max_acceleration) != 3 or not all(math.isfinite(a) and a > 0
                                                       for a in self.max_acceleration):
             raise WBCSetupError(f"WalkingConfig.max_acceleration must be 3 finite values > 0 (m/s^2, m/s^2, "

@@ -1,0 +1,107 @@
+"""After a push, in double support: the stiffer DCM law and the hurried next step, on the biped built in code.
+
+The walker (conftest.py's biped in MuJoCo) walks to its first touchdown; there, a state whose CoM
+moves sideways faster than the plan's (as after a push) puts the DCM off its plan, and the cycle's
+desired CMP and the gait's timing are checked against the law, number by number.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import replace
+
+import numpy as np
+import pytest
+
+from mbctl.control import run
+from mbctl.control.exceptions import WBCSetupError
+from mbctl.control.wbc import WalkingConfig, WalkingController, WBCConfig
+from mbctl.robots.interface import RobotState
+from mbctl.sim import Simulator
+
+FEET = ("l_sole", "r_sole")
+CONFIG = WalkingConfig(com_height_m=0.5, wbc=WBCConfig(on_infeasible="damp"))
+
+
+def _to_first_touchdown(robot, crouch, config=CONFIG) -> tuple[WalkingController, Simulator]:
+    """The walker and the plant at the cycle of the first touchdown (walking 0.15 m/s forward)."""
+    q0 = crouch(robot)
+    sim = Simulator(robot)
+    sim.set_state(q0, np.zeros(robot.nv))
+    walker = WalkingController(robot, FEET, "pelvis", "torso", q0, config,
+                               contact_force=lambda f: None)
+    walker.set_command((0.15, 0.0, 0.0))
+
+    def on_step(k, state, ref, cmd):
+        event = walker.status.event
+        return event is not None and event.kind == "touchdown"
+
+    run(sim, walker, None, 2.0, on_step=on_step)
+    assert walker.status.event is not None and walker.status.event.kind == "touchdown"
+    return walker, sim
+
+
+def _pushed(state: RobotState, dv_y_m_s: float) -> RobotState:
+    """``state`` with the floating base moving ``dv_y_m_s`` [m/s] faster along W's y (its linear velocity)."""
+    v = state.v.copy()
+    v[1] += dv_y_m_s  # Pinocchio's free-flyer velocity is in the base frame: upright here, yaw ~0
+    return state._replace(time_s=state.time_s + 0.002, v=v)
+
+
+def test_a_push_in_double_support_stiffens_the_dcm_law_and_hurries_the_next_step(tiny_biped, crouch):
+    walker, sim = _to_first_touchdown(tiny_biped, crouch)
+    gait, cfg = walker.gait, walker.config
+    assert gait.phase == "double" and gait.releasing is None
+    t_down = walker.status.time_s
+    planned_end = gait.phase_end
+    assert planned_end - t_down >= cfg.timing.double_support_s - 1e-9  # 0.1 s of double support ahead
+    state = _pushed(sim.read_state(), 0.4)  # the CoM 0.4 m/s sideways: the DCM ~0.4 / omega = 0.09 m off
+    walker.compute(state)
+    s = walker.status
+    error = s.dcm - s.dcm_ref
+    assert np.linalg.norm(error) > cfg.hurry_after_m > cfg.cmp_outside_after_m
+    # the desired CMP: the plan's VRP plus (1 + k / omega) times the error, k the pushed double support's 8
+    k = cfg.pushed_double_gain_1_s
+    np.testing.assert_allclose(s.cmp, s.zmp_ref + (1.0 + k / walker.omega) * error, atol=1e-12)
+    assert not np.allclose(s.cmp, s.zmp_ref + (1.0 + cfg.dcm_gain_1_s / walker.omega) * error, atol=1e-3)
+    # and the trailing foot is released now: the double support ends one force ramp later, not 0.1 s on
+    assert gait.phase_end == pytest.approx(state.time_s + cfg.ramp_s, abs=1e-12)
+    assert gait.phase_end < planned_end - 0.04
+    walker.compute(state._replace(time_s=state.time_s + 0.002))
+    assert walker.status.event is not None and walker.status.event.kind == "release"
+    assert walker.status.event.foot != gait.leading
+
+
+def test_undisturbed_double_support_keeps_the_dcm_law_and_its_timing(tiny_biped, crouch):
+    walker, sim = _to_first_touchdown(tiny_biped, crouch)
+    gait, cfg = walker.gait, walker.config
+    planned_end = gait.phase_end
+    state = sim.read_state()._replace(time_s=sim.read_state().time_s + 0.002)
+    walker.compute(state)
+    s = walker.status
+    error = s.dcm - s.dcm_ref
+    assert np.linalg.norm(error) < cfg.cmp_outside_after_m  # within 3 cm: the walk as planned
+    np.testing.assert_allclose(s.cmp, s.zmp_ref + (1.0 + cfg.dcm_gain_1_s / walker.omega) * error, atol=1e-12)
+    assert gait.phase_end == planned_end
+
+
+def test_hurry_acts_only_in_double_support_after_a_touchdown(tiny_biped, crouch):
+    walker, sim = _to_first_touchdown(tiny_biped, crouch, replace(CONFIG, hurry_after_m=math.inf))
+    gait = walker.gait
+    t = walker.status.time_s
+    revision = gait.revision
+    gait.hurry(t + 0.2)  # later than the planned end: nothing to hurry
+    assert gait.revision == revision
+    gait.hurry(t)
+    assert gait.phase_end == pytest.approx(t + walker.config.ramp_s) and gait.revision == revision + 1
+    end = gait.phase_end
+    gait.releasing = "r_sole"  # once the release started, the timing stays
+    gait.hurry(t - 0.01)
+    assert gait.phase_end == end
+
+
+@pytest.mark.parametrize("field, value", [("pushed_double_gain_1_s", 0.0), ("hurry_after_m", 0.0),
+                                          ("hurry_after_m", -1.0), ("pushed_double_gain_1_s", math.nan)])
+def test_the_push_options_are_checked(field, value):
+    with pytest.raises(WBCSetupError, match=field):
+        WalkingConfig(**{field: value})
