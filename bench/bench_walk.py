@@ -12,7 +12,8 @@ whole ``compute`` (gait, footsteps, DCM plan, step adaptation, task targets, the
 standing controller's (``standing_controller``, the g1-wbc stand task set) on the same states, in
 thread CPU time and wall time; beside them a walker planning its footsteps every cycle
 (``replan_period_s=0``: it replays the same states, deciding as a walker planning every cycle
-would on them). The step-adaptation QP is timed on the DCM errors of a push; the
+would on them) and one whose QP skips the force-space QP (``WBCConfig(force_space=False)``: daqp
+on the QP in vdot and forces). The step-adaptation QP is timed on the DCM errors of a push; the
 walk is ``g1-walk forward`` through the job (CSV, plots), wall time over simulated time. The load
 average is printed with every figure: the machine is shared, so only ratios within a run compare.
 """
@@ -43,8 +44,8 @@ sys.path.insert(0, str(Path(__file__).parent))
 from harness import interleaved  # noqa: E402
 
 
-def _walker(robot, q0, **options):
-    config = WalkingConfig(wbc=WBCConfig(on_infeasible="damp"), **options)
+def _walker(robot, q0, force_space: bool = True, **options):
+    config = WalkingConfig(wbc=WBCConfig(on_infeasible="damp", force_space=force_space), **options)
     return WalkingController(robot, FEET, PELVIS, TORSO, q0, config)
 
 
@@ -88,7 +89,8 @@ def cycles(robot, q0, rounds: int) -> None:
     states = _walk_states(robot, q0)
     walker = _walker(robot, q0)
     every_cycle = _walker(robot, q0, replan_period_s=0.0)  # footsteps planned every cycle
-    for w in (walker, every_cycle):
+    no_force_space = _walker(robot, q0, force_space=False)  # daqp on the QP in vdot and forces
+    for w in (walker, every_cycle, no_force_space):
         w.set_command((0.3, 0.0, 0.0))
     standing, stand_states = _stand_states(robot, q0, len(states), stride=1)
 
@@ -103,13 +105,15 @@ def cycles(robot, q0, rounds: int) -> None:
 
     for timer, label in ((time.thread_time, "thread CPU"), (time.perf_counter, "wall")):
         t = interleaved({"walk": partial(replay, walker), "every": partial(replay, every_cycle),
-                         "stand": run_standing}, repeats=rounds, timer=timer)
+                         "no_fs": partial(replay, no_force_space), "stand": run_standing},
+                        repeats=rounds, timer=timer)
         n = len(states)
         print(f"cycle ({label}, median of {rounds} rounds over {n} states each): walking "
               f"{t['walk'] / n * 1e6:.0f} us (0.3 m/s), standing WBC {t['stand'] / n * 1e6:.0f} us (squat), "
               f"ratio {t['walk'] / t['stand']:.2f} (target <= 1.2); footsteps planned every cycle "
               f"(replan_period_s=0) {t['every'] / n * 1e6:.0f} us, ratio {t['every'] / t['stand']:.2f}; "
-              f"load {os.getloadavg()[0]:.2f}")
+              f"without the force-space QP {t['no_fs'] / n * 1e6:.0f} us "
+              f"({t['walk'] / t['no_fs']:.2f}x with it); load {os.getloadavg()[0]:.2f}")
 
 
 def adaptation_qp(robot, q0, repeats: int = 2000) -> None:

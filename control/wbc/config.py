@@ -43,6 +43,9 @@ class WBCConfig:
         ramp_s: Duration [s] of a contact's force ramp (> 0).
         solver: "daqp" (the structured solve of ``control/wbc/qp.py``: an equality-constrained fast
             path, else daqp) or another qpsolvers backend on the same problem (for comparison).
+        force_space: With "daqp": when an inequality is active, first solve the QP in the contact
+            forces alone (``control/wbc/force_space.py``; the same optimum to daqp's tolerance, its
+            point checked against every row); False goes to daqp on the QP in vdot and forces.
         on_infeasible: "raise" (``WBCInfeasible``) or "damp": from the first infeasible QP on, the
             controller commands joint damping ``tau = -fallback_kd v`` (a safe fallback that lets
             the plant show whether the robot stands or falls) and records when it switched.
@@ -71,6 +74,7 @@ class WBCConfig:
     relax_joint_limits: bool = True
     ramp_s: float = 0.3
     solver: str = "daqp"
+    force_space: bool = True
     on_infeasible: str = "raise"
     fallback_kd_n_m_s_rad: float = 5.0
     friction_feedforward: bool = False

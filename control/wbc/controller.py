@@ -219,6 +219,7 @@ class WholeBodyController:
     def config(self, config: WBCConfig) -> None:
         self._config = config
         self._qp.force_weight = config.force_weight
+        self._qp.use_force_space = config.force_space
         G, bounded = self._qp.G, math.isfinite(config.torsion_m)
         for row, moment, fz in self._torsion_rows:
             G[row:row + 2] = 0.0  # unbounded: 0 <= 0

@@ -4,6 +4,8 @@ the solution built without their generated constructors against those."""
 
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
 import pinocchio as pin
 import pytest
@@ -44,7 +46,6 @@ def test_the_rows_in_order_equal_the_rows_picked_by_index_through_a_release(tiny
 
 def test_the_solution_is_a_frozen_dataclass_with_its_fields():
     """WBCSolution's hand-written __init__ keeps the dataclass: fields, frozen, replace, equality."""
-    import dataclasses
 
     from mbctl.control.wbc.config import WBCSolution
 
@@ -83,7 +84,7 @@ def test_the_torques_from_the_fast_paths_rows_equal_t_x_plus_b(tiny_biped, crouc
     assert ctrl.daqp_cycles == 1 and ctrl._qp.Gx is not None
     np.testing.assert_allclose(ctrl.solution.tau, general(ctrl), rtol=0.0, atol=1e-12)
     np.testing.assert_allclose(ctrl.solution.tau, fast, rtol=0.0, atol=1e-5)  # (daqp tolerance)
-    ctrl._qp.use_force_space = False  # daqp on the whole QP
+    ctrl.config = dataclasses.replace(ctrl.config, force_space=False)  # daqp on the QP in vdot and forces
     ctrl.compute(state)
     assert ctrl.daqp_cycles == 2 and ctrl._qp.Gx is None
     np.testing.assert_allclose(ctrl.solution.tau, general(ctrl), rtol=0.0, atol=1e-12)
