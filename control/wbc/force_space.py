@@ -34,7 +34,8 @@ from scipy.linalg.lapack import dpotrf
 from mbctl.control.qp import solve_packed
 from mbctl.robots.indexing import as_slice
 
-#: Relative pivot [-] below which an equality row counts as dependent (as the fast path's).
+#: Relative pivot [-] below which an equality row counts as dependent on the others (in the metric
+#: of ``E H^-1 E^T``; the fast path's too, :mod:`mbctl.control.wbc.qp`).
 RANK_RTOL = 1e-10
 
 # the ufuncs' reductions: ndarray.max and .min's Python wrappers left out (~0.3 us a call)

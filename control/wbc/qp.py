@@ -57,7 +57,7 @@ from mbctl.control.qp import (
     QPSolver,
     solve_qpsolvers,
 )
-from mbctl.control.wbc.force_space import ForceSpace
+from mbctl.control.wbc.force_space import RANK_RTOL, ForceSpace
 from mbctl.control.wbc.reduced_qp import DEFERRED_TOL, ReducedQP
 
 #: Largest violation [problem units: rad/s^2, N, N m] of an inequality or bound that the fast
@@ -67,9 +67,6 @@ FEASIBILITY_TOL = 1e-9
 # the ufuncs' reductions: ndarray.max and .min's Python wrappers left out (~0.3 us a call)
 _max, _min, _all = np.maximum.reduce, np.minimum.reduce, np.logical_and.reduce
 
-#: Relative pivot [-] below which an equality row counts as dependent on the others (in the
-#: metric of ``E H^-1 E^T``).
-RANK_RTOL = 1e-10
 
 #: Distance [problem units] from its bound within which a bound or row counts as active when no
 #: duals tell (the skip of the force-space QP, :attr:`WholeBodyQP.use_force_space`).
