@@ -80,9 +80,15 @@ class FramePoseTask(FrameTask):
         """Target angular acceleration (3,) [rad/s^2] in W (acceleration level; a view)."""
         return self._acc_W[1]
 
+    def _set_pose(self, X_WT: pin.SE3, v: npt.ArrayLike, a: npt.ArrayLike) -> None:
+        super()._set_pose(X_WT, v, a)
+        self._vel_W[1] = self._acc_W[1] = 0.0  # a new target: at rest in rotation until said otherwise
+
     def set_angular_reference(self, w: npt.ArrayLike = (0.0, 0.0, 0.0),
                               alpha: npt.ArrayLike = (0.0, 0.0, 0.0)) -> None:
-        """The target's angular velocity [rad/s] and acceleration [rad/s^2] in W (kept until set again).
+        """The target's angular velocity [rad/s] and acceleration [rad/s^2] in W (until the next target).
+
+        ``set_target`` sets them to zero: call this after it.
 
         Raises:
             TaskSetupError: Not 3 finite numbers each.

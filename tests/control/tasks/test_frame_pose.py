@@ -192,6 +192,8 @@ def test_angular_references_are_fed_forward_in_the_stacked_terms_and_the_whole_r
     np.testing.assert_allclose(c, c_ref, atol=1e-10)
     with pytest.raises(TaskSetupError, match="target angular velocity"):
         task.set_angular_reference([0.0, np.nan, 0.0])
+    task.set_target(task.transform_target_to_world)  # a new target: at rest in rotation
+    assert not task.w_ref_W.any() and not task.alpha_ref_W.any()
 
 
 def test_a_subclass_with_a_law_of_its_own_writes_its_rows_whole():
