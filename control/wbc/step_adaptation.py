@@ -136,6 +136,8 @@ class StepAdapter:
         timing_threshold_m: The timing is adapted once a limit holds the footstep this far [m] short
             sideways (the side's reach is the shortest; walking sideways at the limit, small DCM errors
             are left to the next step).
+        pushed_outward_m: The outward limit [m] beyond the nominal width for a step :meth:`adapt` is
+            told is pushed (None: the planner's ``max_outward_m``, as for the others).
 
     Raises:
         WBCSetupError: A non-positive omega or weight, or a tube that is not 2 finite values >= 0.
@@ -143,7 +145,8 @@ class StepAdapter:
 
     def __init__(self, planner: FootstepPlanner, omega_rad_s: float, tube_m: npt.ArrayLike,
                  nominal_weight: float = 0.01, sole_centre_xy: tuple[float, float] = (0.0, 0.0),
-                 timing_weight: float = 0.001, timing_threshold_m: float = 0.05):
+                 timing_weight: float = 0.001, timing_threshold_m: float = 0.05,
+                 pushed_outward_m: float | None = None):
         tube = np.asarray(tube_m, dtype=float)
         if not (omega_rad_s > 0 and nominal_weight > 0 and timing_weight > 0 and tube.shape == (2,)
                 and np.all(np.isfinite(tube)) and np.all(tube >= 0)):
@@ -162,20 +165,24 @@ class StepAdapter:
         angles = 2.0 * math.pi * np.arange(REACH_VERTICES) / REACH_VERTICES
         self._unit = np.column_stack([np.cos(angles), np.sin(angles)])
         self._axes = (lim.max_forward_m, lim.max_backward_m, lim.max_outward_m)
-        self._reach: dict[int, tuple[np.ndarray, np.ndarray]] = {}
+        out = lim.max_outward_m if pushed_outward_m is None else float(pushed_outward_m)
+        if not (math.isfinite(out) and out > 0):
+            raise WBCSetupError(f"pushed_outward_m must be finite and > 0 [m]; got {pushed_outward_m!r}")
+        self._outward = {False: lim.max_outward_m, True: out}
+        self._reach: dict[tuple[int, bool], tuple[np.ndarray, np.ndarray]] = {}
 
-    def _reach_rows(self, side: int) -> tuple[np.ndarray, np.ndarray]:
+    def _reach_rows(self, side: int, pushed: bool = False) -> tuple[np.ndarray, np.ndarray]:
         """The reach polygon ``G x <= h`` about the nominal stance (0, side w), for a step on ``side``.
 
-        Made once per side (the limits are the planner's, fixed).
+        Made once per side and outward limit (the limits are the planner's, fixed).
         """
-        rows = self._reach.get(side)
+        rows = self._reach.get((side, pushed))
         if rows is None:
-            rows = self._reach[side] = self._reach_polygon(side)
+            rows = self._reach[(side, pushed)] = self._reach_polygon(side, self._outward[pushed])
         return rows
 
-    def _reach_polygon(self, side: int) -> tuple[np.ndarray, np.ndarray]:
-        fwd, back, out = self._axes
+    def _reach_polygon(self, side: int, out: float) -> tuple[np.ndarray, np.ndarray]:
+        fwd, back, _ = self._axes
         w = self.planner.limits.nominal_width_m
         u = self._unit
         vertices = np.column_stack([np.where(u[:, 0] >= 0, fwd, back) * u[:, 0], out * u[:, 1] + side * w])
@@ -186,7 +193,8 @@ class StepAdapter:
 
     def adapt(self, stance: Footstep, nominal: Footstep, dcm_error_W: npt.ArrayLike,
               time_to_switch_s: float,
-              timing: StepTiming | Callable[[], StepTiming | None] | None = None) -> StepAdaptation:
+              timing: StepTiming | Callable[[], StepTiming | None] | None = None,
+              pushed: bool = False) -> StepAdaptation:
         """The swing footstep for a DCM error measured ``time_to_switch_s`` [s] before the next switch.
 
         Args:
@@ -197,6 +205,7 @@ class StepAdapter:
             timing: Adapt the step's timing too, within these (None: the plan's timing stays), or a
                 function giving them, called only when a limit holds the footstep short (most cycles
                 need no timing: the DCM is in its tube).
+            pushed: The step recovers from a push: its outward limit is ``pushed_outward_m``.
         """
         c, s = math.cos(stance.yaw_rad), math.sin(stance.yaw_rad)
         e = np.asarray(dcm_error_W, dtype=float)
@@ -217,10 +226,10 @@ class StepAdapter:
         x_des = [x_nom[0] + gain * out[0], x_nom[1] + gain * out[1]]
         lim, side = self.planner.limits, nominal.side
         dyaw = math.remainder(nominal.yaw_rad - stance.yaw_rad, 2.0 * math.pi)
-        widths = (lim.min_width_for(dyaw, side) * side, (lim.nominal_width_m + lim.max_outward_m) * side)
+        widths = (lim.min_width_for(dyaw, side) * side, (lim.nominal_width_m + self._outward[pushed]) * side)
         lb = np.array([-lim.max_backward_m, min(widths)])
         ub = np.array([lim.max_forward_m, max(widths)])
-        G, h = self._reach_rows(side)
+        G, h = self._reach_rows(side, pushed)
         w = self.nominal_weight
         optimum = [(x_des[0] + w * x_nom[0]) / (1.0 + w), (x_des[1] + w * x_nom[1]) / (1.0 + w)]  # H x* = -c
         t0 = time.perf_counter()

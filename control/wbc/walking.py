@@ -183,7 +183,8 @@ class WalkingController:
         tube = dcm_tube(points, cfg.cmp_margin_m, cfg.dcm_gain_1_s, self.omega, cfg.dcm_tube_fraction)
         self.adapter = StepAdapter(self.planner, self.omega, tube, sole_centre_xy=(
             float(self.sole_centre_F[0]), float(self.sole_centre_F[1])), timing_weight=cfg.timing_weight,
-            timing_threshold_m=cfg.timing_threshold_m)
+            timing_threshold_m=cfg.timing_threshold_m,
+            pushed_outward_m=cfg.pushed_outward_fraction * self.limits.max_outward_m)
         self.plans = WalkPlans(self.planner, cfg, self.omega)
         self.swing_tasks = {f: SwingFootTask(f, self.model, cfg.swing_cost, cfg.swing_gains,
                                              cfg.swing_orientation_cost) for f in self.feet}
@@ -434,8 +435,10 @@ class WalkingController:
         ref = plan.at(t).xi
         t1 = float(plan.switch_times_s[0])
         # the swing's timing only where the QP needs it (a swing sample: not on the cycles in the tube)
+        ex, ey = (xi - ref).tolist()
+        pushed = math.hypot(ex, ey) > self.config.cmp_outside_after_m  # a push: the wider outward limit
         adaptation = self.adapter.adapt(stance, nominal, xi - ref, t1 - t,
-                                        lambda: self._step_timing(gait, t, t1, ref))
+                                        lambda: self._step_timing(gait, t, t1, ref), pushed)
         self._adaptation = adaptation
         if adaptation.time_to_switch_s is not None:  # the switch moved: so does the touchdown
             end = t + adaptation.time_to_switch_s - (t1 - gait.phase_end)

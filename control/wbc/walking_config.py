@@ -51,6 +51,9 @@ class WalkingConfig:
         hurry_after_m: In double support with the DCM more than this [m] from its plan, the trailing
             foot is released at once (the next step starts a double support sooner, its force ramps
             overlapping the landing foot's; ``inf``: never).
+        pushed_outward_fraction: The step-adaptation QP's outward limit while the DCM is more than
+            ``cmp_outside_after_m`` from its plan, as a fraction of the planner's (its reach r beyond
+            the nominal width): a step toward a push may spread the feet further than walking does.
         preview_steps: Footsteps planned ahead of the swing foot's (>= 1).
         ramp_s: Contact force ramp [s] (<= the double support time).
         swing_horizontal_fraction: The swing foot reaches its footstep's x, y and yaw at this
@@ -117,6 +120,7 @@ class WalkingConfig:
     cmp_outside_after_m: float = 0.03
     pushed_double_gain_1_s: float = 8.0
     hurry_after_m: float = 0.05
+    pushed_outward_fraction: float = 1.6
     preview_steps: int = 3
     ramp_s: float = 0.05
     swing_horizontal_fraction: float = 0.8
@@ -151,6 +155,7 @@ class WalkingConfig:
             "dcm_gain_1_s": self.dcm_gain_1_s > 0, "cmp_margin_m": self.cmp_margin_m >= 0,
             "cmp_outside_m": self.cmp_outside_m >= 0, "cmp_outside_after_m": self.cmp_outside_after_m >= 0,
             "pushed_double_gain_1_s": self.pushed_double_gain_1_s > 0,
+            "pushed_outward_fraction": self.pushed_outward_fraction > 0,
             "friction_fraction": 0 < self.friction_fraction <= 1,
             "dcm_tube_fraction": 0 <= self.dcm_tube_fraction <= 1,
             "min_single_support_s": 0 < self.min_single_support_s <= self.timing.single_support_s,

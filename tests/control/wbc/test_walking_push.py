@@ -1,4 +1,4 @@
-"""After a push, in double support: the stiffer DCM law and the hurried next step, on the biped built in code.
+"""After a push: the stiffer DCM law and the hurried next step in double support, the wider pushed step.
 
 The walker (conftest.py's biped in MuJoCo) walks to its first touchdown; there, a state whose CoM
 moves sideways faster than the plan's (as after a push) puts the DCM off its plan, and the cycle's
@@ -15,7 +15,8 @@ import pytest
 
 from mbctl.control import run
 from mbctl.control.exceptions import WBCSetupError
-from mbctl.control.wbc import WalkingConfig, WalkingController, WBCConfig
+from mbctl.control.wbc import StepAdapter, WalkingConfig, WalkingController, WBCConfig
+from mbctl.planners import Footstep, FootstepPlanner, GaitTiming, StepLimits
 from mbctl.robots.interface import RobotState
 from mbctl.sim import Simulator
 
@@ -105,3 +106,31 @@ def test_hurry_acts_only_in_double_support_after_a_touchdown(tiny_biped, crouch)
 def test_the_push_options_are_checked(field, value):
     with pytest.raises(WBCSetupError, match=field):
         WalkingConfig(**{field: value})
+
+
+LIMITS = StepLimits(0.36, 0.2, 0.2, 0.24, 0.1, 0.6)
+OMEGA = math.sqrt(9.81 / 0.64)
+
+
+def test_a_pushed_step_may_go_further_outward_toward_the_dcm():
+    planner = FootstepPlanner(LIMITS, GaitTiming(0.5, 0.1), ("left", "right"))
+    adapter = StepAdapter(planner, OMEGA, (0.02, 0.005), pushed_outward_m=1.6 * LIMITS.max_outward_m)
+    stance = Footstep("right", -1, np.array([0.0, 0.0, 0.0]), 0.0)
+    nominal = Footstep("left", 1, np.array([0.0, 0.24, 0.0]), 0.0)  # in place: the reach 8-gon's widest
+    error = [0.0, 0.08]  # a push to the swing side, 0.3 s before the switch: the DCM needs 0.24 m more
+    needed = nominal.position[1] + math.exp(OMEGA * 0.3) * (error[1] - 0.005) / (1 + adapter.nominal_weight)
+    assert needed == pytest.approx(0.4803, abs=1e-4)
+    walking = adapter.adapt(stance, nominal, error, 0.3)
+    pushed = adapter.adapt(stance, nominal, error, 0.3, pushed=True)
+    # walking: held at the planner's widest step (0.24 + 0.2 from the stance), 4 cm short, reported
+    assert walking.limited and walking.footstep.position[1] == pytest.approx(0.44, abs=1e-6)
+    # pushed: the limit is 0.24 + 1.6 x 0.2 = 0.56 m out, so the footstep goes where the DCM needs it
+    assert not pushed.limited and pushed.footstep.position[1] == pytest.approx(needed, abs=1e-6)
+    further = adapter.adapt(stance, nominal, [0.0, 0.12], 0.3, pushed=True)  # needs 0.37: held at 0.56
+    assert further.limited and further.footstep.position[1] == pytest.approx(0.56, abs=1e-6)
+    # a smaller error the wider limit does not bind: the same footstep either way
+    small = [0.0, 0.03]
+    np.testing.assert_allclose(adapter.adapt(stance, nominal, small, 0.3, pushed=True).footstep.position,
+                               adapter.adapt(stance, nominal, small, 0.3).footstep.position, atol=1e-12)
+    with pytest.raises(WBCSetupError, match="pushed_outward_m"):
+        StepAdapter(planner, OMEGA, (0.02, 0.005), pushed_outward_m=0.0)
