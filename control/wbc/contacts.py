@@ -28,6 +28,12 @@ import pinocchio as pin
 from mbctl.control.exceptions import WBCSetupError
 from mbctl.robots.model_pair import Robot
 
+#: A ramp's weight within this of its target is its target [-]: the steps' rounding leaves a residue
+#: (25 steps of 0.04 from 1 end at 1.1e-13), and a foot at such a weight has force bounds of
+#: [1e-13, 4e-11] N, not pinned at zero: a degenerate QP that daqp reported infeasible (then the
+#: controller's fallback: a fall) after pushes while walking.
+RAMP_SNAP = 1e-9
+
 
 @dataclass(frozen=True)
 class FootContact:
@@ -178,5 +184,7 @@ class ContactState:
             self.weight = min(self.target_weight, self.weight + step)
         elif self.weight > self.target_weight:
             self.weight = max(self.target_weight, self.weight - step)
+        if abs(self.weight - self.target_weight) < RAMP_SNAP:
+            self.weight = self.target_weight
         if self.target_weight == 0.0 and self.weight == 0.0:
             self.active = False

@@ -275,6 +275,32 @@ def test_a_released_foot_leaves_no_row_and_no_stale_target(tiny_biped, crouch):
     assert np.isfinite(ctrl.solution.tau).all()
 
 
+@pytest.mark.parametrize("ramp_s", [0.05, 0.03, 0.3])
+def test_a_release_ramp_ends_at_zero_weight_exactly(tiny_biped, crouch, ramp_s):
+    """The ramp's steps round: periods of 2 ms summed from 3.072 s (a push while walking) took 0.05 s's
+    ramp to 1.1e-13 after 25 steps. A weight within RAMP_SNAP of its target is the target, so the cycle
+    that ends a release has the foot's forces pinned at zero, never bounded to [1e-13, 4e-11] N (a
+    degenerate QP daqp reported infeasible, and the controller fell back to damping)."""
+    wb, state = _stance(tiny_biped, crouch, ramp_s=ramp_s)
+    ctrl = wb.controller
+    cs = ctrl.contacts["r_sole"]
+    t = 3.0719999999998833
+    ctrl.compute(RobotState(state.q, state.v, t))
+    ctrl.release("r_sole")
+    weights = []
+    for _ in range(200):
+        t += 0.002
+        ctrl.compute(RobotState(state.q, state.v, t))
+        weights.append(cs.weight)
+        if not cs.active:
+            break
+    assert weights[-1] == 0.0 and not cs.active
+    assert all(w == 0.0 or w > 1e-6 for w in weights)  # no residue between the last step and zero
+    assert len(weights) == round(ramp_s / 0.002)  # released on the ramp's last step, not one later
+    right = ctrl.solution.force_slices["r_sole"]
+    assert not ctrl._qp.force_free[right].any()
+
+
 def test_a_released_foots_forces_are_pinned_and_the_solution_is_the_qps_optimum(tiny_biped, crouch):
     """At weight 0 a foot's force variables are pinned (the fast path leaves them out); the
     controller's solution is still the optimum of the whole QP it built (qpsolvers' daqp on it)."""
