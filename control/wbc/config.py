@@ -220,8 +220,8 @@ class WBCSolution:
 
     @functools.cached_property
     def _wrench_list(self) -> list[float]:
-        """``wrenches_F`` flat, on plain floats: ``[f_F; m_F]`` per foot (one product)."""
-        return (self.wrench_map @ self.forces).tolist()
+        """``wrenches_F`` flat, on plain floats: ``[f_F; m_F]`` per foot (its one product)."""
+        return self.wrenches_F.ravel().tolist()
 
     @property
     def normal_forces_W(self) -> list[float]:

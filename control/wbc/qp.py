@@ -358,8 +358,8 @@ class WholeBodyQP:
             defers.append(False)
         for defer in defers:
             reduced = self._reduced.solve(eq_rows, dropped == 0, defer)
-            if reduced is not None:
-                self._note_acceleration_limits(reduced[0])
+            if reduced is not None:  # (its check left [x; G x] in _xg)
+                self._note_acceleration_limits(reduced[0], measured=True)
                 return reduced[0]._replace(dependent_rows=dropped), reduced[1]
         result = self._daqp_solver.solve(self.data(eq_rows, dropped == 0))
         self._note_acceleration_limits(result)
@@ -389,7 +389,7 @@ class WholeBodyQP:
         iterations, duals = solved
         return QPResult(x, OPTIMAL, iterations, time.perf_counter() - t0), bool(duals.any())
 
-    def _note_acceleration_limits(self, result: QPResult) -> None:
+    def _note_acceleration_limits(self, result: QPResult, measured: bool = False) -> None:
         """Skip the force-space QP next time exactly when a bound or row with vdot in it binds at ``result``.
 
         Binding: within :data:`ACTIVE_TOL` of its limit (daqp's duals are the reduced QP's, or absent).
@@ -400,8 +400,9 @@ class WholeBodyQP:
             rows_v = np.flatnonzero(self.G[:, :self.nv].any(axis=1))
             self._v_ineq = np.concatenate([np.arange(self.nv), self.n_x + rows_v])
         xg = self._xg
-        xg[:self.n_x] = result.x
-        np.dot(self.G, result.x, out=xg[self.n_x:])
+        if not measured:  # (measured: the reduced QP's check wrote [x; G x] there)
+            xg[:self.n_x] = result.x
+            np.dot(self.G, result.x, out=xg[self.n_x:])
         at = self._v_ineq
         gap = np.minimum(xg[at] - self._lo[at], self._up[at] - xg[at])
         self._skip_force = bool(_min(gap) <= ACTIVE_TOL)
