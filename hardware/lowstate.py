@@ -124,7 +124,6 @@ class LowStateStream:
 
     def __init__(self, reader: RawReader, n_motors: int, check_crc: bool = True, t0: float = 0.0):
         self._reader = reader
-        self._n = n_motors
         self.check_crc = check_crc
         self.t0 = t0
         self._codec = low_state_codec()
