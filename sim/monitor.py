@@ -139,7 +139,6 @@ class PlantMonitor:
         if fall_rule is not None and not robot.has_floating_base:
             raise SimError(f"a fall rule needs a floating base; {robot.name!r} has a fixed base")
         self._fall_rule = fall_rule
-        self._period_s = sim.control_period_s
         # views into MjData read every period, bound once (MjData's arrays stay where they are)
         self._root_com = sim.data.subtree_com[self._roots[0]]
         self._root_pos = sim.data.xpos[self._roots[0]]
@@ -254,7 +253,7 @@ class PlantMonitor:
             net = self._sensor.net(d, geoms) if self._sensor is not None else []
         # built as tuple.__new__ does it, without the NamedTuple's Python-level __new__ (per period)
         self.sample = tuple.__new__(PlantSample, (
-            d.time - self._period_s,
+            sim.period_start_s,  # the state's own time, the same float (t + T - T need not be t)
             self._root_com.copy() if self._subtree_com else self._com(d),
             self._site_xpos.take(self._site_index, 0),  # take: half a fancy index's time
             net, sim.physics_time_s))

@@ -106,6 +106,9 @@ class Simulator:
         self._perturbations: tuple[Perturbation, ...] = ()
         #: Wall time [s] of the last ``sync``'s physics (MuJoCo's steps and the perturbations).
         self.physics_time_s = 0.0
+        #: Simulated time [s] when the last ``sync``/``step``/``hold`` began: the time of the state its
+        #: command saw, the same float (``time_s + period - period`` need not be).
+        self.period_start_s = 0.0
         self.reset()
 
     def add_observer(self, observer: Callable[[Simulator], None]) -> None:
@@ -193,6 +196,7 @@ class Simulator:
         """
         # step() inlined: this runs once per control cycle
         t0 = self.data.time  # MuJoCo restarts its clock when it resets a diverged state
+        self.period_start_s = t0
         wall0 = time.perf_counter()
         if self._perturbations:
             self._perturbed_steps(self.n_substeps)
@@ -218,7 +222,7 @@ class Simulator:
             self.send(command)
         if n < 1:
             raise SimError(f"n must be a positive number of steps; got {n}")
-        t0 = self.data.time
+        t0 = self.period_start_s = self.data.time
         if self._perturbations:
             self._perturbed_steps(n)
         elif n == 1:
@@ -244,6 +248,7 @@ class Simulator:
         if n < 1:
             raise SimError(f"n must be a positive number of steps; got {n}")
         self.forward()
+        self.period_start_s = self.data.time
         self.data.time += n * self.model.opt.timestep
         for observer in self._observers:
             observer(self)
@@ -319,6 +324,7 @@ class Simulator:
         self.n_steps = 0
         self._last_command = None
         self._warn_seen = self._warn_numbers.tolist()
+        self.period_start_s = float(self.data.time)
         self._forward()
 
     def set_state(self, q: npt.ArrayLike, v: npt.ArrayLike) -> None:

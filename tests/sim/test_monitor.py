@@ -88,6 +88,23 @@ def test_the_monitor_measures_what_the_plant_did_each_period(stool):
     assert 0.8 < monitor.fall_time_s < 1.6
 
 
+def test_a_periods_sample_carries_the_time_of_the_state_its_command_saw_bit_for_bit(stool):
+    # its time is the same float as the state's (t + T - T is not always t: the job's CoM error
+    # compares the two and went cycle by cycle when they differed by 1e-16 s)
+    sim = Simulator(stool, control_period_s=0.006)
+    monitor = PlantMonitor(sim).attach()
+    for k in range(600):
+        state = sim.read_state()
+        if k % 2:
+            sim.sync()
+        else:
+            sim.step(n=3)
+        assert monitor.time_s == state.time_s, k
+    held_from = sim.time_s
+    sim.hold(2)  # a plant's clock running with the robot held still: the period began where it was
+    assert monitor.time_s == held_from and sim.time_s == pytest.approx(held_from + 0.004)
+
+
 def test_the_monitor_refuses_joints_it_cannot_sample_and_unknown_bodies(stool):
     sim = Simulator(stool)
     with pytest.raises(SimError, match=r"joint torques are sampled on one-dof joints \(hinge, slide\); "
