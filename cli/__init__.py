@@ -45,8 +45,18 @@ def _root(
     version: Annotated[
         bool, typer.Option("--version", callback=_version, is_eager=True, help="Print the version and exit.")
     ] = False,
+    cpus: Annotated[
+        str | None,
+        typer.Option("--cpus", help="Run the command on these CPU cores only, e.g. 0 or 0,2-3 (Linux; before "
+                                    "the command's name): a DDS job and `mbctl serve g1` each on its own "
+                                    "core, as on a robot's computer."),
+    ] = None,
 ) -> None:
     """Options that apply before any command (the help text is the app's)."""
+    if cpus is not None:
+        from mbctl.jobs.cpus import pin_process
+
+        pin_process(cpus)  # before any thread starts: every later one inherits the cores
 
 
 def fail(message: str, code: int = 2) -> typer.Exit:

@@ -6,6 +6,7 @@ The job runner (``mbctl.jobs.runner``) assembles them with the status and values
 
 from __future__ import annotations
 
+import os
 import platform
 import sys
 from importlib import metadata
@@ -33,11 +34,12 @@ def package_versions() -> dict[str, str]:
 
 
 def environment() -> dict[str, Any]:
-    """Python, platform and package versions."""
+    """Python, platform and package versions, and the CPU cores the run could use (``mbctl --cpus``)."""
     return {
         "python": sys.version.split()[0],
         "platform": platform.platform(),
         "machine": platform.machine(),
+        "cpus": sorted(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else None,
         "packages": package_versions(),
     }
 
