@@ -318,6 +318,10 @@ def _run(ctx: RunContext, params: WalkParams, robot: Robot, walker: WalkingContr
     truth_fell = report_plant(ctx, p, run_log, G1_FALL.base_min_z_m)
     if truth_fell is not None:
         values["fell"] = truth_fell
+    values["foot_slip_source"] = "plant" if sim is not None else None
+    if sim is None and "truth_max_foot_slip_m" in values:  # over DDS: each stance's slip from the truth log
+        values.update(max_foot_slip_m=values["truth_max_foot_slip_m"],
+                      median_foot_slip_m=values["truth_median_foot_slip_m"], foot_slip_source="truth log")
     drift = values.get("estimator_position_error_max_m")
     if drift is not None and values["distance_m"] > 0.1:  # the estimator's worst error per metre walked
         values["estimator_drift_m_per_m"] = drift / values["distance_m"]
@@ -394,7 +398,8 @@ def _outcome(params: WalkParams, v: dict[str, Any], time_s: float) -> Outcome:
              else f"{v['distance_m']:.3f} m at {v['mean_speed_m_s'] or 0:.3f} m/s")
     lines = (
         f"g1-walk {params.scenario} {time_s:.2f} s: {fell}; {v['steps']} steps, {moved}{of_command}",
-        f"foot slip max {_mm(v['max_foot_slip_m'])}, median {_mm(v['median_foot_slip_m'])}; DCM RMS "
+        f"foot slip max {_mm(v['max_foot_slip_m'])}, median {_mm(v['median_foot_slip_m'])}"
+        f"{' (truth log)' if v.get('foot_slip_source') == 'truth log' else ''}; DCM RMS "
         f"{_mm(v['dcm_rms_m'])}; ZMP reference margin min {_mm(v['min_zmp_margin_m'])}; contact force QP vs "
         f"MuJoCo in single support median {_n(force.get('median_N'))}, p95 {_n(force.get('p95_N'))}, max "
         f"{_n(force.get('max_N'))}",

@@ -155,20 +155,24 @@ def truth_com(path: str | Path, ticks: np.ndarray, q_est: np.ndarray) -> np.ndar
     return com
 
 
-def _foot_slip(window: np.ndarray) -> float:
-    """Largest horizontal drift [m] of a supporting foot from where it started to support."""
+def stance_slips(window: np.ndarray) -> np.ndarray:
+    """Each stance's largest horizontal drift [m] of the foot from where it started to support.
+
+    A foot supports while the plant measures at least :data:`SUPPORT_FRACTION` of the window's
+    first total normal force on it; a stance is a run of such rows, its drift counted from the row
+    before it (the foot's place before it was loaded; the first row for a stance from the start).
+    Stances of both feet, the left's first (a walk's; a standing run has one per foot).
+    """
     weight = window["left_foot_fz_N"][0] + window["right_foot_fz_N"][0]
-    worst = 0.0
+    out: list[float] = []
     for side in ("left", "right"):
         xy = np.column_stack([window[f"{side}_foot_x_m"], window[f"{side}_foot_y_m"]])
         loaded = window[f"{side}_foot_fz_N"] >= SUPPORT_FRACTION * weight
-        home = xy[0]
-        for k in range(len(xy)):
-            if not loaded[k]:
-                home = xy[k]
-            else:
-                worst = max(worst, float(np.hypot(*(xy[k] - home))))
-    return worst
+        edges = np.flatnonzero(np.diff(np.concatenate(([False], loaded, [False])).astype(np.int8)))
+        for start, stop in zip(edges[::2], edges[1::2], strict=True):  # [start, stop) loaded
+            home = xy[max(start - 1, 0)]
+            out.append(float(np.hypot(*(xy[start:stop] - home).T).max()))
+    return np.array(out)
 
 
 def truth_checks(path: str | Path, ticks: np.ndarray, log: RunLog,
@@ -186,7 +190,8 @@ def truth_checks(path: str | Path, ticks: np.ndarray, log: RunLog,
 
     Returns:
         Report values: ``truth_pelvis_max_deviation_m``, ``truth_pelvis_z_min_m``, ``truth_fell``,
-        ``truth_max_foot_slip_m``,
+        ``truth_max_foot_slip_m`` (0 with no stance), ``truth_median_foot_slip_m`` (over the feet's
+        stances, :func:`stance_slips`; None with none),
         ``estimator_position_error_max_m``, ``estimator_position_error_final_m``,
         ``estimator_orientation_error_max_deg`` (the two largest: None when the log kept every
         ``stride``-th cycle; ``estimator_errors_over`` says which), ``truth_rows``,
@@ -213,13 +218,15 @@ def truth_checks(path: str | Path, ticks: np.ndarray, log: RunLog,
         angles.append(R_true.angularDistance(R_est))
     every = log.stride == 1  # the largest errors need every cycle's estimate: else unchecked (null)
     deviation = float(np.abs(dz).max())
+    slips = stance_slips(window)
     return {
         "truth_rows": int(window.size),
         "truth_commands_applied": int(window["commands_applied"][-1] - window["commands_applied"][0]),
         "truth_pelvis_max_deviation_m": deviation,
         "truth_pelvis_z_min_m": float(window["base_z_m"].min()),
         "truth_fell": bool(fall_height_m is not None and window["base_z_m"].min() < fall_height_m),
-        "truth_max_foot_slip_m": _foot_slip(window),
+        "truth_max_foot_slip_m": float(slips.max()) if slips.size else 0.0,
+        "truth_median_foot_slip_m": float(np.median(slips)) if slips.size else None,
         "estimator_position_error_max_m": float(err.max()) if every else None,
         "estimator_position_error_final_m": float(err[-1]),
         "estimator_orientation_error_max_deg": float(np.degrees(max(angles))) if every else None,
