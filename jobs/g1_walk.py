@@ -316,8 +316,10 @@ def _run(ctx: RunContext, params: WalkParams, robot: Robot, walker: WalkingContr
         cycle_s = 2 * walker.config.timing.step_s
         values.update(course.values(q1), path_m=path_length(run_log.row_time_s, run_log.q, cycle_s))
     truth_fell = report_plant(ctx, p, run_log, G1_FALL.base_min_z_m)
-    if truth_fell is not None:
-        values["fell"] = truth_fell
+    if truth_fell is not None:  # the bridge's truth log has the last word on a DDS run
+        values.update(fell=truth_fell, fall_source="truth log",
+                      fall_reason="pelvis below its fall height (truth log)" if truth_fell else None,
+                      fall_time_s=values["fall_time_s"] if truth_fell else None)
     values["foot_slip_source"] = "plant" if sim is not None else None
     if sim is None and "truth_max_foot_slip_m" in values:  # over DDS: each stance's slip from the truth log
         values.update(max_foot_slip_m=values["truth_max_foot_slip_m"],
@@ -387,7 +389,8 @@ def _outcome(params: WalkParams, v: dict[str, Any], time_s: float) -> Outcome:
         checks.append(v["waypoints_reached"] == v["waypoints_planned"])
     else:
         checks.append(fraction is not None and fraction >= MIN_FRACTION)
-    fell = f"FELL ({v['fall_reason']}) at {v['fall_time_s']:.2f} s" if v["fell"] else "walked"
+    at = f" at {v['fall_time_s']:.2f} s" if v["fall_time_s"] is not None else ""
+    fell = f"FELL ({v['fall_reason']}){at}" if v["fell"] else "walked"
     what = "turn" if params.scenario == "turn" else "displacement"
     force = (v.get("contact_force_error") or {}).get("single") or {}
     # a course's command changes with each waypoint: its integral is no measure (the waypoints are)

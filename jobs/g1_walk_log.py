@@ -30,6 +30,7 @@ from mbctl.control.loop import MAX_LOG_ROWS, log_rows, log_stride
 from mbctl.control.wbc import WalkingController
 from mbctl.jobs.log_sums import nan_max, nan_min
 from mbctl.jobs.runner import RunContext
+from mbctl.jobs.state_fall import StateFallWatch
 from mbctl.robots.g1 import FEET
 from mbctl.robots.interface import RobotState
 from mbctl.sim.monitor import PlantMonitor
@@ -114,6 +115,8 @@ class WalkLog:
         self._zmp_min, self._walking, self._cmp_min, self._clamped = math.inf, False, math.inf, 0
         self._force_max = {1: -math.inf, 2: -math.inf}
         self.k = 0
+        #: Over DDS (no monitor), the fall rule on the estimated state: it ends the run.
+        self.state_fall = StateFallWatch()
         self._home: dict[str, tuple[float, float] | None] = dict.fromkeys(FEET)
         self._stance_slip = dict.fromkeys(FEET, 0.0)
         #: Each stance's largest slip [m], in the order they ended (the open ones added in values()).
@@ -190,7 +193,7 @@ class WalkLog:
         if k % self.stride == 0:
             self._row += 1
         self.k = k + 1
-        fallen = mon is not None and mon.fall_reason is not None
+        fallen = mon.fall_reason is not None if mon is not None else self.state_fall.check(state)
         if self.pushes is not None and mon is not None:
             self.pushes.on_cycle(state.time_s, mon.sim.time_s, fallen)
         self.ctx.progress.advance()
@@ -282,9 +285,10 @@ class WalkLog:
                 force_err[name] = {**{f"{k}_N": v for k, v in stats.items()}, **rel}
         gait = w.gait
         ctx.values.update({
-            "fell": None if mon is None else mon.fall_reason is not None,
-            "fall_reason": None if mon is None else mon.fall_reason,
-            "fall_time_s": None if mon is None else mon.fall_time_s,
+            "fell": (mon.fall_reason if mon is not None else self.state_fall.reason) is not None,
+            "fall_reason": mon.fall_reason if mon is not None else self.state_fall.reason,
+            "fall_time_s": mon.fall_time_s if mon is not None else self.state_fall.time_s,
+            "fall_source": "plant" if mon is not None else "estimated state",
             "controller_fallback_at_s": w.wbc.infeasible_at_s,
             "qp_relaxed_cycles": w.wbc.relaxed_cycles,
             "controller_fallback_reason": w.wbc.infeasible_message,

@@ -230,15 +230,16 @@ def _run(ctx: RunContext, params: WBCParams, robot: Robot, pin_model: pin.Model 
     fell = values["fell"]
     if "truth_max_foot_slip_m" in values:  # over DDS with the bridge's truth log
         values["max_foot_slip_m"] = values["truth_max_foot_slip_m"]
+    slip = values["max_foot_slip_m"]  # None over DDS without the truth log: not observed
     ok = (not fell and values["com_error_rms_m"] < bounds.com_rms_m
-          and values["max_foot_slip_m"] < bounds.foot_slip_m)
+          and (slip is None or slip < bounds.foot_slip_m))
     controller = ("QP throughout" if values["controller_fallback_at_s"] is None else
                   f"QP infeasible at t={values['controller_fallback_at_s']:.3f} s, then joint damping")
     summary = (
         f"g1-wbc {params.scenario} {iface.time_s:.2f} s: "
         f"{'FELL (' + str(values['fall_reason']) + ')' if fell else 'stood'}; controller: {controller}; "
         f"CoM RMS {values['com_error_rms_m'] * 1e3:.2f} mm, max foot slip "
-        f"{values['max_foot_slip_m'] * 1e3:.3f} mm, contact force error "
+        f"{'n/a' if slip is None else f'{slip * 1e3:.3f} mm'}, contact force error "
         f"{values['contact_force_rel_error'] * 100:.2f} % of m g median "
         f"(95th percentile {values['contact_force_rel_error_p95'] * 100:.2f} %, max "
         f"{values['contact_force_rel_error_max'] * 100:.2f} %), controller "

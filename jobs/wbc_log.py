@@ -29,6 +29,7 @@ from mbctl.control.wbc import Standing, WBCSolution
 from mbctl.control.wbc.config import foot_totals_and_cops_W
 from mbctl.jobs.log_sums import CoMErrorSums, nan_max, nan_min, quantile
 from mbctl.jobs.runner import RunContext
+from mbctl.jobs.state_fall import StateFallWatch
 from mbctl.robots.commands import Command
 from mbctl.robots.g1 import FEET
 from mbctl.robots.interface import RobotState
@@ -190,6 +191,7 @@ class WBCLog:
         self._t0 = math.nan
         self.k = 0
         self.com_from_truth = False  # with_truth replaced the estimated CoM by the plant's
+        self.state_fall = StateFallWatch()  # over DDS (no monitor): the fall rule on the estimated state
         self._last_cycle_end: float | None = None
         self._pending: deque[tuple] = deque()  # cycles kept by on_step, not yet recorded
         self._foot_states = [ctrl.contacts[f] for f in FEET]
@@ -264,7 +266,7 @@ class WBCLog:
             mon.sample if mon is not None else ctrl.state.com().tolist(), now))
         if len(self._pending) >= self.batch:
             self._drain()
-        return mon is not None and mon.fall_reason is not None
+        return mon.fall_reason is not None if mon is not None else self.state_fall.check(state)
 
     def _drain(self) -> None:
         """Record the cycles kept so far, in order (the progress bar advances by them).
@@ -411,8 +413,9 @@ class WBCLog:
         t_err[:] = r.t
         err_m[:] = np.linalg.norm(err[cycles], axis=1)
         self.ctx.values.update({"com_error_rms_m": float(np.sqrt(np.mean(np.sum(err**2, axis=1)))),
-                                "com_error_source": "truth log", "fell": fell,
-                                "fall_reason": "pelvis below its fall height (truth log)" if fell else None})
+                                "com_error_source": "truth log", "fell": fell, "fall_source": "truth log",
+                                "fall_reason": "pelvis below its fall height (truth log)" if fell else None,
+                                "fall_time_s": self.state_fall.time_s if fell else None})
         return self.ctx.values
 
     def values(self, sim: Simulator | None = None) -> dict[str, Any]:
@@ -436,14 +439,15 @@ class WBCLog:
             per_foot = dict.fromkeys(FEET, nan)
         com = self.com_sums
         ctx.values.update({
-            "fell": mon is not None and mon.fall_reason is not None,
-            "fall_reason": mon.fall_reason if mon is not None else None,
-            "fall_time_s": mon.fall_time_s if mon is not None else None,
+            "fell": (mon.fall_reason if mon is not None else self.state_fall.reason) is not None,
+            "fall_reason": mon.fall_reason if mon is not None else self.state_fall.reason,
+            "fall_time_s": mon.fall_time_s if mon is not None else self.state_fall.time_s,
+            "fall_source": "plant" if mon is not None else "estimated state",
             "controller_fallback_at_s": ctrl.infeasible_at_s,
             "qp_relaxed_cycles": ctrl.relaxed_cycles,
             # over DDS the estimated CoM's (with_truth replaces it by the truth log's)
             "com_error_rms_m": com.rms(),
-            "max_foot_slip_m": self._slip_max,
+            "max_foot_slip_m": self._slip_max if mon is not None else None,  # over DDS: the truth log's
             "contact_force_rel_error": quantile(rel) if mon is not None else nan,
             "contact_force_rel_error_p95": quantile(rel, "p95") if mon is not None else nan,
             "contact_force_rel_error_max": self._rel_max if mon is not None and rel.size else nan,

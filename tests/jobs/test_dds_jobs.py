@@ -199,6 +199,7 @@ def test_g1_walk_over_dds_walks_with_its_slips_from_the_truth_log(g1, dds_domain
     assert out.returncode == 1 and report["passed"] is False, out.stdout + out.stderr + json.dumps(values)
     assert 0.6 < values["displacement_fraction"] < 0.9 and "median foot slip <= 5 mm" in report["bound"]
     assert values["fell"] is False and values["truth_fell"] is False and values["steps"] >= 3
+    assert values["fall_source"] == "truth log" and values["fall_reason"] is None
     assert values["displacement_source"] == "truth log" and 0.4 < values["distance_m"] < 0.9
     assert values["foot_slip_source"] == "truth log"
     assert values["max_foot_slip_m"] == values["truth_max_foot_slip_m"] < 5e-3
