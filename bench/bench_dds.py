@@ -142,17 +142,19 @@ def _com_rms_mm(com: np.ndarray) -> float:
     return float(np.sqrt(np.mean(np.sum((com - com[0]) ** 2, axis=1))) * 1e3)
 
 
-def over_dds(domain: int, folder: Path, client: list[str], *serve: str) -> subprocess.CompletedProcess:
+def over_dds(domain: int, folder: Path, client: list[str], *serve: str,
+             cpus: tuple[str, str] | None = None) -> subprocess.CompletedProcess:
     """``mbctl serve g1`` on ``domain`` (lo) into ``folder/serve`` while ``client`` (a job's arguments
     after ``--interface dds --domain D``, with ``--truth`` to its log) runs into ``folder/dds``;
-    both processes end before this returns."""
+    both processes end before this returns. ``cpus``: the bridge's and the client's ``mbctl --cpus``."""
     serve_dir = folder / "serve"
-    bridge = subprocess.Popen(_mbctl("serve", "g1", "--domain", str(domain), "--idle-timeout", "60",
-                                     "--output", str(serve_dir), "-q", *serve),
+    pin_serve, pin_client = (["--cpus", cpus[0]], ["--cpus", cpus[1]]) if cpus else ([], [])
+    bridge = subprocess.Popen(_mbctl(*pin_serve, "serve", "g1", "--domain", str(domain), "--idle-timeout",
+                                     "60", "--output", str(serve_dir), "-q", *serve),
                               stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
     try:
         wait_until_serving(bridge)
-        out = subprocess.run(_mbctl(*client, "--interface", "dds", "--domain", str(domain),
+        out = subprocess.run(_mbctl(*pin_client, *client, "--interface", "dds", "--domain", str(domain),
                                     "--truth", str(serve_dir / "truth.csv"), "--output",
                                     str(folder / "dds"), "-q"),
                              capture_output=True, text=True)
