@@ -317,9 +317,7 @@ def _run(ctx: RunContext, params: WalkParams, robot: Robot, walker: WalkingContr
         values.update(course.values(q1), path_m=path_length(run_log.row_time_s, run_log.q, cycle_s))
     truth_fell = report_plant(ctx, p, run_log, G1_FALL.base_min_z_m)
     if truth_fell is not None:  # the bridge's truth log has the last word on a DDS run
-        values.update(fell=truth_fell, fall_source="truth log",
-                      fall_reason="pelvis below its fall height (truth log)" if truth_fell else None,
-                      fall_time_s=values["fall_time_s"] if truth_fell else None)
+        values.update(log.state_fall.truth_values(truth_fell))
     values["foot_slip_source"] = "plant" if sim is not None else None
     if sim is None and "truth_max_foot_slip_m" in values:  # over DDS: each stance's slip from the truth log
         values.update(max_foot_slip_m=values["truth_max_foot_slip_m"],

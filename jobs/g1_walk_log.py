@@ -285,10 +285,7 @@ class WalkLog:
                 force_err[name] = {**{f"{k}_N": v for k, v in stats.items()}, **rel}
         gait = w.gait
         ctx.values.update({
-            "fell": (mon.fall_reason if mon is not None else self.state_fall.reason) is not None,
-            "fall_reason": mon.fall_reason if mon is not None else self.state_fall.reason,
-            "fall_time_s": mon.fall_time_s if mon is not None else self.state_fall.time_s,
-            "fall_source": "plant" if mon is not None else "estimated state",
+            **self.state_fall.values(mon),
             "controller_fallback_at_s": w.wbc.infeasible_at_s,
             "qp_relaxed_cycles": w.wbc.relaxed_cycles,
             "controller_fallback_reason": w.wbc.infeasible_message,

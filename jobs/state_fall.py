@@ -11,8 +11,11 @@ the last word on the verdict.
 
 from __future__ import annotations
 
+from typing import Any
+
 from mbctl.robots.g1 import G1_FALL
 from mbctl.robots.interface import RobotState
+from mbctl.sim.monitor import PlantMonitor
 
 #: What the reason says after the rule's words.
 SOURCE = "(estimated state)"
@@ -37,3 +40,19 @@ class StateFallWatch:
             if reason is not None:
                 self.reason, self.time_s = f"{reason} {SOURCE}", float(state.time_s)
         return self.reason is not None
+
+    def values(self, monitor: PlantMonitor | None) -> dict[str, Any]:
+        """The report's fall keys: the plant monitor's verdict in-process, else this one's."""
+        if monitor is not None:
+            return {"fell": monitor.fall_reason is not None, "fall_reason": monitor.fall_reason,
+                    "fall_time_s": monitor.fall_time_s, "fall_source": "plant"}
+        return {"fell": self.reason is not None, "fall_reason": self.reason, "fall_time_s": self.time_s,
+                "fall_source": "estimated state"}
+
+    def truth_values(self, fell: bool) -> dict[str, Any]:
+        """The report's fall keys from the bridge's truth log, which has the last word.
+
+        The time is this watch's, when it saw the fall too (the truth check gives none).
+        """
+        return {"fell": fell, "fall_reason": "pelvis below its fall height (truth log)" if fell else None,
+                "fall_time_s": self.time_s if fell else None, "fall_source": "truth log"}

@@ -413,9 +413,7 @@ class WBCLog:
         t_err[:] = r.t
         err_m[:] = np.linalg.norm(err[cycles], axis=1)
         self.ctx.values.update({"com_error_rms_m": float(np.sqrt(np.mean(np.sum(err**2, axis=1)))),
-                                "com_error_source": "truth log", "fell": fell, "fall_source": "truth log",
-                                "fall_reason": "pelvis below its fall height (truth log)" if fell else None,
-                                "fall_time_s": self.state_fall.time_s if fell else None})
+                                "com_error_source": "truth log", **self.state_fall.truth_values(fell)})
         return self.ctx.values
 
     def values(self, sim: Simulator | None = None) -> dict[str, Any]:
@@ -439,10 +437,7 @@ class WBCLog:
             per_foot = dict.fromkeys(FEET, nan)
         com = self.com_sums
         ctx.values.update({
-            "fell": (mon.fall_reason if mon is not None else self.state_fall.reason) is not None,
-            "fall_reason": mon.fall_reason if mon is not None else self.state_fall.reason,
-            "fall_time_s": mon.fall_time_s if mon is not None else self.state_fall.time_s,
-            "fall_source": "plant" if mon is not None else "estimated state",
+            **self.state_fall.values(mon),
             "controller_fallback_at_s": ctrl.infeasible_at_s,
             "qp_relaxed_cycles": ctrl.relaxed_cycles,
             # over DDS the estimated CoM's (with_truth replaces it by the truth log's)
