@@ -221,10 +221,17 @@ class Gait:
         self.phase, self.t_phase, self.phase_end = DOUBLE, start, start + cfg.timing.double_support_s
         return self._event(GaitEvent("touchdown", swing.foot, t, timing))
 
-    def retargetable(self, t: float) -> bool:
-        """Whether the swing footstep may still move (single support, before ``retarget_until_phase``)."""
+    def retargetable(self, t: float, pushed: bool = False) -> bool:
+        """Whether the swing footstep may still move (single support, before ``retarget_until_phase``).
+
+        Args:
+            t: Now [s].
+            pushed: The DCM is off its plan (a push): before ``pushed_retarget_until_phase`` instead.
+        """
         swing = self.swing
-        until = self.config.retarget_until_phase * swing.path.duration_s if swing is not None else 0.0
+        cfg = self.config
+        phase = cfg.pushed_retarget_until_phase if pushed else cfg.retarget_until_phase
+        until = phase * swing.path.duration_s if swing is not None else 0.0
         return swing is not None and t - self.t_phase < until
 
     def retarget(self, t: float, step: Footstep) -> None:

@@ -21,7 +21,8 @@ Each cycle:
    reported), which may change every cycle and is followed at ``max_acceleration``; the footsteps'
    yaw rate also corrects the heading error (the heading reference integrates the yaw-rate
    command), and their speed the measured speed's error over the last step (the speed loop). The
-   swing footstep follows the command until ``retarget_until_phase`` of the swing, moved by the
+   swing footstep follows the command until ``retarget_until_phase`` of the swing
+   (``pushed_retarget_until_phase`` while the DCM was off its plan by ``cmp_outside_after_m``), moved by the
    step-adaptation QP when the measured DCM leaves its tube (:mod:`mbctl.control.wbc.step_adaptation`);
    where a limit holds that footstep far short sideways, the QP shortens the swing as well
    (``timing_adaptation``: no quicker than ``min_single_support_s``, ``min_swing_left_s`` from now,
@@ -338,7 +339,8 @@ class WalkingController:
         ix, iy = cx + vx / self.omega, cy + vy / self.omega  # the DCM
         xi = np.array([ix, iy])
         if replan or event is not None:
-            if gait.retargetable(t):
+            last_error = self.status.dcm - self.status.dcm_ref  # a push moves the footstep later in the swing
+            if gait.retargetable(t, math.hypot(*last_error.tolist()) > cfg.cmp_outside_after_m):
                 gait.retarget(t, self._swing_footstep(gait, t, xi))
             self._next_replan_s = t + cfg.replan_period_s
         plan, steps = self.plans.plan(gait, t, self._steer)

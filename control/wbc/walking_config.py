@@ -75,6 +75,10 @@ class WalkingConfig:
         late_descent_m_s: A late foot keeps descending at this speed [m/s] ...
         late_extension_m: ... to at most this far below its footstep [m], where it lands.
         retarget_until_phase: The swing footstep follows the command up to this fraction of the swing.
+        pushed_retarget_until_phase: ... and up to this one while the DCM was more than
+            ``cmp_outside_after_m`` from its plan the cycle before (a push): a push that comes after
+            ``retarget_until_phase`` still moves the footstep (the path itself freezes it
+            ``MIN_RETARGET_S`` before its horizontal motion ends, which bounds the swing's acceleration).
         heading_gain_1_s: The footsteps turn by the yaw-rate command plus this gain [1/s] times the
             heading error (the heading reference integrates the yaw-rate command), so slips do not
             accumulate into a turn.
@@ -137,6 +141,7 @@ class WalkingConfig:
     late_descent_m_s: float = 0.2
     late_extension_m: float = 0.03
     retarget_until_phase: float = 0.6
+    pushed_retarget_until_phase: float = 0.7
     heading_gain_1_s: float = 1.0
     speed_gain: float = 0.3
     max_speed_correction_m_s: float = 0.15
@@ -171,6 +176,7 @@ class WalkingConfig:
             "early_touchdown_phase": 0 <= self.early_touchdown_phase <= 1,
             "late_descent_m_s": self.late_descent_m_s > 0, "late_extension_m": self.late_extension_m >= 0,
             "retarget_until_phase": 0 <= self.retarget_until_phase <= 1,
+            "pushed_retarget_until_phase": 0 <= self.pushed_retarget_until_phase <= 1,
             "heading_gain_1_s": self.heading_gain_1_s >= 0, "speed_gain": 0 <= self.speed_gain <= 1,
             "max_speed_correction_m_s": self.max_speed_correction_m_s >= 0,
             "replan_period_s": self.replan_period_s >= 0,

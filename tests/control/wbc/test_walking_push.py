@@ -134,3 +134,46 @@ def test_a_pushed_step_may_go_further_outward_toward_the_dcm():
                                adapter.adapt(stance, nominal, small, 0.3).footstep.position, atol=1e-12)
     with pytest.raises(WBCSetupError, match="pushed_outward_m"):
         StepAdapter(planner, OMEGA, (0.02, 0.005), pushed_outward_m=0.0)
+
+
+def _to_swing_phase(robot, crouch, phase: float, config=CONFIG) -> tuple[WalkingController, Simulator]:
+    """The walker and the plant once the first swing is ``phase`` of the way through."""
+    q0 = crouch(robot)
+    sim = Simulator(robot)
+    sim.set_state(q0, np.zeros(robot.nv))
+    walker = WalkingController(robot, FEET, "pelvis", "torso", q0, config, contact_force=lambda f: None)
+    walker.set_command((0.15, 0.0, 0.0))
+
+    def on_step(k, state, ref, cmd):
+        gait = walker.gait
+        swing = gait.swing if gait is not None else None
+        return swing is not None and walker.status.time_s - gait.t_phase >= phase * swing.path.duration_s
+
+    run(sim, walker, None, 2.0, on_step=on_step)
+    assert walker.gait.swing is not None
+    return walker, sim
+
+
+@pytest.mark.parametrize("pushed_until, moves", [(0.7, True), (0.6, False)])
+def test_a_push_late_in_a_swing_still_moves_its_footstep(tiny_biped, crouch, pushed_until, moves):
+    config = replace(CONFIG, pushed_retarget_until_phase=pushed_until)
+    walker, sim = _to_swing_phase(tiny_biped, crouch, 0.62, config)
+    gait = walker.gait
+    assert not gait.retargetable(walker.status.time_s)  # past retarget_until_phase (0.6) undisturbed
+    before = gait.swing.path.target_position.copy()
+    state = _pushed(sim.read_state(), 0.4)
+    walker.compute(state)  # the DCM ~0.09 m off the plan through the footstep swung to
+    assert np.linalg.norm(walker.status.dcm - walker.status.dcm_ref) > config.cmp_outside_after_m
+    for _ in range(6):  # a few cycles more: the footsteps are planned every replan_period_s
+        state = state._replace(time_s=state.time_s + 0.002)
+        walker.compute(state)
+    shift = gait.swing.path.target_position - before
+    if moves:  # toward the push (+y), by the step adaptation
+        assert shift[1] > 0.01
+    else:
+        np.testing.assert_allclose(shift, 0.0, atol=1e-12)
+
+
+def test_the_pushed_retarget_phase_is_checked():
+    with pytest.raises(WBCSetupError, match="pushed_retarget_until_phase"):
+        WalkingConfig(pushed_retarget_until_phase=1.5)
