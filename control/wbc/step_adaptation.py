@@ -41,6 +41,14 @@ the plan's DCM plus the error outside the tube; the footstep's VRP plus the plan
 step's planned timing, tau_now the plan's now, tau_min the quickest step's). At tau = tau_now it is the
 first QP; a quicker step lands before the DCM runs further, so its footstep needs less reach. The
 caller re-times the swing path to match (:meth:`~mbctl.planners.swing.SwingTrajectory.retime`).
+
+**A cross-over step** (pushed steps only, ``cross_clearance_m``). The narrowest width keeps the soles
+apart sideways, so a push toward the stance side leaves the swing foot beside the stance foot, the DCM
+running away past both. A footstep whose sole is ``cross_clearance_m`` ahead of the stance sole (or
+behind it) clears it whatever its width: the first QP is solved again with ``x_fwd >= l + c`` (``l`` the
+sole's length; or ``x_fwd <= -(l + c)``) and no narrowest width, within the same reach polygon, and the
+crossing footstep is taken when it lands ``cross_gain_m`` or more nearer the QP's optimum than the
+uncrossed one (without timing adaptation: the swing keeps its timing).
 """
 
 from __future__ import annotations
@@ -138,6 +146,10 @@ class StepAdapter:
             are left to the next step).
         pushed_outward_m: The outward limit [m] beyond the nominal width for a step :meth:`adapt` is
             told is pushed (None: the planner's ``max_outward_m``, as for the others).
+        cross_clearance_m: A pushed step toward the stance side may cross in front of or behind the
+            stance foot, its sole this far [m] clear of the stance sole along the heading (None or
+            ``inf``: never; needs the planner's ``sole_xy_m``).
+        cross_gain_m: ... when the crossing footstep lands this much [m] nearer the optimum.
 
     Raises:
         WBCSetupError: A non-positive omega or weight, or a tube that is not 2 finite values >= 0.
@@ -146,7 +158,8 @@ class StepAdapter:
     def __init__(self, planner: FootstepPlanner, omega_rad_s: float, tube_m: npt.ArrayLike,
                  nominal_weight: float = 0.01, sole_centre_xy: tuple[float, float] = (0.0, 0.0),
                  timing_weight: float = 0.001, timing_threshold_m: float = 0.05,
-                 pushed_outward_m: float | None = None):
+                 pushed_outward_m: float | None = None, cross_clearance_m: float | None = None,
+                 cross_gain_m: float = 0.05):
         tube = np.asarray(tube_m, dtype=float)
         if not (omega_rad_s > 0 and nominal_weight > 0 and timing_weight > 0 and tube.shape == (2,)
                 and np.all(np.isfinite(tube)) and np.all(tube >= 0)):
@@ -169,6 +182,16 @@ class StepAdapter:
         if not (math.isfinite(out) and out > 0):
             raise WBCSetupError(f"pushed_outward_m must be finite and > 0 [m]; got {pushed_outward_m!r}")
         self._outward = {False: lim.max_outward_m, True: out}
+        if not (cross_clearance_m is None or cross_clearance_m >= 0) or not (math.isfinite(cross_gain_m)
+                                                                             and cross_gain_m >= 0):
+            raise WBCSetupError(f"cross_clearance_m must be >= 0 [m] (inf or None: no cross-over) and "
+                                f"cross_gain_m finite and >= 0 [m]; got {cross_clearance_m!r}, "
+                                f"{cross_gain_m!r}")
+        xs = [x for x, _ in lim.sole_xy_m]
+        #: A crossing footstep's least offset along the stance heading [m] (None: no cross-over steps).
+        self.cross_ahead_m = (max(xs) - min(xs) + cross_clearance_m if xs and cross_clearance_m is not None
+                              and math.isfinite(cross_clearance_m) else None)
+        self.cross_gain_m = float(cross_gain_m)
         self._reach: dict[tuple[int, bool], tuple[np.ndarray, np.ndarray]] = {}
 
     def _reach_rows(self, side: int, pushed: bool = False) -> tuple[np.ndarray, np.ndarray]:
@@ -245,9 +268,39 @@ class StepAdapter:
             # held short: the quicker step's QP (at the plan's timing it is the same QP, so it does no worse)
             timed = self._adapt_timed(stance, nominal, given, (c, s), x_nom, out, time_to_switch_s, lb, ub,
                                       (G, h))
-            return timed._replace(solve_time_s=timed.solve_time_s + solve_time)
-        step = nominal._replace(position=np.array([px, py, nz]))
-        return StepAdaptation(step, np.array([px - nx, py - ny]), True, limited, solve_time)
+            adapted = timed._replace(solve_time_s=timed.solve_time_s + solve_time)
+        else:
+            step = nominal._replace(position=np.array([px, py, nz]))
+            adapted = StepAdaptation(step, np.array([px - nx, py - ny]), True, limited, solve_time)
+        if pushed and adapted.limited and self.cross_ahead_m is not None and out[1] * side < 0.0:  # inward
+            return self._cross_over(adapted, stance, nominal, optimum, (G, h))
+        return adapted
+
+    def _cross_over(self, result: StepAdaptation, stance: Footstep, nominal: Footstep, optimum: list[float],
+                    reach: tuple[np.ndarray, np.ndarray]) -> StepAdaptation:
+        """``result``, or the crossing footstep if it lands ``cross_gain_m`` nearer ``optimum`` (in S)."""
+        c, s = math.cos(stance.yaw_rad), math.sin(stance.yaw_rad)
+        (sx, sy, _), (nx, ny, nz) = stance.position.tolist(), nominal.position.tolist()
+        px, py, _ = result.footstep.position.tolist()
+        kept = [c * (px - sx) + s * (py - sy), -s * (px - sx) + c * (py - sy)]
+        best = max(math.hypot(kept[0] - optimum[0], kept[1] - optimum[1]) - self.cross_gain_m, 0.0)
+        lim, ahead = self.planner.limits, float(self.cross_ahead_m or 0.0)
+        widest = lim.nominal_width_m + self._outward[True]
+        q = np.array([-self._h * optimum[0], -self._h * optimum[1]])
+        crossed, t0 = None, time.perf_counter()
+        for low, high in ((ahead, lim.max_forward_m), (-lim.max_backward_m, -ahead)):  # ahead, behind
+            if low <= high:
+                x = self._solver.solve(QPData(self._H, q, np.array([low, -widest]), np.array([high, widest]),
+                                              *reach)).x
+                if x is not None and math.hypot(x[0] - optimum[0], x[1] - optimum[1]) < best:
+                    crossed, best = x.tolist(), math.hypot(x[0] - optimum[0], x[1] - optimum[1])
+        solve_time = result.solve_time_s + time.perf_counter() - t0
+        if crossed is None:
+            return result._replace(solve_time_s=solve_time)
+        px, py = sx + (c * crossed[0] - s * crossed[1]), sy + (s * crossed[0] + c * crossed[1])
+        limited = max(abs(crossed[0] - optimum[0]), abs(crossed[1] - optimum[1])) > 1e-9
+        return StepAdaptation(nominal._replace(position=np.array([px, py, nz])), np.array([px - nx, py - ny]),
+                              True, limited, solve_time)
 
     def _adapt_timed(self, stance: Footstep, nominal: Footstep, timing: StepTiming, cs: tuple[float, float],
                      x_nom: list[float], out: list[float], time_to_switch_s: float, lb: np.ndarray,

@@ -185,7 +185,8 @@ class WalkingController:
         self.adapter = StepAdapter(self.planner, self.omega, tube, sole_centre_xy=(
             float(self.sole_centre_F[0]), float(self.sole_centre_F[1])), timing_weight=cfg.timing_weight,
             timing_threshold_m=cfg.timing_threshold_m,
-            pushed_outward_m=cfg.pushed_outward_fraction * self.limits.max_outward_m)
+            pushed_outward_m=cfg.pushed_outward_fraction * self.limits.max_outward_m,
+            cross_clearance_m=cfg.cross_over_clearance_m, cross_gain_m=cfg.cross_over_gain_m)
         self.plans = WalkPlans(self.planner, cfg, self.omega)
         self.swing_tasks = {f: SwingFootTask(f, self.model, cfg.swing_cost, cfg.swing_gains,
                                              cfg.swing_orientation_cost) for f in self.feet}

@@ -54,6 +54,12 @@ class WalkingConfig:
         pushed_outward_fraction: The step-adaptation QP's outward limit while the DCM is more than
             ``cmp_outside_after_m`` from its plan, as a fraction of the planner's (its reach r beyond
             the nominal width): a step toward a push may spread the feet further than walking does.
+        cross_over_clearance_m: A pushed step toward the stance side may cross in front of (or behind)
+            the stance foot, its sole this far [m] clear of the stance sole along the heading (``inf``:
+            never): the narrowest width keeps the soles apart sideways only, so the swing foot could
+            land no nearer than beside the stance foot while the DCM runs away past both.
+        cross_over_gain_m: ... when the crossing footstep lands this much [m] nearer where the DCM
+            needs it than the uncrossed one (a smaller gain is not worth crossing the legs).
         preview_steps: Footsteps planned ahead of the swing foot's (>= 1).
         ramp_s: Contact force ramp [s] (<= the double support time).
         swing_horizontal_fraction: The swing foot reaches its footstep's x, y and yaw at this
@@ -125,6 +131,8 @@ class WalkingConfig:
     pushed_double_gain_1_s: float = 8.0
     hurry_after_m: float = 0.05
     pushed_outward_fraction: float = 1.6
+    cross_over_clearance_m: float = 0.03
+    cross_over_gain_m: float = 0.05
     preview_steps: int = 3
     ramp_s: float = 0.05
     swing_horizontal_fraction: float = 0.8
@@ -161,6 +169,7 @@ class WalkingConfig:
             "cmp_outside_m": self.cmp_outside_m >= 0, "cmp_outside_after_m": self.cmp_outside_after_m >= 0,
             "pushed_double_gain_1_s": self.pushed_double_gain_1_s > 0,
             "pushed_outward_fraction": self.pushed_outward_fraction > 0,
+            "cross_over_gain_m": self.cross_over_gain_m >= 0,
             "friction_fraction": 0 < self.friction_fraction <= 1,
             "dcm_tube_fraction": 0 <= self.dcm_tube_fraction <= 1,
             "min_single_support_s": 0 < self.min_single_support_s <= self.timing.single_support_s,
@@ -185,6 +194,9 @@ class WalkingConfig:
             value = getattr(self, name)
             if not (math.isfinite(value) and ok):
                 raise WBCSetupError(f"WalkingConfig.{name}={value!r} is out of range")
+        if not self.cross_over_clearance_m >= 0:  # (inf allowed: never)
+            raise WBCSetupError(f"WalkingConfig.cross_over_clearance_m={self.cross_over_clearance_m!r} is "
+                                f"out of range (>= 0 m, or inf)")
         for name in ("hurry_after_m", "torsion_m"):  # (inf allowed: never, unbounded)
             value = getattr(self, name)
             if not value > 0:

@@ -177,3 +177,39 @@ def test_a_push_late_in_a_swing_still_moves_its_footstep(tiny_biped, crouch, pus
 def test_the_pushed_retarget_phase_is_checked():
     with pytest.raises(WBCSetupError, match="pushed_retarget_until_phase"):
         WalkingConfig(pushed_retarget_until_phase=1.5)
+
+
+SOLE = ((-0.05, -0.03), (0.12, -0.03), (0.12, 0.03), (-0.05, 0.03))  # 0.17 m long
+
+
+def test_a_pushed_step_toward_the_stance_side_crosses_in_front_of_the_stance_foot():
+    limits = replace(LIMITS, sole_xy_m=SOLE)
+    planner = FootstepPlanner(limits, GaitTiming(0.5, 0.1), ("left", "right"))
+    kwargs = dict(pushed_outward_m=1.6 * limits.max_outward_m, cross_gain_m=0.05)
+    crossing = StepAdapter(planner, OMEGA, (0.02, 0.005), cross_clearance_m=0.03, **kwargs)
+    beside = StepAdapter(planner, OMEGA, (0.02, 0.005), **kwargs)  # no cross-over steps
+    stance = Footstep("right", -1, np.array([0.0, 0.0, 0.0]), 0.0)
+    nominal = Footstep("left", 1, np.array([0.18, 0.24, 0.0]), 0.0)
+    error = [0.0, -0.1]  # pushed toward the stance (right) foot, 0.3 s before the switch
+    held = beside.adapt(stance, nominal, error, 0.3, pushed=True)
+    assert held.limited and held.footstep.position[1] == pytest.approx(limits.min_width_m, abs=1e-6)
+    crossed = crossing.adapt(stance, nominal, error, 0.3, pushed=True)
+    # the sole 0.03 m clear ahead of the stance sole (0.17 + 0.03), past the width that kept it beside
+    assert crossed.footstep.position[0] == pytest.approx(0.2, abs=1e-6)
+    assert crossed.footstep.position[1] < 0.0 < limits.min_width_m
+    assert crossed.time_to_switch_s is None
+    # not for a step that is not pushed, nor toward the swing side, nor for a small gain
+    np.testing.assert_allclose(crossing.adapt(stance, nominal, error, 0.3).footstep.position,
+                               beside.adapt(stance, nominal, error, 0.3).footstep.position, atol=1e-12)
+    outward = [0.0, 0.1]
+    np.testing.assert_allclose(crossing.adapt(stance, nominal, outward, 0.3, pushed=True).footstep.position,
+                               beside.adapt(stance, nominal, outward, 0.3, pushed=True).footstep.position,
+                               atol=1e-12)
+    greedy = StepAdapter(planner, OMEGA, (0.02, 0.005), cross_clearance_m=0.03,
+                         pushed_outward_m=1.6 * limits.max_outward_m, cross_gain_m=0.5)
+    np.testing.assert_allclose(greedy.adapt(stance, nominal, error, 0.3, pushed=True).footstep.position,
+                               held.footstep.position, atol=1e-12)
+    with pytest.raises(WBCSetupError, match="cross_clearance_m"):
+        StepAdapter(planner, OMEGA, (0.02, 0.005), cross_clearance_m=-0.01)
+    with pytest.raises(WBCSetupError, match="cross_over_clearance_m"):
+        WalkingConfig(cross_over_clearance_m=-0.01)
