@@ -242,7 +242,7 @@ class StepAdapter:
                for v, tube in ((fwd, tube_fwd), (side, tube_side))]
         if out[0] == 0.0 and out[1] == 0.0:
             return StepAdaptation(nominal, np.zeros(2), False, False, 0.0)
-        (nx, ny, nz), (sx, sy, _) = nominal.position.tolist(), stance.position.tolist()
+        (nx, ny, _), (sx, sy, _) = nominal.position.tolist(), stance.position.tolist()
         dx, dy = nx - sx, ny - sy
         x_nom = [c * dx + s * dy, -s * dx + c * dy]
         gain = math.exp(self.omega * max(time_to_switch_s, 0.0))
@@ -260,7 +260,6 @@ class StepAdapter:
                                            lb, ub, G, h))
         solve_time = time.perf_counter() - t0
         x = result.x.tolist() if result.x is not None else x_nom  # (never None: (0, s w) is feasible)
-        px, py = sx + (c * x[0] - s * x[1]), sy + (s * x[0] + c * x[1])
         limited = max(abs(x[0] - optimum[0]), abs(x[1] - optimum[1])) > 1e-9
         held = timing is not None and abs(x[1] - optimum[1]) > self.timing_threshold_m
         given = (timing() if callable(timing) else timing) if held else None
@@ -270,8 +269,7 @@ class StepAdapter:
                                       (G, h))
             adapted = timed._replace(solve_time_s=timed.solve_time_s + solve_time)
         else:
-            step = nominal._replace(position=np.array([px, py, nz]))
-            adapted = StepAdaptation(step, np.array([px - nx, py - ny]), True, limited, solve_time)
+            adapted = _placed(stance, nominal, (c, s), x, limited, solve_time)
         if pushed and adapted.limited and self.cross_ahead_m is not None and out[1] * side < 0.0:  # inward
             return self._cross_over(adapted, stance, nominal, optimum, (G, h))
         return adapted
@@ -280,7 +278,7 @@ class StepAdapter:
                     reach: tuple[np.ndarray, np.ndarray]) -> StepAdaptation:
         """``result``, or the crossing footstep if it lands ``cross_gain_m`` nearer ``optimum`` (in S)."""
         c, s = math.cos(stance.yaw_rad), math.sin(stance.yaw_rad)
-        (sx, sy, _), (nx, ny, nz) = stance.position.tolist(), nominal.position.tolist()
+        sx, sy, _ = stance.position.tolist()
         px, py, _ = result.footstep.position.tolist()
         kept = [c * (px - sx) + s * (py - sy), -s * (px - sx) + c * (py - sy)]
         best = max(math.hypot(kept[0] - optimum[0], kept[1] - optimum[1]) - self.cross_gain_m, 0.0)
@@ -297,17 +295,15 @@ class StepAdapter:
         solve_time = result.solve_time_s + time.perf_counter() - t0
         if crossed is None:
             return result._replace(solve_time_s=solve_time)
-        px, py = sx + (c * crossed[0] - s * crossed[1]), sy + (s * crossed[0] + c * crossed[1])
         limited = max(abs(crossed[0] - optimum[0]), abs(crossed[1] - optimum[1])) > 1e-9
-        return StepAdaptation(nominal._replace(position=np.array([px, py, nz])), np.array([px - nx, py - ny]),
-                              True, limited, solve_time)
+        return _placed(stance, nominal, (c, s), crossed, limited, solve_time)
 
     def _adapt_timed(self, stance: Footstep, nominal: Footstep, timing: StepTiming, cs: tuple[float, float],
                      x_nom: list[float], out: list[float], time_to_switch_s: float, lb: np.ndarray,
                      ub: np.ndarray, reach: tuple[np.ndarray, np.ndarray]) -> StepAdaptation:
         """:meth:`adapt` with the step's timing (the module docstring's second QP), in S about the stance."""
         c, s = cs
-        (sx, sy, _), (nx, ny, nz) = stance.position.tolist(), nominal.position.tolist()
+        sx, sy, _ = stance.position.tolist()
         rx, ry = timing.dcm_ref_W.tolist()
         xi_ref = np.array([c * (rx - sx) + s * (ry - sy), -s * (rx - sx) + c * (ry - sy)])
         r_s = np.array(self.sole_centre_xy)
@@ -337,7 +333,18 @@ class StepAdapter:
             return StepAdaptation(nominal, np.zeros(2), True, True, solve_time)
         x = result.x
         short = float(np.linalg.norm(x[2] * a - x[:2] + k))  # the DCM's offset from b_nom at the switch
-        px, py = sx + (c * x[0] - s * x[1]), sy + (s * x[0] + c * x[1])
-        step = nominal._replace(position=np.array([px, py, nz]))
-        return StepAdaptation(step, np.array([px - nx, py - ny]), True, short > SHORT_M, solve_time,
-                              math.log(max(float(x[2]), 1.0)) / omega)
+        return _placed(stance, nominal, cs, x[:2].tolist(), short > SHORT_M, solve_time,
+                       math.log(max(float(x[2]), 1.0)) / omega)
+
+
+def _placed(stance: Footstep, nominal: Footstep, cs: tuple[float, float], x: list[float], limited: bool,
+            solve_time_s: float, time_to_switch_s: float | None = None) -> StepAdaptation:
+    """The adapted footstep at ``x`` (2,) [m] in S, the stance foot's frame about its position.
+
+    ``cs``: the cosine and sine of the stance foot's yaw.
+    """
+    c, s = cs
+    (sx, sy, _), (nx, ny, nz) = stance.position.tolist(), nominal.position.tolist()
+    px, py = sx + (c * x[0] - s * x[1]), sy + (s * x[0] + c * x[1])
+    return StepAdaptation(nominal._replace(position=np.array([px, py, nz])), np.array([px - nx, py - ny]),
+                          True, limited, solve_time_s, time_to_switch_s)
