@@ -438,9 +438,9 @@ class WalkingController:
         ref = plan.at(t).xi
         t1 = float(plan.switch_times_s[0])
         # the swing's timing only where the QP needs it (a swing sample: not on the cycles in the tube)
-        ex, ey = (xi - ref).tolist()
-        pushed = math.hypot(ex, ey) > self.config.cmp_outside_after_m  # a push: the wider outward limit
-        adaptation = self.adapter.adapt(stance, nominal, xi - ref, t1 - t,
+        error = xi - ref
+        pushed = math.hypot(*error.tolist()) > self.config.cmp_outside_after_m  # a push: wider outward limit
+        adaptation = self.adapter.adapt(stance, nominal, error, t1 - t,
                                         lambda: self._step_timing(gait, t, t1, ref), pushed)
         self._adaptation = adaptation
         if adaptation.time_to_switch_s is not None:  # the switch moved: so does the touchdown
