@@ -2,8 +2,9 @@
 
 ``run`` works the same on the simulator and on a robot over DDS, because it only uses the
 :class:`~mbctl.robots.interface.RobotInterface` protocol. The log's arrays are allocated before
-the first cycle; a cycle keeps its own state, reference and command, written into them
-:data:`~mbctl.control.run_log.LOG_BATCH` cycles at a time (:class:`~mbctl.control.run_log.LogWriter`).
+the first cycle; each cycle's state, reference and command are copied into small staging arrays and
+written into them :data:`~mbctl.control.run_log.LOG_BATCH` cycles at a time
+(:class:`~mbctl.control.run_log.LogWriter`).
 
 Memory is bounded: the log keeps at most ``MAX_LOG_ROWS`` rows of q, v, command and reference
 (every ``stride``-th cycle and the last of a longer run), its times and ticks every cycle (16 bytes
@@ -223,7 +224,7 @@ def run(
              if isinstance(first, JointReference) and joint_map is not None
              and np.size(joint_map.idx_q) == k_ref else None)
     log = LogWriter(n_cycles, robot.nq, robot.nv, k_ref, idx_q, MAX_LOG_ROWS, log_batch)
-    keep = log.pending.append
+    keep = log.keep
     controller.reset()
     t0 = interface.time_s
     # bound methods looked up once: the loop body is the hot path
@@ -246,12 +247,7 @@ def run(
             command = compute(state, ref)
             send(command)
             sync()
-            # the cycle's own objects, written log.batch at a time; the caller's function may hand out
-            # its own buffers again: what the log reads of its reference is copied
-            keep((state, (np.array(ref[0]), np.array(ref[1])) if fn is not None else ref, command))
-            if len(log.pending) == log.batch:
-                log.write()
-                keep = log.pending.append
+            keep(state, ref, command)  # copied as it is staged: a function's buffers may be reused
             if on_step is not None and on_step(k, state, ref, command):
                 break  # the callback ended the run (e.g. the robot fell)
     finally:  # however the loop ends, the plant keeps the robot safe from now on (the contract)

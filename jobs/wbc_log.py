@@ -19,20 +19,20 @@ from __future__ import annotations
 
 import math
 import time
-from collections import deque
 from typing import Any, NamedTuple
 
 import numpy as np
 
 from mbctl.control.loop import MAX_LOG_ROWS, batch_rows, kept_cycles, log_rows, log_stride
-from mbctl.control.wbc import Standing, WBCSolution
-from mbctl.control.wbc.config import foot_totals_and_cops_W
+from mbctl.control.wbc import Standing
 from mbctl.jobs.log_sums import CoMErrorSums, nan_max, nan_min, quantile
 from mbctl.jobs.runner import RunContext
 from mbctl.jobs.state_fall import StateFallWatch
+from mbctl.jobs.wbc_stage import S_CTRL, S_FALLBACK, S_FEET, S_NOW, S_PHYSICS, S_QP, S_T_PLANT, WBCStage
 from mbctl.robots.commands import Command
 from mbctl.robots.g1 import FEET
 from mbctl.robots.interface import RobotState
+from mbctl.sim.contacts import sums_block
 from mbctl.sim.monitor import PlantMonitor
 from mbctl.sim.perturb import PushSchedule
 from mbctl.sim.simulator import Simulator
@@ -50,13 +50,12 @@ SETTLE_S = 0.05
 _PER_FOOT = 9
 #: A foot's MuJoCo columns and slip when the plant is not observed (over DDS).
 _NO_PLANT = (float("nan"),) * 5
-_NO_PUSH = (0.0, 0.0)
-#: Cycles :meth:`WBCLog.on_step` keeps before recording them over a link with deadlines (about 1 ms of
-#: recording at once, within the G1's 2 ms period beside its cycle).
+#: Cycles :meth:`WBCLog.on_step` stages before recording them over a link with deadlines (a fraction
+#: of a ms of recording at once, within the G1's 2 ms period beside its cycle).
 BATCH = 64
-#: The same in-process, where no deadline waits (about 4 ms of recording at once, twice a second of the
-#: G1 job's wall time): a batch's recording has a fixed part (numpy calls per field, ~0.3 ms) that
-#: larger batches share out (overhead mean 65 -> 50 us a cycle; see bench/README).
+#: The same in-process, where no deadline waits (about 0.8 ms of recording at once, twice a second of
+#: the G1 job's wall time): a batch's recording has a fixed part (numpy calls per field, ~0.3 ms) that
+#: larger batches share out.
 BATCH_IN_PROCESS = 256
 #: What each kept row holds after the CSV's columns (the record's other fields, and the CoM error
 #: of the last plant sample compared: its plant time [s] and norm [m]).
@@ -193,7 +192,10 @@ class WBCLog:
         self.com_from_truth = False  # with_truth replaced the estimated CoM by the plant's
         self.state_fall = StateFallWatch()  # over DDS (no monitor): the fall rule on the estimated state
         self._last_cycle_end: float | None = None
-        self._pending: deque[tuple] = deque()  # cycles kept by on_step, not yet recorded
+        # each cycle's values, staged by on_step as the cycle ends (a few row stores while they are
+        # in the CPU's caches) and recorded a batch at a time; sized at the first cycle (by its solution)
+        self.staged = 0
+        self._stage: WBCStage | None = None
         self._foot_states = [ctrl.contacts[f] for f in FEET]
         self._home: dict[str, tuple[float, float]] = {}  # where each foot started to support
         if monitor is not None:  # FEET's places among the monitor's contact groups and sites
@@ -227,113 +229,102 @@ class WBCLog:
         rows, x = self._rows[: self.rows], self._extra
         return rows[:, x["com_err_t"]], rows[:, x["com_err_m"]]
 
-    def _qp_feet(self, sols: tuple[WBCSolution, ...]) -> np.ndarray:
-        """Per cycle and foot (FEET order), the QP's prediction (b, n_feet, 4).
-
-        The normal and tangential force [N] and the CoP's x, y [m] in W
-        (:func:`~mbctl.control.wbc.config.foot_totals_and_cops_W` over the batch). Every solution
-        has its controller's layout (``force_slices``, ``points_F``: built once with it).
-        """
-        first = sols[0]
-        forces = np.array([sol.forces for sol in sols])
-        X = np.array([sol.foot_X_W for sol in sols])  # (b, n_feet, 4, 4), force_slices' order
-        order = list(first.force_slices)
-        out = np.empty((len(sols), len(FEET), 4))
-        for j, f in enumerate(FEET):
-            total, cop = foot_totals_and_cops_W(forces[:, first.force_slices[f]].reshape(len(sols), -1, 3),
-                                                X[:, order.index(f)], first.points_F[f])
-            out[:, j, 0] = total[:, 2]
-            out[:, j, 1] = np.hypot(total[:, 0], total[:, 1])
-            out[:, j, 2:] = cop[:, :2]
-        return out
-
     def on_step(self, k: int, state: RobotState, reference: object, command: Command) -> bool:
-        """Keep cycle ``k`` to record (the loop's ``on_step``); True once the robot has fallen (ends the run).
+        """Stage cycle ``k`` (the loop's ``on_step``); True once the robot has fallen (ends the run).
 
-        A cycle's inputs are kept as they are (the state, command and solution are the cycle's own
-        objects; the plant's sample is immutable) and recorded ``batch`` cycles at a time, and by
-        every reader (:meth:`record`, :meth:`values`), as arrays with one numpy call per quantity:
-        not between a physics step and a solve that evict it from the CPU's caches (about 2.5x its
-        cost there), and the calls' fixed cost shared by the batch's cycles.
+        The cycle's values are copied into the staging arrays (:class:`WBCStage`) and recorded
+        ``batch`` cycles at a time, and by every reader (:meth:`record`, :meth:`values`), with one
+        numpy call per quantity. Keeping each cycle's objects instead and reading them back a batch
+        at a time read them cold from memory, and kept the allocator from reusing their memory while
+        it was warm: about 2.5 ms a 256-cycle batch on the G1, twice what the stores cost.
         """
         now = time.perf_counter()
-        ctrl, mon = self.wb.controller, self.monitor
+        i, st, mon, sol = self.staged, self._stage, self.monitor, self.wb.controller.last
+        assert sol is not None  # the cycle's compute, which ran, set it
+        if st is None:
+            st = self._stage = WBCStage(self.batch, sol, len(state.q), len(command.values), mon)
         left, right = self._foot_states
-        self._pending.append((
-            k, state, command, ctrl.last, self.wb.com.target,
-            self.pushes.force_W[:2].tolist() if self.pushes is not None else _NO_PUSH,
-            ((left.active, left.weight), (right.active, right.weight)),
-            mon.sample if mon is not None else ctrl.state.com().tolist(), now))
-        if len(self._pending) >= self.batch:
+        if mon is not None:
+            p = mon.sample
+            st.scalars[i] = (state.time_s, p.time_s, p.physics_time_s, sol.controller_time_s, sol.qp_time_s,
+                             sol.fallback, left.active, left.weight, right.active, right.weight, now)
+            st.com[i] = p.com_W
+            st.sites[i] = p.site_array_W
+            st.net[i] = p.contact_net
+        else:  # over DDS: the controller's CoM (from the estimated state), the state's time
+            st.scalars[i] = (state.time_s, state.time_s, 0.0, sol.controller_time_s, sol.qp_time_s,
+                             sol.fallback, left.active, left.weight, right.active, right.weight, now)
+            st.com[i] = self.wb.controller.state.com()
+        st.q[i] = state.q
+        st.tau[i] = command.values
+        st.ref[i] = self.wb.com.target
+        st.forces[i] = sol.forces
+        st.X[i] = sol.foot_X_W
+        if self.pushes is not None:
+            st.push[i] = self.pushes.force_W[:2]
+        self.staged = i + 1
+        if i + 1 >= self.batch:
             self._drain()
         return mon.fall_reason is not None if mon is not None else self.state_fall.check(state)
 
     def _drain(self) -> None:
-        """Record the cycles kept so far, in order (the progress bar advances by them).
+        """Record the cycles staged so far, in order (the progress bar advances by them).
 
-        Interrupted (Ctrl-C) before the batch's CSV rows are written, the batch stays kept and the
+        Interrupted (Ctrl-C) before the batch's CSV rows are written, the batch stays staged and the
         next reader (the runner's :meth:`values` at the end) records it: every completed cycle's row
         is kept. Nothing the batch changes is changed before its rows are written.
         """
-        if self._pending:
-            n = len(self._pending)
-            self._record(self._pending)
+        if self.staged:
+            n = self.staged
+            self._record(self._stage, n)  # type: ignore[arg-type]  # staged cycles have a stage
             self.ctx.progress.advance(n)
 
-    def _record(self, batch: deque[tuple]) -> None:
-        """Record the cycles :meth:`on_step` kept, as arrays over the batch (see :meth:`_drain`).
-
-        Each entry's ``plant`` is the monitor's sample of the period, or over DDS the controller's CoM
-        (3 floats).
-        """
-        ks, states, commands, sols, refs, pushes, feet, plants, nows = zip(*batch, strict=True)
-        mon, x, b, k0 = self.monitor, self._extra, len(batch), ks[0]
-        t = np.array([s.time_s for s in states])
-        q = np.array([s.q for s in states])
-        ref = np.array(refs)
-        # the plant's CoM in-process; over DDS the controller's (from the estimated state), replaced
-        # by the bridge's truth after the run when given (with_truth)
-        com = np.array([p.com_W for p in plants]) if mon is not None else np.array(plants)
+    def _record(self, st: WBCStage, b: int) -> None:
+        """Record the ``b`` cycles :meth:`on_step` staged, as arrays over the batch (see :meth:`_drain`)."""
+        mon, x, k0 = self.monitor, self._extra, self.k
+        S = st.scalars[:b]
+        t, q, ref, com, push = S[:, 0].copy(), st.q[:b], st.ref[:b], st.com[:b], st.push[:b]
         if not k0:
             self._t0 = float(t[0])
         block = np.empty((b, self._width))  # the CSV's rows
-        block[:, 0], block[:, 1:4], block[:, 4:7], block[:, 7], block[:, 8:10] = t, ref, com, q[:, 2], pushes
+        block[:, 0], block[:, 1:4], block[:, 4:7], block[:, 7], block[:, 8:10] = t, ref, com, q[:, 2], push
         cols = block[:, self._feet_at:self._tau.start].reshape(b, len(FEET), _PER_FOOT)  # a view of block
         qp = cols[:, :, :4]
-        qp[:] = self._qp_feet(sols)
-        state_feet = np.array(feet)  # (b, n_feet, 2): active, weight
+        qp[:] = st.qp_feet(b)
+        state_feet = S[:, S_FEET].reshape(b, len(FEET), 2)  # active, weight
         supporting = (state_feet[:, :, 0] > 0.5) & (state_feet[:, :, 1] == 1.0)
-        stance = supporting.all(axis=1) & ~np.array([sol.fallback for sol in sols])
+        stance = supporting.all(axis=1) & (S[:, S_FALLBACK] < 0.5)
         if mon is None:  # over DDS: the plant's forces and feet are not observed
             cols[:, :, 4:] = _NO_PLANT
             slip = np.zeros((b, len(FEET)))
         else:  # the monitor's groups and sites in FEET order
-            sums = mon.sums_of_samples(plants)[:, self._groups]  # (b, n_feet, 6)
+            sums = sums_block(st.net[:b])[:, self._groups]  # (b, n_feet, 6)
             fz = sums[:, :, 2]
             with np.errstate(divide="ignore", invalid="ignore"):  # the CoP, as contacts'
                 cols[:, :, 6:8] = np.where((fz > 1e-9)[:, :, None], sums[:, :, 3:5] / fz[:, :, None], np.nan)
             cols[:, :, 4] = fz
             cols[:, :, 5] = np.hypot(sums[:, :, 0], sums[:, :, 1])
-            xy = np.array([p.site_array_W for p in plants])[:, self._sites, :2]
+            xy = st.sites[:b, self._sites, :2]
             slip = cols[:, :, 8]
             slip[:], homes = self._slips(supporting & (fz >= SUPPORT_FRACTION * self.mg), xy)
-        block[:, self._tau] = [c.values for c in commands]
+        block[:, self._tau] = st.tau[:b]
         block[:, self._q] = q
         self.csv.write_rows(block)
-        self._pending = deque()  # the batch is in the CSV: from here on it is never recorded again
+        self.staged = 0  # the batch is in the CSV: from here on it is never recorded again
         if mon is not None:
             self._home = homes
         # the kept rows: the CSV's columns, then the record's others
         at, rows = batch_rows(k0, b, self.stride)
         kept = self._rows[rows]
         kept[:, :self._tau.start] = block[at, :self._tau.start]
-        t_plant = np.array([p.time_s for p in plants]) if mon is not None else t
-        ctrl_us = np.array([sol.controller_time_s for sol in sols]) * 1e6
-        qp_us = np.array([sol.qp_time_s for sol in sols]) * 1e6
+        t_plant = S[:, S_T_PLANT]
+        ctrl_us = S[:, S_CTRL] * 1e6
+        qp_us = S[:, S_QP] * 1e6
         slip_max = slip.max(axis=1)
         last = self._last_cycle_end
-        cycle_us = np.diff(np.array((math.nan if last is None else last, *nows))) * 1e6
-        self._last_cycle_end = nows[-1]
+        nows = S[:, S_NOW]
+        cycle_us = np.diff(nows, prepend=math.nan if last is None else last) * 1e6
+        self._last_cycle_end = float(nows[-1])
         com_err = self.com_sums.add_block(t, ref, t_plant, com)
         for name, values in (("t_plant", t_plant), ("stance", stance), ("ctrl_us", ctrl_us), ("qp_us", qp_us),
                              ("slip", slip_max), ("cycle_us", cycle_us), ("com_err_t", com_err[:, 0]),
@@ -347,7 +338,7 @@ class WBCLog:
             self._com_ref[k0:k0 + b] = ref
             quantiles[:] = np.column_stack((ctrl_us, qp_us, cycle_us))
         else:
-            physics_us = np.array([p.physics_time_s for p in plants]) * 1e6
+            physics_us = S[:, S_PHYSICS] * 1e6
             kept[:, x["physics_us"]] = physics_us[at]
             fz_qp, fz_mj = qp[:, :, 0], cols[:, :, 4]
             rel = np.abs(fz_qp.sum(axis=1) - fz_mj.sum(axis=1)) / self.mg

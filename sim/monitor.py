@@ -33,7 +33,6 @@ from mbctl.sim.contacts import (
     contacts_elsewhere,
     measured,
     sensors_on,
-    sums_block,
 )
 from mbctl.sim.exceptions import SimError
 from mbctl.sim.simulator import Simulator
@@ -197,10 +196,6 @@ class PlantMonitor:
         if self._sensor is None:
             return []
         return self._sensor.sums_from(sample.contact_net)
-
-    def sums_of_samples(self, samples: Sequence[PlantSample]) -> np.ndarray:
-        """``contact_sums`` of many periods' samples (b, G, 6), in one pass (the count a float)."""
-        return sums_block(np.array([s.contact_net for s in samples]).reshape(len(samples), -1))
 
     @property
     def contacts(self) -> dict[str, MeasuredContact]:

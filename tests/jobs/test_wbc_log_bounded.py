@@ -222,16 +222,16 @@ def test_slips_over_batches_equal_the_cycle_by_cycle_rule():
 
 def test_ctrl_c_while_a_batch_is_recorded_keeps_every_cycles_row(g1, tmp_path, monkeypatch):
     """Interrupted inside a batch's recording, before its CSV rows: the end of the run records it."""
-    sums = wbc_log.PlantMonitor.sums_of_samples
+    sums = wbc_log.sums_block
     calls = []
 
-    def interrupted_once(self, samples):
-        calls.append(len(samples))
+    def interrupted_once(nets):
+        calls.append(len(nets))
         if len(calls) == 1:
             raise KeyboardInterrupt
-        return sums(self, samples)
+        return sums(nets)
 
-    monkeypatch.setattr(wbc_log.PlantMonitor, "sums_of_samples", interrupted_once)
+    monkeypatch.setattr(wbc_log, "sums_block", interrupted_once)
     record = run_job(Job("g1-wbc", partial(prepare, robot=g1)), WBCParams(scenario="squat", duration=2.0),
                      tmp_path)
     batch = wbc_log.BATCH_IN_PROCESS
