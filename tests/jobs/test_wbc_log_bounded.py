@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 
 from mbctl.control.loop import log_rows, log_stride
-from mbctl.jobs import wbc_log
+from mbctl.jobs import g1_wbc, wbc_log
 from mbctl.jobs.g1_wbc import WBCParams, prepare
 from mbctl.jobs.log_sums import CoMErrorSums
 from mbctl.jobs.plant import PlantOptions
@@ -232,9 +232,10 @@ def test_ctrl_c_while_a_batch_is_recorded_keeps_every_cycles_row(g1, tmp_path, m
         return sums(nets)
 
     monkeypatch.setattr(wbc_log, "sums_block", interrupted_once)
+    batch = 256  # a batch within the 1000 cycles
+    monkeypatch.setattr(g1_wbc, "BATCH_IN_PROCESS", batch)
     record = run_job(Job("g1-wbc", partial(prepare, robot=g1)), WBCParams(scenario="squat", duration=2.0),
                      tmp_path)
-    batch = wbc_log.BATCH_IN_PROCESS
     assert record.status == "interrupted" and calls == [batch, batch]  # the same batch, recorded at the end
     c = _csv(record.files["csv"])
     assert record.rows == len(c["time_s"]) == batch
