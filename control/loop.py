@@ -141,6 +141,7 @@ def run(
     *,
     hold_q: np.ndarray | None = None,
     log_batch: int = LOG_BATCH,
+    rows: bool = True,
 ) -> RunLog:
     """Run ``controller`` on ``interface`` for ``duration_s`` and log it (see :class:`RunLog`).
 
@@ -166,6 +167,9 @@ def run(
             (n,) [rad] the others hold.
         log_batch: Cycles the log keeps before it writes them (one stall of the loop each time; a
             plant without deadlines, in-process, can take larger batches at a lower cost a cycle).
+        rows: False: the log keeps every cycle's time and tick only, no rows of q, v, command and
+            reference and no sums (for a caller that records what it needs itself in ``on_step``;
+            about 2.5 us a G1 cycle less).
 
     Returns:
         The RunLog: at most ``MAX_LOG_ROWS`` rows, times, ticks and stats of every cycle.
@@ -223,8 +227,8 @@ def run(
     idx_q = (np.asarray(joint_map.idx_q, dtype=int)
              if isinstance(first, JointReference) and joint_map is not None
              and np.size(joint_map.idx_q) == k_ref else None)
-    log = LogWriter(n_cycles, robot.nq, robot.nv, k_ref, idx_q, MAX_LOG_ROWS, log_batch)
-    keep = log.keep
+    log = LogWriter(n_cycles, robot.nq, robot.nv, k_ref, idx_q, MAX_LOG_ROWS, log_batch, rows)
+    keep = log.keep if rows else log.keep_times
     controller.reset()
     t0 = interface.time_s
     # bound methods looked up once: the loop body is the hot path

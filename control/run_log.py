@@ -100,7 +100,7 @@ class RunLog:
             with the plant's own logs, e.g. a bridge's truth log).
         cycle: The cycle of each row (R,) (empty: every cycle, rows = cycles).
         stride: Cycles between kept rows (1: every cycle kept).
-        stats: Sums over every cycle (None for a log made by hand).
+        stats: Sums over every cycle (None for a log made by hand, or by ``run(rows=False)``).
     """
 
     t_s: np.ndarray
@@ -143,10 +143,11 @@ class RunLog:
         """The sums over every cycle.
 
         Raises:
-            ControlError: A log made by hand (no sums).
+            ControlError: A log made by hand, or by ``run(rows=False)`` (no sums).
         """
         if self.stats is None:
-            raise ControlError("this RunLog has no sums over its cycles (a log made by hand, not by run())")
+            raise ControlError("this RunLog has no sums over its cycles (a log made by hand, or by "
+                               "run(rows=False), which keeps only the cycles' times and ticks)")
         return self.stats
 
     def error_sums(self) -> ColumnStats:
@@ -259,13 +260,15 @@ class LogWriter:
             error ``q_ref - q`` is summed), else None.
         max_rows: Rows of q, v, command and reference kept at most.
         batch: Cycles staged before they are written.
+        rows: False: keep every cycle's time and tick only (:meth:`keep_times`; no rows, no sums).
     """
 
     def __init__(self, n_cycles: int, nq: int, nv: int, k_ref: int, idx_q: np.ndarray | None,
-                 max_rows: int = MAX_LOG_ROWS, batch: int = LOG_BATCH):
+                 max_rows: int = MAX_LOG_ROWS, batch: int = LOG_BATCH, rows: bool = True):
         self.stride = log_stride(n_cycles, max_rows)
         self.batch = batch = max(1, min(batch, n_cycles))
-        n_rows = log_rows(n_cycles, self.stride)
+        self.rows = rows
+        n_rows = log_rows(n_cycles, self.stride) if rows else 0
         self.nq, self.nv, self.idx_q = nq, nv, idx_q
         self.t = np.empty(n_cycles)
         self.tick = np.empty(n_cycles, dtype=np.int64)
@@ -304,6 +307,13 @@ class LogWriter:
         if i + 1 == self.batch:
             self.write()
 
+    def keep_times(self, state: RobotState, reference: object, command: Command) -> None:
+        """:meth:`keep` for a log without rows: the cycle's time and tick."""
+        k = self.n
+        self.t[k] = state.time_s
+        self.tick[k] = state.tick
+        self.n = k + 1
+
     def write(self) -> None:
         """Write the cycles staged so far into the kept rows and the sums."""
         b = self.staged
@@ -326,7 +336,7 @@ class LogWriter:
 
     def log(self, wall_s: float) -> RunLog:
         """The log of the cycles written (call :meth:`write` first)."""
-        n, kept = self.n, log_rows(self.n, self.stride)
+        n, kept = self.n, log_rows(self.n, self.stride) if self.rows else 0
         return RunLog(self.t[:n], self.q[:kept], self.v[:kept], self.cmd[:kept], self.ref[:kept],
                       self.ref_v[:kept], wall_s, self.tick[:n], self.cycle[:kept], self.stride,
                       self.sums.stats() if self.sums is not None else None)

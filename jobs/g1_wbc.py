@@ -216,8 +216,9 @@ def _run(ctx: RunContext, params: WBCParams, robot: Robot, pin_model: pin.Model 
                               "model_error_pct": params.model_error,
                               "tasks": [t.name for t in wb.controller.tasks]}
     ctx.progress.start(n, f"g1-wbc {params.scenario}")
+    # the loop's rows (the estimated base pose) serve the truth checks only: the log records the rest
     run_log = run(iface, Scheduled(wb.controller, schedule), None, params.duration_s, on_step=log.on_step,
-                  log_batch=batch)
+                  log_batch=batch, rows=p.options.truth is not None)
     values = log.values(sim)
     truth_fell = report_plant(ctx, p, run_log, G1_FALL.base_min_z_m)
     if p.options.truth is not None:

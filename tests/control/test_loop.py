@@ -117,3 +117,18 @@ def test_a_reference_function_that_reuses_its_buffers_is_logged_cycle_by_cycle(t
     t = log.t_s - log.t_s[0]
     np.testing.assert_array_equal(log.reference, np.column_stack([0.3 * t, -0.2 * t]))
     assert log.cycles == CYCLES > LOG_BATCH
+
+
+def test_a_log_without_rows_keeps_every_cycles_time_and_tick_and_no_sums(two_link_torque):
+    """``rows=False``: the times and ticks of every cycle, no rows, and sums() says why there are none."""
+    sim = Simulator(two_link_torque)
+    sim.reset(q=[0.1, -0.2])
+    controller = JointPD(two_link_torque, gains_from_frequency(20.0, 0.7, 0.1))
+    log = run(sim, controller, _trajectory(), CYCLES * sim.control_period_s, rows=False)
+    full, _ = _run(two_link_torque, _trajectory())
+    assert log.cycles == CYCLES and log.rows == 0 and log.q.shape == (0, two_link_torque.nq)
+    np.testing.assert_array_equal(log.t_s, full.t_s)
+    np.testing.assert_array_equal(log.tick, full.tick)
+    assert np.unique(np.diff(log.tick)).tolist() == [1]
+    with pytest.raises(ControlError, match=r"run\(rows=False\), which keeps only the cycles' times and ticks"):
+        log.sums()
