@@ -6,6 +6,8 @@ Notation (Drake monograms): W world, F the task frame, T the target frame;
 
 from __future__ import annotations
 
+from math import isfinite
+
 import numpy as np
 import numpy.typing as npt
 import pinocchio as pin
@@ -22,12 +24,21 @@ def pin_model(state_or_model: TaskState | pin.Model) -> pin.Model:
     return state_or_model.model if isinstance(state_or_model, TaskState) else state_or_model
 
 
+_PLAIN = (list, tuple)
+_NUMBERS = (float, int)
+
+
 def world_vector(value: npt.ArrayLike, task: str, what: str) -> np.ndarray:
     """``value`` as a finite (3,) vector in W (a copy): ``what`` of the task named ``task``.
 
     Raises:
         TaskSetupError: Not 3 finite numbers (the message names the task and ``what``).
     """
+    if value.__class__ in _PLAIN and len(value) == 3:  # type: ignore[arg-type]  # 3 numbers, every cycle
+        x, y, z = value  # type: ignore[misc]
+        if x.__class__ in _NUMBERS and y.__class__ in _NUMBERS and z.__class__ in _NUMBERS \
+                and isfinite(x) and isfinite(y) and isfinite(z):  # checked before converting: ~0.3 us less
+            return np.array(value, dtype=float)
     arr = np.array(value, dtype=float)
     if arr.shape != (3,) or not all_finite(arr.tolist()):  # targets are set every cycle: no label built
         raise TaskSetupError(f"{task}: {what} must be a finite (3,) vector in the world frame; got {value!r}")

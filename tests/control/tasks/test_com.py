@@ -10,6 +10,7 @@ from hypothesis import strategies as st
 
 from mbctl.control.exceptions import TaskSetupError
 from mbctl.control.tasks import AccelerationGains, ComTask, DynamicsState, KinematicState, Task
+from mbctl.control.tasks.frame import world_vector
 from tests.control.tasks.conftest import (
     MODELS,
     acceleration_objective,
@@ -126,6 +127,18 @@ def test_the_rows_and_the_stacked_objective_follow_the_error_and_jacobian(model)
     H_ref, c_ref = expected_acceleration_objective(task, J_a, drift, a_des)
     np.testing.assert_allclose(H_a, H_ref, atol=1e-12)
     np.testing.assert_allclose(c_a, c_ref, atol=1e-10)
+
+
+@given(st.lists(st.one_of(st.floats(), st.integers(-10**6, 10**6), st.booleans()), max_size=4),
+       st.sampled_from([list, tuple]))
+def test_a_target_of_plain_numbers_is_taken_as_its_array_would_be(values, kind):
+    """world_vector's check of plain numbers before converting: the same vector or the same error."""
+    arr = np.array(values, dtype=float)
+    if arr.shape == (3,) and np.isfinite(arr).all():
+        np.testing.assert_array_equal(world_vector(kind(values), "com", "target"), arr)
+    else:
+        with pytest.raises(TaskSetupError, match=r"com: target must be a finite \(3,\) vector"):
+            world_vector(kind(values), "com", "target")
 
 
 def test_bad_targets_are_named():
