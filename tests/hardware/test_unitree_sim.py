@@ -25,6 +25,8 @@ import pytest
 
 from mbctl.hardware import DdsOptions, UnitreeG1
 from mbctl.jobs.g1 import ArmPDParams, StandParams, prepare_arm_pd, prepare_stand
+from mbctl.jobs.g1_walk import WalkParams
+from mbctl.jobs.g1_walk import prepare as prepare_walk
 from mbctl.jobs.g1_wbc import WBCParams
 from mbctl.jobs.g1_wbc import prepare as prepare_wbc
 from mbctl.jobs.plant import PlantOptions
@@ -34,7 +36,14 @@ from mbctl.robots.g1 import G1_FALL, crouched_start
 from tests.conftest import run_mbctl
 from tests.hardware.test_stop import watch_the_wire_after_the_loop
 from tests.hardware.test_unitree_g1 import StillBase
-from tests.hardware.unitree_sim_harness import G1_DT, UNITREE_DT, true_com_rms_m, unitree_mujoco, unitree_sim
+from tests.hardware.unitree_sim_harness import (
+    G1_DT,
+    UNITREE_DT,
+    true_com_rms_m,
+    unitree_mujoco,
+    unitree_sim,
+    walk_truth,
+)
 from tests.hardware.wire_tap import WireTap, after_the_loop
 
 #: The watchdog of these runs [periods]: a loaded machine may stall either process (see the docstring).
@@ -200,3 +209,21 @@ def test_excite_identify_and_the_identified_model_halve_the_com_error_on_unitree
         assert sim.pelvis_z_m()["min"] > G1_FALL.base_min_z_m + 0.2
         rms[name] = true_com_rms_m(truth, tmp_path / name / "g1_wbc.csv")
     assert rms["identified"] <= 0.5 * rms["nominal"], (rms, torso)
+
+
+def test_g1_walk_walks_on_unitree_s_simulator(g1, dds_domain, tmp_path):
+    """g1-walk forward at 0.3 m/s for 8 s at the G1's 2 ms, on Unitree's G1 on a flat floor.
+
+    Their default scene (``scene.xml``) has a 0.2 m step 1.0 m ahead: the walk's toes hit it at 3.3 s
+    and it turned and fell (at 5.6-7.4 s); on the flat scene it walked 2.3 m, its heading within 0.23
+    rad.
+    """
+    truth = tmp_path / "truth.csv"
+    with unitree_sim(dds_domain, g1, crouched_start(g1), tmp_path, dt=G1_DT, truth=truth):
+        params = WalkParams("forward", speed="0.3", duration=8.0, plant=_plant(dds_domain, G1_DT))
+        record = _job("g1-walk", prepare_walk, params, g1, tmp_path / "run")
+    assert record.status == "completed", record.message
+    walked = walk_truth(truth, record.values["cycles"])
+    assert walked["terrain_contacts"] == 0, walked
+    assert walked["min_z_m"] > G1_FALL.base_min_z_m + 0.1, walked
+    assert walked["dx_m"] >= 2.0 and walked["max_yaw_rad"] < 0.5, walked

@@ -36,6 +36,11 @@ UNITREE_MUJOCO = Path(mbctl.__file__).resolve().parent.parent / "shared" / "unit
 RUNNER = Path(__file__).with_name("unitree_sim_runner.py")
 #: Unitree's default SIMULATE_DT [s] (200 Hz), and the G1's own 500 Hz.
 UNITREE_DT, G1_DT = 0.005, 0.002
+#: The scene the runner loads by default (in unitree_robots/g1): the 29-DoF G1 on a flat floor. Their
+#: simulator's default ``scene.xml`` is the same G1 with terrain: a 0.2 m box step from 1.0 m ahead of
+#: the origin (a cylinder on it), stairs, rough ground; a forward walk ran into the step (its toes at
+#: 3.3 s, the pelvis 0.69 m on) and turned and fell.
+FLAT_SCENE = "scene_29dof.xml"
 #: Seconds the runner gets to load MuJoCo and join DDS.
 START_S = 120.0
 
@@ -83,7 +88,7 @@ class UnitreeSim:
 @contextmanager
 def unitree_sim(domain: int, robot: Robot, q: np.ndarray, folder: Path, *, dt: float = UNITREE_DT,
                 pace: str = "command", idle_timeout_s: float = 30.0,
-                truth: Path | None = None) -> Iterator[UnitreeSim]:
+                truth: Path | None = None, scene: str = FLAT_SCENE) -> Iterator[UnitreeSim]:
     """Unitree's simulator on ``domain`` (lo) with the G1 at ``q``; yields it once it serves.
 
     At the end of the block it is stopped (SIGINT) unless it stopped by itself; wait for that (its
@@ -98,12 +103,13 @@ def unitree_sim(domain: int, robot: Robot, q: np.ndarray, folder: Path, *, dt: f
         pace: "command" (one physics step per command, no faster than real time) or "wall".
         idle_timeout_s: It stops this long [s] after its last command (or its start).
         truth: Where it writes the true CoM and pelvis per step when it stops (CSV), if given.
+        scene: The scene file in unitree_robots/g1 (``scene.xml``: their default, with terrain).
     """
     root = unitree_mujoco()
     start = folder / "unitree_start.json"
     start.write_text(json.dumps(start_pose(robot, q)))
     args = ["--root", str(root), "--domain", str(domain), "--dt", str(dt), "--pace", pace,
-            "--start", str(start), "--idle-timeout", str(idle_timeout_s),
+            "--start", str(start), "--idle-timeout", str(idle_timeout_s), "--scene", scene,
             *(["--truth", str(truth)] if truth else [])]
     proc = subprocess.Popen([sys.executable, str(RUNNER), *args], stdout=subprocess.DEVNULL,
                             stderr=subprocess.PIPE, text=True)
@@ -172,3 +178,19 @@ def true_com_rms_m(truth: Path, run_csv: Path) -> float:
     com = np.column_stack([rows[f"com_{a}_m"] for a in axes])[1:len(log) + 1]
     com[:, :2] += estimated[0, :2] - com[0, :2]
     return float(np.sqrt(((com - ref) ** 2).sum(axis=1).mean()))
+
+
+def walk_truth(truth: Path, cycles: int) -> dict[str, float]:
+    """What a run of ``cycles`` lock-step cycles did, from the runner's truth (rows 1..cycles).
+
+    Returns:
+        ``dx_m``, ``dy_m``: the pelvis's travel in the world frame [m]; ``max_yaw_rad``: its
+        largest heading [rad] (absolute); ``min_z_m``: its lowest height [m];
+        ``terrain_contacts``: steps with the robot touching the scene's terrain.
+    """
+    rows = np.genfromtxt(truth, delimiter=",", names=True)[1:cycles + 1]
+    return {"dx_m": float(rows["base_x_m"][-1] - rows["base_x_m"][0]),
+            "dy_m": float(rows["base_y_m"][-1] - rows["base_y_m"][0]),
+            "max_yaw_rad": float(np.abs(rows["base_yaw_rad"]).max()),
+            "min_z_m": float(rows["base_z_m"].min()),
+            "terrain_contacts": int((rows["terrain_contacts"] > 0).sum())}

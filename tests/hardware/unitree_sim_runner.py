@@ -4,7 +4,8 @@ Run by tests/hardware/unitree_sim_harness.py as a subprocess (one DDS participan
 Unitree's own script). It does what ``simulate_python/unitree_mujoco.py`` does, without the
 viewer that script opens at import:
 
-1. ``config`` and ``pygame`` are stand-in modules in ``sys.modules``: the G1 scene, the test's
+1. ``config`` and ``pygame`` are stand-in modules in ``sys.modules``: the G1 scene (``--scene``:
+   ``scene.xml`` by default as theirs, with its terrain; the harness gives the flat one), the test's
    domain, ``lo``, ``SIMULATE_DT``, no joystick (``unitree_sdk2py_bridge`` imports pygame for the
    joystick only);
 2. the scene is loaded and ``opt.timestep`` set to ``SIMULATE_DT`` (as their script does), the
@@ -43,11 +44,11 @@ from pathlib import Path
 SERVING = "unitree simulator serving"
 
 
-def stand_in_modules(root: Path, domain: int, dt: float) -> None:
+def stand_in_modules(root: Path, domain: int, dt: float, scene: str = "scene.xml") -> None:
     """Put the ``config`` and ``pygame`` stand-ins in ``sys.modules`` and their code on ``sys.path``."""
     config = types.ModuleType("config")
     config.ROBOT = "g1"
-    config.ROBOT_SCENE = str(root / "unitree_robots" / "g1" / "scene.xml")
+    config.ROBOT_SCENE = str(root / "unitree_robots" / "g1" / scene)
     config.DOMAIN_ID = domain
     config.INTERFACE = "lo"
     config.USE_JOYSTICK = 0
@@ -83,9 +84,10 @@ def main() -> int:
     parser.add_argument("--start", type=Path, required=True, help="JSON: base pose and joint angles")
     parser.add_argument("--idle-timeout", type=float, default=30.0)
     parser.add_argument("--duration", type=float, default=300.0)
+    parser.add_argument("--scene", default="scene.xml", help="the G1's scene file in unitree_robots/g1")
     parser.add_argument("--truth", type=Path, help="CSV: step, time and the true CoM and pelvis per step")
     args = parser.parse_args()
-    stand_in_modules(args.root, args.domain, args.dt)
+    stand_in_modules(args.root, args.domain, args.dt, args.scene)
     import config
     import mujoco
     from unitree_sdk2py.core.channel import ChannelFactoryInitialize
@@ -130,7 +132,8 @@ def main() -> int:
         import numpy as np
 
         np.savetxt(args.truth, np.asarray(physics.truth), delimiter=",", comments="",
-                   header="step,time_s,com_x_m,com_y_m,com_z_m,base_x_m,base_y_m,base_z_m")
+                   header="step,time_s,com_x_m,com_y_m,com_z_m,base_x_m,base_y_m,base_z_m,base_yaw_rad,"
+                          "terrain_contacts")
     base_z = physics.base_z
     print(f"stopped after {physics.steps} steps ({why}; {physics.merged} commands merged); pelvis z "
           f"start {base_z[0]:.4f} m, min {min(base_z):.4f} m until the damping command, final "
@@ -155,10 +158,13 @@ class Physics:
         self.bridge, self.model, self.data, self.pace = bridge, mj_model, mj_data, pace
         self.steps = 0
         self.merged = 0  # commands that came with another after the first step (command pace)
-        #: per step: step, time [s], the CoM and the pelvis [m] of the state its LowState carries
-        #: (MuJoCo computes both before it integrates, as the sensors)
+        #: per step: step, time [s], the CoM and the pelvis [m] and the pelvis's yaw [rad] of the state
+        #: its LowState carries (MuJoCo computes them before it integrates, as the sensors), and the
+        #: robot's contacts with the scene's geoms other than its floor (scene.xml's step, stairs)
         self.truth: list[tuple[float, ...]] = []
         self.pelvis = mj_model.body("pelvis").id
+        floor = mj_model.geom("floor").id
+        self.terrain = {g for g in range(mj_model.ngeom) if mj_model.geom_bodyid[g] == 0 and g != floor}
         self.base_z = [float(mj_data.qpos[2])]  # the pelvis height [m] at the start and while commanded
         warning = mujoco.mjtWarning
         self._divergence = [int(w) for w in (warning.mjWARN_BADQPOS, warning.mjWARN_BADQVEL,
@@ -208,7 +214,10 @@ class Physics:
         self.steps += 1
         if not self.bridge.damping:
             self.base_z.append(float(d.qpos[2]))
-        self.truth.append((self.steps, d.time, *d.subtree_com[self.pelvis], *d.xpos[self.pelvis]))
+        w, x, y, z = d.xquat[self.pelvis]
+        terrain = sum(c.geom1 in self.terrain or c.geom2 in self.terrain for c in d.contact[:d.ncon])
+        self.truth.append((self.steps, d.time, *d.subtree_com[self.pelvis], *d.xpos[self.pelvis],
+                           np.arctan2(2 * (w * z + x * y), 1 - 2 * (y * y + z * z)), terrain))
         warned = any(d.warning[w].number for w in self._divergence)
         if warned or not (np.isfinite(d.qpos).all() and np.isfinite(d.qacc).all()):
             print(f"diverged at t={d.time:.3f} s (step {self.steps})", file=sys.stderr, flush=True)
