@@ -169,7 +169,7 @@ def run(
             plant without deadlines, in-process, can take larger batches at a lower cost a cycle).
         rows: False: the log keeps every cycle's time and tick only, no rows of q, v, command and
             reference and no sums (for a caller that records what it needs itself in ``on_step``;
-            about 2.5 us a G1 cycle less).
+            about 2.5 us less a cycle of a 29-joint humanoid).
 
     Returns:
         The RunLog: at most ``MAX_LOG_ROWS`` rows, times, ticks and stats of every cycle.

@@ -9,7 +9,7 @@ a largest deviation) stays exact however long the run.
 cycle's q, v, command and reference into small staging arrays (a few row stores, while they are
 still in the CPU's caches) and writes those into the kept rows and the sums :data:`LOG_BATCH` cycles
 at a time, one numpy call per field. Keeping the cycle's objects instead and reading them back per
-batch read them cold (about 1 ms a 256-cycle batch on the G1 against 0.3 ms now).
+batch read them cold (about 1 ms a 256-cycle batch on a 29-joint humanoid against 0.3 ms now).
 """
 
 from __future__ import annotations
@@ -249,7 +249,7 @@ class LogWriter:
     row stores, while the state and command are still in the CPU's caches); every ``batch`` cycles
     the staged rows go into the kept rows and the sums (:meth:`write`) with one numpy call per
     field. Keeping the cycle's objects instead and reading them back a batch at a time read them
-    cold, and released them all at once: about 1 ms a 256-cycle batch on the G1.
+    cold, and released them all at once: about 1 ms a 256-cycle batch on a 29-joint humanoid.
 
     Args:
         n_cycles: Cycles the run may take (the arrays are allocated for them).
