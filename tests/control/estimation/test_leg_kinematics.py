@@ -15,18 +15,18 @@ from mbctl.sim.imu import ImuReader
 from mbctl.sim.simulator import Simulator
 
 
-def g1_estimator(robot):
+def g1_estimator(robot, ground_noise_m=None):
     """The estimator on the G1's feet (contact point: each sole's centre) and its pelvis IMU."""
     feet = {f: foot_contact_from_model(robot, f).points_F.mean(axis=0) for f in FEET}
-    return LegKinematicsEstimator(robot, feet, G1_IMU.site)
+    return LegKinematicsEstimator(robot, feet, G1_IMU.site, ground_noise_m=ground_noise_m)
 
 
-def _started(robot):
+def _started(robot, ground_noise_m=None):
     """The estimator reset on the first reading of the G1 standing in MuJoCo; (estimator, reading)."""
     sim = Simulator(robot)
     sim.reset("stand")
     first = ImuReader(sim, G1_IMU).proprioception()
-    estimator = g1_estimator(robot)
+    estimator = g1_estimator(robot, ground_noise_m)
     estimator.reset(first)
     return estimator, first
 
@@ -46,6 +46,8 @@ def test_bad_setups_are_named(g1_torque, two_link):
         LegKinematicsEstimator(g1_torque, {}, G1_IMU.site)
     with pytest.raises(EstimatorError, match="noise kinematics_m must be finite and > 0"):
         LegKinematicsNoise(kinematics_m=0.0)
+    with pytest.raises(EstimatorError, match="ground_noise_m must be finite and > 0"):
+        LegKinematicsEstimator(g1_torque, feet, G1_IMU.site, ground_noise_m=0.0)
     estimator = LegKinematicsEstimator(g1_torque, feet, G1_IMU.site)
     sim = Simulator(g1_torque)
     sim.reset("stand")
@@ -64,11 +66,13 @@ def test_a_gap_in_the_readings_does_not_throw_the_estimate(g1_torque):
     assert abs(q_base[0]) < 5e-3
 
 
-def test_the_per_axis_filter_is_the_full_kalman_filter(g1_torque):
-    # the estimator keeps one (2 + n) covariance for the three world axes; the textbook filter on the
-    # whole (6 + 3 n) state, written out here, must give the same state and covariance every step,
-    # through noisy IMU readings, a moving leg and a foot leaving and regaining contact
-    est, first = _started(g1_torque)
+@pytest.mark.parametrize("ground_noise_m", [None, 0.002])
+def test_the_per_axis_filter_is_the_full_kalman_filter(g1_torque, ground_noise_m):
+    # the estimator keeps one (2 + n) covariance for the three world axes (with the flat-ground
+    # measurement, one for x and y and one for z); the textbook filter on the whole (6 + 3 n) state,
+    # written out here, must give the same state and covariance every step, through noisy IMU
+    # readings, a moving leg and a foot leaving and regaining contact
+    est, first = _started(g1_torque, ground_noise_m)
     n, nz = len(est.feet), est.noise
     x, P = est.x, np.diag([1e-6] * 3 + [1e-4] * 3 + [1e-6] * 3 * n)
     np.testing.assert_array_equal(est.P, P)
@@ -113,9 +117,31 @@ def test_the_per_axis_filter_is_the_full_kalman_filter(g1_torque):
             h = np.zeros((3, 6 + 3 * n))
             h[:, 3:6] = I3
             rows.append(h), z.append(R_WB @ v_B[i]), noise.append(np.full(3, nz.leg_velocity_m_s**2))
+        for i in np.flatnonzero(contact) if ground_noise_m else ():  # on flat ground: the foot's z
+            h = np.zeros((1, 6 + 3 * n))
+            h[0, 6 + 3 * i + 2] = 1.0
+            rows.append(h), z.append([est.ground_z_m]), noise.append([ground_noise_m**2])
         H, zv = np.vstack(rows), np.concatenate(z)
-        K = P @ H.T @ np.linalg.inv(H @ P @ H.T + np.diag(np.concatenate(noise)))
+        R = np.diag(np.concatenate(noise))
+        K = P @ H.T @ np.linalg.inv(H @ P @ H.T + R)
         x = x + K @ (zv - H @ x)
-        P = (np.eye(len(x)) - K @ H) @ P
+        IKH = np.eye(len(x)) - K @ H
+        P = IKH @ P @ IKH.T + K @ R @ K.T  # (Joseph's form: (I - K H) P lost digits on z's ground rows)
         np.testing.assert_allclose(est.x, x, rtol=0, atol=1e-9)
         np.testing.assert_allclose(est.P, 0.5 * (P + P.T), rtol=1e-6, atol=1e-15)
+
+
+@pytest.mark.parametrize("ground_noise_m", [None, 0.002])
+def test_on_flat_ground_a_height_carried_from_foot_to_foot_returns_to_the_ground(g1_torque, ground_noise_m):
+    # a foot that lands takes its height from the base's: an error of the height (here 1 cm, base and
+    # feet alike, as steps on a rolling sole leave it) stays without the flat-ground measurement
+    # and is corrected with it
+    est, first = _started(g1_torque, ground_noise_m)
+    z0 = est.x[2]
+    est._X[:, 2] += 0.01
+    for k in range(1, 251):  # 0.5 s standing
+        q_base, _ = est.update(first._replace(time_s=first.time_s + 0.002 * k))
+    if ground_noise_m is None:
+        assert q_base[2] - z0 == pytest.approx(0.01, abs=1e-3)
+    else:
+        assert abs(q_base[2] - z0) < 1e-3
