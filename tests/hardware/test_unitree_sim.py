@@ -215,8 +215,9 @@ def test_g1_walk_walks_on_unitree_s_simulator(g1, dds_domain, tmp_path):
     """g1-walk forward at 0.3 m/s for 8 s at the G1's 2 ms, on Unitree's G1 on a flat floor.
 
     Their default scene (``scene.xml``) has a 0.2 m step 1.0 m ahead: the walk's toes hit it at 3.3 s
-    and it turned and fell (at 5.6-7.4 s); on the flat scene it walked 2.3 m, its heading within 0.23
-    rad.
+    and it turned and fell (at 5.6-7.4 s). On the flat scene it walked 2.3 m, its heading swinging to
+    0.23 rad while the estimator carried its height from foot to foot (3 mm high: late touchdowns);
+    with the flat-ground measurement (jobs.plant.GROUND_NOISE_M) within 0.02 rad.
     """
     truth = tmp_path / "truth.csv"
     with unitree_sim(dds_domain, g1, crouched_start(g1), tmp_path, dt=G1_DT, truth=truth):
@@ -226,4 +227,4 @@ def test_g1_walk_walks_on_unitree_s_simulator(g1, dds_domain, tmp_path):
     walked = walk_truth(truth, record.values["cycles"])
     assert walked["terrain_contacts"] == 0, walked
     assert walked["min_z_m"] > G1_FALL.base_min_z_m + 0.1, walked
-    assert walked["dx_m"] >= 2.0 and walked["max_yaw_rad"] < 0.5, walked
+    assert walked["dx_m"] >= 2.0 and walked["max_yaw_rad"] < 0.1, walked
