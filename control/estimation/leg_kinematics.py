@@ -17,25 +17,23 @@ State x = [p_WB, v_WB, p_WP1, ..., p_WPn] (3 + 3 + 3 n), all in W.
   origin), and v_WB = -R_WB (v_BP(q, dq) + w_B x p_BP) (the contact point is at rest).
 
 The model is linear in x, so the filter is exact for it (no linearization); R_WB enters only
-through the measurements. It is also the same along each world axis: the prediction, the
-measurement rows and every noise act on x, y and z alike, with no cross-axis terms, and the
-covariance starts isotropic, so it stays the Kronecker product of one (2 + n) x (2 + n)
-covariance over [p, v, p_P1, ..., p_Pn] with the 3 x 3 identity. The filter keeps that one
-covariance and the state as a (2 + n) x 3 matrix (one column per axis): one gain serves all three
-axes, the same estimate as the full (6 + 3 n) filter (``P`` gives its covariance; the two agree to
-7e-13 over a humanoid's walk) on matrices a ninth of the size (69 against 75 us an update on a
-29-joint humanoid, replayed; numpy's per-call cost dominates at either size). The orientation and
-the legs' kinematics on plain floats took an update to 49.5 us (warm, e.g. the G1's readings
-replayed).
+through the measurements. Its terms have no cross-axis part: the prediction, the measurement rows
+and every noise act on x, y and z alone, so the covariance is block-diagonal by world axis. The
+filter keeps the state axis by axis, ``[X_x; X_y; X_z]`` with ``X_a = [p_WB, v_WB, p_WP1, ...,
+p_WPn]_a`` (2 + n each), and corrects the three axes in one solve on that block-diagonal system:
+the same estimate as the textbook filter in ``x``'s order (``P`` gives its covariance in that
+order), on the Python calls of one small filter, where numpy's per-call cost is most of the work.
 
 Position and yaw are unobservable: they stay where they started and drift only as much as the
 feet slip. The height is observable through the starting assumption that the contact points
 are on the ground (z = ``ground_z_m``); a foot that lands takes its height from the base's, so
 each step can carry an error of the height on (a sole that rolls about its edge moves the point
 assumed still). On flat ground, ``ground_noise_m`` adds a measurement: each foot in contact is at
-``ground_z_m``, with that standard deviation. Its rows act on z alone, so z then has a covariance
-of its own (x and y share the other); without it (uneven ground) the three share one. The
-second correction costs its time: 48-49 against 74-75 us an update (e.g. the G1 standing, replayed).
+``ground_z_m``, with that standard deviation: rows in the z block alone, after the legs' rows, in
+the same solve (so z's block of the covariance then differs from x's and y's). An update takes
+50 us with the ground's rows or without (median, the G1's readings replayed, two feet; where x and
+y shared one (2 + n) covariance and z had its own, two corrections took 68-70 us with them, one
+45-50 us without).
 
 Out of scope: the IMU's lever arm (its centripetal acceleration, below 0.01 m/s^2 for a standing
 robot), accelerometer bias, contact detection (the feet in contact are given: ``set_contacts``).
@@ -45,6 +43,7 @@ from __future__ import annotations
 
 from collections.abc import Mapping
 from dataclasses import dataclass
+from typing import NamedTuple
 
 import numpy as np
 import numpy.typing as npt
@@ -80,6 +79,29 @@ class LegKinematicsNoise:
             value = getattr(self, name)
             if not (np.isfinite(value) and value > 0):
                 raise EstimatorError(f"noise {name} must be finite and > 0; got {value}")
+
+
+class _Terms(NamedTuple):
+    """One contact pattern's filter terms (made once per pattern).
+
+    Attributes:
+        rows: The rows of ``_leg_rows`` of the feet in contact (their positions', then their velocities').
+        H: The measurement matrix over the state axis by axis (3 m columns): each axis's block of
+            rows (each foot's position relative to the base, then the base velocity through each
+            leg), then on flat ground one row per foot in contact (its height).
+        R: The measurements' noise covariance (diagonal).
+        walk: The covariance's random-walk rates (zero for the base, each foot's variance rate).
+        z: The measurements' buffer: the legs' rows are written each update, the ground's keep
+            ``ground_z_m``.
+        z_legs: ``z``'s legs' rows as (3, 2 k): an axis a row (a view).
+    """
+
+    rows: np.ndarray
+    H: np.ndarray
+    R: np.ndarray
+    walk: np.ndarray
+    z: np.ndarray
+    z_legs: np.ndarray
 
 
 class LegKinematicsEstimator:
@@ -148,12 +170,20 @@ class LegKinematicsEstimator:
         self._contact = np.ones(n, dtype=bool)
         self._q_fk = pin.neutral(self.model)
         self._v_fk = np.zeros(self.model.nv)
-        self._X = np.zeros((2 + n, 3))  # rows p_WB, v_WB, p_WP1..n; a column per world axis
-        self._P = np.eye(2 + n)  # the covariance of each column (the same for the three)
-        self._Pz: np.ndarray | None = None  # z's own, with the ground measurement (ground_noise_m)
-        self._ground_patterns: dict[bytes, tuple[np.ndarray, np.ndarray]] = {}
+        m = self._m = 2 + n
+        self._X_axes = np.zeros((3, m))  # a row per world axis: [p_WB, v_WB, p_WP1..n] along it
+        self._X = self._X_axes.T  # (m, 3) view: rows p_WB, v_WB, p_WP1..n; a column per axis
+        self._x_axes = self._X_axes.reshape(-1)  # (3 m,) view: the filter's state, axis by axis
+        self._P = np.eye(3 * m)  # its covariance: block-diagonal, a block per axis
+        # views of P (never rebound): p_WB's and v_WB's rows and columns on each axis, the diagonal
+        by_row, by_col = self._P.reshape(3, m, 3 * m), self._P.reshape(3 * m, 3, m)
+        self._P_p_rows, self._P_v_rows = by_row[:, 0], by_row[:, 1]
+        self._P_p_cols, self._P_v_cols = by_col[:, :, 0], by_col[:, :, 1]
+        self._P_diagonal = np.einsum("ii->i", self._P)
+        # x's order (the textbook filter's: element k of p_WB, v_WB, each p_WP) from the axes' order
+        self._to_x = (np.arange(3)[None, :] * m + np.arange(m)[:, None]).ravel()
         self._t: float | None = None
-        self._patterns: dict[bytes, tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]] = {}
+        self._patterns: dict[bytes, _Terms] = {}
         self._leg_rows = np.zeros((2 * n, 3))  # each leg's p_BP, then each leg's base velocity
 
     @property
@@ -209,29 +239,30 @@ class LegKinematicsEstimator:
             v_B[i] = (-(lx + cx + dx), -(ly + cy + dy), -(lz + cz + dz))
         return p_BP, v_B
 
-    def _pattern(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-        """The terms of the feet in contact now (one axis), made once per contact pattern.
-
-        Returns:
-            The rows of the feet in contact (their positions', then their velocities' in the legs'
-            rows), the measurement matrix of one axis (their positions
-            relative to the base, then the base velocity through each), its noise variances, and
-            the covariance's random-walk rates (zero for the base, each foot's variance rate).
-        """
+    def _pattern(self) -> _Terms:
+        """The terms of the feet in contact now, made once per contact pattern (see :class:`_Terms`)."""
         key = self._contact.tobytes()
         terms = self._patterns.get(key)
         if terms is None:
             feet = np.flatnonzero(self._contact)
-            k, m, nz = len(feet), len(self.feet) + 2, self.noise
-            H = np.zeros((2 * k, m))
+            k, m, nz = len(feet), self._m, self.noise
+            H = np.zeros((2 * k, m))  # one axis's rows
             H[np.arange(k), 0] = -1.0  # p_WP - p_WB
             H[np.arange(k), 2 + feet] = 1.0
             H[k + np.arange(k), 1] = 1.0  # v_WB
             r = np.concatenate([np.full(k, nz.kinematics_m**2), np.full(k, nz.leg_velocity_m_s**2)])
+            grounded = feet if self.ground_noise_m is not None else feet[:0]
+            H_all = np.zeros((6 * k + len(grounded), 3 * m))
+            for a in range(3):
+                H_all[2 * k * a:2 * k * (a + 1), m * a:m * (a + 1)] = H
+            H_all[6 * k + np.arange(len(grounded)), 2 * m + 2 + grounded] = 1.0  # p_WP,z = ground_z_m
+            ground_r = np.full(len(grounded), (self.ground_noise_m or 0.0) ** 2)
+            r_all = np.diag(np.concatenate([r, r, r, ground_r]))
             rates = np.where(self._contact, nz.foot_slip_m_s, nz.foot_swing_m_s) ** 2
-            walk = np.concatenate([[0.0, 0.0], rates])
+            walk = np.tile(np.concatenate([[0.0, 0.0], rates]), 3)
+            z = np.full(len(r_all), self.ground_z_m)  # the ground's rows keep theirs
             rows = np.concatenate([feet, len(self.feet) + feet])  # the feet's rows of _leg_rows
-            terms = self._patterns[key] = (rows, H, r, walk)
+            terms = self._patterns[key] = _Terms(rows, H_all, r_all, walk, z, z[:6 * k].reshape(3, 2 * k))
         return terms
 
     @property
@@ -239,32 +270,10 @@ class LegKinematicsEstimator:
         """The state [p_WB, v_WB, p_WP1, ..., p_WPn] (6 + 3 n,) [m, m/s] in W (a copy)."""
         return self._X.flatten()  # its rows in order: p_WB, v_WB, then the feet
 
-    def _ground_pattern(self, H: np.ndarray, r: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """The height's measurements: the legs' rows, then each foot in contact at the ground.
-
-        Returns:
-            Their matrix and noise variances (made once per contact pattern).
-        """
-        key = self._contact.tobytes()
-        terms = self._ground_patterns.get(key)
-        if terms is None:
-            feet = np.flatnonzero(self._contact)
-            G = np.zeros((len(feet), H.shape[1]))
-            G[np.arange(len(feet)), 2 + feet] = 1.0
-            noise = np.full(len(feet), self.ground_noise_m**2)  # type: ignore[operator]
-            terms = self._ground_patterns[key] = (np.vstack([H, G]), np.concatenate([r, noise]))
-        return terms
-
     @property
     def P(self) -> np.ndarray:
-        """The state's covariance (6 + 3 n, 6 + 3 n) in ``x``'s order.
-
-        The axis covariance times I_3; with the ground measurement, x and y's times diag(1, 1, 0)
-        plus z's times diag(0, 0, 1).
-        """
-        if self._Pz is None:
-            return np.kron(self._P, np.eye(3))
-        return np.kron(self._P, np.diag([1.0, 1.0, 0.0])) + np.kron(self._Pz, np.diag([0.0, 0.0, 1.0]))
+        """The state's covariance (6 + 3 n, 6 + 3 n) in ``x``'s order (a copy)."""
+        return self._P[np.ix_(self._to_x, self._to_x)]
 
     # ------------------------------------------------------------------ filter
     def reset(self, reading: Proprioception) -> None:
@@ -274,9 +283,8 @@ class LegKinematicsEstimator:
         p_BP, _ = self._legs(reading, w_B.tolist())
         p_WP_rel = p_BP @ R_WB.T  # R_WB p_BP, per foot
         base = np.array([*self.start_xy_m, self.ground_z_m - p_WP_rel[:, 2].min()])
-        self._X = np.vstack([base, np.zeros(3), base + p_WP_rel])
-        self._P = np.diag([1e-6, 1e-4] + [1e-6] * len(self.feet))
-        self._Pz = None if self.ground_noise_m is None else self._P.copy()
+        self._X[:] = np.vstack([base, np.zeros(3), base + p_WP_rel])
+        self._P[:] = np.diag(np.tile([1e-6, 1e-4] + [1e-6] * len(self.feet), 3))
         self._t = float(reading.time_s)
 
     def update(self, reading: Proprioception) -> tuple[np.ndarray, np.ndarray]:
@@ -292,32 +300,26 @@ class LegKinematicsEstimator:
         dt = min(float(reading.time_s) - self._t, self.max_dt_s)
         self._t = float(reading.time_s)
         nz = self.noise
-        X, P, Pz = self._X, self._P, self._Pz
-        rows, H, r_diag, walk = self._pattern()
+        X = self._X
+        terms = self._pattern()
         if dt > 0:
             a_W = R_WB @ f_B + self._g_W
             X[0] += X[1] * dt + 0.5 * dt * dt * a_W
             X[1] += a_W * dt
-            q_diag = walk * dt
-            q_diag[0] = (0.5 * nz.accel_m_s2 * dt * dt) ** 2
-            q_diag[1] = nz.accel_m_s2**2 * dt
-            for cov in (P,) if Pz is None else (P, Pz):
-                # F = I + dt [[0, 1], [0, 0]] on (p, v); feet unchanged
-                cov[0, :] += dt * cov[1, :]
-                cov[:, 0] += dt * cov[:, 1]
-                cov.flat[::len(cov) + 1] += q_diag
+            q_diag = terms.walk * dt
+            q_axes = q_diag.reshape(3, -1)
+            q_axes[:, 0] = (0.5 * nz.accel_m_s2 * dt * dt) ** 2
+            q_axes[:, 1] = nz.accel_m_s2**2 * dt
+            # F = I + dt [[0, 1], [0, 0]] on each axis's (p, v); feet unchanged: F P F^T in place
+            self._P_p_rows += dt * self._P_v_rows
+            self._P_p_cols += dt * self._P_v_cols
+            self._P_diagonal += q_diag
         self._legs(reading, w_B.tolist())
-        if len(rows):
-            # each axis's measurements: rows (positions, then velocities) x columns (x, y, z)
-            Z = np.dot(self._leg_rows[rows], R_WB.T)
-            if Pz is None:
-                _correct(X, P, H, Z, r_diag)
-            else:  # x and y as above; z with the feet at the ground too
-                _correct(X[:, :2], P, H, Z[:, :2], r_diag)
-                Hz, rz = self._ground_pattern(H, r_diag)
-                ground = np.full((len(rz) - len(r_diag), 1), self.ground_z_m)
-                _correct(X[:, 2:], Pz, Hz, np.vstack([Z[:, 2:], ground]), rz)
-        if not all_finite(X.ravel().tolist()):
+        if len(terms.rows):
+            # the legs' rows along each axis (R_WB u for each, an axis a row), then the ground's
+            np.dot(R_WB, self._leg_rows[terms.rows].T, out=terms.z_legs)
+            _correct(self._x_axes, self._P, terms.H, terms.z, terms.R)
+        if not all_finite(self._x_axes.tolist()):
             raise EstimatorError(f"the estimate diverged at t={reading.time_s:.3f} s (non-finite "
                                  "readings or noise models); check the IMU and encoder values")
         q_base = np.concatenate([X[0], q_WB])  # (x, y, z, w)
@@ -330,20 +332,20 @@ class LegKinematicsEstimator:
         return {f: self._X[2 + i].copy() for i, f in enumerate(self.feet)}
 
 
-def _correct(X: np.ndarray, P: np.ndarray, H: np.ndarray, Z: np.ndarray, r_diag: np.ndarray) -> None:
-    """The Kalman correction, in place, of the state's columns ``X`` and their covariance ``P``.
+def _correct(X: np.ndarray, P: np.ndarray, H: np.ndarray, Z: np.ndarray, R: np.ndarray) -> None:
+    """The Kalman correction, in place, of the state ``X`` and its covariance ``P``.
 
-    ``X`` has a column per axis (sharing ``P``); the measurements ``Z`` (a row per measurement, a
-    column per axis) are ``H X`` plus noise of variances ``r_diag``.
+    The measurements ``Z`` are ``H X`` plus noise of covariance ``R`` (diagonal).
     """
     PHt = P @ H.T
     S = H @ PHt
-    S.flat[::len(S) + 1] += r_diag
-    # K^T = S^-1 (P H^T)^T by Cholesky (S is symmetric positive definite); LAPACK directly:
-    # numpy.linalg.solve's wrapper costs ~20 us of Python per call at this size
-    _, Kt, info = dposv(S, PHt.T, lower=1)
+    S += R
+    # K^T = S^-1 (P H^T)^T by Cholesky (S is symmetric positive definite); LAPACK directly, positionally
+    # (lower, overwrite_a): numpy.linalg.solve's wrapper costs ~20 us of Python per call at this size
+    _, Kt, info = dposv(S, PHt.T, 1, 1)
     if info != 0:  # (not positive definite: from non-finite readings)
         X[:] = np.nan
     X += Kt.T @ (Z - H @ X)
     P -= Kt.T @ PHt.T
-    P[:] = 0.5 * (P + P.T)
+    np.add(P, P.T, out=P)  # symmetric again (numpy buffers the overlapping operand)
+    P *= 0.5
