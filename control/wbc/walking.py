@@ -60,6 +60,7 @@ from mbctl.control.wbc._walking_plan import WalkPlans
 from mbctl.control.wbc.config import WBCConfig
 from mbctl.control.wbc.contacts import foot_contact_from_model
 from mbctl.control.wbc.gait import DOUBLE, Gait, GaitEvent
+from mbctl.control.wbc.speed_loop import SpeedLoop
 from mbctl.control.wbc.standing import Standing, standing_controller
 from mbctl.control.wbc.step_adaptation import StepAdaptation, StepAdapter, StepTiming, dcm_tube
 from mbctl.control.wbc.swing_task import SwingFootTask
@@ -188,6 +189,7 @@ class WalkingController:
             pushed_outward_m=cfg.pushed_outward_fraction * self.limits.max_outward_m,
             cross_clearance_m=cfg.cross_over_clearance_m, cross_gain_m=cfg.cross_over_gain_m)
         self.plans = WalkPlans(self.planner, cfg, self.omega)
+        self.speed_loop = SpeedLoop(cfg)
         self.swing_tasks = {f: SwingFootTask(f, self.model, cfg.swing_cost, cfg.swing_gains,
                                              cfg.swing_orientation_cost) for f in self.feet}
         self.contact_force = contact_force
@@ -250,9 +252,7 @@ class WalkingController:
         self._t_last: float | None = None
         #: The heading the walk holds [rad]: the start's, turned by the yaw-rate command.
         self.heading_ref_rad = 0.0
-        #: The speed loop's correction (forward, sideways) [m/s] added to the command's.
-        self.speed_correction = np.zeros(2)
-        self._last_mid: tuple[float, np.ndarray] | None = None
+        self.speed_loop.reset()
         self._adaptation: StepAdaptation | None = None
         self._next_replan_s: float | None = None  # when the footsteps are planned next [s]
         self._in_contact = {}
@@ -275,28 +275,13 @@ class WalkingController:
         self._command = VelocityCommand(vx, vy, wz)
         self.heading_ref_rad += wz * dt
         error = math.remainder(self.heading_ref_rad - gait.heading(t), 2.0 * math.pi)
-        cx, cy = self.speed_correction.tolist()
+        cx, cy = self.speed_loop.correction.tolist()
         self._steer = VelocityCommand(vx + cx, vy + cy, wz + self.config.heading_gain_1_s * error)
 
     def _correct_speed(self, t: float, gait: Gait) -> None:
-        """After a touchdown: the speed loop on the feet's mean speed over the last step.
-
-        The feet's midpoint moves (vx, vy) T per step when the steps land where planned; step
-        adaptation moves them off it, and a bias of the DCM (model error) would do so every step,
-        so the walk would go faster or slower than commanded. The correction integrates the
-        difference, ``c += speed_gain (v_command - v_measured)`` in the body frame, within
-        +-``max_speed_correction_m_s``.
-        """
+        """After a touchdown: the speed loop (:mod:`~mbctl.control.wbc.speed_loop`) on the feet's midpoint."""
         mid = 0.5 * (gait.placed[self.feet[0]].position[:2] + gait.placed[self.feet[1]].position[:2])
-        last, self._last_mid = self._last_mid, (t, mid)
-        if last is None or gait.steps < 3 or t <= last[0]:
-            return
-        c, s = math.cos(self.heading_ref_rad), math.sin(self.heading_ref_rad)
-        d = (mid - last[1]) / (t - last[0])
-        measured = np.array([c * d[0] + s * d[1], -s * d[0] + c * d[1]])
-        cap = self.config.max_speed_correction_m_s
-        error = np.array(self._command[:2]) - measured
-        self.speed_correction = np.clip(self.speed_correction + self.config.speed_gain * error, -cap, cap)
+        self.speed_loop.touchdown(t, mid, self._command[:2], self.heading_ref_rad, gait.steps)
 
     # ------------------------------------------------------------------ per cycle
     def _kinematics(self, state: RobotState) -> tuple[np.ndarray, np.ndarray, dict[str, pin.SE3]]:
@@ -350,6 +335,7 @@ class WalkingController:
         (rx, ry), (zx, zy) = ref.xi.tolist(), ref.vrp.tolist()
         error_m = math.hypot(ix - rx, iy - ry)
         pushed = error_m > cfg.cmp_outside_after_m
+        self.speed_loop.watch(error_m)
         k = cfg.pushed_double_gain_1_s if pushed and gait.phase == DOUBLE else cfg.dcm_gain_1_s
         gain = 1.0 + k / self.omega  # dcm_feedback's law, on floats
         cmp_xy = [zx + gain * (ix - rx), zy + gain * (iy - ry)]

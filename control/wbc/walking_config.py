@@ -91,6 +91,9 @@ class WalkingConfig:
         speed_gain: Gain [-] of the speed loop, per step (0: off): the footsteps' speed is corrected by
             this fraction of the command minus the feet's measured speed over the last step.
         max_speed_correction_m_s: Its largest correction [m/s].
+        speed_hold_after_m: A step in which the DCM was more than this from its plan [m] (a push),
+            and the recovery's steps after it, correct the speed by their own error alone: the loop
+            does not integrate them (``inf``: it integrates every step).
         max_acceleration: How fast the walking speed follows the command: (forward [m/s^2],
             sideways [m/s^2], turning [rad/s^2]) (a step change of command is ramped).
         wbc: The QP's options (its ``ramp_s`` and ``torsion_m`` are replaced by those here).
@@ -153,6 +156,7 @@ class WalkingConfig:
     heading_gain_1_s: float = 1.0
     speed_gain: float = 0.3
     max_speed_correction_m_s: float = 0.15
+    speed_hold_after_m: float = 0.05
     max_acceleration: tuple[float, float, float] = (1.0, 0.5, 1.0)
     wbc: WBCConfig = field(default_factory=WBCConfig)
     moment_feedforward: bool = True
@@ -197,7 +201,7 @@ class WalkingConfig:
         if not self.cross_over_clearance_m >= 0:  # (inf allowed: never)
             raise WBCSetupError(f"WalkingConfig.cross_over_clearance_m={self.cross_over_clearance_m!r} is "
                                 f"out of range (>= 0 m, or inf)")
-        for name in ("hurry_after_m", "torsion_m"):  # (inf allowed: never, unbounded)
+        for name in ("hurry_after_m", "torsion_m", "speed_hold_after_m"):  # (inf allowed: never, unbounded)
             value = getattr(self, name)
             if not value > 0:
                 raise WBCSetupError(f"WalkingConfig.{name}={value!r} is out of range (> 0 m, or inf)")
