@@ -13,7 +13,9 @@ standing controller's (``standing_controller``, the g1-wbc stand task set) on th
 thread CPU time and wall time; beside them a walker planning its footsteps every cycle
 (``replan_period_s=0``: it replays the same states, deciding as a walker planning every cycle
 would on them) and one whose QP skips the force-space QP (``WBCConfig(force_space=False)``: daqp
-on the QP in vdot and forces). The step-adaptation QP is timed on the DCM errors of a push; the
+on the QP in vdot and forces). Then the walking cycle's two parts, in wall time: the walker's own
+code and its whole-body controller's compute (timed inside it), the latter against the standing
+WBC's. The step-adaptation QP is timed on the DCM errors of a push; the
 walk is ``g1-walk forward`` through the job (CSV, plots), wall time over simulated time. The load
 average is printed with every figure: the machine is shared, so only ratios within a run compare.
 """
@@ -116,6 +118,48 @@ def cycles(robot, q0, rounds: int) -> None:
               f"({t['walk'] / t['no_fs']:.2f}x with it); load {os.getloadavg()[0]:.2f}")
 
 
+def split(robot, q0, rounds: int) -> None:
+    """The walking cycle's two parts on the same states (wall): the walker's own code and its WBC's compute.
+
+    The WBC's part is timed inside the walker's compute (a wrapper of ``wbc.compute``); beside the
+    standing WBC's whole compute, it says how much of the ratio is the QP's harder problem in
+    single support and how much the planning.
+    """
+    states = _walk_states(robot, q0)
+    walker = _walker(robot, q0)
+    walker.set_command((0.3, 0.0, 0.0))
+    standing, stand_states = _stand_states(robot, q0, len(states), stride=1)
+    inner = walker.wbc.compute
+    spent = [0.0]
+
+    def timed(state):
+        t0 = time.perf_counter()
+        try:
+            return inner(state)
+        finally:
+            spent[0] += time.perf_counter() - t0
+
+    walker.wbc.compute = timed
+    walks, wbcs, stands = [], [], []
+    for _ in range(rounds):
+        walker.reset()
+        spent[0] = 0.0
+        t0 = time.perf_counter()
+        for s in states:
+            walker.compute(s)
+        walks.append(time.perf_counter() - t0)
+        wbcs.append(spent[0])
+        t0 = time.perf_counter()
+        for s in stand_states:
+            standing.controller.compute(s)
+        stands.append(time.perf_counter() - t0)
+    n = len(states)
+    walk, wbc, stand = (statistics.median(x) / n * 1e6 for x in (walks, wbcs, stands))
+    print(f"walking cycle's parts (wall, median of {rounds} rounds over {n} states): the walker's own "
+          f"code {walk - wbc:.0f} us, its WBC {wbc:.0f} us ({wbc / stand:.2f}x the standing WBC's "
+          f"{stand:.0f} us); load {os.getloadavg()[0]:.2f}")
+
+
 def adaptation_qp(robot, q0, repeats: int = 2000) -> None:
     """The step-adaptation QP on DCM errors outside the tube (a push's), median solve and call."""
     walker = _walker(robot, q0)
@@ -158,6 +202,7 @@ def main() -> int:
     robot = position_to_motor(with_palm_sites(load_robot("g1")))
     q0 = crouched_start(robot)
     cycles(robot, q0, args.rounds)
+    split(robot, q0, args.rounds)
     adaptation_qp(robot, q0)
     walk(robot, args.walk_s, args.output)
     return 0
