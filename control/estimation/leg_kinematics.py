@@ -31,9 +31,9 @@ each step can carry an error of the height on (a sole that rolls about its edge 
 assumed still). On flat ground, ``ground_noise_m`` adds a measurement: each foot in contact is at
 ``ground_z_m``, with that standard deviation: rows in the z block alone, after the legs' rows, in
 the same solve (so z's block of the covariance then differs from x's and y's). An update takes
-50 us with the ground's rows or without (median, the G1's readings replayed, two feet; where x and
-y shared one (2 + n) covariance and z had its own, two corrections took 68-70 us with them, one
-45-50 us without).
+50 us with the ground's rows or without (median over a humanoid's readings replayed, e.g. the G1's,
+two feet; where x and y shared one (2 + n) covariance and z had its own, two corrections took 68-70
+us with them, one 45-50 us without).
 
 Out of scope: the IMU's lever arm (its centripetal acceleration, below 0.01 m/s^2 for a standing
 robot), accelerometer bias, contact detection (the feet in contact are given: ``set_contacts``).
