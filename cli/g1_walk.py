@@ -34,8 +34,8 @@ def g1_walk(
     ] = None,
     impulse: Annotated[
         float | None,
-        typer.Option("--impulse", help="Push impulse (N s): a force on the pelvis held 0.1 s (push only; "
-                                       "default 15)."),
+        typer.Option("--impulse", help="Push impulse (N s): a force on the pelvis held --push-hold (push "
+                                       "only; default 15)."),
     ] = None,
     direction: Annotated[
         float | None,
@@ -47,6 +47,11 @@ def g1_walk(
         typer.Option("--push-phase", help=f"The gait phase a push starts in: {', '.join(WALK_PUSH_PHASES)} "
                                           "(10 % or 60 % of the swing, or double support; push only; default "
                                           "early)."),
+    ] = None,
+    push_hold: Annotated[
+        float | None,
+        typer.Option("--push-hold", help="How long a push's force is held (s, > 0; the force is impulse / "
+                                         "hold; push only; default 0.1)."),
     ] = None,
     waypoints: Annotated[
         str | None,
@@ -72,7 +77,8 @@ def g1_walk(
     from mbctl.jobs.g1_walk import G1_WALK, g1_walk_params
 
     params = g1_walk_params(scenario=scenario, speed=speed, duration=duration, impulse=impulse,
-                            direction=direction, push_phase=push_phase, waypoints=waypoints,
+                            direction=direction, push_phase=push_phase, push_hold=push_hold,
+                            waypoints=waypoints,
                             model_error=model_error,
                             model_dir=model_dir, **(extra or {}))
     execute(G1_WALK, params, output, quiet, video_spec(video, video_size))

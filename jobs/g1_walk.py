@@ -14,7 +14,8 @@ Scenarios (``--speed VX[,VY[,YAW_RATE]]`` m/s, m/s, rad/s; default in :data:`DEF
 - ``course``: waypoints (``--waypoints X,Y,YAW;...`` m, m, deg, or a file; default 12 over about
   10 m), the command toward each from the pelvis's pose, capped at ``--speed`` (the most forward,
   sideways and turning): :mod:`mbctl.jobs.g1_walk_course`; it passes when every waypoint was reached.
-- ``push``: walking, pushed on the pelvis (``--impulse`` N s over 0.1 s, default 15; ``--direction``
+- ``push``: walking, pushed on the pelvis (``--impulse`` N s, default 15, over ``--push-hold`` s,
+  default 0.1; ``--direction``
   deg, default eight directions 45 deg apart; ``--push-phase`` early, late or double, default early:
   :mod:`mbctl.jobs.g1_walk_push`); it passes when every push was survived. In-process only.
 
@@ -50,7 +51,7 @@ from mbctl.jobs.g1_walk_choices import (
 )
 from mbctl.jobs.g1_walk_course import CourseWalker, parse_waypoints
 from mbctl.jobs.g1_walk_log import WalkLog
-from mbctl.jobs.g1_walk_push import FIRST_PUSH_S, PUSH_PERIOD_S, PhasePushes
+from mbctl.jobs.g1_walk_push import FIRST_PUSH_S, PUSH_HOLD_S, PUSH_PERIOD_S, PhasePushes
 from mbctl.jobs.g1_wbc import check_scenario_and_duration
 from mbctl.jobs.model_options import ModelOptions, build_models
 from mbctl.jobs.plant import Plant, PlantOptions, dry_run, plant_lines, prepare_plant, report_plant
@@ -102,6 +103,8 @@ class WalkParams:
         impulse: Push impulse [N s] (push only; None: 15).
         direction: Push direction [deg] in the world's x-y plane (push only; None: eight, 45 deg apart).
         push_phase: The gait phase a push starts in: early, late or double (push only; None: early).
+        push_hold: How long a push's force is held [s] (> 0; the force is impulse / hold; push only;
+            None: :data:`~mbctl.jobs.g1_walk_push.PUSH_HOLD_S`, 0.1 s).
         waypoints: The course "X,Y,YAW;..." (m, m, deg) or a file of such lines (course only; None: the
             default course).
         model_error: The controller model's link masses and inertias off by this [%].
@@ -117,6 +120,7 @@ class WalkParams:
     impulse: float | None = None
     direction: float | None = None
     push_phase: str | None = None
+    push_hold: float | None = None
     waypoints: str | None = None
     model_error: float = 0.0
     model_dir: str | None = None
@@ -137,7 +141,8 @@ class WalkParams:
             parse_waypoints(self.waypoints)
 
     def _check_push(self) -> None:
-        given = [n for n in ("impulse", "direction", "push_phase") if getattr(self, n) is not None]
+        names = ("impulse", "direction", "push_phase", "push_hold")
+        given = [n for n in names if getattr(self, n) is not None]
         if self.scenario != "push":
             if given:
                 raise WBCSetupError(f"--{given[0].replace('_', '-')} applies to the push scenario only")
@@ -149,6 +154,8 @@ class WalkParams:
             raise WBCSetupError(f"impulse must be a finite impulse >= 0 N s; got {self.impulse}")
         if self.direction is not None and not math.isfinite(self.direction):
             raise WBCSetupError(f"direction must be a finite angle in degrees; got {self.direction}")
+        if self.push_hold is not None and not (math.isfinite(self.push_hold) and self.push_hold > 0):
+            raise WBCSetupError(f"push_hold must be a finite time > 0 s; got {self.push_hold}")
         if self.push_phase is not None and self.push_phase not in WALK_PUSH_PHASES:
             raise WBCSetupError(f"unknown push phase {self.push_phase!r}; choose one of "
                                 f"{', '.join(WALK_PUSH_PHASES)}")
@@ -178,9 +185,12 @@ class WalkParams:
 
 def g1_walk_params(scenario: str = "forward", speed: str | None = None, duration: float | None = None,
                    impulse: float | None = None, direction: float | None = None,
-                   push_phase: str | None = None, waypoints: str | None = None, model_error: float = 0.0,
+                   push_phase: str | None = None, push_hold: float | None = None,
+                   waypoints: str | None = None, model_error: float = 0.0,
                    model_dir: str | None = None, **options: Any) -> WalkParams:
-    """``mbctl g1-walk``: speed "VX[,VY[,YAW_RATE]]", duration (s), impulse (N s), direction (deg), %.
+    """``mbctl g1-walk``: speed "VX[,VY[,YAW_RATE]]", duration, impulse, direction, push hold, model error.
+
+    Units: duration [s], impulse [N s], direction [deg], push hold [s], model error [%].
 
     ``options`` are the G1 jobs' plant options (:func:`mbctl.jobs.options.plant`'s, in their units)
     and the model options (``payload``, ``plant_error``, ``controller_model``); the signature lists
@@ -189,8 +199,8 @@ def g1_walk_params(scenario: str = "forward", speed: str | None = None, duration
     from mbctl.jobs.options import plant
 
     model = {k: options.pop(k) for k in _MODEL_OPTIONS if k in options}
-    return WalkParams(scenario, speed, duration, impulse, direction, push_phase, waypoints, model_error,
-                      model_dir, plant(**options), ModelOptions(**model))
+    return WalkParams(scenario, speed, duration, impulse, direction, push_phase, push_hold, waypoints,
+                      model_error, model_dir, plant(**options), ModelOptions(**model))
 
 
 #: The model options and their defaults (``mbctl.jobs.model_options.ModelOptions``'s fields).
@@ -279,7 +289,8 @@ def _run(ctx: RunContext, params: WalkParams, robot: Robot, walker: WalkingContr
         if params.scenario == "push":
             pushes = PhasePushes(sim.model, walker, params.push_directions_deg,
                                  DEFAULT_IMPULSE_N_S if params.impulse is None else params.impulse,
-                                 params.push_phase or "early")
+                                 params.push_phase or "early",
+                                 PUSH_HOLD_S if params.push_hold is None else params.push_hold)
             sim.add_perturbation(pushes)
     estimator = getattr(iface, "estimator", None)  # the base from an estimator (over DDS, --estimate)
     if estimator is not None and hasattr(estimator, "set_contacts"):
@@ -411,6 +422,8 @@ def _outcome(params: WalkParams, v: dict[str, Any], time_s: float) -> Outcome:
         f"{v['touchdowns']}", *plant_lines(v))
     if params.scenario == "push":
         lines += (f"pushes: {v['pushes_survived']} of {v['pushes_planned']} survived ("
+                  + "".join(f"{p['impulse_n_s']:g} N s over {p['hold_s']:g} s, {p['force_n']:g} N; "
+                            for p in v["pushes"][:1])
                   + "; ".join(f"{p['direction_deg']:g} deg at {p['time_s']:.2f} s, {p['phase']}: "
                               f"{'survived' if p['survived'] else 'FELL'}, recovered in "
                               f"{p['recovery_steps'] if p['recovery_steps'] is not None else 'n/a'} steps"

@@ -1,6 +1,7 @@
 """Pushes while walking (``mbctl g1-walk push``): a force on the pelvis at a chosen gait phase, and after.
 
-Each push is a horizontal force on the pelvis held :data:`PUSH_HOLD_S` (``impulse / hold``), from a
+Each push is a horizontal force on the pelvis held ``hold_s`` (default :data:`PUSH_HOLD_S`; the force
+is ``impulse / hold``), from a
 direction in the world's x-y plane (0 deg = +x, the walk's start heading; 90 = +y, its left). The
 first comes after :data:`FIRST_PUSH_S` of walking, the next :data:`PUSH_PERIOD_S` after the previous
 one; each starts at the first control cycle, from then on, in its gait phase (:data:`PUSH_PHASES`):
@@ -28,6 +29,7 @@ from mbctl.sim.perturb import Push, PushSchedule
 
 #: The gait phases a push may start in: (phase, fraction of the swing elapsed) or double support.
 PUSH_PHASES = {"early": ("single", 0.1), "late": ("single", 0.6), "double": ("double", 0.0)}
+#: The default time a push's force is held [s].
 PUSH_HOLD_S = 0.1
 FIRST_PUSH_S = 3.0
 PUSH_PERIOD_S = 3.0
@@ -44,6 +46,8 @@ class PushRecord:
         phase: The gait phase it started in.
         direction_deg: Its direction [deg] in the world's x-y plane.
         impulse_n_s: Its impulse [N s].
+        hold_s: How long its force was held [s].
+        force_n: Its force [N] (``impulse_n_s / hold_s``).
         survived: The G1 had not fallen ``PUSH_PERIOD_S`` after it (None while that is not known).
         recovery_steps: Touchdowns until the DCM was back within ``RECOVERED_M`` of its plan.
         max_dcm_error_m: The largest DCM error after it [m].
@@ -53,6 +57,8 @@ class PushRecord:
     phase: str
     direction_deg: float
     impulse_n_s: float
+    hold_s: float
+    force_n: float
     survived: bool | None = None
     recovery_steps: int | None = None
     max_dcm_error_m: float = 0.0
@@ -68,12 +74,14 @@ class PhasePushes:
         directions_deg: One push per direction [deg], in order.
         impulse_n_s: Each push's impulse [N s].
         phase: One of :data:`PUSH_PHASES`.
+        hold_s: How long each push's force is held [s] (> 0; the force is ``impulse_n_s / hold_s``).
     """
 
     def __init__(self, model: mujoco.MjModel, walker: WalkingController, directions_deg: list[float],
-                 impulse_n_s: float, phase: str):
+                 impulse_n_s: float, phase: str, hold_s: float = PUSH_HOLD_S):
         self.model, self.walker = model, walker
         self.directions_deg, self.impulse_n_s, self.phase = list(directions_deg), impulse_n_s, phase
+        self.hold_s = hold_s
         self._schedule: PushSchedule | None = None
         self.records: list[PushRecord] = []
         self.force_W = np.zeros(3)
@@ -95,7 +103,7 @@ class PhasePushes:
         error = float(np.hypot(*(status.dcm - status.dcm_ref)))
         if self.records:
             last = self.records[-1]
-            if t_s >= last.time_s + PUSH_HOLD_S:
+            if t_s >= last.time_s + self.hold_s:
                 last.max_dcm_error_m = max(last.max_dcm_error_m, error)
                 if last.recovery_steps is None and error < RECOVERED_M and gait is not None:
                     last.recovery_steps = gait.steps - last._steps_at_push
@@ -112,11 +120,11 @@ class PhasePushes:
         if t_s < due or not in_phase:
             return
         angle = math.radians(self.directions_deg[k])
-        force = self.impulse_n_s / PUSH_HOLD_S
+        force = self.impulse_n_s / self.hold_s
         force_W = (force * math.cos(angle), force * math.sin(angle), 0.0)
-        self._schedule = PushSchedule(self.model, [Push(PELVIS, force_W, now_s, PUSH_HOLD_S)])
+        self._schedule = PushSchedule(self.model, [Push(PELVIS, force_W, now_s, self.hold_s)])
         self.records.append(PushRecord(now_s, self.phase, self.directions_deg[k], self.impulse_n_s,
-                                       _steps_at_push=gait.steps))
+                                       self.hold_s, force, _steps_at_push=gait.steps))
 
     def values(self, fallen: bool) -> dict[str, Any]:
         """The report's push values (a push whose outcome is still open is scored now)."""

@@ -76,3 +76,14 @@ def test_tampered_model_names_the_file(g1, tmp_path):
     out = run_mbctl("inspect", "g1", env={"MENAGERIE_ROOT": str(root)})
     assert out.returncode == 2
     assert "scene.xml fails its SHA-256 check" in out.stderr
+
+
+@pytest.mark.parametrize(("args", "message"), [
+    (["push", "--push-hold", "-0.1"], "push_hold must be a finite time > 0 s; got -0.1"),
+    (["push", "--push-hold", "nan"], "push_hold must be a finite time > 0 s; got nan"),
+    (["forward", "--push-hold", "0.08"], "--push-hold applies to the push scenario only"),
+])
+def test_g1_walk_push_hold_bad_input_exits_2_naming_it(tmp_path, args, message):
+    out = run_mbctl("g1-walk", *args, "--output", str(tmp_path / "out"))
+    assert out.returncode == 2, out.stderr
+    assert message in out.stderr and "Traceback" not in out.stderr

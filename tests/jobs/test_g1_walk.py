@@ -90,3 +90,45 @@ def test_speed_parsing_and_bad_input():
         WalkParams("jog")
     params = g1_walk_params("side", "0,0.1", 2.0, latency_ms=2.0, payload="1.0@torso_link")
     assert params.plant.latency_ms == 2.0 and params.models.payload == "1.0@torso_link"
+
+
+def test_a_push_held_0_08_s_applies_impulse_over_hold_and_reports_it(g1, tmp_path):
+    record = _run(g1, tmp_path, scenario="push", speed="0.3", impulse=8.0, direction=0.0, push_hold=0.08,
+                  duration=3.6)
+    (push,) = record.values["pushes"]
+    assert (push["impulse_n_s"], push["hold_s"]) == (8.0, 0.08)
+    assert push["force_n"] == pytest.approx(100.0) and push["survived"] is True
+    # read back from the CSV (one row a 2 ms control cycle): 100 N along +x for 0.08 s, 8 N s
+    c = _csv(record)
+    dt = float(np.median(np.diff(c["time_s"])))
+    fx, fy = c["push_fx_N"], c["push_fy_N"]
+    assert fx.max() == pytest.approx(100.0) and np.abs(fy).max() < 1e-9
+    assert 0.08 - 1e-9 <= np.count_nonzero(fx) * dt <= 0.08 + dt + 1e-9
+    assert fx.sum() * dt == pytest.approx(8.0, abs=100.0 * dt + 1e-9)
+    report = json.loads(record.report_path.read_text())
+    assert report["values"]["pushes"][0]["force_n"] == pytest.approx(100.0)
+
+
+def test_push_hold_is_checked_and_named():
+    assert WalkParams("push", push_hold=0.08).push_hold == 0.08
+    assert g1_walk_params("push", push_hold=0.05).push_hold == 0.05
+    for bad in (0.0, -0.1, math.nan, math.inf):
+        with pytest.raises(WBCSetupError, match=rf"push_hold must be a finite time > 0 s; got {bad}$"):
+            WalkParams("push", push_hold=bad)
+    with pytest.raises(WBCSetupError, match="--push-hold applies to the push scenario only"):
+        WalkParams("forward", push_hold=0.1)
+
+
+def test_a_sweep_passes_push_hold_by_name_and_rejects_a_bad_one_before_any_task(tmp_path):
+    from mbctl.jobs.catalog import CATALOG, SweepInputError, parse_grid
+    from mbctl.jobs.sweep import SweepConfig, prepare_sweep
+
+    grid = parse_grid("g1-walk", ["scenario=push", "impulse=48", "push_hold=0.08,0.1"])
+    assert grid["push_hold"] == [0.08, 0.1]
+    params = CATALOG["g1-walk"].params({"scenario": "push", "impulse": 48.0, "push_hold": 0.08})
+    assert (params.impulse, params.push_hold) == (48.0, 0.08)
+    grid = parse_grid("g1-walk", ["scenario=push", "push_hold=0.08,-0.1"])
+    bad = SweepConfig("g1-walk", grid, tmp_path / "s")
+    with pytest.raises(SweepInputError, match=r"push_hold must be a finite time > 0 s; got -0.1"):
+        prepare_sweep(bad)
+    assert not (tmp_path / "s").exists()
