@@ -253,8 +253,7 @@ class LegKinematicsEstimator:
             r = np.concatenate([np.full(k, nz.kinematics_m**2), np.full(k, nz.leg_velocity_m_s**2)])
             grounded = feet if self.ground_noise_m is not None else feet[:0]
             H_all = np.zeros((6 * k + len(grounded), 3 * m))
-            for a in range(3):
-                H_all[2 * k * a:2 * k * (a + 1), m * a:m * (a + 1)] = H
+            H_all[:6 * k] = np.kron(np.eye(3), H)  # each axis's block
             H_all[6 * k + np.arange(len(grounded)), 2 * m + 2 + grounded] = 1.0  # p_WP,z = ground_z_m
             ground_r = np.full(len(grounded), (self.ground_noise_m or 0.0) ** 2)
             r_all = np.diag(np.concatenate([r, r, r, ground_r]))
