@@ -29,7 +29,8 @@ the next step as well).
 
 **A quicker step** (:class:`StepTiming`, after Khadiv et al., "Walking control based on step timing
 adaptation", IEEE T-RO 2020). Where a limit holds the footstep ``timing_threshold_m`` or more short
-sideways (the side's reach is the shortest), the step's timing joins the QP. With the stance VRP r_s
+sideways (the side's reach is the shortest; a pushed step also along the heading, with
+``pushed_timing_along``), the step's timing joins the QP. With the stance VRP r_s
 held, the DCM at the switch is ``r_s + tau (xi_e - r_s)``, ``tau = exp(omega (t1 - t))``, ``xi_e``
 the plan's DCM plus the error outside the tube; the footstep's VRP plus the plan's offset b_nom to it
 (the plan's DCM at the switch less the footstep's VRP: it does not depend on t1) should equal it::

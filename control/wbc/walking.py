@@ -24,7 +24,8 @@ Each cycle:
    swing footstep follows the command until ``retarget_until_phase`` of the swing
    (``pushed_retarget_until_phase`` while the DCM was off its plan by ``cmp_outside_after_m``), moved by the
    step-adaptation QP when the measured DCM leaves its tube (:mod:`mbctl.control.wbc.step_adaptation`);
-   where a limit holds that footstep far short sideways, the QP shortens the swing as well
+   where a limit holds that footstep far short sideways (a pushed one also backward:
+   ``pushed_timing_along``), the QP shortens the swing as well
    (``timing_adaptation``: no quicker than ``min_single_support_s``, ``min_swing_left_s`` from now,
    nor than the foot's way to its footstep at ``max_swing_speed_m_s``), and the swing path is re-timed.
    The footsteps are planned every ``replan_period_s`` and at every contact event; steps 3 and 4
