@@ -29,7 +29,8 @@ the next step as well).
 
 **A quicker step** (:class:`StepTiming`, after Khadiv et al., "Walking control based on step timing
 adaptation", IEEE T-RO 2020). Where a limit holds the footstep ``timing_threshold_m`` or more short
-sideways (the side's reach is the shortest), the step's timing joins the QP. With the stance VRP r_s
+sideways (the side's reach is the shortest; a pushed step also along the heading, with
+``pushed_timing_along``), the step's timing joins the QP. With the stance VRP r_s
 held, the DCM at the switch is ``r_s + tau (xi_e - r_s)``, ``tau = exp(omega (t1 - t))``, ``xi_e``
 the plan's DCM plus the error outside the tube; the footstep's VRP plus the plan's offset b_nom to it
 (the plan's DCM at the switch less the footstep's VRP: it does not depend on t1) should equal it::
@@ -68,6 +69,8 @@ from mbctl.planners.footsteps import Footstep, FootstepPlanner
 
 #: Vertices of the reach polygon [-].
 REACH_VERTICES = 8
+#: Which shortfalls along the heading make a pushed step quicker (``StepAdapter``'s ``pushed_timing_along``).
+TIMING_ALONG = ("none", "backward", "both")
 #: A quicker step still short of the DCM's need by more than this [m] counts as ``limited``.
 SHORT_M = 0.005
 
@@ -150,6 +153,12 @@ class StepAdapter:
             stance foot, its sole this far [m] clear of the stance sole along the heading (None or
             ``inf``: never; needs the planner's ``sole_xy_m``).
         cross_gain_m: ... when the crossing footstep lands this much [m] nearer the optimum.
+        pushed_forward_m: The forward limit [m] for a pushed step (None: the planner's ``max_forward_m``).
+        pushed_backward_m: The backward limit [m] for a pushed step (None: the planner's
+            ``max_backward_m``).
+        pushed_timing_along: A pushed step held ``timing_threshold_m`` or more short along the heading is
+            made quicker too: ``"none"`` (only a sideways shortfall adapts the timing), ``"backward"``
+            (a footstep held short of a backward optimum) or ``"both"``.
 
     Raises:
         WBCSetupError: A non-positive omega or weight, or a tube that is not 2 finite values >= 0.
@@ -159,7 +168,8 @@ class StepAdapter:
                  nominal_weight: float = 0.01, sole_centre_xy: tuple[float, float] = (0.0, 0.0),
                  timing_weight: float = 0.001, timing_threshold_m: float = 0.05,
                  pushed_outward_m: float | None = None, cross_clearance_m: float | None = None,
-                 cross_gain_m: float = 0.05):
+                 cross_gain_m: float = 0.05, pushed_forward_m: float | None = None,
+                 pushed_backward_m: float | None = None, pushed_timing_along: str = "none"):
         tube = np.asarray(tube_m, dtype=float)
         if not (omega_rad_s > 0 and nominal_weight > 0 and timing_weight > 0 and tube.shape == (2,)
                 and np.all(np.isfinite(tube)) and np.all(tube >= 0)):
@@ -177,11 +187,20 @@ class StepAdapter:
         lim = planner.limits
         angles = 2.0 * math.pi * np.arange(REACH_VERTICES) / REACH_VERTICES
         self._unit = np.column_stack([np.cos(angles), np.sin(angles)])
-        self._axes = (lim.max_forward_m, lim.max_backward_m, lim.max_outward_m)
         out = lim.max_outward_m if pushed_outward_m is None else float(pushed_outward_m)
-        if not (math.isfinite(out) and out > 0):
-            raise WBCSetupError(f"pushed_outward_m must be finite and > 0 [m]; got {pushed_outward_m!r}")
+        fwd = lim.max_forward_m if pushed_forward_m is None else float(pushed_forward_m)
+        back = lim.max_backward_m if pushed_backward_m is None else float(pushed_backward_m)
+        if not all(math.isfinite(v) and v > 0 for v in (out, fwd, back)):
+            raise WBCSetupError(f"pushed_outward_m, pushed_forward_m and pushed_backward_m must be finite "
+                                f"and > 0 [m]; got {pushed_outward_m!r}, {pushed_forward_m!r}, "
+                                f"{pushed_backward_m!r}")
         self._outward = {False: lim.max_outward_m, True: out}
+        #: (forward, backward) limits [m] of a walking step (False) and a pushed one (True).
+        self._along = {False: (lim.max_forward_m, lim.max_backward_m), True: (fwd, back)}
+        if pushed_timing_along not in TIMING_ALONG:
+            raise WBCSetupError(f"pushed_timing_along must be one of {', '.join(TIMING_ALONG)}; got "
+                                f"{pushed_timing_along!r}")
+        self.pushed_timing_along = pushed_timing_along
         if not (cross_clearance_m is None or cross_clearance_m >= 0) or not (math.isfinite(cross_gain_m)
                                                                              and cross_gain_m >= 0):
             raise WBCSetupError(f"cross_clearance_m must be >= 0 [m] (inf or None: no cross-over) and "
@@ -201,11 +220,11 @@ class StepAdapter:
         """
         rows = self._reach.get((side, pushed))
         if rows is None:
-            rows = self._reach[(side, pushed)] = self._reach_polygon(side, self._outward[pushed])
+            rows = self._reach[(side, pushed)] = self._reach_polygon(side, self._outward[pushed],
+                                                                     *self._along[pushed])
         return rows
 
-    def _reach_polygon(self, side: int, out: float) -> tuple[np.ndarray, np.ndarray]:
-        fwd, back, _ = self._axes
+    def _reach_polygon(self, side: int, out: float, fwd: float, back: float) -> tuple[np.ndarray, np.ndarray]:
         w = self.planner.limits.nominal_width_m
         u = self._unit
         vertices = np.column_stack([np.where(u[:, 0] >= 0, fwd, back) * u[:, 0], out * u[:, 1] + side * w])
@@ -250,8 +269,9 @@ class StepAdapter:
         lim, side = self.planner.limits, nominal.side
         dyaw = math.remainder(nominal.yaw_rad - stance.yaw_rad, 2.0 * math.pi)
         widths = (lim.min_width_for(dyaw, side) * side, (lim.nominal_width_m + self._outward[pushed]) * side)
-        lb = np.array([-lim.max_backward_m, min(widths)])
-        ub = np.array([lim.max_forward_m, max(widths)])
+        fwd_m, back_m = self._along[pushed]
+        lb = np.array([-back_m, min(widths)])
+        ub = np.array([fwd_m, max(widths)])
         G, h = self._reach_rows(side, pushed)
         w = self.nominal_weight
         optimum = [(x_des[0] + w * x_nom[0]) / (1.0 + w), (x_des[1] + w * x_nom[1]) / (1.0 + w)]  # H x* = -c
@@ -261,7 +281,11 @@ class StepAdapter:
         solve_time = time.perf_counter() - t0
         x = result.x.tolist() if result.x is not None else x_nom  # (never None: (0, s w) is feasible)
         limited = max(abs(x[0] - optimum[0]), abs(x[1] - optimum[1])) > 1e-9
-        held = timing is not None and abs(x[1] - optimum[1]) > self.timing_threshold_m
+        short = abs(x[1] - optimum[1])
+        if pushed and self.pushed_timing_along != "none":  # backward: the footstep ahead of its optimum
+            along = x[0] - optimum[0] if self.pushed_timing_along == "backward" else abs(x[0] - optimum[0])
+            short = max(short, along)
+        held = timing is not None and short > self.timing_threshold_m
         given = (timing() if callable(timing) else timing) if held else None
         if given is not None and given.min_s < time_to_switch_s - 1e-6:
             # held short: the quicker step's QP (at the plan's timing it is the same QP, so it does no worse)
@@ -284,9 +308,10 @@ class StepAdapter:
         best = max(math.hypot(kept[0] - optimum[0], kept[1] - optimum[1]) - self.cross_gain_m, 0.0)
         lim, ahead = self.planner.limits, float(self.cross_ahead_m or 0.0)
         widest = lim.nominal_width_m + self._outward[True]
+        fwd_m, back_m = self._along[True]
         q = np.array([-self._h * optimum[0], -self._h * optimum[1]])
         crossed, t0 = None, time.perf_counter()
-        for low, high in ((ahead, lim.max_forward_m), (-lim.max_backward_m, -ahead)):  # ahead, behind
+        for low, high in ((ahead, fwd_m), (-back_m, -ahead)):  # ahead, behind
             if low <= high:
                 x = self._solver.solve(QPData(self._H, q, np.array([low, -widest]), np.array([high, widest]),
                                               *reach)).x

@@ -24,7 +24,8 @@ Each cycle:
    swing footstep follows the command until ``retarget_until_phase`` of the swing
    (``pushed_retarget_until_phase`` while the DCM was off its plan by ``cmp_outside_after_m``), moved by the
    step-adaptation QP when the measured DCM leaves its tube (:mod:`mbctl.control.wbc.step_adaptation`);
-   where a limit holds that footstep far short sideways, the QP shortens the swing as well
+   where a limit holds that footstep far short sideways (a pushed one also backward:
+   ``pushed_timing_along``), the QP shortens the swing as well
    (``timing_adaptation``: no quicker than ``min_single_support_s``, ``min_swing_left_s`` from now,
    nor than the foot's way to its footstep at ``max_swing_speed_m_s``), and the swing path is re-timed.
    The footsteps are planned every ``replan_period_s`` and at every contact event; steps 3 and 4
@@ -187,7 +188,8 @@ class WalkingController:
             float(self.sole_centre_F[0]), float(self.sole_centre_F[1])), timing_weight=cfg.timing_weight,
             timing_threshold_m=cfg.timing_threshold_m,
             pushed_outward_m=cfg.pushed_outward_fraction * self.limits.max_outward_m,
-            cross_clearance_m=cfg.cross_over_clearance_m, cross_gain_m=cfg.cross_over_gain_m)
+            cross_clearance_m=cfg.cross_over_clearance_m, cross_gain_m=cfg.cross_over_gain_m,
+            pushed_timing_along=cfg.pushed_timing_along)
         self.plans = WalkPlans(self.planner, cfg, self.omega)
         self.speed_loop = SpeedLoop(cfg)
         self.swing_tasks = {f: SwingFootTask(f, self.model, cfg.swing_cost, cfg.swing_gains,
@@ -427,7 +429,7 @@ class WalkingController:
         error = xi - ref
         pushed = math.hypot(*error.tolist()) > self.config.cmp_outside_after_m  # a push: wider outward limit
         adaptation = self.adapter.adapt(stance, nominal, error, t1 - t,
-                                        lambda: self._step_timing(gait, t, t1, ref), pushed)
+                                        lambda: self._step_timing(gait, t, t1, ref, pushed), pushed)
         self._adaptation = adaptation
         if adaptation.time_to_switch_s is not None:  # the switch moved: so does the touchdown
             end = t + adaptation.time_to_switch_s - (t1 - gait.phase_end)
@@ -435,7 +437,8 @@ class WalkingController:
                 gait.retime(t, end)
         return adaptation.footstep
 
-    def _step_timing(self, gait: Gait, t: float, t1: float, dcm_ref: np.ndarray) -> StepTiming | None:
+    def _step_timing(self, gait: Gait, t: float, t1: float, dcm_ref: np.ndarray,
+                     pushed: bool = False) -> StepTiming | None:
         """The swing's timing for the adaptation QP (None: timing adaptation off, or no time left)."""
         cfg = self.config
         if not cfg.timing_adaptation:
@@ -447,7 +450,8 @@ class WalkingController:
         # the foot's way to its footstep at no more than max_swing_speed_m_s, within the horizontal fraction
         x, y, _ = path.at(t).position.tolist()
         tx, ty, _ = path.target_position.tolist()
-        reach_s = math.hypot(tx - x, ty - y) / cfg.max_swing_speed_m_s
+        speed = cfg.pushed_swing_speed_m_s if pushed else cfg.max_swing_speed_m_s
+        reach_s = math.hypot(tx - x, ty - y) / speed
         earliest = max(gait.t_phase + cfg.min_single_support_s, t + cfg.min_swing_left_s,
                        gait.t_phase + (t - gait.t_phase + reach_s) / path.horizontal_fraction)
         nominal = gait.swing_nominal_end_s()

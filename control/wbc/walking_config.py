@@ -34,6 +34,11 @@ class WalkingConfig:
             sideways [m].
         max_swing_speed_m_s: A re-timed swing leaves the foot at least its distance to its footstep
             over this [m/s] of horizontal motion (a quicker swing the leg cannot follow lands short).
+        pushed_swing_speed_m_s: ... and a pushed step's (the DCM more than ``cmp_outside_after_m`` from its
+            plan) over this [m/s].
+        pushed_timing_along: A pushed step held ``timing_threshold_m`` short along the heading is made
+            quicker too: "none" (sideways shortfalls only, as walking steps), "backward" or "both"
+            (:class:`~mbctl.control.wbc.step_adaptation.StepAdapter`).
         dcm_tube_fraction: The DCM tube, as a fraction of the error the CMP feedback can correct
             within the sole: errors beyond it are stepped away.
         dcm_gain_1_s: DCM feedback gain k [1/s] (the error decays as exp(-k t)).
@@ -126,6 +131,8 @@ class WalkingConfig:
     timing_weight: float = 0.001
     timing_threshold_m: float = 0.05
     max_swing_speed_m_s: float = 1.5
+    pushed_swing_speed_m_s: float = 1.5
+    pushed_timing_along: str = "backward"
     dcm_tube_fraction: float = 0.5
     dcm_gain_1_s: float = 3.0
     cmp_margin_m: float = 0.01
@@ -180,6 +187,7 @@ class WalkingConfig:
             "min_swing_left_s": self.min_swing_left_s > 0, "timing_weight": self.timing_weight > 0,
             "timing_threshold_m": self.timing_threshold_m >= 0,
             "max_swing_speed_m_s": self.max_swing_speed_m_s > 0, "preview_steps": self.preview_steps >= 1,
+            "pushed_swing_speed_m_s": self.pushed_swing_speed_m_s > 0,
             "ramp_s": 0 < self.ramp_s <= self.timing.double_support_s, "swing_cost": self.swing_cost > 0,
             "swing_orientation_cost": self.swing_orientation_cost > 0,
             "com_cost": self.com_cost > 0, "momentum_cost": self.momentum_cost >= 0,

@@ -213,3 +213,38 @@ def test_a_pushed_step_toward_the_stance_side_crosses_in_front_of_the_stance_foo
         StepAdapter(planner, OMEGA, (0.02, 0.005), cross_clearance_m=-0.01)
     with pytest.raises(WBCSetupError, match="cross_over_clearance_m"):
         WalkingConfig(cross_over_clearance_m=-0.01)
+
+
+def test_a_pushed_step_held_short_forward_is_made_quicker_and_may_reach_further():
+    from mbctl.control.wbc.step_adaptation import StepTiming
+
+    planner = FootstepPlanner(LIMITS, GaitTiming(0.5, 0.1), ("left", "right"))
+    stance = Footstep("right", -1, np.array([0.0, 0.0, 0.0]), 0.0)
+    nominal = Footstep("left", 1, np.array([0.18, 0.24, 0.0]), 0.0)
+    error = [0.15, 0.0]  # pushed forward, 0.3 s before the switch: the DCM needs ~0.5 m more, held at 0.36
+    timing = StepTiming(np.array([0.03, 0.03]), 0.3, 0.1)
+    kwargs = dict(pushed_outward_m=1.6 * LIMITS.max_outward_m)
+    sideways_only = StepAdapter(planner, OMEGA, (0.02, 0.005), **kwargs)
+    forward_too = StepAdapter(planner, OMEGA, (0.02, 0.005), pushed_timing_along="both", **kwargs)
+    backward_only = StepAdapter(planner, OMEGA, (0.02, 0.005), pushed_timing_along="backward", **kwargs)
+    held = sideways_only.adapt(stance, nominal, error, 0.3, timing, pushed=True)
+    assert held.limited and held.time_to_switch_s is None  # no sideways shortfall: the timing kept
+    assert held.footstep.position[0] == pytest.approx(LIMITS.max_forward_m, abs=1e-6)
+    quick = forward_too.adapt(stance, nominal, error, 0.3, timing, pushed=True)
+    assert 0.1 - 1e-9 <= quick.time_to_switch_s < 0.3  # quicker, not below the floor given
+    assert quick.footstep.position[0] <= LIMITS.max_forward_m + 1e-9
+    assert backward_only.adapt(stance, nominal, error, 0.3, timing, pushed=True).time_to_switch_s is None
+    back = backward_only.adapt(stance, nominal, [-0.25, 0.0], 0.3, timing, pushed=True)  # pushed backward
+    assert back.time_to_switch_s is not None and 0.1 - 1e-9 <= back.time_to_switch_s < 0.3
+    # a step that is not pushed keeps the sideways-only rule
+    assert forward_too.adapt(stance, nominal, error, 0.3, timing).time_to_switch_s is None
+    # a pushed forward limit: the pushed step reaches 0.45 m, a walking one the planner's 0.36
+    longer = StepAdapter(planner, OMEGA, (0.02, 0.005), pushed_forward_m=0.45, **kwargs)
+    assert longer.adapt(stance, nominal, error, 0.3, pushed=True).footstep.position[0] == pytest.approx(0.45)
+    assert longer.adapt(stance, nominal, error, 0.3).footstep.position[0] == pytest.approx(0.36, abs=1e-6)
+    with pytest.raises(WBCSetupError, match="pushed_forward_m"):
+        StepAdapter(planner, OMEGA, (0.02, 0.005), pushed_forward_m=math.inf)
+    with pytest.raises(WBCSetupError, match="pushed_timing_along must be one of none, backward, both"):
+        StepAdapter(planner, OMEGA, (0.02, 0.005), pushed_timing_along="forward")
+    with pytest.raises(WBCSetupError, match="pushed_swing_speed_m_s"):
+        WalkingConfig(pushed_swing_speed_m_s=0.0)
