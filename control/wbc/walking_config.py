@@ -132,7 +132,7 @@ class WalkingConfig:
     timing_threshold_m: float = 0.05
     max_swing_speed_m_s: float = 1.5
     pushed_swing_speed_m_s: float = 1.5
-    pushed_timing_along: str = "backward"
+    pushed_timing_along: str = "none"
     dcm_tube_fraction: float = 0.5
     dcm_gain_1_s: float = 3.0
     cmp_margin_m: float = 0.01
