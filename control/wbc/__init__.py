@@ -13,7 +13,7 @@ from mbctl.control.wbc.standing import Scheduled, Standing, standing_controller
 from mbctl.control.wbc.step_adaptation import StepAdaptation, StepAdapter, StepTiming, dcm_tube
 from mbctl.control.wbc.swing_task import SwingFootTask
 from mbctl.control.wbc.walking import WalkingController, WalkingStatus
-from mbctl.control.wbc.walking_config import WalkingConfig
+from mbctl.control.wbc.walking_config import WalkingConfig, quick_gait
 
 __all__ = [
     "ContactState",
@@ -33,5 +33,6 @@ __all__ = [
     "WholeBodyController",
     "dcm_tube",
     "foot_contact_from_model",
+    "quick_gait",
     "standing_controller",
 ]

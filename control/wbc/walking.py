@@ -149,6 +149,8 @@ class WalkingController:
         arm_swing: Arm joint -> the leg joint it swings against (e.g. each shoulder pitch against the
             other side's hip pitch); its posture target is its start angle plus ``arm_swing_gain``
             times the leg joint's angle from its start.
+        torso_counter_yaw: Joints (a, b) whose difference q_a - q_b [rad] turns the torso's yaw target
+            by ``torso_yaw_gain`` times it (e.g. the left and right hip pitch); None: no turn.
 
     Raises:
         WBCSetupError: Bad options or frames.
@@ -161,7 +163,8 @@ class WalkingController:
                  reference_q: np.ndarray, config: WalkingConfig | None = None,
                  pin_model: pin.Model | None = None, contact_force: ContactForce | None = None,
                  contact_listener: Callable[[dict[str, bool]], object] | None = None,
-                 arm_swing: Mapping[str, str] | None = None):
+                 arm_swing: Mapping[str, str] | None = None,
+                 torso_counter_yaw: tuple[str, str] | None = None):
         self.config = cfg = config or WalkingConfig()
         if len(feet) != 2:
             raise WBCSetupError(f"walking needs two feet (left, right); got {list(feet)}")
@@ -175,6 +178,8 @@ class WalkingController:
         self.standing.com.set_cost(cfg.com_cost)
         self.standing.com.servo = cfg.height_gains
         self.standing.momentum.set_cost(cfg.momentum_cost)
+        if self.standing.torso is not None:
+            self.standing.torso.set_cost(cfg.torso_cost)
         self.model = self.wbc.model
         self._data = self.model.createData()
         self.reference_q = np.array(reference_q, dtype=float)
@@ -196,12 +201,16 @@ class WalkingController:
                                              cfg.swing_orientation_cost) for f in self.feet}
         self.contact_force = contact_force
         self.contact_listener = contact_listener
-        iq = {j: self.model.joints[self.model.getJointId(j)].idx_q for pair in (arm_swing or {}).items()
-              for j in pair if self.model.existJointName(j)}
-        missing = sorted({j for pair in (arm_swing or {}).items() for j in pair} - set(iq))
+        named = [j for pair in (arm_swing or {}).items() for j in pair] + list(torso_counter_yaw or ())
+        m = self.model
+        iq = {j: m.joints[m.getJointId(j)].idx_q for j in named if m.existJointName(j)}
+        missing = sorted(set(named) - set(iq))
         if missing:
-            raise WBCSetupError(f"arm_swing names joints the model does not have: {', '.join(missing)}")
+            raise WBCSetupError(f"arm_swing or torso_counter_yaw names joints the model does not have: "
+                                f"{', '.join(missing)}")
         self._arm_swing = [(iq[arm], iq[leg]) for arm, leg in (arm_swing or {}).items()]
+        yaw_pair = tuple(torso_counter_yaw or ())
+        self._counter_yaw = (iq[yaw_pair[0]], iq[yaw_pair[1]]) if len(yaw_pair) == 2 else None
         self._posture_target = self.reference_q.copy()
         self._reference_q_list = self.reference_q.tolist()
         self._in_contact: dict[str, bool] = {}
@@ -358,7 +367,7 @@ class WalkingController:
         acc = np.array([w2 * (cx - px), w2 * (cy - py), az_ref])
         # the CoM task: its horizontal error is zero by construction, so the acceleration is the DCM law's
         self.standing.com.set_target([cx, cy, z_ref], [vx, vy, vz_ref], acc)
-        self._orient(gait.heading(t))
+        self._orient(gait.heading(t), state.q)
         self._swing(gait, t)
         if self._arm_swing and cfg.arm_swing_gain:
             target, q0, q = self._posture_target, self._reference_q_list, state.q.tolist()
@@ -459,9 +468,16 @@ class WalkingController:
             return None
         return StepTiming(dcm_ref, nominal + after - t, earliest + after - t)
 
-    def _orient(self, yaw: float) -> None:
-        """Pelvis and torso upright, heading ``yaw`` [rad]."""
-        tasks = [t for t in (self.standing.base, self.standing.torso) if t is not None]
+    def _orient(self, yaw: float, q: np.ndarray) -> None:
+        """Pelvis and torso upright, heading ``yaw`` [rad] (the torso turned by ``torso_yaw_gain``)."""
+        torso, gain = self.standing.torso, self.config.torso_yaw_gain
+        if self._counter_yaw is not None and gain and torso is not None:
+            a, b = self._counter_yaw
+            turn = gain * (float(q[a]) - float(q[b]))
+            torso.set_target(pin.SE3(pin.rpy.rpyToMatrix(0.0, 0.0, yaw + turn), np.zeros(3)))
+            self.standing.base.set_target(pin.SE3(pin.rpy.rpyToMatrix(0.0, 0.0, yaw), np.zeros(3)))
+            return
+        tasks = [t for t in (self.standing.base, torso) if t is not None]
         last = self._oriented
         if last is not None and last[0] == yaw and all(
                 task.transform_target_to_world is X for task, X in zip(tasks, last[1], strict=True)):

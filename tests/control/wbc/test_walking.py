@@ -25,6 +25,7 @@ from mbctl.control.wbc import (
     WBCConfig,
     dcm_tube,
     foot_contact_from_model,
+    quick_gait,
 )
 from mbctl.planners import Footstep, FootstepPlanner, GaitTiming, InvalidPlanningInput, StepLimits
 from mbctl.planners.swing import SwingSample
@@ -194,7 +195,8 @@ def test_the_command_is_clamped_and_reported(tiny_biped, crouch):
         WalkingConfig(torsion_m=0.0)
     with pytest.raises(WBCSetupError, match=r"WalkingConfig.replan_period_s=-0.002 is out of range"):
         WalkingConfig(replan_period_s=-0.002)
-    with pytest.raises(WBCSetupError, match="arm_swing names joints the model does not have: l_shoulder"):
+    with pytest.raises(WBCSetupError, match="arm_swing or torso_counter_yaw names joints the model does not "
+                                            "have: l_shoulder"):
         WalkingController(tiny_biped, FEET, "pelvis", "torso", crouch(tiny_biped), CONFIG,
                           arm_swing={"l_shoulder": "r_hip_pitch"})
 
@@ -338,3 +340,50 @@ def test_footsteps_are_planned_every_replan_period_and_at_every_contact_event(ti
     assert off_schedule == [] and len(retargets) > 100
     # within a swing's retargeting window (0.6 of 0.5 s) it is planned every 5th cycle
     assert np.median(gaps) == pytest.approx(0.01)
+
+
+def test_the_torso_turns_against_the_legs_by_its_yaw_gain_and_is_held_lighter(tiny_biped, crouch):
+    """torso_yaw_gain: the torso's yaw target is the heading plus the gain times q_a - q_b; the pelvis's
+    stays the heading; torso_cost replaces the standing task set's torso weight."""
+    config = replace(CONFIG, torso_yaw_gain=0.6, torso_cost=0.5)
+    q0 = crouch(tiny_biped)
+    walker = WalkingController(tiny_biped, FEET, "pelvis", "torso", q0, config,
+                               torso_counter_yaw=("l_hip_pitch", "r_hip_pitch"))
+    np.testing.assert_array_equal(walker.standing.torso.cost, 0.5)
+    m = walker.model
+    a, b = (m.joints[m.getJointId(j)].idx_q for j in ("l_hip_pitch", "r_hip_pitch"))
+    q = q0.copy()
+    q[a] += 0.2  # the left thigh 0.2 rad back of the right's: the torso turns 0.12 rad
+    sim = Simulator(tiny_biped)
+    sim.set_state(q, np.zeros(tiny_biped.nv))
+    state = sim.read_state()
+    walker.compute(state)
+    heading = walker.gait.heading(state.time_s)
+
+    def yaw(task):
+        R = task.transform_target_to_world.rotation
+        return math.atan2(R[1, 0], R[0, 0])
+
+    assert yaw(walker.standing.torso) == pytest.approx(heading + 0.6 * (state.q[a] - state.q[b]), abs=1e-12)
+    assert yaw(walker.standing.base) == pytest.approx(heading, abs=1e-12)
+    plain = WalkingController(tiny_biped, FEET, "pelvis", "torso", q0, CONFIG)
+    plain.compute(state)
+    assert yaw(plain.standing.torso) == pytest.approx(plain.gait.heading(state.time_s), abs=1e-12)
+    np.testing.assert_array_equal(plain.standing.torso.cost, 2.0)
+    with pytest.raises(WBCSetupError, match="torso_counter_yaw names joints the model does not have: l_hip"):
+        WalkingController(tiny_biped, FEET, "pelvis", "torso", q0, config,
+                          torso_counter_yaw=("l_hip", "r_knee"))
+    with pytest.raises(WBCSetupError, match=r"WalkingConfig.torso_cost=0.0 is out of range"):
+        WalkingConfig(torso_cost=0.0)
+    with pytest.raises(WBCSetupError, match=r"WalkingConfig.torso_yaw_gain=nan is out of range"):
+        WalkingConfig(torso_yaw_gain=math.nan)
+
+
+def test_the_quick_gait_steps_quicker_and_takes_overrides():
+    quick = quick_gait()
+    assert quick.timing == GaitTiming(0.28, 0.03) and quick.ramp_s == 0.03
+    assert quick.min_single_support_s == 0.25 and quick.swing_horizontal_fraction == 1.0
+    assert (quick.lift_height_m, quick.torso_cost, quick.torso_yaw_gain) == (0.05, 0.5, 0.6)
+    assert quick_gait(com_height_m=0.5).com_height_m == 0.5 and quick_gait(ramp_s=0.02).ramp_s == 0.02
+    with pytest.raises(WBCSetupError, match=r"WalkingConfig.ramp_s=0.05 is out of range"):
+        quick_gait(ramp_s=0.05)  # above its 0.03 s double support
