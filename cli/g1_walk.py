@@ -12,6 +12,7 @@ from mbctl.cli.robots import ModelDirOpt, ModelErrorOpt
 from mbctl.jobs.g1_walk_choices import (
     WALK_DEFAULT_DURATION_S,
     WALK_DEFAULT_SPEED,
+    WALK_GAITS,
     WALK_PUSH_PHASES,
     WALK_SCENARIOS,
 )
@@ -59,6 +60,11 @@ def g1_walk(
                                          "origin, heading +x) or a file of such lines (course only; default: "
                                          "12 waypoints over about 10 m); --speed caps the command."),
     ] = None,
+    gait: Annotated[
+        str,
+        typer.Option("--gait", help=f"The walking options: {', '.join(WALK_GAITS)} (quick: 0.28 s steps, a "
+                                    "lighter torso turned against the legs, for speeds up to ~1 m/s)."),
+    ] = "normal",
     model_error: ModelErrorOpt = 0.0,
     model_dir: ModelDirOpt = None,
     output: OutputOpt = None,
@@ -78,7 +84,7 @@ def g1_walk(
 
     params = g1_walk_params(scenario=scenario, speed=speed, duration=duration, impulse=impulse,
                             direction=direction, push_phase=push_phase, push_hold=push_hold,
-                            waypoints=waypoints,
+                            waypoints=waypoints, gait=gait,
                             model_error=model_error,
                             model_dir=model_dir, **(extra or {}))
     execute(G1_WALK, params, output, quiet, video_spec(video, video_size))

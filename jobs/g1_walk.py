@@ -34,7 +34,7 @@ needs a median foot slip within :data:`MAX_MEDIAN_SLIP_M` (the issue's target fo
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Any
 
 import numpy as np
@@ -42,10 +42,11 @@ import pinocchio as pin
 
 from mbctl.control.exceptions import WBCSetupError
 from mbctl.control.loop import run
-from mbctl.control.wbc import WalkingConfig, WalkingController, WBCConfig
+from mbctl.control.wbc import WalkingConfig, WalkingController, WBCConfig, quick_gait
 from mbctl.jobs.g1_walk_choices import (
     WALK_DEFAULT_DURATION_S,
     WALK_DEFAULT_SPEED,
+    WALK_GAITS,
     WALK_PUSH_PHASES,
     WALK_SCENARIOS,
 )
@@ -107,6 +108,8 @@ class WalkParams:
             None: :data:`~mbctl.jobs.g1_walk_push.PUSH_HOLD_S`, 0.1 s).
         waypoints: The course "X,Y,YAW;..." (m, m, deg) or a file of such lines (course only; None: the
             default course).
+        gait: The walking options: "normal" or "quick" (:data:`WALK_GAITS`; quick steps faster, for
+            speeds the normal gait's step limits cap, up to ~1 m/s).
         model_error: The controller model's link masses and inertias off by this [%].
         model_dir: Explicit G1 folder (else MENAGERIE_ROOT, the package cache).
         plant: In-process (with an optional link model) or the G1 over DDS.
@@ -122,6 +125,7 @@ class WalkParams:
     push_phase: str | None = None
     push_hold: float | None = None
     waypoints: str | None = None
+    gait: str = "normal"
     model_error: float = 0.0
     model_dir: str | None = None
     plant: PlantOptions = PlantOptions()
@@ -139,6 +143,8 @@ class WalkParams:
             raise WBCSetupError("--waypoints applies to the course scenario only")
         if self.scenario == "course":
             parse_waypoints(self.waypoints)
+        if self.gait not in WALK_GAITS:
+            raise WBCSetupError(f"unknown gait {self.gait!r}; choose one of {', '.join(WALK_GAITS)}")
 
     def _check_push(self) -> None:
         names = ("impulse", "direction", "push_phase", "push_hold")
@@ -186,9 +192,9 @@ class WalkParams:
 def g1_walk_params(scenario: str = "forward", speed: str | None = None, duration: float | None = None,
                    impulse: float | None = None, direction: float | None = None,
                    push_phase: str | None = None, push_hold: float | None = None,
-                   waypoints: str | None = None, model_error: float = 0.0,
+                   waypoints: str | None = None, gait: str = "normal", model_error: float = 0.0,
                    model_dir: str | None = None, **options: Any) -> WalkParams:
-    """``mbctl g1-walk``: speed "VX[,VY[,YAW_RATE]]", duration, impulse, direction, push hold, model error.
+    """``mbctl g1-walk``: speed "VX[,VY[,YAW_RATE]]", duration, push, gait, model error.
 
     Units: duration [s], impulse [N s], direction [deg], push hold [s], model error [%].
 
@@ -199,7 +205,7 @@ def g1_walk_params(scenario: str = "forward", speed: str | None = None, duration
     from mbctl.jobs.options import plant
 
     model = {k: options.pop(k) for k in _MODEL_OPTIONS if k in options}
-    return WalkParams(scenario, speed, duration, impulse, direction, push_phase, push_hold, waypoints,
+    return WalkParams(scenario, speed, duration, impulse, direction, push_phase, push_hold, waypoints, gait,
                       model_error, model_dir, plant(**options), ModelOptions(**model))
 
 
@@ -235,12 +241,21 @@ G1_ARM_SWING = {"left_shoulder_pitch_joint": "right_hip_pitch_joint",
                 "right_shoulder_pitch_joint": "left_hip_pitch_joint"}
 
 
+#: The joints whose difference turns the G1's torso against the legs (``WalkingConfig.torso_yaw_gain``).
+G1_TORSO_COUNTER_YAW = ("left_hip_pitch_joint", "right_hip_pitch_joint")
+
+
 def g1_walker(robot: Robot, start_q: np.ndarray, pin_model: pin.Model | None = None,
-              config: WalkingConfig | None = None) -> WalkingController:
-    """The walking controller on a torque-mode G1 (G1 frame names, arm swing) from the start configuration."""
-    return WalkingController(robot, FEET, PELVIS, TORSO, start_q,
-                             config or WalkingConfig(wbc=WBCConfig(on_infeasible="damp")), pin_model,
-                             arm_swing=G1_ARM_SWING)
+              config: WalkingConfig | None = None, gait: str = "normal") -> WalkingController:
+    """The walking controller on a torque-mode G1 (G1 frame names, arm swing) from the start configuration.
+
+    ``config`` (else the ``gait``'s options: :data:`WALK_GAITS`) with the QP damping where infeasible.
+    """
+    if config is None:
+        wbc = WBCConfig(on_infeasible="damp")
+        config = quick_gait(wbc=wbc) if gait == "quick" else WalkingConfig(wbc=wbc)
+    return WalkingController(robot, FEET, PELVIS, TORSO, start_q, config, pin_model, arm_swing=G1_ARM_SWING,
+                             torso_counter_yaw=G1_TORSO_COUNTER_YAW)
 
 
 def prepare(params: WalkParams, robot: Robot | None = None) -> Work:
@@ -255,7 +270,7 @@ def prepare(params: WalkParams, robot: Robot | None = None) -> Work:
     if params.model_error:
         pin_model = scale_masses(pin_model, 1.0 + params.model_error / 100.0)
     start_q = crouched_start(robot)
-    walker = g1_walker(robot, start_q, pin_model)  # bad limits or frames: exit 2 before any output
+    walker = g1_walker(robot, start_q, pin_model, gait=params.gait)  # bad limits or frames: exit 2 first
     walker.set_command(params.command)
     plant = prepare_plant(params.plant, robot, KEYFRAME, start_q=start_q, contact_forces=True)
 
@@ -301,7 +316,7 @@ def _run(ctx: RunContext, params: WalkParams, robot: Robot, walker: WalkingContr
     log = WalkLog(ctx, walker, monitor, pushes, n, mg_n)
     clamp = walker.command
     ctx.sections["inputs"] = {
-        "scenario": params.scenario, "keyframe": KEYFRAME,
+        "scenario": params.scenario, "gait": params.gait, "keyframe": KEYFRAME,
         "controller": "walking on the whole-body QP (control/wbc)",
         "command_requested": list(clamp.requested), "command_applied": list(clamp.applied),
         "command_limited_by": list(clamp.limited_by), "model_error_pct": params.model_error,
@@ -339,7 +354,17 @@ def _run(ctx: RunContext, params: WalkParams, robot: Robot, walker: WalkingContr
     from mbctl.jobs.g1_walk_plots import walk_plots
 
     walk_plots(ctx, log, walker, params, values)
-    return _outcome(params, values, iface.time_s)
+    outcome = _outcome(params, values, iface.time_s)
+    if clamp.clamped:  # what the step limits made of the command, and where more is to be had
+        more = "; --gait quick steps quicker (up to ~1 m/s)" if params.gait == "normal" else ""
+        outcome = replace(outcome, summary=(*outcome.summary, (
+            f"command {_triple(clamp.requested)} limited to {_triple(clamp.applied)} by the "
+            f"{', '.join(clamp.limited_by)} limit{more}")))
+    return outcome
+
+
+def _triple(command: VelocityCommand) -> str:
+    return ",".join(f"{x:.3g}" for x in command)
 
 
 def path_length(t_s: np.ndarray, q: np.ndarray, period_s: float) -> float:
