@@ -5,7 +5,8 @@ is ``impulse / hold``), from a
 direction in the world's x-y plane (0 deg = +x, the walk's start heading; 90 = +y, its left). The
 first comes after :data:`FIRST_PUSH_S` of walking, the next :data:`PUSH_PERIOD_S` after the previous
 one; each starts at the first control cycle, from then on, in its gait phase (:data:`PUSH_PHASES`):
-``early`` and ``late`` single support (at 10 % and 60 % of the swing), ``double`` support. The plant
+``early`` and ``late`` single support (the cycle a swing passes 10 % or 60 % of its time: a due time
+later in a swing waits for the next swing), ``double`` support (its first cycle from then on). The plant
 applies it through :class:`~mbctl.sim.perturb.PushSchedule` (``xfrc_applied``), armed from the
 control loop when the phase comes.
 
@@ -85,6 +86,7 @@ class PhasePushes:
         self._schedule: PushSchedule | None = None
         self.records: list[PushRecord] = []
         self.force_W = np.zeros(3)
+        self._last_swing: tuple[object, float] | None = None  # the last cycle's swing and its phase
 
     def apply(self, data: mujoco.MjData) -> np.ndarray:
         """Apply the armed push at this physics step (the simulator calls this before each step)."""
@@ -114,9 +116,14 @@ class PhasePushes:
             return
         due = FIRST_PUSH_S + k * PUSH_PERIOD_S + (gait.t0_s if gait is not None else 0.0)
         name, fraction = PUSH_PHASES[self.phase]
-        swing = gait.swing
-        in_phase = status.phase == name and (
-            name == "double" or (swing is not None and swing.path.at(t_s).phase >= fraction))
+        swing, last = gait.swing, self._last_swing
+        phase = swing.path.at(t_s).phase if swing is not None else None
+        self._last_swing = (swing, phase) if phase is not None else None
+        # single support: the cycle the swing's phase passes the fraction (not any cycle past it: a due
+        # time late in a swing waits for the next one); double support: its first cycle from the due time
+        crossed = phase is not None and phase >= fraction and (
+            last is None or last[0] is not swing or last[1] < fraction)
+        in_phase = status.phase == name and (name == "double" or crossed)
         if t_s < due or not in_phase:
             return
         angle = math.radians(self.directions_deg[k])

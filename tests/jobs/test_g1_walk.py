@@ -111,6 +111,38 @@ def test_the_quick_gait_walks_the_g1_at_1_m_s_where_the_normal_one_is_capped(g1,
         WalkParams(gait="fast")
 
 
+@pytest.mark.parametrize("phase, starts_s", [("early", 3.05 + 0.1 * 0.28), ("late", 3.05 + 0.6 * 0.28),
+                                             ("double", 3.0)])
+def test_a_push_waits_for_its_gait_phase_not_any_cycle_past_it(g1, phase, starts_s):
+    """Due at 3.0 s late in a swing (at 89 % of it): an early or late push waits for the next swing
+    to pass 10 or 60 % (the quick gait's 0.28 s swings met every due time past 60 %: early and late
+    were the same push); a double-support push starts at the due time when it is in double support."""
+    from types import SimpleNamespace
+
+    from mbctl.jobs.g1_walk_push import PhasePushes
+
+    class Path:
+        def __init__(self, t0_s):
+            self.t0_s = t0_s
+
+        def at(self, t_s):
+            return SimpleNamespace(phase=(t_s - self.t0_s) / 0.28)
+
+    first, second = SimpleNamespace(path=Path(2.75)), SimpleNamespace(path=Path(3.05))
+    status = SimpleNamespace(phase="single", dcm=np.zeros(2), dcm_ref=np.zeros(2))
+    gait = SimpleNamespace(t0_s=0.0, swing=first, steps=0)
+    walker = SimpleNamespace(status=status, gait=gait)
+    pushes = PhasePushes(g1.mj_model, walker, [90.0], 15.0, phase)
+    for k in range(int(round(2.9 / 0.002)), int(round(3.4 / 0.002))):
+        t = k * 0.002
+        double = 2.75 + 0.28 <= t < 3.05 or (phase == "double" and t >= 2.99)  # (a double support at 3.0)
+        status.phase = "double" if double else "single"
+        gait.swing = None if double else first if t < 3.05 else second
+        pushes.on_cycle(t, t, False)
+    assert len(pushes.records) == 1
+    assert pushes.records[0].time_s == pytest.approx(starts_s, abs=0.002 + 1e-9)
+
+
 def test_a_push_held_0_08_s_applies_impulse_over_hold_and_reports_it(g1, tmp_path):
     record = _run(g1, tmp_path, scenario="push", speed="0.3", impulse=8.0, direction=0.0, push_hold=0.08,
                   duration=3.6)
