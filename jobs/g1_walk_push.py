@@ -116,13 +116,13 @@ class PhasePushes:
             return
         due = FIRST_PUSH_S + k * PUSH_PERIOD_S + (gait.t0_s if gait is not None else 0.0)
         name, fraction = PUSH_PHASES[self.phase]
-        swing, last = gait.swing, self._last_swing
+        swing, before = gait.swing, self._last_swing
         phase = swing.path.at(t_s).phase if swing is not None else None
         self._last_swing = (swing, phase) if phase is not None else None
         # single support: the cycle the swing's phase passes the fraction (not any cycle past it: a due
         # time late in a swing waits for the next one); double support: its first cycle from the due time
         crossed = phase is not None and phase >= fraction and (
-            last is None or last[0] is not swing or last[1] < fraction)
+            before is None or before[0] is not swing or before[1] < fraction)
         in_phase = status.phase == name and (name == "double" or crossed)
         if t_s < due or not in_phase:
             return
