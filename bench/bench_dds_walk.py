@@ -1,6 +1,6 @@
 """The G1 walking over DDS against ``mbctl serve g1`` (issue 28's target: < 1 % deadline misses).
 
-Run: MENAGERIE_ROOT=../shared/menagerie python bench/bench_dds_walk.py [--seconds 20] [--runs 3]
+Run: MENAGERIE_ROOT=../shared/menagerie python bench/bench_dds_walk.py [--seconds 20] [--runs 3] [--gait G]
 
 Each round runs ``mbctl g1-walk forward --speed 0.3 --interface dds --watchdog-periods 50 --truth ...``
 against ``mbctl serve g1 --start crouched`` (a fresh bridge and DDS domain each time, on ``lo``) twice,
@@ -33,10 +33,11 @@ FIGURES = ("misses_pct", "cpu_overruns_pct", "controller_us", "work_p99_ms", "di
 MODES: dict[str, tuple[str, str] | None] = {"pinned": ("1", "0"), "unpinned": None}
 
 
-def walk_over_dds(folder: Path, seconds: float, cpus: tuple[str, str] | None) -> dict[str, float] | str:
+def walk_over_dds(folder: Path, seconds: float, cpus: tuple[str, str] | None,
+                  gait: str = "normal") -> dict[str, float] | str:
     """One walk over DDS: its figures, or why there are none."""
     job = ["g1-walk", "forward", "--speed", "0.3", "--duration", str(seconds), "--watchdog-periods", "50",
-           "--wait-s", "120"]
+           "--wait-s", "120", "--gait", gait]
     with reserve_domain() as domain:
         out = over_dds(domain, folder, job, "--start", "crouched", cpus=cpus)
     report = json.loads((folder / "dds" / "report.json").read_text())
@@ -54,16 +55,18 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--seconds", type=float, default=20.0, help="each walk's length (s)")
     parser.add_argument("--runs", type=int, default=3, help="rounds (each: one pinned, one unpinned walk)")
+    parser.add_argument("--gait", default="normal", help="g1-walk's --gait (normal, quick)")
     args = parser.parse_args()
     modes = dict(MODES) if len(os.sched_getaffinity(0)) >= 2 else {"unpinned": None}
-    print(f"g1-walk forward 0.3 m/s {args.seconds:g} s over DDS, {args.runs} rounds of {', '.join(modes)} "
+    print(f"g1-walk forward 0.3 m/s, {args.gait} gait, {args.seconds:g} s over DDS, {args.runs} rounds of "
+          f"{', '.join(modes)} "
           f"(target: misses < 1 %); load average before: {loadavg()}")
     rows: dict[str, list[dict[str, float]]] = {mode: [] for mode in modes}
     with tempfile.TemporaryDirectory() as tmp:
         for run in range(args.runs):
             for mode, cpus in modes.items():
                 load = loadavg()
-                got = walk_over_dds(Path(tmp) / f"{mode}-{run}", args.seconds, cpus)
+                got = walk_over_dds(Path(tmp) / f"{mode}-{run}", args.seconds, cpus, args.gait)
                 if isinstance(got, str):
                     print(f"  {mode} run {run + 1} (load {load}): {got}")
                     continue
