@@ -3,6 +3,7 @@ QP, and a 20 s walk against real time.
 
     python bench/bench_walk.py                 # all three (needs MENAGERIE_ROOT)
     python bench/bench_walk.py --walk-s 20     # the walk's simulated time (default 20 s)
+    python bench/bench_walk.py --gait normal   # the normal gait's walker (default: the job's, quick)
 
 Cycle timings are medians over the same states of a walk at 0.3 m/s (the walker's own, every
 cycle from its first, so a fresh walker replaying them decides as the recording one did and its
@@ -33,7 +34,7 @@ from pathlib import Path
 import numpy as np
 
 from mbctl.control.loop import run
-from mbctl.control.wbc import WalkingConfig, WalkingController, WBCConfig, standing_controller
+from mbctl.control.wbc import WalkingConfig, WalkingController, WBCConfig, quick_gait, standing_controller
 from mbctl.jobs.g1_walk import G1_WALK, WalkParams, prepare
 from mbctl.jobs.runner import Job, run_job
 from mbctl.planners import Footstep
@@ -45,9 +46,13 @@ from mbctl.sim.simulator import Simulator
 sys.path.insert(0, str(Path(__file__).parent))
 from harness import interleaved  # noqa: E402
 
+#: The walker's gait (``--gait``: the job's ``--gait``).
+GAIT = {"gait": "quick"}
+
 
 def _walker(robot, q0, force_space: bool = True, **options):
-    config = WalkingConfig(wbc=WBCConfig(on_infeasible="damp", force_space=force_space), **options)
+    options["wbc"] = WBCConfig(on_infeasible="damp", force_space=force_space)
+    config = quick_gait(**options) if GAIT["gait"] == "quick" else WalkingConfig(**options)
     return WalkingController(robot, FEET, PELVIS, TORSO, q0, config)
 
 
@@ -184,10 +189,11 @@ def walk(robot, seconds: float, folder: Path) -> None:
     """``g1-walk forward`` through the job: wall time against simulated time."""
     job = Job(G1_WALK.name, partial(prepare, robot=robot))
     t0 = time.perf_counter()
-    record = run_job(job, WalkParams("forward", "0.3", seconds), folder, quiet=True)
+    record = run_job(job, WalkParams("forward", "0.3", seconds, gait=GAIT["gait"]), folder, quiet=True)
     wall = time.perf_counter() - t0
     v = record.values
-    print(f"g1-walk forward --speed 0.3 --duration {seconds:g}: {wall:.1f} s wall for {seconds:g} s "
+    print(f"g1-walk forward --speed 0.3 --duration {seconds:g} --gait {GAIT['gait']}: {wall:.1f} s wall for "
+          f"{seconds:g} s "
           f"simulated = {wall / seconds:.2f} x real time (target <= 1.5), fell {v['fell']}, "
           f"{v['distance_m']:.2f} m; load {os.getloadavg()[0]:.2f}")
 
@@ -198,7 +204,10 @@ def main() -> int:
     parser.add_argument("--walk-s", type=float, default=20.0, help="simulated time of the timed walk (s)")
     parser.add_argument("--rounds", type=int, default=5, help="interleaved rounds of the cycle timings")
     parser.add_argument("--output", type=Path, default=Path("out/bench_walk"), help="the walk's run folder")
+    parser.add_argument("--gait", choices=("quick", "normal"), default="quick", help="the walker's gait")
     args = parser.parse_args()
+    GAIT["gait"] = args.gait
+    print(f"the {args.gait} gait's walker")
     robot = position_to_motor(with_palm_sites(load_robot("g1")))
     q0 = crouched_start(robot)
     cycles(robot, q0, args.rounds)

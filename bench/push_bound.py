@@ -85,7 +85,7 @@ def g1_model() -> Model:
     from mbctl.robots.registry import load_robot
 
     robot = whole_body_g1(load_robot("g1"))
-    walker = g1_walker(robot, crouched_start(robot))
+    walker = g1_walker(robot, crouched_start(robot), gait="normal")  # (docs/api/walking.rst's figures)
     lim, cfg = walker.limits, walker.config
     xs = [x for x, _ in lim.sole_xy_m]
     ys = [y for _, y in lim.sole_xy_m]

@@ -4,7 +4,8 @@
     MENAGERIE_ROOT=... python bench/push_map.py --bisect 10,48 --hold 0.08 --phases early
 
 Not a timing: each case is ``mbctl g1-walk push --speed 0.3 --impulse I --push-hold H --direction D
---push-phase P --duration 6.5`` run in-process (the job itself, its walker probed cycle by cycle).
+--push-phase P --duration 6.5 --gait G`` (``--gait``, default normal: the gait docs/api/walking.rst's
+48 N s figures are of) run in-process (the job itself, its walker probed cycle by cycle).
 For each case: ``survived`` (the job's), the touchdowns between the push and the fall (or the
 first four), and for each step its footstep from the stance foot (forward, and outward from the
 stance foot's side, in the world: the walk heads +x), its swing time, and the limit the step
@@ -29,7 +30,8 @@ import mujoco
 import numpy as np
 
 
-def run_case(robot: Any, impulse: float, direction: float, phase: str, hold: float, folder: str) -> dict:
+def run_case(robot: Any, impulse: float, direction: float, phase: str, hold: float, folder: str,
+             gait: str = "normal") -> dict:
     """One push, the job run in-process with its walker probed; the case's figures (see the module)."""
     import mbctl.jobs.g1_walk as walk
     from mbctl.jobs.runner import Job, run_job
@@ -59,7 +61,7 @@ def run_case(robot: Any, impulse: float, direction: float, phase: str, hold: flo
     walk.g1_walker = probed
     try:
         params = walk.WalkParams("push", speed="0.3", duration=6.5, impulse=impulse, direction=direction,
-                                 push_phase=phase, push_hold=hold)
+                                 push_phase=phase, push_hold=hold, gait=gait)
         record = run_job(Job("g1-walk", lambda p: walk.prepare(p, robot)), params, folder, quiet=True)
     finally:
         walk.g1_walker = make
@@ -122,6 +124,7 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--directions", default="0,45,90,135,180,225,270,315", help="[deg]")
     ap.add_argument("--bisect", default=None, help="LO,HI [N s]: the largest impulse survived instead")
     ap.add_argument("--json", default=None, help="write the figures here")
+    ap.add_argument("--gait", choices=("normal", "quick"), default="normal", help="g1-walk's --gait")
     args = ap.parse_args(argv)
     from mbctl.robots.registry import load_robot
 
@@ -132,20 +135,21 @@ def main(argv: list[str] | None = None) -> int:
         for direction in (float(d) for d in args.directions.split(",")):
             key = f"{phase} {direction:g}"
             if args.bisect is None:
-                figures[key] = run_case(robot, args.impulse, direction, phase, args.hold, folder)
+                figures[key] = run_case(robot, args.impulse, direction, phase, args.hold, folder, args.gait)
                 f = figures[key]
                 first = f.get("steps", [])[:1]
                 print(f"{key}: {'survived' if f['survived'] else 'FELL'}; steps {len(f.get('steps', []))}; "
                       f"first {first[0] if first else 'none'}", flush=True)
             else:
                 lo, hi = (float(x) for x in args.bisect.split(","))
-                if run_case(robot, hi, direction, phase, args.hold, folder)["survived"]:
+                if run_case(robot, hi, direction, phase, args.hold, folder, args.gait)["survived"]:
                     lo = hi
-                elif not run_case(robot, lo, direction, phase, args.hold, folder)["survived"]:
+                elif not run_case(robot, lo, direction, phase, args.hold, folder, args.gait)["survived"]:
                     lo, hi = 0.0, lo
                 while hi - lo > 1.0 + 1e-9:
                     mid = round(0.5 * (lo + hi), 1)
-                    survived = run_case(robot, mid, direction, phase, args.hold, folder)["survived"]
+                    survived = run_case(robot, mid, direction, phase, args.hold, folder,
+                                        args.gait)["survived"]
                     lo, hi = (mid, hi) if survived else (lo, mid)
                 figures[key] = dict(largest_survived_n_s=lo, smallest_fell_n_s=hi)
                 print(f"{key}: survived {lo:g} N s, fell at {hi:g}", flush=True)

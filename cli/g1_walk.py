@@ -62,9 +62,10 @@ def g1_walk(
     ] = None,
     gait: Annotated[
         str,
-        typer.Option("--gait", help=f"The walking options: {', '.join(WALK_GAITS)} (quick: 0.28 s steps, a "
-                                    "lighter torso turned against the legs, for speeds up to ~1 m/s)."),
-    ] = "normal",
+        typer.Option("--gait", help=f"The walking options: {', '.join(WALK_GAITS)} (quick, the default: a "
+                                    "step every 0.31 s, a lighter torso turned against the legs, up to ~1 "
+                                    "m/s; normal: a step every 0.6 s, capped near 0.6 m/s)."),
+    ] = "quick",
     model_error: ModelErrorOpt = 0.0,
     model_dir: ModelDirOpt = None,
     output: OutputOpt = None,

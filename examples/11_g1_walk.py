@@ -28,7 +28,7 @@ import sys
 import numpy as np
 
 from mbctl.control import run
-from mbctl.control.wbc import WalkingConfig, WalkingController, WBCConfig
+from mbctl.control.wbc import WalkingController, WBCConfig, quick_gait
 from mbctl.robots import ModelFileError, ModelNotFoundError, load_robot
 from mbctl.robots.edits import position_to_motor
 from mbctl.robots.g1 import FEET, G1_FALL, KEYFRAME, PELVIS, TORSO, crouched_start
@@ -91,10 +91,12 @@ def main() -> int:
     sim = Simulator(robot)
     sim.reset(KEYFRAME)
     sim.set_state(q0, np.zeros(robot.nv))
-    config = WalkingConfig(wbc=WBCConfig(on_infeasible="damp"))  # no QP solution: damping, and see it fall
+    # the quick gait (g1-walk's default: a step every 0.31 s); no QP solution: damping, and see it fall
+    config = quick_gait(wbc=WBCConfig(on_infeasible="damp"))
     arms = {"left_shoulder_pitch_joint": "right_hip_pitch_joint",  # each arm swings against the other leg
             "right_shoulder_pitch_joint": "left_hip_pitch_joint"}
-    walker = WalkingController(robot, FEET, PELVIS, TORSO, q0, config, arm_swing=arms)
+    walker = WalkingController(robot, FEET, PELVIS, TORSO, q0, config, arm_swing=arms,
+                               torso_counter_yaw=("left_hip_pitch_joint", "right_hip_pitch_joint"))
     feet = {name: contact.contact.geoms for name, contact in walker.wbc.contacts.items()}
     monitor = PlantMonitor(sim, feet, sites=FEET, fall_rule=G1_FALL.reason).attach()
     walker.contact_force = lambda foot: monitor.contacts[foot].normal_n if monitor.contacts else None

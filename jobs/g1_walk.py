@@ -7,6 +7,9 @@ command, (vx, vy, yaw rate) in the body frame, from the crouched start. In-proce
 detected from the plant's contact sensor (the normal force MuJoCo applied on each foot's geoms);
 over DDS from the sole's height (the base from the estimator).
 
+The walking options are the gait's (``--gait``): ``quick`` by default (:func:`~mbctl.control.wbc.quick_gait`:
+a step every 0.31 s, up to about 1 m/s), or ``normal`` (``WalkingConfig()``: a step every 0.6 s).
+
 Scenarios (``--speed VX[,VY[,YAW_RATE]]`` m/s, m/s, rad/s; default in :data:`DEFAULT_SPEED`):
 
 - ``forward``: (vx, vy, yaw rate) as given; ``backward``: the same with vx backward (-|vx|);
@@ -108,8 +111,9 @@ class WalkParams:
             None: :data:`~mbctl.jobs.g1_walk_push.PUSH_HOLD_S`, 0.1 s).
         waypoints: The course "X,Y,YAW;..." (m, m, deg) or a file of such lines (course only; None: the
             default course).
-        gait: The walking options: "normal" or "quick" (:data:`WALK_GAITS`; quick steps faster, for
-            speeds the normal gait's step limits cap, up to ~1 m/s).
+        gait: The walking options: "quick" (the default: :func:`~mbctl.control.wbc.quick_gait`, a step
+            every 0.31 s, up to ~1 m/s) or "normal" (``WalkingConfig()``'s, a step every 0.6 s, capped
+            near 0.6 m/s) (:data:`WALK_GAITS`).
         model_error: The controller model's link masses and inertias off by this [%].
         model_dir: Explicit G1 folder (else MENAGERIE_ROOT, the package cache).
         plant: In-process (with an optional link model) or the G1 over DDS.
@@ -125,7 +129,7 @@ class WalkParams:
     push_phase: str | None = None
     push_hold: float | None = None
     waypoints: str | None = None
-    gait: str = "normal"
+    gait: str = "quick"
     model_error: float = 0.0
     model_dir: str | None = None
     plant: PlantOptions = PlantOptions()
@@ -192,7 +196,7 @@ class WalkParams:
 def g1_walk_params(scenario: str = "forward", speed: str | None = None, duration: float | None = None,
                    impulse: float | None = None, direction: float | None = None,
                    push_phase: str | None = None, push_hold: float | None = None,
-                   waypoints: str | None = None, gait: str = "normal", model_error: float = 0.0,
+                   waypoints: str | None = None, gait: str = "quick", model_error: float = 0.0,
                    model_dir: str | None = None, **options: Any) -> WalkParams:
     """``mbctl g1-walk``: speed "VX[,VY[,YAW_RATE]]", duration, push, gait, model error.
 
@@ -246,7 +250,7 @@ G1_TORSO_COUNTER_YAW = ("left_hip_pitch_joint", "right_hip_pitch_joint")
 
 
 def g1_walker(robot: Robot, start_q: np.ndarray, pin_model: pin.Model | None = None,
-              config: WalkingConfig | None = None, gait: str = "normal") -> WalkingController:
+              config: WalkingConfig | None = None, gait: str = "quick") -> WalkingController:
     """The walking controller on a torque-mode G1 (G1 frame names, arm swing) from the start configuration.
 
     ``config`` (else the ``gait``'s options: :data:`WALK_GAITS`) with the QP damping where infeasible.
@@ -356,7 +360,7 @@ def _run(ctx: RunContext, params: WalkParams, robot: Robot, walker: WalkingContr
     walk_plots(ctx, log, walker, params, values)
     outcome = _outcome(params, values, iface.time_s)
     if clamp.clamped:  # what the step limits made of the command, and where more is to be had
-        more = "; --gait quick steps quicker (up to ~1 m/s)" if params.gait == "normal" else ""
+        more = "; the quick gait (the default) steps quicker, up to ~1 m/s" if params.gait == "normal" else ""
         outcome = replace(outcome, summary=(*outcome.summary, (
             f"command {_triple(clamp.requested)} limited to {_triple(clamp.applied)} by the "
             f"{', '.join(clamp.limited_by)} limit{more}")))

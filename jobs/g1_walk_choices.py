@@ -8,8 +8,9 @@ WALK_SCENARIOS = ("forward", "backward", "side", "turn", "course", "push")
 #: ``--push-phase``: where in the gait a push starts (``mbctl.jobs.g1_walk_push.PUSH_PHASES``).
 WALK_PUSH_PHASES = ("early", "late", "double")
 
-#: ``--gait``: the walking options (normal: ``WalkingConfig()``'s; quick: ``quick_gait()``, up to ~1 m/s).
-WALK_GAITS = ("normal", "quick")
+#: ``--gait``: the walking options (quick, the default: ``quick_gait()``, up to ~1 m/s; normal:
+#: ``WalkingConfig()``'s).
+WALK_GAITS = ("quick", "normal")
 
 #: Each scenario's default command: (vx [m/s], vy [m/s], yaw rate [rad/s]).
 WALK_DEFAULT_SPEED = {"forward": (0.3, 0.0, 0.0), "backward": (0.3, 0.0, 0.0), "side": (0.0, 0.2, 0.0),

@@ -62,7 +62,7 @@ def _top_view(ctx: RunContext, log: WalkLog, walker: WalkingController, params: 
     verdict = "FELL" if values["fell"] else "walked"
     command = ", ".join(f"{v:g}" for v in params.command)
     moved = (f"{values['path_m']:.2f} m walked" if "path_m" in values else f"{values['distance_m']:.2f} m")
-    gait = "" if params.gait == "normal" else f", {params.gait} gait"
+    gait = f", {params.gait} gait"
     fig.suptitle(f"G1 walking, {params.scenario} at ({command}){gait}: {verdict}, {values['steps']} steps, "
                  f"{moved}; DCM RMS {values['dcm_rms_m'] * 1e3:.1f} mm" + note)
     ctx.save_figure(fig, "g1_walk.png")

@@ -93,9 +93,9 @@ def test_speed_parsing_and_bad_input():
 
 
 def test_the_quick_gait_walks_the_g1_at_1_m_s_where_the_normal_one_is_capped(g1, tmp_path):
-    """--gait quick: 0.28 s steps, 1.0 m/s not clamped; the normal gait caps it at its forward step limit
-    and says where more is to be had (a 20 s quick walk: 20.3 m, docs/api/walking.rst)."""
-    record = _run(g1, tmp_path / "quick", scenario="forward", speed="1.0", duration=3.0, gait="quick")
+    """The quick gait (the default): 0.28 s steps, 1.0 m/s not clamped; the normal gait caps it at its
+    forward step limit and says where more is to be had (a 20 s quick walk: 20.3 m, docs/api/walking.rst)."""
+    record = _run(g1, tmp_path / "quick", scenario="forward", speed="1.0", duration=3.0)
     v, c = record.values, _csv(record)
     report = json.loads(record.report_path.read_text())
     assert report["inputs"]["gait"] == "quick" and report["inputs"]["command_applied"] == [1.0, 0.0, 0.0]
@@ -103,11 +103,11 @@ def test_the_quick_gait_walks_the_g1_at_1_m_s_where_the_normal_one_is_capped(g1,
     assert v["fell"] is False and v["steps"] >= 7
     dx = c["pelvis_x_m"][-1] - c["pelvis_x_m"][0]
     assert 1.8 < dx < 2.6  # measured 2.2 m: 0.6 s on both feet, then the ramp to 1.0 m/s at 1 m/s^2
-    normal = _run(g1, tmp_path / "normal", scenario="forward", speed="1.0", duration=0.2)
+    normal = _run(g1, tmp_path / "normal", scenario="forward", speed="1.0", duration=0.2, gait="normal")
     assert normal.values["steps"] == 0
-    assert ("command 1,0,0 limited to 0.624,0,0 by the forward step limit; --gait quick steps quicker "
-            "(up to ~1 m/s)") in normal.outcome.summary
-    with pytest.raises(WBCSetupError, match="unknown gait 'fast'; choose one of normal, quick"):
+    assert ("command 1,0,0 limited to 0.624,0,0 by the forward step limit; the quick gait (the default) "
+            "steps quicker, up to ~1 m/s") in normal.outcome.summary
+    with pytest.raises(WBCSetupError, match="unknown gait 'fast'; choose one of quick, normal"):
         WalkParams(gait="fast")
 
 
