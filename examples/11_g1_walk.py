@@ -3,9 +3,10 @@
 A joystick stand-in (``joystick(t)``: forward, then a left turn while walking, then sideways, then
 stop) sets the command of the walking controller (``WalkingController``: footsteps, a DCM plan with
 step adaptation, swing feet and force-ramped contact switches on the whole-body QP, torques only;
-``quick_gait()``'s options, as ``g1-walk``'s default) each cycle, through a three-line controller of your own (``reset``, ``compute``) that the control
-loop runs on the in-process G1. The walk is checked in the plant: MuJoCo's fall rule
-(``PlantMonitor``), the pelvis's displacement and turn, the footsteps taken.
+``quick_gait()``'s options, as ``g1-walk``'s default) each cycle, through a three-line controller
+of your own (``reset``, ``compute``) that the control loop runs on the in-process G1. The walk is
+checked in the plant: MuJoCo's fall rule (``PlantMonitor``), the pelvis's displacement and turn, the
+footsteps taken.
 
 The same controller object runs over the G1's low-level DDS (``UnitreeG1`` against
 ``mbctl serve g1 --start crouched``) as in ``10_g1_over_dds.py``; ``mbctl g1-walk ... --interface
