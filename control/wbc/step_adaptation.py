@@ -159,6 +159,8 @@ class StepAdapter:
         pushed_timing_along: A pushed step held ``timing_threshold_m`` or more short along the heading is
             made quicker too: ``"none"`` (only a sideways shortfall adapts the timing), ``"backward"``
             (a footstep held short of a backward optimum) or ``"both"``.
+        cross_quick: A crossing footstep's swing takes the quickest timing :meth:`adapt`'s ``timing``
+            allows (its ``min_s``), where it otherwise keeps the plan's.
 
     Raises:
         WBCSetupError: A non-positive omega or weight, or a tube that is not 2 finite values >= 0.
@@ -169,7 +171,8 @@ class StepAdapter:
                  timing_weight: float = 0.001, timing_threshold_m: float = 0.05,
                  pushed_outward_m: float | None = None, cross_clearance_m: float | None = None,
                  cross_gain_m: float = 0.05, pushed_forward_m: float | None = None,
-                 pushed_backward_m: float | None = None, pushed_timing_along: str = "none"):
+                 pushed_backward_m: float | None = None, pushed_timing_along: str = "none",
+                 cross_quick: bool = False):
         tube = np.asarray(tube_m, dtype=float)
         if not (omega_rad_s > 0 and nominal_weight > 0 and timing_weight > 0 and tube.shape == (2,)
                 and np.all(np.isfinite(tube)) and np.all(tube >= 0)):
@@ -211,6 +214,8 @@ class StepAdapter:
         self.cross_ahead_m = (max(xs) - min(xs) + cross_clearance_m if xs and cross_clearance_m is not None
                               and math.isfinite(cross_clearance_m) else None)
         self.cross_gain_m = float(cross_gain_m)
+        #: A crossing footstep's swing takes the quickest timing ``timing`` allows.
+        self.cross_quick = bool(cross_quick)
         self._reach: dict[tuple[int, bool], tuple[np.ndarray, np.ndarray]] = {}
 
     def _reach_rows(self, side: int, pushed: bool = False) -> tuple[np.ndarray, np.ndarray]:
@@ -295,7 +300,13 @@ class StepAdapter:
         else:
             adapted = _placed(stance, nominal, (c, s), x, limited, solve_time)
         if pushed and adapted.limited and self.cross_ahead_m is not None and out[1] * side < 0.0:  # inward
-            return self._cross_over(adapted, stance, nominal, optimum, (G, h))
+            crossed = self._cross_over(adapted, stance, nominal, optimum, (G, h))
+            if self.cross_quick and crossed.footstep is not adapted.footstep and timing is not None:
+                if given is None:
+                    given = timing() if callable(timing) else timing
+                if given is not None and given.min_s < time_to_switch_s - 1e-6:
+                    return crossed._replace(time_to_switch_s=given.min_s)
+            return crossed
         return adapted
 
     def _cross_over(self, result: StepAdaptation, stance: Footstep, nominal: Footstep, optimum: list[float],

@@ -194,7 +194,7 @@ class WalkingController:
             timing_threshold_m=cfg.timing_threshold_m,
             pushed_outward_m=cfg.pushed_outward_fraction * self.limits.max_outward_m,
             cross_clearance_m=cfg.cross_over_clearance_m, cross_gain_m=cfg.cross_over_gain_m,
-            pushed_timing_along=cfg.pushed_timing_along)
+            pushed_timing_along=cfg.pushed_timing_along, cross_quick=cfg.cross_over_quick)
         self.plans = WalkPlans(self.planner, cfg, self.omega)
         self.speed_loop = SpeedLoop(cfg)
         self.swing_tasks = {f: SwingFootTask(f, self.model, cfg.swing_cost, cfg.swing_gains,
@@ -347,7 +347,8 @@ class WalkingController:
         error_m = math.hypot(ix - rx, iy - ry)
         pushed = error_m > cfg.cmp_outside_after_m
         self.speed_loop.watch(error_m)
-        k = cfg.pushed_double_gain_1_s if pushed and gait.phase == DOUBLE else cfg.dcm_gain_1_s
+        k = cfg.dcm_gain_1_s if not pushed or gait.phase != DOUBLE else (
+            cfg.hurried_double_gain_1_s if error_m > cfg.hurry_after_m else cfg.pushed_double_gain_1_s)
         gain = 1.0 + k / self.omega  # dcm_feedback's law, on floats
         cmp_xy = [zx + gain * (ix - rx), zy + gain * (iy - ry)]
         cmp = np.array(cmp_xy)

@@ -53,6 +53,8 @@ class WalkingConfig:
             ``cmp_outside_after_m`` from its plan (a push): the plan's VRP still moves from the trailing
             foot to the leading one, and at ``dcm_gain_1_s`` the CMP stays near it, behind a DCM that may
             already be over the leading foot; a stiffer law puts it under the DCM, on the leading foot.
+        hurried_double_gain_1_s: ... and while it is more than ``hurry_after_m`` from its plan (a
+            larger push; walking undisturbed keeps ``pushed_double_gain_1_s``).
         hurry_after_m: In double support with the DCM more than this [m] from its plan, the trailing
             foot is released at once (the next step starts a double support sooner, its force ramps
             overlapping the landing foot's; ``inf``: never).
@@ -65,6 +67,9 @@ class WalkingConfig:
             land no nearer than beside the stance foot while the DCM runs away past both.
         cross_over_gain_m: ... when the crossing footstep lands this much [m] nearer where the DCM
             needs it than the uncrossed one (a smaller gain is not worth crossing the legs).
+        cross_over_quick: A crossing step swings at the quickest timing the step's timing
+            adaptation allows (``min_single_support_s``, ``pushed_swing_speed_m_s``), so the outer
+            foot lifts sooner (False: the crossing step keeps the plan's timing).
         preview_steps: Footsteps planned ahead of the swing foot's (>= 1).
         ramp_s: Contact force ramp [s] (<= the double support time).
         swing_horizontal_fraction: The swing foot reaches its footstep's x, y and yaw at this
@@ -144,10 +149,12 @@ class WalkingConfig:
     cmp_outside_m: float = 0.02
     cmp_outside_after_m: float = 0.03
     pushed_double_gain_1_s: float = 8.0
+    hurried_double_gain_1_s: float = 15.0
     hurry_after_m: float = 0.05
     pushed_outward_fraction: float = 1.6
     cross_over_clearance_m: float = 0.03
     cross_over_gain_m: float = 0.05
+    cross_over_quick: bool = True
     preview_steps: int = 3
     ramp_s: float = 0.05
     swing_horizontal_fraction: float = 0.8
@@ -186,6 +193,7 @@ class WalkingConfig:
             "dcm_gain_1_s": self.dcm_gain_1_s > 0, "cmp_margin_m": self.cmp_margin_m >= 0,
             "cmp_outside_m": self.cmp_outside_m >= 0, "cmp_outside_after_m": self.cmp_outside_after_m >= 0,
             "pushed_double_gain_1_s": self.pushed_double_gain_1_s > 0,
+            "hurried_double_gain_1_s": self.hurried_double_gain_1_s > 0,
             "pushed_outward_fraction": self.pushed_outward_fraction > 0,
             "cross_over_gain_m": self.cross_over_gain_m >= 0,
             "friction_fraction": 0 < self.friction_fraction <= 1,
@@ -214,6 +222,9 @@ class WalkingConfig:
             value = getattr(self, name)
             if not (math.isfinite(value) and ok):
                 raise WBCSetupError(f"WalkingConfig.{name}={value!r} is out of range")
+        if not isinstance(self.cross_over_quick, bool):
+            raise WBCSetupError(f"WalkingConfig.cross_over_quick must be a bool; got "
+                                f"{self.cross_over_quick!r}")
         if not self.cross_over_clearance_m >= 0:  # (inf allowed: never)
             raise WBCSetupError(f"WalkingConfig.cross_over_clearance_m={self.cross_over_clearance_m!r} is "
                                 f"out of range (>= 0 m, or inf)")

@@ -61,9 +61,12 @@ def test_a_push_in_double_support_stiffens_the_dcm_law_and_hurries_the_next_step
     s = walker.status
     error = s.dcm - s.dcm_ref
     assert np.linalg.norm(error) > cfg.hurry_after_m > cfg.cmp_outside_after_m
-    # the desired CMP: the plan's VRP plus (1 + k / omega) times the error, k the pushed double support's 8
-    k = cfg.pushed_double_gain_1_s
+    # the desired CMP: the plan's VRP plus (1 + k / omega) times the error, k the hurried double support's
+    # 15 (the error beyond hurry_after_m; the pushed one's 8 from cmp_outside_after_m to there)
+    k = cfg.hurried_double_gain_1_s
+    assert (k, cfg.pushed_double_gain_1_s) == (15.0, 8.0)
     np.testing.assert_allclose(s.cmp, s.zmp_ref + (1.0 + k / walker.omega) * error, atol=1e-12)
+    assert not np.allclose(s.cmp, s.zmp_ref + (1.0 + 8.0 / walker.omega) * error, atol=1e-3)
     assert not np.allclose(s.cmp, s.zmp_ref + (1.0 + cfg.dcm_gain_1_s / walker.omega) * error, atol=1e-3)
     # and the trailing foot is released now: the double support ends one force ramp later, not 0.1 s on
     assert gait.phase_end == pytest.approx(state.time_s + cfg.ramp_s, abs=1e-12)
@@ -102,6 +105,8 @@ def test_hurry_acts_only_in_double_support_after_a_touchdown(tiny_biped, crouch)
 
 
 @pytest.mark.parametrize("field, value", [("pushed_double_gain_1_s", 0.0), ("hurry_after_m", 0.0),
+                                          ("hurried_double_gain_1_s", 0.0),
+                                          ("hurried_double_gain_1_s", math.inf),
                                           ("hurry_after_m", -1.0), ("pushed_double_gain_1_s", math.nan)])
 def test_the_push_options_are_checked(field, value):
     with pytest.raises(WBCSetupError, match=field):
@@ -248,3 +253,38 @@ def test_a_pushed_step_held_short_forward_is_made_quicker_and_may_reach_further(
         StepAdapter(planner, OMEGA, (0.02, 0.005), pushed_timing_along="forward")
     with pytest.raises(WBCSetupError, match="pushed_swing_speed_m_s"):
         WalkingConfig(pushed_swing_speed_m_s=0.0)
+
+
+def test_a_quick_crossing_step_swings_at_the_quickest_timing_given():
+    from mbctl.control.wbc.step_adaptation import StepTiming
+
+    limits = replace(LIMITS, sole_xy_m=SOLE)
+    planner = FootstepPlanner(limits, GaitTiming(0.5, 0.1), ("left", "right"))
+    kwargs = dict(pushed_outward_m=1.6 * limits.max_outward_m, cross_gain_m=0.05, cross_clearance_m=0.03)
+    quick = StepAdapter(planner, OMEGA, (0.02, 0.005), cross_quick=True, **kwargs)
+    kept = StepAdapter(planner, OMEGA, (0.02, 0.005), **kwargs)
+    stance = Footstep("right", -1, np.array([0.0, 0.0, 0.0]), 0.0)
+    nominal = Footstep("left", 1, np.array([0.18, 0.24, 0.0]), 0.0)
+    error = [0.0, -0.1]  # pushed toward the stance (right) foot, 0.3 s before the switch
+    timing = StepTiming(np.array([0.03, -0.05]), 0.3, 0.12)
+    crossed = quick.adapt(stance, nominal, error, 0.3, timing, pushed=True)
+    assert crossed.footstep.position[0] == pytest.approx(0.2, abs=1e-6)  # crossed, 0.03 m clear ahead
+    assert crossed.footstep.position[1] < 0.0
+    assert crossed.time_to_switch_s == pytest.approx(0.12)  # the floor given, not the plan's 0.3
+    slow = kept.adapt(stance, nominal, error, 0.3, timing, pushed=True)
+    np.testing.assert_allclose(slow.footstep.position, crossed.footstep.position, atol=1e-12)
+    assert slow.time_to_switch_s is None
+    # a timing given lazily is asked for; without one, or a floor no quicker than now, the timing stays
+    assert quick.adapt(stance, nominal, error, 0.3, lambda: timing, pushed=True).time_to_switch_s == \
+        pytest.approx(0.12)
+    assert quick.adapt(stance, nominal, error, 0.3, None, pushed=True).time_to_switch_s is None
+    late = StepTiming(np.array([0.03, -0.05]), 0.3, 0.3)
+    assert quick.adapt(stance, nominal, error, 0.3, late, pushed=True).time_to_switch_s is None
+    # an uncrossed step (pushed outward) keeps the quicker-step rule alone
+    outward = [0.0, 0.1]
+    a = quick.adapt(stance, nominal, outward, 0.3, timing, pushed=True)
+    b = kept.adapt(stance, nominal, outward, 0.3, timing, pushed=True)
+    np.testing.assert_allclose(a.footstep.position, b.footstep.position, atol=1e-12)
+    assert a.time_to_switch_s == b.time_to_switch_s
+    with pytest.raises(WBCSetupError, match="WalkingConfig.cross_over_quick must be a bool; got 1"):
+        WalkingConfig(cross_over_quick=1)
