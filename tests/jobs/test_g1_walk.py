@@ -94,7 +94,7 @@ def test_speed_parsing_and_bad_input():
 
 def test_the_quick_gait_walks_the_g1_at_1_m_s_where_the_normal_one_is_capped(g1, tmp_path):
     """The quick gait (the default): 0.28 s steps, 1.0 m/s not clamped; the normal gait caps it at its
-    forward step limit and says where more is to be had (a 20 s quick walk: 20.3 m, docs/api/walking.rst)."""
+    forward step limit and says where more is to be had (a 20 s quick walk: 20.6 m, docs/api/walking.rst)."""
     record = _run(g1, tmp_path / "quick", scenario="forward", speed="1.0", duration=3.0)
     v, c = record.values, _csv(record)
     report = json.loads(record.report_path.read_text())
