@@ -210,7 +210,8 @@ class WalkingController:
                                 f"{', '.join(missing)}")
         self._arm_swing = [(iq[arm], iq[leg]) for arm, leg in (arm_swing or {}).items()]
         yaw_pair = tuple(torso_counter_yaw or ())
-        self._counter_yaw = (iq[yaw_pair[0]], iq[yaw_pair[1]]) if len(yaw_pair) == 2 else None
+        turns = len(yaw_pair) == 2 and cfg.torso_yaw_gain != 0.0 and self.standing.torso is not None
+        self._counter_yaw = (iq[yaw_pair[0]], iq[yaw_pair[1]]) if turns else None  # None: the torso holds
         self._posture_target = self.reference_q.copy()
         self._reference_q_list = self.reference_q.tolist()
         self._in_contact: dict[str, bool] = {}
@@ -471,13 +472,12 @@ class WalkingController:
 
     def _orient(self, yaw: float, q: np.ndarray) -> None:
         """Pelvis and torso upright, heading ``yaw`` [rad] (the torso turned by ``torso_yaw_gain``)."""
-        torso, gain = self.standing.torso, self.config.torso_yaw_gain
-        if self._counter_yaw is not None and gain and torso is not None:
+        torso = self.standing.torso
+        if self._counter_yaw is not None and torso is not None:  # its target follows the legs every cycle
             a, b = self._counter_yaw
-            turn = gain * (float(q[a]) - float(q[b]))
+            turn = self.config.torso_yaw_gain * (float(q[a]) - float(q[b]))
             torso.set_target(pin.SE3(pin.rpy.rpyToMatrix(0.0, 0.0, yaw + turn), np.zeros(3)))
-            self.standing.base.set_target(pin.SE3(pin.rpy.rpyToMatrix(0.0, 0.0, yaw), np.zeros(3)))
-            return
+            torso = None  # (the pelvis's alone below, set only when the heading changed)
         tasks = [t for t in (self.standing.base, torso) if t is not None]
         last = self._oriented
         if last is not None and last[0] == yaw and all(

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
+from typing import Any
 
 from mbctl.control.exceptions import WBCSetupError
 from mbctl.control.tasks.base import AccelerationGains
@@ -238,7 +239,7 @@ class WalkingConfig:
                                 f"rad/s^2); got {self.max_acceleration!r}")
 
 
-def quick_gait(**changes: object) -> WalkingConfig:
+def quick_gait(**changes: Any) -> WalkingConfig:
     """A quicker cadence, for walking at up to about 1 m/s (the default timing caps it near 0.6).
 
     Steps of 0.28 s single and 0.03 s double support (``ramp_s`` 0.03, no swing quicker than 0.25 s):
@@ -250,7 +251,7 @@ def quick_gait(**changes: object) -> WalkingConfig:
     Args:
         changes: Any other :class:`WalkingConfig` fields (they override the preset's).
     """
-    preset: dict[str, object] = dict(
+    preset: dict[str, Any] = dict(
         timing=GaitTiming(0.28, 0.03), ramp_s=0.03, min_single_support_s=0.25, swing_horizontal_fraction=1.0,
         lift_height_m=0.05, torso_cost=0.5, torso_yaw_gain=0.6)
-    return WalkingConfig(**{**preset, **changes})  # type: ignore[arg-type]
+    return WalkingConfig(**{**preset, **changes})
