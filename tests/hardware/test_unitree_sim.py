@@ -172,6 +172,19 @@ def test_no_simulator_is_exit_2_saying_nothing_was_seen(g1, dds_domain, tmp_path
     assert "nothing was seen on the domain" in out.stderr and "Traceback" not in out.stderr
 
 
+def test_ctrl_c_stops_the_held_simulator_with_its_report(g1, dds_domain, tmp_path):
+    """The harness's stop (SIGINT) while the simulator waits, held, on its command condition: a flag
+    the loop reads, so it still says why it stopped and the pelvis (a KeyboardInterrupt raised in the
+    condition's wait once left its lock released: "release unlocked lock", no report, a red CI)."""
+    with unitree_sim(dds_domain, g1, g1.keyframe_q("stand"), tmp_path) as sim:
+        pass
+    assert sim.proc.returncode == 0, sim.log
+    assert "(interrupted; 0 commands merged)" in sim.log and "Traceback" not in sim.log
+    pelvis = sim.pelvis_z_m()
+    assert pelvis["start"] == pytest.approx(g1.keyframe_q("stand")[2], abs=1e-4)
+    assert pelvis["final"] == pelvis["start"]  # held: no physics step without a command
+
+
 def test_after_the_loop_damping_reaches_unitree_s_simulator_every_period(g1, dds_domain, tmp_path):
     """Safe at every end, on the robot side Unitree ships: damping at its 5 ms period until close()."""
     with unitree_sim(dds_domain, g1, g1.keyframe_q("stand"), tmp_path) as sim:

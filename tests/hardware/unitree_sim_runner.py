@@ -34,6 +34,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import signal
 import sys
 import threading
 import time
@@ -87,6 +88,10 @@ def main() -> int:
     parser.add_argument("--scene", default="scene.xml", help="the G1's scene file in unitree_robots/g1")
     parser.add_argument("--truth", type=Path, help="CSV: step, time and the true CoM and pelvis per step")
     args = parser.parse_args()
+    # Ctrl-C (the harness's stop) sets a flag the loop reads: a KeyboardInterrupt raised inside the
+    # condition's wait left its lock released under the ``with`` (CI: "release unlocked lock", no report)
+    interrupted = threading.Event()
+    signal.signal(signal.SIGINT, lambda *_: interrupted.set())
     stand_in_modules(args.root, args.domain, args.dt, args.scene)
     import config
     import mujoco
@@ -123,11 +128,8 @@ def main() -> int:
     bridge = HeldBridge(mj_model, mj_data)
     print(f"{SERVING} on DDS domain {config.DOMAIN_ID} ({config.INTERFACE}), SIMULATE_DT "
           f"{config.SIMULATE_DT} s, pace {args.pace}", file=sys.stderr, flush=True)
-    physics = Physics(bridge, mj_model, mj_data, args.pace)
-    try:
-        why = physics.run(args.idle_timeout, args.duration)
-    except KeyboardInterrupt:
-        why = "interrupted"
+    physics = Physics(bridge, mj_model, mj_data, args.pace, interrupted)
+    why = physics.run(args.idle_timeout, args.duration)
     if args.truth is not None:
         import numpy as np
 
@@ -150,13 +152,15 @@ class Physics:
         mj_model: The scene's model (``opt.timestep`` = SIMULATE_DT).
         mj_data: Its data, at the start pose.
         pace: "wall" or "command".
+        interrupted: Set on Ctrl-C; the loop then stops ("interrupted").
     """
 
-    def __init__(self, bridge, mj_model, mj_data, pace: str):
+    def __init__(self, bridge, mj_model, mj_data, pace: str, interrupted: threading.Event):
         import mujoco
 
         self.bridge, self.model, self.data, self.pace = bridge, mj_model, mj_data, pace
         self.steps = 0
+        self.interrupted = interrupted
         self.merged = 0  # commands that came with another after the first step (command pace)
         #: per step: step, time [s], the CoM and the pelvis [m] and the pelvis's yaw [rad] of the state
         #: its LowState carries (MuJoCo computes them before it integrates, as the sensors), and the
@@ -177,6 +181,8 @@ class Physics:
         t0 = time.monotonic()
         last_command, seen = t0, 0
         while True:  # held until the first command; then the physics runs
+            if self.interrupted.is_set():
+                return "interrupted"
             with bridge.lock:
                 if self.pace == "command" and bridge.commands == seen:
                     bridge.arrived.wait(timeout=dt)
