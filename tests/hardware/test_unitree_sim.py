@@ -38,6 +38,7 @@ from tests.hardware.test_stop import watch_the_wire_after_the_loop
 from tests.hardware.test_unitree_g1 import StillBase
 from tests.hardware.unitree_sim_harness import (
     G1_DT,
+    LOCKSTEP_WATCHDOG_PERIODS,
     UNITREE_DT,
     true_com_rms_m,
     unitree_mujoco,
@@ -47,7 +48,7 @@ from tests.hardware.unitree_sim_harness import (
 from tests.hardware.wire_tap import WireTap, after_the_loop
 
 #: The watchdog of these runs [periods]: a loaded machine may stall either process (see the docstring).
-WATCHDOG = 100
+WATCHDOG = LOCKSTEP_WATCHDOG_PERIODS
 #: The rate the 2 ms runs are given: their rate is measured on the states Unitree's publishing thread
 #: sends while the robot is held, every 2 ms by a timer whose late expirations it merges; on a
 #: loaded machine (two busy loops beside the tests) it came out 2.5 ms, a 400 Hz robot. The 5 ms

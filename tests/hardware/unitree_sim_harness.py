@@ -41,6 +41,12 @@ UNITREE_DT, G1_DT = 0.005, 0.002
 #: the origin (a cylinder on it), stairs, rough ground; a forward walk ran into the step (its toes at
 #: 3.3 s, the pelvis 0.69 m on) and turned and fell.
 FLAT_SCENE = "scene_29dof.xml"
+#: The watchdog [periods] of the lock-step runs (this simulator's, ``mbctl serve g1 --lockstep``'s):
+#: they share 2 cores with other work (CI's second pytest worker, its bridges and clients), where a
+#: stall of either process is not a lost link (lock-step: the simulator waits for the client); 100
+#: periods of 2 ms once fired in CI mid-walk. The watchdog itself is tested against a fake robot
+#: (tests/hardware/test_unitree_g1.py) and its timing by bench/bench_dds.py.
+LOCKSTEP_WATCHDOG_PERIODS = 500
 #: Seconds the runner gets to load MuJoCo and join DDS.
 START_S = 120.0
 

@@ -27,12 +27,10 @@ from mbctl.sim.dds_bridge import TRUTH_COLUMNS, wait_until_serving
 from mbctl.unitree import ChannelError
 from mbctl.unitree.domain_lock import reserve_domain
 from tests.conftest import mbctl_command, run_mbctl
-from tests.hardware.unitree_sim_harness import stop
+from tests.hardware.unitree_sim_harness import LOCKSTEP_WATCHDOG_PERIODS, stop
 
-#: The end-to-end runs share 2 cores with other work: a stall of either process is not a lost link
-#: there (lock-step: the bridge waits for the client). The watchdog itself is tested against a fake
-#: robot (tests/hardware).
-WATCHDOG = ("--watchdog-periods", "500")
+#: The end-to-end runs' watchdog (lock-step: the bridge waits for the client; see the constant)
+WATCHDOG = ("--watchdog-periods", str(LOCKSTEP_WATCHDOG_PERIODS))
 
 
 mbctl = partial(run_mbctl, timeout=120)  # the shared runner with this file's 2-minute bound
