@@ -235,14 +235,14 @@ def test_a_polygon_of_a_point_list_is_the_numpy_formulas(points, px, py):
     p = np.array([px, py])
     if len(hull) >= 3:
         e = np.roll(hull, -1, axis=0) - hull
-        with np.errstate(invalid="ignore", divide="ignore"):
+        with np.errstate(invalid="ignore", divide="ignore"):  # (NaN normals for an edge of ~0 length)
             normals = np.column_stack([e[:, 1], -e[:, 0]]) / np.linalg.norm(e, axis=1)[:, None]
-        offsets = (hull * normals).sum(axis=1)
+            offsets = (hull * normals).sum(axis=1)
+            depth = float((offsets - normals @ hull.mean(axis=0)).min())
+            s = normals @ p - offsets
         np.testing.assert_array_equal(polygon._normals, normals)
         np.testing.assert_array_equal(polygon._offsets, offsets)
-        depth = float((offsets - normals @ hull.mean(axis=0)).min())
         np.testing.assert_allclose(polygon.depth, depth, rtol=0, atol=1e-15)  # (NaN for an edge of ~0 length)
-        s = normals @ p - offsets
         if s.max() <= -1e-15:
             assert polygon.margin(p) == pytest.approx(float(-s.max()), rel=0, abs=1e-15)
     np.testing.assert_array_equal(polygon.margin(p), ConvexPolygon(hull).margin(p))
