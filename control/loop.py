@@ -14,19 +14,10 @@ deviation) stays exact however long the run. A JointTrajectory reference is samp
 
 Timing: cycle k reads the state at ``t_k = t_0 + k T`` (T the control period), takes the
 reference at ``t_k - t_0``, sends the command, and ``sync()`` holds it for one period.
-
-Garbage collection: the objects that exist when the loop starts are frozen for it (:func:`gc.freeze`,
-undone when it ends; left alone if the caller, or a loop in another thread, froze some), so the
-collector's oldest generation, when it runs during the loop, looks only at what the loop made. In a
-large process (a notebook, a test session) a full collection otherwise stalls one cycle by the whole
-heap: ~200 ms with a million objects held, ~100 periods at 500 Hz with the last command held (a
-lock-step walk over DDS in a test session stalled 200 ms in CI, most likely so); during the loop it
-took 0.01-0.2 ms (``python bench/bench_loop_gc.py``, e.g. with its humanoid walk).
 """
 
 from __future__ import annotations
 
-import gc
 import time
 from collections.abc import Callable, Sequence
 from typing import Any
@@ -245,9 +236,6 @@ def run(
     send, sync = interface.send, interface.sync
     refs = sampler.refs if sampler is not None else None
     chunk0 = 0
-    frozen = gc.get_freeze_count() == 0  # (a caller's own freeze is left as it is)
-    if frozen:
-        gc.freeze()  # the module docstring: the oldest generation then holds only the loop's objects
     wall0 = time.perf_counter()
     try:
         for k in range(n_cycles):
@@ -267,11 +255,7 @@ def run(
             if on_step is not None and on_step(k, state, ref, command):
                 break  # the callback ended the run (e.g. the robot fell)
     finally:  # however the loop ends, the plant keeps the robot safe from now on (the contract)
-        try:
-            interface.stop()
-        finally:
-            if frozen:
-                gc.unfreeze()
+        interface.stop()
     wall = time.perf_counter() - wall0
     log.write()
     return log.log(wall)

@@ -2,8 +2,6 @@
 
 from __future__ import annotations
 
-import gc
-
 import numpy as np
 import pytest
 
@@ -134,35 +132,3 @@ def test_a_log_without_rows_keeps_every_cycles_time_and_tick_and_no_sums(two_lin
     assert np.unique(np.diff(log.tick)).tolist() == [1]
     with pytest.raises(ControlError, match=r"run\(rows=False\), which keeps only the cycles' times"):
         log.sums()
-
-
-def test_the_objects_made_before_the_loop_are_frozen_for_it_and_thawed_however_it_ends(two_link_torque):
-    """gc.freeze for the loop (a full collection then looks at the loop's objects only), gc.unfreeze
-    after it, also when the controller raises; a caller's own freeze is left as it is."""
-    assert gc.get_freeze_count() == 0
-    seen: list[int] = []
-    _run(two_link_torque, joint_reference([0.3, 0.1]), lambda k, *_: seen.append(gc.get_freeze_count()))
-    assert len(seen) == CYCLES and min(seen) > 0  # (the count falls as frozen objects are freed)
-    assert gc.get_freeze_count() == 0
-
-    class Failing(JointPD):
-        def compute(self, state, reference):
-            assert gc.get_freeze_count() > 0
-            raise ControlError("the controller failed")
-
-    sim = Simulator(two_link_torque)
-    with pytest.raises(ControlError, match="the controller failed"):
-        run(sim, Failing(two_link_torque, gains_from_frequency(20.0, 0.7, 0.1)), joint_reference([0.3, 0.1]),
-            0.1)
-    assert gc.get_freeze_count() == 0
-
-    gc.freeze()  # the caller's own (e.g. a server before it forks)
-    try:
-        mine = gc.get_freeze_count()
-        made_after = [[i] for i in range(1000)]  # not frozen by the caller: nor by the loop
-        seen.clear()
-        _run(two_link_torque, joint_reference([0.3, 0.1]), lambda k, *_: seen.append(gc.get_freeze_count()))
-        assert 0 < min(seen) and max(seen) <= mine < len(made_after) + min(seen)
-        assert gc.get_freeze_count() > 0  # still the caller's
-    finally:
-        gc.unfreeze()
