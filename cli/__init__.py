@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import inspect
 import sys
 from typing import Annotated
 
@@ -30,6 +31,17 @@ def _register_commands() -> None:
 
     for family in (robots, sim, demo, g1, g1_wbc, g1_walk, xcheck, ik, sweep, view, serve, identification):
         family.register(app)
+    for command in app.registered_commands:
+        command.help = one_line_paragraphs(command.help or inspect.getdoc(command.callback) or "")
+
+
+def one_line_paragraphs(text: str) -> str:
+    """``text``'s paragraphs each on one line.
+
+    Typer (0.29) prints a description's later paragraphs with their source line breaks, which the
+    terminal then wraps again (ragged lines at 80 columns).
+    """
+    return "\n\n".join(" ".join(p.splitlines()) for p in inspect.cleandoc(text).split("\n\n"))
 
 
 def _version(value: bool) -> None:

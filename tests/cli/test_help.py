@@ -76,3 +76,18 @@ def test_the_help_s_choices_are_the_jobs():
     from mbctl.jobs.serve import STARTS
 
     assert STARTS == choices.SERVE_STARTS
+
+
+@pytest.mark.parametrize("command", ["g1-walk", "g1-wbc", "serve", "sweep", "excite"])
+def test_a_description_s_paragraphs_wrap_to_the_terminal_not_to_the_source(command):
+    # Typer keeps a later paragraph's source line breaks; at 80 columns the terminal wrapped those
+    # lines again: a line of 70 characters, then one of 10 ("`course`, a" alone)
+    out = CliRunner().invoke(app, [command, "--help"], terminal_width=80, env={"COLUMNS": "80"})
+    assert out.exit_code == 0, out.output
+    description = out.output.split("Usage:")[1].split("╭")[0].splitlines()[2:]
+    paragraphs = "\n".join(line.strip() for line in description).strip().split("\n\n")
+    assert len(paragraphs) >= 2, description
+    for paragraph in paragraphs:
+        lines = paragraph.splitlines()
+        short = [line for line in lines[:-1] if len(line) < 60]  # (rich wraps at 78: a word short of it)
+        assert not short, (command, lines)
