@@ -14,6 +14,7 @@ smaller speed cap, so the walk does not stop at each.
 from __future__ import annotations
 
 import math
+import os
 from pathlib import Path
 from typing import Any
 
@@ -42,9 +43,18 @@ def parse_waypoints(text: str | None) -> np.ndarray:
     if text is None:
         rows: list[str] = [f"{x},{y},{yaw}" for x, y, yaw in DEFAULT_COURSE]
     elif ";" not in text and Path(text).is_file():
-        rows = [line.split("#")[0].strip() for line in Path(text).read_text().splitlines()]
+        try:
+            lines = Path(text).read_text().splitlines()
+        except (OSError, UnicodeDecodeError) as exc:
+            raise WBCSetupError(f"--waypoints: cannot read the file {text!r} ({exc}); give X,Y,YAW;... "
+                                "(m, m, deg) or a file of such lines") from None
+        rows = [line.split("#")[0].strip() for line in lines]
     else:
         rows = text.split(";")
+    # an entry that looks like a path was meant as a file: say there is none of that name
+    no_file = "" if text is None or ";" in text or Path(text).is_file() or not (
+        "/" in text or os.sep in text or Path(text).suffix.lower() in (".txt", ".csv")) \
+        else " (and no file of that name)"
     points = []
     for row in (r for r in rows if r.strip()):
         try:
@@ -53,7 +63,7 @@ def parse_waypoints(text: str | None) -> np.ndarray:
             values = []
         if len(values) != 3 or not all(math.isfinite(v) for v in values):
             raise WBCSetupError(f"--waypoints must be X,Y,YAW;X,Y,YAW;... (m, m, deg) or a file of such "
-                                f"lines; got the waypoint {row!r}")
+                                f"lines; got the waypoint {row!r}{no_file}")
         points.append([values[0], values[1], math.radians(values[2])])
     if not points:
         raise WBCSetupError(f"--waypoints gave no waypoint; got {text!r}")

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+import re
 
 import numpy as np
 import pytest
@@ -39,8 +40,15 @@ def test_waypoints_parse_from_text_and_files_and_bad_ones_are_named(tmp_path):
     np.testing.assert_allclose(parse_waypoints(str(path)), [[1, 0, 0], [2, 1, math.pi / 2]])
     with pytest.raises(WBCSetupError, match=r"got the waypoint '1,2'"):
         parse_waypoints("1,2;3,4,5")
-    with pytest.raises(WBCSetupError, match=r"got the waypoint '1,nan,0'"):
+    with pytest.raises(WBCSetupError, match=r"got the waypoint '1,nan,0'$"):
         parse_waypoints("1,nan,0")
+    missing = str(tmp_path / "missing.txt")  # meant as a file: the message says there is none
+    with pytest.raises(WBCSetupError, match=rf"{re.escape(missing)}. \(and no file of that name\)$"):
+        parse_waypoints(missing)
+    binary = tmp_path / "binary.txt"
+    binary.write_bytes(b"\xff\xfe1,2,3")
+    with pytest.raises(WBCSetupError, match=r"cannot read the file '.*binary.txt' \(.*codec.*a file of such"):
+        parse_waypoints(str(binary))
     q = np.zeros(7)
     q[3:7] = [0, 0, math.sin(0.4), math.cos(0.4)]  # (x, y, z, w): 0.8 rad about z
     assert pose_of(q)[2] == pytest.approx(0.8, abs=1e-12)
