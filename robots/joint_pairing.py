@@ -58,12 +58,18 @@ def parse_joint_map(text: str) -> dict[str, str]:
     ``A`` is a joint name in the Pinocchio model's file (e.g. the URDF), ``B`` the plant's.
 
     Raises:
-        JointMapError: An entry that is not ``A=B``, or a name given twice on either side.
+        JointMapError: An entry that is not ``A=B``, a name given twice on either side, or a file that
+            cannot be read (not text).
     """
     path = Path(text).expanduser()
     if path.is_file():
-        entries = [line.split("#", 1)[0].strip() for line in path.read_text().splitlines()]
         origin = f"joint map file {str(path)!r}"
+        try:
+            lines = path.read_text().splitlines()
+        except (OSError, UnicodeDecodeError) as exc:
+            raise JointMapError(f"{origin} cannot be read ({exc}); give PIN_JOINT=PLANT_JOINT lines, or the "
+                                "pairs inline, comma-separated") from None
+        entries = [line.split("#", 1)[0].strip() for line in lines]
     else:
         entries = [part.strip() for part in text.split(",")]
         origin = f"joint map {text!r}"

@@ -227,3 +227,10 @@ def test_unnamed_mujoco_joints_pair_through_their_bodies(tmp_path):
     paired = "unnamed MuJoCo joints paired through the bodies they move: cJoint_0 -> joint1 ('c')"
     assert paired in robot.source.edits
     _clean(crosscheck(robot, n_states=20))
+
+
+def test_a_joint_map_file_that_is_not_text_is_named_not_a_traceback(tmp_path):
+    path = tmp_path / "map.bin"
+    path.write_bytes(b"\xff\xfea=b")
+    with pytest.raises(JointMapError, match=r"file '.*map.bin' cannot be read \(.*codec.*PIN_JOINT="):
+        parse_joint_map(str(path))
