@@ -112,12 +112,15 @@ def run_view(run_dir: Path, port: int = 0, fps: float = 30.0) -> WebView:
 
     Raises:
         FileNotFoundError: No trajectory in the folder.
-        ValueError: The saved model does not load.
+        ValueError: The saved model does not load, or the report cannot be read.
     """
     run_dir = Path(run_dir)
     model, t, qpos, track = load_trajectory(run_dir)
     report_path = run_dir / "report.json"
-    report = json.loads(report_path.read_text()) if report_path.is_file() else {}
+    try:
+        report = json.loads(report_path.read_text()) if report_path.is_file() else {}
+    except (OSError, ValueError) as exc:  # (UnicodeDecodeError is a ValueError)
+        raise ValueError(f"{report_path} cannot be read ({exc})") from None
     n = int(np.floor((t[-1] - t[0]) * fps + 1e-9)) + 1
     idx = np.searchsorted(t, t[0] + np.arange(n) / fps + 1e-9, side="right") - 1
     frames_t, frames_q = t[np.maximum(idx, 0)], qpos[np.maximum(idx, 0)]

@@ -118,3 +118,20 @@ def test_view_web_serves_until_ctrl_c_and_a_damaged_run_exits_2(tmp_path):
     out = _mbctl("replay", str(tmp_path), "--web")
     assert out.returncode == 2 and "cannot serve this run" in out.stderr, out.stderr
     assert "Traceback" not in out.stderr and "serving" not in out.stdout
+
+
+def test_a_run_whose_report_is_not_json_is_named_by_the_web_view(tmp_path):
+    import pytest
+
+    from mbctl.jobs.web_view import run_view
+    from mbctl.robots import load_robot
+    from mbctl.sim import Simulator
+    from mbctl.sim.trajectory import TrajectoryRecorder
+
+    sim = Simulator(load_robot("two_link_torque"))
+    rec = TrajectoryRecorder(sim, tmp_path).attach()
+    sim.step()
+    rec.close()
+    (tmp_path / "report.json").write_bytes(b"\xff{")  # the run's report damaged (its title comes from it)
+    with pytest.raises(ValueError, match=r"report.json cannot be read \(.*codec"):
+        run_view(tmp_path)
