@@ -14,7 +14,6 @@ smaller speed cap, so the walk does not stop at each.
 from __future__ import annotations
 
 import math
-import os
 from pathlib import Path
 from typing import Any
 
@@ -40,9 +39,10 @@ def parse_waypoints(text: str | None) -> np.ndarray:
     Raises:
         WBCSetupError: Neither an existing file nor a list of 3 finite numbers per waypoint.
     """
+    one_file = text is not None and ";" not in text and Path(text).is_file()
     if text is None:
         rows: list[str] = [f"{x},{y},{yaw}" for x, y, yaw in DEFAULT_COURSE]
-    elif ";" not in text and Path(text).is_file():
+    elif one_file:
         try:
             lines = Path(text).read_text().splitlines()
         except (OSError, UnicodeDecodeError) as exc:
@@ -51,10 +51,10 @@ def parse_waypoints(text: str | None) -> np.ndarray:
         rows = [line.split("#")[0].strip() for line in lines]
     else:
         rows = text.split(";")
-    # an entry that looks like a path was meant as a file: say there is none of that name
-    no_file = "" if text is None or ";" in text or Path(text).is_file() or not (
-        "/" in text or os.sep in text or Path(text).suffix.lower() in (".txt", ".csv")) \
-        else " (and no file of that name)"
+    # text that looks like a path (a folder in it, a .txt or .csv name) was meant as a file: none is there
+    meant_file = text is not None and not one_file and (
+        Path(text).name != text or Path(text).suffix.lower() in (".txt", ".csv"))
+    no_file = " (and no file of that name)" if meant_file else ""
     points = []
     for row in (r for r in rows if r.strip()):
         try:
