@@ -27,11 +27,13 @@ Checked in the plant (MuJoCo), by a :class:`~mbctl.sim.monitor.PlantMonitor`: th
 is the pelvis's horizontal displacement (the plant's own state in-process; over DDS the bridge's
 truth log with ``--truth``, else the estimate: ``displacement_source``), ``commanded_displacement_m``
 the command integrated over the run (speed x duration for a constant command; the heading turned
-by the yaw rate), ``displacement_fraction`` the displacement along it over its length, and for a
-turn ``yaw_fraction`` the pelvis's turn over the commanded one. A run passes (exit 0) when the G1
-did not fall and the displacement (yaw for ``turn``) is at least :data:`MIN_FRACTION` of the
-commanded one (``course``: every waypoint reached; ``push``: every push survived); ``forward`` also
-needs a median foot slip within :data:`MAX_MEDIAN_SLIP_M` (the issue's target for it).
+by the yaw rate), ``displacement_fraction`` the displacement along it over its length, ``yaw_rad``
+the pelvis's turn (unwrapped along its path) and for a turn ``yaw_fraction`` that over the commanded
+one; a course's command is its follower's, new each cycle, so the four command figures are null
+there. A run passes (exit 0) when the G1 did not fall and the displacement (yaw for ``turn``) is
+at least :data:`MIN_FRACTION` of the commanded one (``course``: every waypoint reached; ``push``:
+every push survived); ``forward`` also needs a median foot slip within :data:`MAX_MEDIAN_SLIP_M`
+(the issue's target for it).
 """
 
 from __future__ import annotations
@@ -54,6 +56,7 @@ from mbctl.jobs.g1_walk_choices import (
     WALK_SCENARIOS,
 )
 from mbctl.jobs.g1_walk_course import CourseWalker, parse_waypoints
+from mbctl.jobs.g1_walk_displacement import displacement_values, path_length
 from mbctl.jobs.g1_walk_log import WalkLog
 from mbctl.jobs.g1_walk_push import FIRST_PUSH_S, PUSH_HOLD_S, PUSH_PERIOD_S, PhasePushes
 from mbctl.jobs.g1_wbc import check_scenario_and_duration
@@ -288,16 +291,6 @@ def prepare(params: WalkParams, robot: Robot | None = None) -> Work:
     return work
 
 
-def commanded_path(t: np.ndarray, command: VelocityCommand, yaw0: float) -> tuple[np.ndarray, float]:
-    """The command integrated over times ``t`` (k,) [s]: the displacement (2,) [m] in W and the turn [rad]."""
-    dt = np.diff(t, prepend=t[0])
-    yaw = yaw0 + command.yaw_rate_rad_s * (t - t[0])
-    c, s = np.cos(yaw), np.sin(yaw)
-    d = np.array([np.sum((c * command.vx_m_s - s * command.vy_m_s) * dt),
-                  np.sum((s * command.vx_m_s + c * command.vy_m_s) * dt)])
-    return d, float(yaw[-1] - yaw0)
-
-
 def _run(ctx: RunContext, params: WalkParams, robot: Robot, walker: WalkingController, p: Plant) -> Outcome:
     iface, sim = p.interface, p.sim
     monitor, pushes = None, None
@@ -341,7 +334,8 @@ def _run(ctx: RunContext, params: WalkParams, robot: Robot, walker: WalkingContr
         q0, q1 = (_truth_q(row) for row in truth_at_ticks(read_truth(p.options.truth),
                                                            run_log.tick[[0, run_log.cycles - 1]]))
         source = "truth log"
-    values.update(_displacement(q0, q1, run_log.t_s, clamp.applied), displacement_source=source)
+    command = None if course is not None else clamp.applied  # a course's command is the follower's
+    values.update(displacement_values(q0, q1, run_log.t_s, command, run_log.q), displacement_source=source)
     if course is not None:
         cycle_s = 2 * walker.config.timing.step_s
         values.update(course.values(q1), path_m=path_length(run_log.row_time_s, run_log.q, cycle_s))
@@ -371,45 +365,10 @@ def _triple(command: VelocityCommand) -> str:
     return ",".join(f"{x:.3g}" for x in command)
 
 
-def path_length(t_s: np.ndarray, q: np.ndarray, period_s: float) -> float:
-    """The base's path length [m] in the floor plane, sampled once per ``period_s`` (a gait cycle).
-
-    Sampled at the same phase of each gait cycle (two steps), the sway from foot to foot cancels;
-    the run's last state closes the path.
-    """
-    if len(t_s) < 2:
-        return 0.0
-    at = np.arange(t_s[0], t_s[-1], period_s)
-    rows = np.unique(np.append(np.searchsorted(t_s, at), len(t_s) - 1))
-    return float(np.linalg.norm(np.diff(q[rows, :2], axis=0), axis=1).sum())
-
-
 def _truth_q(row: np.void) -> np.ndarray:
     """The base's configuration (7,) [m, quaternion xyzw] from a truth-log row (the bridge's plant)."""
     return np.array([row["base_x_m"], row["base_y_m"], row["base_z_m"], row["base_qx"], row["base_qy"],
                      row["base_qz"], row["base_qw"]], dtype=float)
-
-
-def _yaw(q: np.ndarray) -> float:
-    return float(pin.rpy.matrixToRpy(pin.Quaternion(q[6], q[3], q[4], q[5]).matrix())[2])
-
-
-def _displacement(q0: np.ndarray, q1: np.ndarray, t: np.ndarray, command: VelocityCommand) -> dict[str, Any]:
-    """The pelvis's displacement and turn against the command's (report values)."""
-    d = q1[:2] - q0[:2]
-    cmd, cmd_yaw = commanded_path(t, command, _yaw(q0))
-    turned = math.remainder(_yaw(q1) - _yaw(q0) - cmd_yaw, 2 * math.pi) + cmd_yaw  # the unwrapped turn
-    length = float(np.linalg.norm(cmd))
-    duration = float(t[-1] - t[0]) if len(t) > 1 else 0.0
-    return {
-        "distance_m": float(np.linalg.norm(d)),
-        "mean_speed_m_s": float(np.linalg.norm(d)) / duration if duration > 0 else None,
-        "displacement_m": d.tolist(),
-        "commanded_displacement_m": cmd.tolist(),
-        "displacement_fraction": float(d @ cmd) / length**2 if length > 1e-9 else None,
-        "yaw_rad": turned, "commanded_yaw_rad": cmd_yaw,
-        "yaw_fraction": turned / cmd_yaw if abs(cmd_yaw) > 1e-9 else None,
-    }
 
 
 def _outcome(params: WalkParams, v: dict[str, Any], time_s: float) -> Outcome:

@@ -8,9 +8,12 @@ from functools import partial
 
 import numpy as np
 import pytest
+from hypothesis import given
+from hypothesis import strategies as st
 
 from mbctl.control.exceptions import WBCSetupError
-from mbctl.jobs.g1_walk import WalkParams, commanded_path, g1_walk_params, parse_speed, prepare
+from mbctl.jobs.g1_walk import WalkParams, g1_walk_params, parse_speed, prepare
+from mbctl.jobs.g1_walk_displacement import commanded_path, displacement_values, turn_along
 from mbctl.jobs.runner import Job, run_job
 from mbctl.planners import VelocityCommand
 
@@ -77,6 +80,35 @@ def test_commanded_path_integrates_the_command_with_its_turn():
     d, yaw = commanded_path(t, VelocityCommand(0.5, 0.0, math.pi / 2), 0.0)  # a quarter circle of radius 1/pi
     assert yaw == pytest.approx(math.pi)
     np.testing.assert_allclose(d, [0.0, 2 / math.pi], atol=2e-3)
+
+
+def _path(yaw: np.ndarray) -> np.ndarray:
+    """Base configurations (rows, 7) at the origin, turned by ``yaw`` [rad] (quaternion x, y, z, w)."""
+    q = np.zeros((len(yaw), 7))
+    q[:, 5], q[:, 6] = np.sin(yaw / 2), np.cos(yaw / 2)
+    return q
+
+
+@given(st.floats(-30.0, 30.0), st.floats(-math.pi, math.pi))
+def test_the_turn_along_a_path_counts_whole_turns(turn, yaw0):
+    yaw = yaw0 + turn * np.linspace(0.0, 1.0, 400) ** 2  # under pi between rows
+    assert turn_along(_path(yaw)) == pytest.approx(turn, abs=1e-9)
+
+
+def test_a_course_reports_its_turn_from_the_path_and_no_command_figures():
+    # a course (the default one turns once around) run 60 s with its speed caps' 0.3 rad/s as the command:
+    # unwrapped against that command's 18 rad, the pelvis's 6.3 rad turn was reported as 18.9
+    t = np.linspace(0.0, 60.0, 3001)
+    q = _path(np.linspace(0.0, 2 * math.pi + 0.3, len(t)))
+    q[-1, :2] = [1.5, 0.3]
+    course = displacement_values(q[0], q[-1], t, None, q)
+    assert course["yaw_rad"] == pytest.approx(2 * math.pi + 0.3, abs=1e-9)
+    assert course["distance_m"] == pytest.approx(math.hypot(1.5, 0.3))
+    for key in ("commanded_displacement_m", "displacement_fraction", "commanded_yaw_rad", "yaw_fraction"):
+        assert course[key] is None, key
+    turning = displacement_values(q[0], q[-1], t, VelocityCommand(0.0, 0.0, 0.3), q)
+    assert turning["commanded_yaw_rad"] == pytest.approx(18.0)
+    assert turning["yaw_fraction"] == pytest.approx((2 * math.pi + 0.3) / 18.0)
 
 
 def test_speed_parsing_and_bad_input():

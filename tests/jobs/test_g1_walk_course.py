@@ -9,9 +9,9 @@ import numpy as np
 import pytest
 
 from mbctl.control.exceptions import WBCSetupError
-from mbctl.jobs.g1_walk import path_length
 from mbctl.jobs.g1_walk_choices import WALK_DEFAULT_SPEED
 from mbctl.jobs.g1_walk_course import DEFAULT_COURSE, capped, parse_waypoints, pose_of
+from mbctl.jobs.g1_walk_displacement import path_length
 from mbctl.planners import VelocityCommand
 
 CAPS = VelocityCommand(0.3, 0.15, 0.3)
