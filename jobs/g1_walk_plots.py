@@ -17,6 +17,8 @@ from mbctl.robots.g1 import FEET
 #: Colours of the feet (left, right) and of double support.
 FOOT_COLORS = ("C0", "C1")
 DOUBLE_COLOR = "0.75"
+#: Colour of the waypoints and pushes (apart from the paths' colours).
+MARK_COLOR = "C4"
 
 
 def walk_plots(ctx: RunContext, log: WalkLog, walker: WalkingController, params: Any,
@@ -54,6 +56,8 @@ def _top_view(ctx: RunContext, log: WalkLog, walker: WalkingController, params: 
     ax.plot(c["dcm_ref_x_m"], c["dcm_ref_y_m"], color="C3", lw=0.9, ls="--", label="DCM plan")
     ax.plot(c["dcm_x_m"], c["dcm_y_m"], color="C3", lw=1.2, label="DCM measured")
     ax.plot(c["com_x_m"], c["com_y_m"], color="k", lw=1.5, label="CoM (MuJoCo)" if log.monitor else "CoM")
+    draw_waypoints(ax, values.get("waypoints") or [])
+    draw_pushes(ax, c, values.get("pushes") or [])
     ax.set_aspect("equal", adjustable="datalim")
     ax.set_xlabel("x (m, world)")
     ax.set_ylabel("y (m, world)")
@@ -66,6 +70,37 @@ def _top_view(ctx: RunContext, log: WalkLog, walker: WalkingController, params: 
     fig.suptitle(f"G1 walking, {params.scenario} at ({command}){gait}: {verdict}, {values['steps']} steps, "
                  f"{moved}; DCM RMS {values['dcm_rms_m'] * 1e3:.1f} mm" + note)
     ctx.save_figure(fig, "g1_walk.png")
+
+
+def draw_waypoints(ax: Any, waypoints: list[dict[str, Any]]) -> None:
+    """A course's waypoints: numbered, an arrow along each one's yaw, a dot when reached, a cross when not."""
+    for i, w in enumerate(waypoints, start=1):
+        reached, color = w["reached_at_s"] is not None, MARK_COLOR
+        yaw = np.radians(w["yaw_deg"])
+        ax.annotate("", (w["x_m"] + 0.15 * np.cos(yaw), w["y_m"] + 0.15 * np.sin(yaw)), (w["x_m"], w["y_m"]),
+                    arrowprops={"arrowstyle": "->", "color": color, "lw": 1.5})
+        ax.plot(w["x_m"], w["y_m"], marker="o" if reached else "X", ms=9, mfc=color if reached else "w",
+                mec=color, ls="none", zorder=5)
+        ax.annotate(str(i), (w["x_m"], w["y_m"]), textcoords="offset points", xytext=(6, 6), fontsize=9,
+                    color=color, weight="bold")
+    for reached, label in ((True, "waypoint reached"), (False, "waypoint not reached")):
+        if any((w["reached_at_s"] is not None) == reached for w in waypoints):
+            ax.plot([], [], marker="o" if reached else "X", ms=8, mfc=MARK_COLOR if reached else "w",
+                    mec=MARK_COLOR, ls="none", label=label)
+
+
+def draw_pushes(ax: Any, c: dict[str, np.ndarray], pushes: list[dict[str, Any]]) -> None:
+    """Each push: an arrow in its direction onto the CoM's place at the push, its impulse (and "fell")."""
+    for p in pushes:
+        k = min(int(np.searchsorted(c["time_s"], p["time_s"])), len(c["time_s"]) - 1)
+        x, y = c["com_x_m"][k], c["com_y_m"][k]
+        u = np.array([np.cos(np.radians(p["direction_deg"])), np.sin(np.radians(p["direction_deg"]))])
+        text = f"{p['impulse_n_s']:g} N s" + ("" if p["survived"] else ", fell")
+        arrow = {"arrowstyle": "-|>", "color": MARK_COLOR, "lw": 2.0}
+        ax.annotate(text, (x, y), (x - 0.25 * u[0], y - 0.25 * u[1]), color=MARK_COLOR, fontsize=9,
+                    ha="center", va="center", arrowprops=arrow)
+    if pushes:
+        ax.plot([], [], color=MARK_COLOR, lw=2.0, label="push on the pelvis (at the CoM's place)")
 
 
 def _shade_phases(ax: Any, t: np.ndarray, phase: np.ndarray, stance: np.ndarray) -> None:
