@@ -58,7 +58,7 @@ from mbctl.jobs.g1_walk_choices import (
 from mbctl.jobs.g1_walk_course import CourseWalker, parse_waypoints
 from mbctl.jobs.g1_walk_displacement import displacement_values, path_length
 from mbctl.jobs.g1_walk_log import WalkLog
-from mbctl.jobs.g1_walk_push import FIRST_PUSH_S, PUSH_HOLD_S, PUSH_PERIOD_S, PhasePushes
+from mbctl.jobs.g1_walk_push import PUSH_HOLD_S, PhasePushes, pushes_duration_s
 from mbctl.jobs.g1_wbc import check_scenario_and_duration
 from mbctl.jobs.model_options import ModelOptions, build_models
 from mbctl.jobs.plant import Plant, PlantOptions, dry_run, plant_lines, prepare_plant, report_plant
@@ -179,7 +179,7 @@ class WalkParams:
         if self.duration is not None:
             return self.duration
         if self.scenario == "push" and self.direction is not None:
-            return FIRST_PUSH_S + PUSH_PERIOD_S + 1.0
+            return pushes_duration_s(1)
         return DEFAULT_DURATION_S[self.scenario]
 
     @property
@@ -361,6 +361,13 @@ def _run(ctx: RunContext, params: WalkParams, robot: Robot, walker: WalkingContr
     return outcome
 
 
+def _unapplied(v: dict[str, Any], time_s: float) -> str:
+    """What a run too short for its pushes left out, and the duration that takes them all."""
+    left, n = v["pushes_planned"] - v["pushes_applied"], v["pushes_planned"]
+    return (f"; {left} not applied: the run ended at {time_s:.2f} s before they were due ({n} pushes need "
+            f"--duration {pushes_duration_s(n):g} or more)") if left else ""
+
+
 def _triple(command: VelocityCommand) -> str:
     return ",".join(f"{x:.3g}" for x in command)
 
@@ -415,7 +422,7 @@ def _outcome(params: WalkParams, v: dict[str, Any], time_s: float) -> Outcome:
                   + "; ".join(f"{p['direction_deg']:g} deg at {p['time_s']:.2f} s, {p['phase']}: "
                               f"{'survived' if p['survived'] else 'FELL'}, recovered in "
                               f"{p['recovery_steps'] if p['recovery_steps'] is not None else 'n/a'} steps"
-                              for p in v["pushes"]) + ")",)
+                              for p in v["pushes"]) + ")" + _unapplied(v, time_s),)
         bound = "no fall, every push survived"
     elif params.scenario == "course":
         reached = [w["reached_at_s"] for w in v["waypoints"] if w["reached_at_s"] is not None]

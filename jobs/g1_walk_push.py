@@ -38,6 +38,11 @@ PUSH_PERIOD_S = 3.0
 RECOVERED_M = 0.02
 
 
+def pushes_duration_s(n: int) -> float:
+    """The walk [s] that applies ``n`` pushes and judges the last (walking starts within 1 s)."""
+    return FIRST_PUSH_S + n * PUSH_PERIOD_S + 1.0
+
+
 @dataclass
 class PushRecord:
     """One push and what followed (report values).

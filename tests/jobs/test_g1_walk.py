@@ -13,7 +13,9 @@ from hypothesis import strategies as st
 
 from mbctl.control.exceptions import WBCSetupError
 from mbctl.jobs.g1_walk import WalkParams, g1_walk_params, parse_speed, prepare
+from mbctl.jobs.g1_walk_choices import WALK_DEFAULT_DURATION_S
 from mbctl.jobs.g1_walk_displacement import commanded_path, displacement_values, turn_along
+from mbctl.jobs.g1_walk_push import pushes_duration_s
 from mbctl.jobs.runner import Job, run_job
 from mbctl.planners import VelocityCommand
 
@@ -176,8 +178,12 @@ def test_a_push_waits_for_its_gait_phase_not_any_cycle_past_it(g1, phase, starts
 
 
 def test_a_push_held_0_08_s_applies_impulse_over_hold_and_reports_it(g1, tmp_path):
-    record = _run(g1, tmp_path, scenario="push", speed="0.3", impulse=8.0, direction=0.0, push_hold=0.08,
-                  duration=3.6)
+    # the eight directions planned, the run long enough for the first (0 deg) only: said, exit 1
+    record = _run(g1, tmp_path, scenario="push", speed="0.3", impulse=8.0, push_hold=0.08, duration=3.6)
+    assert record.exit_code == 1 and record.values["pushes_applied"] == 1
+    assert ("; 7 not applied: the run ended at 3.60 s before they were due (8 pushes need --duration 28 or "
+            "more)") in record.outcome.summary[-1]
+    assert pushes_duration_s(8) == WALK_DEFAULT_DURATION_S["push"]
     (push,) = record.values["pushes"]
     assert (push["impulse_n_s"], push["hold_s"]) == (8.0, 0.08)
     assert push["force_n"] == pytest.approx(100.0) and push["survived"] is True
