@@ -91,14 +91,17 @@ def draw_waypoints(ax: Any, waypoints: list[dict[str, Any]]) -> None:
 
 def draw_pushes(ax: Any, c: dict[str, np.ndarray], pushes: list[dict[str, Any]]) -> None:
     """Each push: an arrow in its direction onto the CoM's place at the push, its impulse (and "fell")."""
+    span_m = max(float(np.ptp(c["com_x_m"])), float(np.ptp(c["com_y_m"]))) if len(c["com_x_m"]) else 0.0
+    length_m = max(0.25, 0.07 * span_m)  # readable on a long walk's plot too
     for p in pushes:
         k = min(int(np.searchsorted(c["time_s"], p["time_s"])), len(c["time_s"]) - 1)
         x, y = c["com_x_m"][k], c["com_y_m"][k]
         u = np.array([np.cos(np.radians(p["direction_deg"])), np.sin(np.radians(p["direction_deg"]))])
         text = f"{p['impulse_n_s']:g} N s" + ("" if p["survived"] else ", fell")
         arrow = {"arrowstyle": "-|>", "color": MARK_COLOR, "lw": 2.0}
-        ax.annotate(text, (x, y), (x - 0.25 * u[0], y - 0.25 * u[1]), color=MARK_COLOR, fontsize=9,
-                    ha="center", va="center", arrowprops=arrow)
+        ax.annotate(text, (x, y), (x - length_m * u[0], y - length_m * u[1]), color=MARK_COLOR, fontsize=9,
+                    ha="center", va="center", arrowprops=arrow, zorder=6,
+                    bbox={"boxstyle": "round,pad=0.2", "fc": "w", "ec": MARK_COLOR, "alpha": 0.85})
     if pushes:
         ax.plot([], [], color=MARK_COLOR, lw=2.0, label="push on the pelvis (at the CoM's place)")
 

@@ -44,6 +44,11 @@ def test_a_push_is_an_arrow_onto_the_com_at_its_time_in_its_direction():
     np.testing.assert_allclose(b.xyann, (0.7, 0.0), atol=1e-9)  # from +x: pushed toward -x
     assert a.arrow_patch.get_edgecolor() == pytest.approx(b.arrow_patch.get_edgecolor())
     assert [line.get_color() for line in ax.lines] == [MARK_COLOR]  # one legend entry
+    # on a 10 m walk's plot the arrow is 7 % of it, 0.7 m
+    ax = _axes()
+    draw_pushes(ax, c | {"com_x_m": 5.0 * t}, [{"time_s": 1.0, "direction_deg": 90.0, "impulse_n_s": 15.0,
+                                                "survived": True}])
+    np.testing.assert_allclose(ax.texts[0].xyann, (5.0, -0.7), atol=1e-3)
 
 
 def test_no_waypoints_and_no_pushes_draw_nothing():
