@@ -19,6 +19,8 @@ FOOT_COLORS = ("C0", "C1")
 DOUBLE_COLOR = "0.75"
 #: Colour of the waypoints and pushes (apart from the paths' colours).
 MARK_COLOR = "C4"
+#: The box behind a mark's label (over the footprints and paths).
+LABEL_BOX = {"boxstyle": "round,pad=0.2", "fc": "w", "ec": MARK_COLOR, "alpha": 0.85}
 
 
 def walk_plots(ctx: RunContext, log: WalkLog, walker: WalkingController, params: Any,
@@ -81,8 +83,8 @@ def draw_waypoints(ax: Any, waypoints: list[dict[str, Any]]) -> None:
                     arrowprops={"arrowstyle": "->", "color": color, "lw": 1.5})
         ax.plot(w["x_m"], w["y_m"], marker="o" if reached else "X", ms=9, mfc=color if reached else "w",
                 mec=color, ls="none", zorder=5)
-        ax.annotate(str(i), (w["x_m"], w["y_m"]), textcoords="offset points", xytext=(6, 6), fontsize=9,
-                    color=color, weight="bold")
+        ax.annotate(str(i), (w["x_m"], w["y_m"]), textcoords="offset points", xytext=(8, 8), fontsize=9,
+                    color=color, weight="bold", zorder=6, bbox=LABEL_BOX)
     for reached, label in ((True, "waypoint reached"), (False, "waypoint not reached")):
         if any((w["reached_at_s"] is not None) == reached for w in waypoints):
             ax.plot([], [], marker="o" if reached else "X", ms=8, mfc=MARK_COLOR if reached else "w",
@@ -101,7 +103,7 @@ def draw_pushes(ax: Any, c: dict[str, np.ndarray], pushes: list[dict[str, Any]])
         arrow = {"arrowstyle": "-|>", "color": MARK_COLOR, "lw": 2.0}
         ax.annotate(text, (x, y), (x - length_m * u[0], y - length_m * u[1]), color=MARK_COLOR, fontsize=9,
                     ha="center", va="center", arrowprops=arrow, zorder=6,
-                    bbox={"boxstyle": "round,pad=0.2", "fc": "w", "ec": MARK_COLOR, "alpha": 0.85})
+                    bbox=LABEL_BOX)
     if pushes:
         ax.plot([], [], color=MARK_COLOR, lw=2.0, label="push on the pelvis (at the CoM's place)")
 
