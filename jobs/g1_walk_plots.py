@@ -77,18 +77,20 @@ def _top_view(ctx: RunContext, log: WalkLog, walker: WalkingController, params: 
 def draw_waypoints(ax: Any, waypoints: list[dict[str, Any]]) -> None:
     """A course's waypoints: numbered, an arrow along each one's yaw, a dot when reached, a cross when not."""
     for i, w in enumerate(waypoints, start=1):
-        reached, color = w["reached_at_s"] is not None, MARK_COLOR
-        yaw = np.radians(w["yaw_deg"])
-        ax.annotate("", (w["x_m"] + 0.15 * np.cos(yaw), w["y_m"] + 0.15 * np.sin(yaw)), (w["x_m"], w["y_m"]),
-                    arrowprops={"arrowstyle": "->", "color": color, "lw": 1.5})
-        ax.plot(w["x_m"], w["y_m"], marker="o" if reached else "X", ms=9, mfc=color if reached else "w",
-                mec=color, ls="none", zorder=5)
-        ax.annotate(str(i), (w["x_m"], w["y_m"]), textcoords="offset points", xytext=(8, 8), fontsize=9,
-                    color=color, weight="bold", zorder=6, bbox=LABEL_BOX)
+        x, y, yaw = w["x_m"], w["y_m"], np.radians(w["yaw_deg"])
+        ax.annotate("", (x + 0.15 * np.cos(yaw), y + 0.15 * np.sin(yaw)), (x, y),
+                    arrowprops={"arrowstyle": "->", "color": MARK_COLOR, "lw": 1.5})
+        ax.plot(x, y, ls="none", ms=9, zorder=5, **_waypoint_marker(w["reached_at_s"] is not None))
+        ax.annotate(str(i), (x, y), textcoords="offset points", xytext=(8, 8), fontsize=9, color=MARK_COLOR,
+                    weight="bold", zorder=6, bbox=LABEL_BOX)
     for reached, label in ((True, "waypoint reached"), (False, "waypoint not reached")):
         if any((w["reached_at_s"] is not None) == reached for w in waypoints):
-            ax.plot([], [], marker="o" if reached else "X", ms=8, mfc=MARK_COLOR if reached else "w",
-                    mec=MARK_COLOR, ls="none", label=label)
+            ax.plot([], [], ls="none", ms=8, label=label, **_waypoint_marker(reached))
+
+
+def _waypoint_marker(reached: bool) -> dict[str, Any]:
+    """A dot when reached, a hollow cross when not."""
+    return {"marker": "o" if reached else "X", "mfc": MARK_COLOR if reached else "w", "mec": MARK_COLOR}
 
 
 def draw_pushes(ax: Any, c: dict[str, np.ndarray], pushes: list[dict[str, Any]]) -> None:
@@ -102,8 +104,7 @@ def draw_pushes(ax: Any, c: dict[str, np.ndarray], pushes: list[dict[str, Any]])
         text = f"{p['impulse_n_s']:g} N s" + ("" if p["survived"] else ", fell")
         arrow = {"arrowstyle": "-|>", "color": MARK_COLOR, "lw": 2.0}
         ax.annotate(text, (x, y), (x - length_m * u[0], y - length_m * u[1]), color=MARK_COLOR, fontsize=9,
-                    ha="center", va="center", arrowprops=arrow, zorder=6,
-                    bbox=LABEL_BOX)
+                    ha="center", va="center", arrowprops=arrow, zorder=6, bbox=LABEL_BOX)
     if pushes:
         ax.plot([], [], color=MARK_COLOR, lw=2.0, label="push on the pelvis (at the CoM's place)")
 
