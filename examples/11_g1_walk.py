@@ -30,7 +30,7 @@ import numpy as np
 
 from mbctl.control import run
 from mbctl.control.wbc import WalkingController, WBCConfig, quick_gait
-from mbctl.robots import ModelFileError, ModelNotFoundError, load_robot
+from mbctl.robots import ModelFileError, ModelNotFoundError, load_robot, quat_xyzw_yaw
 from mbctl.robots.edits import position_to_motor
 from mbctl.robots.g1 import FEET, G1_FALL, KEYFRAME, PELVIS, TORSO, crouched_start
 from mbctl.robots.interface import RobotState
@@ -71,12 +71,6 @@ class JoystickWalker:
         return self.walker.compute(state)
 
 
-def yaw_of(q: np.ndarray) -> float:
-    """The base's heading [rad] from its quaternion (x, y, z, w) in q[3:7]."""
-    x, y, z, w = q[3:7]
-    return math.atan2(2.0 * (w * z + x * y), 1.0 - 2.0 * (y * y + z * z))
-
-
 def main() -> int:
     """Walk the joystick's commands for --duration seconds; 0 if the G1 stayed up."""
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
@@ -105,7 +99,7 @@ def main() -> int:
               on_step=lambda k, state, reference, command: monitor.fall_reason is not None)
     start, end = log.q[0], sim.read_state().q
     moved = np.hypot(*(end[:2] - start[:2]))
-    turned = math.degrees(math.remainder(yaw_of(end) - yaw_of(start), 2 * math.pi))
+    turned = math.degrees(math.remainder(quat_xyzw_yaw(end[3:7]) - quat_xyzw_yaw(start[3:7]), 2 * math.pi))
     print(f"walked {log.t_s[-1] - log.t_s[0]:.2f} s: {walker.steps} steps, pelvis moved {moved:.3f} m, "
           f"turned {turned:.1f} deg")
     print(f"last command applied: {tuple(round(v, 3) for v in walker.command.applied)} "

@@ -23,6 +23,7 @@ from mbctl.control.exceptions import WBCSetupError
 from mbctl.control.wbc import WalkingController
 from mbctl.planners import VelocityCommand, WaypointFollower
 from mbctl.robots.commands import Command
+from mbctl.robots.conventions import quat_xyzw_yaw
 from mbctl.robots.interface import RobotState
 
 #: A course of about 10 m: (x [m], y [m], yaw [deg]).
@@ -72,8 +73,7 @@ def parse_waypoints(text: str | None) -> np.ndarray:
 
 def pose_of(q: np.ndarray) -> np.ndarray:
     """The base's (x [m], y [m], yaw [rad]) from q (its quaternion (x, y, z, w) in q[3:7])."""
-    x, y, z, w = q[3:7]
-    return np.array([q[0], q[1], math.atan2(2.0 * (w * z + x * y), 1.0 - 2.0 * (y * y + z * z))])
+    return np.array([q[0], q[1], quat_xyzw_yaw(q[3:7])])
 
 
 def capped(command: np.ndarray, caps: VelocityCommand) -> np.ndarray:

@@ -11,9 +11,9 @@ import math
 from typing import Any
 
 import numpy as np
-import pinocchio as pin
 
 from mbctl.planners import VelocityCommand
+from mbctl.robots.conventions import quat_xyzw_yaw
 
 
 def commanded_path(t: np.ndarray, command: VelocityCommand, yaw0: float) -> tuple[np.ndarray, float]:
@@ -39,29 +39,24 @@ def path_length(t_s: np.ndarray, q: np.ndarray, period_s: float) -> float:
     return float(np.linalg.norm(np.diff(q[rows, :2], axis=0), axis=1).sum())
 
 
-def _yaw(q: np.ndarray) -> float:
-    """The base's yaw [rad] (Z-Y-X) from a configuration in Pinocchio's order."""
-    return float(pin.rpy.matrixToRpy(pin.Quaternion(q[6], q[3], q[4], q[5]).matrix())[2])
-
-
 def turn_along(q_path: np.ndarray) -> float:
     """The base's turn [rad] along configurations (rows, nq) in Pinocchio's order, unwrapped row to row."""
     if len(q_path) < 2:
         return 0.0
-    x, y, z, w = q_path[:, 3], q_path[:, 4], q_path[:, 5], q_path[:, 6]
-    yaw = np.unwrap(np.arctan2(2 * (w * z + x * y), 1 - 2 * (y * y + z * z)))  # Z-Y-X yaw, as matrixToRpy
+    yaw = np.unwrap(quat_xyzw_yaw(q_path[:, 3:7]))
     return float(yaw[-1] - yaw[0])
 
 
 def displacement_values(q0: np.ndarray, q1: np.ndarray, t: np.ndarray, command: VelocityCommand | None,
-                  q_path: np.ndarray) -> dict[str, Any]:
+                        q_path: np.ndarray) -> dict[str, Any]:
     """The pelvis's displacement and turn, against the command's (None: a course, whose command is not one).
 
     The turn is ``q0`` to ``q1``, unwrapped by the turn along the loop's logged path ``q_path``.
     """
     d = q1[:2] - q0[:2]
     along = turn_along(q_path)
-    turned = math.remainder(_yaw(q1) - _yaw(q0) - along, 2 * math.pi) + along
+    yaw0, yaw1 = float(quat_xyzw_yaw(q0[3:7])), float(quat_xyzw_yaw(q1[3:7]))
+    turned = math.remainder(yaw1 - yaw0 - along, 2 * math.pi) + along
     duration = float(t[-1] - t[0]) if len(t) > 1 else 0.0
     values = {
         "distance_m": float(np.linalg.norm(d)),
@@ -72,7 +67,7 @@ def displacement_values(q0: np.ndarray, q1: np.ndarray, t: np.ndarray, command: 
     }
     if command is None:
         return values
-    cmd, cmd_yaw = commanded_path(t, command, _yaw(q0))
+    cmd, cmd_yaw = commanded_path(t, command, yaw0)
     length = float(np.linalg.norm(cmd))
     return values | {
         "commanded_displacement_m": cmd.tolist(),

@@ -31,6 +31,7 @@ from mbctl.control.wbc import WalkingController
 from mbctl.jobs.log_sums import nan_max, nan_min
 from mbctl.jobs.runner import RunContext
 from mbctl.jobs.state_fall import StateFallWatch
+from mbctl.robots.conventions import quat_xyzw_yaw
 from mbctl.robots.g1 import FEET
 from mbctl.robots.interface import RobotState
 from mbctl.sim.monitor import PlantMonitor
@@ -147,7 +148,7 @@ class WalkLog:
         s, sol = w.status, w.wbc.solution
         row = self._rows[self._row]
         q = state.q
-        yaw = math.atan2(2.0 * (q[6] * q[5] + q[3] * q[4]), 1.0 - 2.0 * (q[4] ** 2 + q[5] ** 2))
+        yaw = quat_xyzw_yaw(q[3:7])
         com = mon.com_W if mon is not None else w.wbc.state.com()
         t, phase = state.time_s, PHASES[s.phase]
         (dx, dy), (rx, ry) = s.dcm.tolist(), s.dcm_ref.tolist()

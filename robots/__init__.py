@@ -10,6 +10,7 @@ from mbctl.robots.conventions import (
     VelocityMaps,
     quat_wxyz_to_xyzw,
     quat_xyzw_to_wxyz,
+    quat_xyzw_yaw,
 )
 from mbctl.robots.edits import position_to_motor, weld_base
 from mbctl.robots.exceptions import (
@@ -63,6 +64,7 @@ __all__ = [
     "position_to_motor",
     "quat_wxyz_to_xyzw",
     "quat_xyzw_to_wxyz",
+    "quat_xyzw_yaw",
     "resolve_pairs",
     "torque",
     "velocity_target",

@@ -23,6 +23,7 @@ joint and identity elsewhere. Therefore:
 
 from __future__ import annotations
 
+import math
 from collections.abc import Sequence
 from dataclasses import dataclass
 
@@ -52,6 +53,19 @@ def quat_xyzw_to_wxyz(quat_xyzw: npt.ArrayLike) -> np.ndarray:
     """Reorder quaternions (..., 4) from (x, y, z, w) to (w, x, y, z) (a new array)."""
     q = np.asarray(quat_xyzw, dtype=float)
     return q[..., list(WXYZ_FROM_XYZW)]
+
+
+def quat_xyzw_yaw(quat_xyzw: npt.ArrayLike) -> float | np.ndarray:
+    """Yaw [rad] (Z-Y-X, as ``pin.rpy.matrixToRpy``) of unit quaternions (4,) or (k, 4) (x, y, z, w).
+
+    One quaternion gives a float (plain floats: cheap in a loop's cycle), k give an array (k,).
+    """
+    q = np.asarray(quat_xyzw, dtype=float)
+    if q.ndim == 1:
+        x, y, z, w = q.tolist()
+        return math.atan2(2.0 * (w * z + x * y), 1.0 - 2.0 * (y * y + z * z))
+    x, y, z, w = q.T
+    return np.arctan2(2.0 * (w * z + x * y), 1.0 - 2.0 * (y * y + z * z))
 
 
 def rotation_from_quat_xyzw(quat_xyzw: npt.ArrayLike) -> np.ndarray:

@@ -10,7 +10,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from hypothesis.extra.numpy import arrays
 
-from mbctl.robots import StateError, quat_wxyz_to_xyzw, quat_xyzw_to_wxyz
+from mbctl.robots import StateError, quat_wxyz_to_xyzw, quat_xyzw_to_wxyz, quat_xyzw_yaw
 from mbctl.robots.conventions import rotation_from_quat_xyzw
 
 finite = st.floats(-1e3, 1e3, allow_nan=False)
@@ -142,3 +142,18 @@ def test_batched_velocity_maps_match_the_per_state_conversions(g1):
     cols = np.r_[np.repeat([iv, iv + 1, iv + 2], 4), 10, 20]
     packed = maps.right_packed(J[:, :, :, :].transpose(0, 2, 1, 3)[:, :, frames, cols].copy(), [(0, 4)])
     np.testing.assert_allclose(packed, right.transpose(0, 2, 1, 3)[:, :, frames, cols], atol=1e-14)
+
+
+@settings(max_examples=50)
+@given(arrays(float, (6, 4), elements=st.floats(-1.0, 1.0)))
+def test_quat_xyzw_yaw_is_pinocchio_s_rpy_yaw_for_one_and_for_rows(raw):
+    quats = raw[np.linalg.norm(raw, axis=1) > 0.1]
+    quats = quats / np.linalg.norm(quats, axis=1, keepdims=True)
+    expected = [pin.rpy.matrixToRpy(pin.Quaternion(w, x, y, z).matrix())[2] for x, y, z, w in quats]
+    got = [quat_xyzw_yaw(q) for q in quats]
+    assert all(isinstance(g, float) for g in got)
+    # matrixToRpy picks the other of its two solutions only at pitch +-90 deg, where yaw is undefined
+    pitch = [pin.rpy.matrixToRpy(pin.Quaternion(w, x, y, z).matrix())[1] for x, y, z, w in quats]
+    regular = np.abs(np.cos(pitch)) > 1e-3
+    np.testing.assert_allclose(np.array(got)[regular], np.array(expected)[regular], atol=1e-9)
+    np.testing.assert_allclose(quat_xyzw_yaw(quats), np.array(got), rtol=0, atol=1e-15)
